@@ -1,0 +1,1 @@
+"""vcjax: virtually constrained motion control of underwater vehicles, in JAX."""

@@ -1,0 +1,83 @@
+"""Eager (pre-compilation) input validation.
+
+Every public constructor of parameters calls these in plain Python, so a user sees a ``ValueError``
+that names the offending field before anything is traced or compiled. Inside ``jit`` the arrays
+are tracers and the checks are skipped (health is then reported as data by the rollout).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = [
+    "is_concrete",
+    "check_array",
+    "check_finite",
+    "check_positive",
+    "check_spd",
+]
+
+
+def is_concrete(x) -> bool:
+    """True when ``x`` holds concrete values (not a JAX tracer)."""
+    try:
+        np.asarray(x)
+    except Exception:  # jax raises TracerArrayConversionError
+        return False
+    return True
+
+
+def check_array(name: str, x, shape: Sequence[int | None] | None = None) -> np.ndarray | None:
+    """Check shape (``None`` entries match any size) and finiteness; return a numpy view.
+
+    Returns ``None`` (and checks nothing) when ``x`` is a tracer.
+    """
+    if not is_concrete(x):
+        return None
+    a = np.asarray(x)
+    if shape is not None:
+        ok = a.ndim == len(shape) and all(s is None or s == d for s, d in zip(shape, a.shape))
+        if not ok:
+            want = "(" + ", ".join("?" if s is None else str(s) for s in shape) + ")"
+            raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
+    if not np.issubdtype(a.dtype, np.number) and a.dtype != np.bool_:
+        raise ValueError(f"{name}: expected a numeric array, got dtype {a.dtype}")
+    if np.issubdtype(a.dtype, np.inexact) and not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: contains NaN or inf values: {a}")
+    return a
+
+
+def check_finite(name: str, x) -> None:
+    """Raise if a concrete array (or pytree leaf) contains NaN/inf."""
+    check_array(name, x, None)
+
+
+def check_positive(name: str, x, shape: Sequence[int | None] | None = None, strict=True) -> None:
+    """Every entry must be > 0 (or >= 0 when ``strict=False``)."""
+    a = check_array(name, x, shape)
+    if a is None:
+        return
+    bad = a <= 0 if strict else a < 0
+    if np.any(bad):
+        rel = "> 0" if strict else ">= 0"
+        raise ValueError(f"{name}: every entry must be {rel}, got {a}")
+
+
+def check_spd(name: str, M, n: int | None = None, rtol: float = 1e-8) -> None:
+    """``M`` must be a square, symmetric, positive-definite matrix (of size ``n`` if given)."""
+    a = check_array(name, M, (n, n))
+    if a is None:
+        return
+    if a.shape[0] != a.shape[1]:
+        raise ValueError(f"{name}: expected a square matrix, got shape {a.shape}")
+    scale = max(float(np.max(np.abs(a))), 1e-300)
+    if not np.allclose(a, a.T, rtol=0.0, atol=rtol * scale):
+        asym = float(np.max(np.abs(a - a.T)))
+        raise ValueError(f"{name}: matrix is not symmetric (max |M - M^T| = {asym:.3g})")
+    eig = np.linalg.eigvalsh(0.5 * (a + a.T))
+    if eig[0] <= 0:
+        raise ValueError(
+            f"{name}: matrix is not positive definite (smallest eigenvalue {eig[0]:.3g})"
+        )
