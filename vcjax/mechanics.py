@@ -1,0 +1,344 @@
+"""Generic virtually-constrained-motion (VCM) engine (paper Sections 2–3, SPEC §2).
+
+The engine knows nothing about marine craft. A mechanical system
+
+    M(q) q̈ + n(q, q̇) = τ                                     (1)
+
+is subjected to k holonomic virtual constraints ``G(q, t) = 0`` (4) and m linear-in-velocity
+constraints ``K = A(q, t) q̇ + B(q, t) = 0`` (6). They are unified and stabilised Baumgarte-style:
+
+    Φ = [K; Ġ + P_G G] = W q̇ + a                              (11)–(13)
+    Φ̇ + P_Φ Φ = 0   ⇔   W q̈ = −h,   h = Ẇ q̇ + ȧ + P_Φ Φ      (14)
+
+and the control force is the constraint's reaction force, either from Lagrange multipliers when
+W has full row rank (16), or from the pseudo-inverse when W has full column rank (17).
+
+``W = ∂Φ/∂q̇`` and ``Ẇq̇ + ȧ = ∂Φ/∂q · q̇ + ∂Φ/∂t`` are computed by JAX autodiff (one ``jacfwd``
+and one ``jvp``); users never differentiate constraints by hand. All solves use Cholesky or QR
+factorisations, never explicit inverses. Rank and conditioning of W and the residual of (14) are
+returned as data (:class:`Diagnostics`), never raised inside ``jit``.
+
+Usage::
+
+    system = MechanicalSystem(mass_matrix=M_fn, bias_force=n_fn)        # static
+    cons = VirtualConstraints(holonomic=G_fn, velocity=K_fn)             # static
+    gains = vcm_gains(P_G=[1.0], P_Phi=[2.0, 3.0])                        # traced
+    tau_c, qdd, diag = reaction_force(system, cons, gains, q, qd, t, tau, args)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any, Literal, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import jax.scipy.linalg as jsl
+import numpy as np
+
+from vcjax._checks import check_array, is_concrete
+
+__all__ = [
+    "MechanicalSystem",
+    "VirtualConstraints",
+    "VCMGains",
+    "vcm_gains",
+    "ConstraintTerms",
+    "Diagnostics",
+    "constraint_terms",
+    "reaction_force",
+    "constrained_acceleration",
+    "from_body_frame",
+    "Method",
+]
+
+Method = Literal["auto", "row", "column"]
+
+
+@dataclasses.dataclass(frozen=True)
+class MechanicalSystem:
+    """Static description of ``M(q) q̈ + n(q, q̇) = τ`` (1).
+
+    Attributes:
+        mass_matrix: ``M(q, args) -> (n, n)`` symmetric positive-definite inertia matrix.
+        bias_force: ``n(q, qd, args) -> (n,)`` Coriolis–centripetal, potential and viscous forces.
+    """
+
+    mass_matrix: Callable[[Any, Any], Any]
+    bias_force: Callable[[Any, Any, Any], Any]
+
+
+@dataclasses.dataclass(frozen=True)
+class VirtualConstraints:
+    """Static description of the virtual constraints.
+
+    Attributes:
+        holonomic: ``G(q, t, args) -> (k,)``, the holonomic constraints (4), or ``None``.
+        velocity: ``K(q, qd, t, args) -> (m,)``, linear-in-velocity constraints
+            ``A(q, t) q̇ + B(q, t)`` (6), or ``None``. Must be affine in ``qd``; the engine
+            obtains ``A`` and ``B`` by differentiation.
+
+    Ordering follows the paper: ``Φ = [K; Ġ + P_G G]``, so ``P_Φ`` lists the m velocity rows
+    first, then the k holonomic rows.
+    """
+
+    holonomic: Callable[[Any, Any, Any], Any] | None = None
+    velocity: Callable[[Any, Any, Any, Any], Any] | None = None
+
+    def __post_init__(self):
+        if self.holonomic is None and self.velocity is None:
+            raise ValueError("VirtualConstraints: give at least one of `holonomic`, `velocity`")
+
+
+class VCMGains(NamedTuple):
+    """Stabilisation gains (traced).
+
+    Attributes:
+        P_G: (k,) diagonal or (k, k) positive-definite gain of the holonomic rows (11).
+            Use shape (0,) when there are no holonomic constraints.
+        P_Phi: (m+k,) diagonal or (m+k, m+k) positive-definite gain of (14).
+    """
+
+    P_G: Any
+    P_Phi: Any
+
+
+def _check_gain(name: str, P) -> None:
+    a = check_array(name, P)
+    if a is None:
+        return
+    if a.ndim == 1:
+        if np.any(a <= 0):
+            raise ValueError(f"{name}: every diagonal gain must be > 0, got {a}")
+    elif a.ndim == 2 and a.shape[0] == a.shape[1]:
+        if a.size and np.linalg.eigvalsh(0.5 * (a + a.T))[0] <= 0:
+            raise ValueError(f"{name}: gain matrix must be positive definite")
+    else:
+        raise ValueError(f"{name}: expected shape (p,) or (p, p), got {a.shape}")
+
+
+def vcm_gains(P_G, P_Phi) -> VCMGains:
+    """Build validated :class:`VCMGains` (eager: raises ``ValueError`` before any compilation)."""
+    P_G = jnp.asarray(P_G)
+    P_Phi = jnp.asarray(P_Phi)
+    _check_gain("P_G", P_G)
+    _check_gain("P_Phi", P_Phi)
+    return VCMGains(P_G=P_G, P_Phi=P_Phi)
+
+
+def _apply(P, x):
+    """``P x`` for a diagonal (vector) or full (matrix) gain."""
+    return P * x if P.ndim == 1 else P @ x
+
+
+class ConstraintTerms(NamedTuple):
+    """Unified constraint quantities at one ``(q, q̇, t)``; p = m + k rows.
+
+    Attributes:
+        Phi: (p,) unified constraint function Φ (12).
+        W: (p, n) constraint Jacobian W = ∂Φ/∂q̇.
+        h: (p,) ``Ẇ q̇ + ȧ + P_Φ Φ``; (14) reads ``W q̈ = −h``.
+        G: (k,) holonomic constraint values.
+        K: (m,) velocity constraint values.
+    """
+
+    Phi: Any
+    W: Any
+    h: Any
+    G: Any
+    K: Any
+
+
+def constraint_terms(cons: VirtualConstraints, gains: VCMGains, q, qd, t, args=None):
+    """Evaluate Φ, W and h by autodiff (one ``jacfwd`` over q̇, one ``jvp`` over (q, t))."""
+    t = jnp.asarray(t, dtype=q.dtype)
+
+    def parts(q, qd, t):
+        K = cons.velocity(q, qd, t, args) if cons.velocity is not None else jnp.zeros((0,), q.dtype)
+        if cons.holonomic is not None:
+            G, G_dot = jax.jvp(
+                lambda q_, t_: cons.holonomic(q_, t_, args), (q, t), (qd, jnp.ones_like(t))
+            )
+            Phi_G = G_dot + _apply(gains.P_G, G)
+        else:
+            G = jnp.zeros((0,), q.dtype)
+            Phi_G = G
+        return jnp.concatenate([jnp.atleast_1d(K), jnp.atleast_1d(Phi_G)]), (K, G)
+
+    (Phi, (K, G)), (Phi_dot_free, _) = jax.jvp(
+        lambda q_, t_: parts(q_, qd, t_), (q, t), (qd, jnp.ones_like(t))
+    )
+    # Φ is affine in q̇: W = ∂Φ/∂q̇ exactly (a jacfwd of an affine map).
+    W = jax.jacfwd(lambda qd_: parts(q, qd_, t)[0])(qd)
+    h = Phi_dot_free + _apply(gains.P_Phi, Phi)
+    return ConstraintTerms(Phi=Phi, W=W, h=h, G=jnp.atleast_1d(G), K=jnp.atleast_1d(K))
+
+
+class Diagnostics(NamedTuple):
+    """Health of the constraint solve, returned as data.
+
+    Attributes:
+        Phi: (p,) unified constraint function.
+        G: (k,) holonomic constraint values.
+        K: (m,) velocity constraint values.
+        rank: () int, numerical rank of W (SVD, tolerance ``max(p, n) * eps * s_max``).
+        cond: () 2-norm condition number of W (``inf`` if rank-deficient).
+        full_rank: () bool, ``rank == min(p, n)``.
+        residual: () ``‖W q̈ + h‖``: 0 in the full-row-rank case, the least-squares residual
+            in the over-determined case (17).
+    """
+
+    Phi: Any
+    G: Any
+    K: Any
+    rank: Any
+    cond: Any
+    full_rank: Any
+    residual: Any
+
+
+def _rank_cond(W):
+    W = jax.lax.stop_gradient(W)
+    s = jnp.linalg.svd(W, compute_uv=False)
+    p, n = W.shape
+    tol = max(p, n) * jnp.finfo(W.dtype).eps * s[0]
+    rank = jnp.sum(s > tol)
+    s_min = s[-1]
+    cond = jnp.where(s_min > tol, s[0] / jnp.where(s_min > tol, s_min, 1.0), jnp.inf)
+    return rank, cond, rank == min(p, n)
+
+
+def _resolve_method(method: Method, p: int, n: int) -> str:
+    if method == "auto":
+        return "row" if p <= n else "column"
+    if method not in ("row", "column"):
+        raise ValueError(f"method: expected 'auto', 'row' or 'column', got {method!r}")
+    if method == "row" and p > n:
+        raise ValueError(f"method='row' needs m+k <= n, got {p} constraints for {n} DOF")
+    if method == "column" and p < n:
+        raise ValueError(f"method='column' needs m+k >= n, got {p} constraints for {n} DOF")
+    return method
+
+
+def constrained_acceleration(M, n_vec, tau, W, h, method: Method = "auto"):
+    """Solve the constrained forward dynamics for given matrices.
+
+    Args:
+        M: (n, n) inertia matrix, SPD.
+        n_vec: (n,) bias force n(q, q̇).
+        tau: (n,) impressed (non-control) generalised force.
+        W: (p, n) constraint Jacobian.
+        h: (p,) ``Ẇ q̇ + ȧ + P_Φ Φ``.
+        method: ``"row"`` uses (16) (needs p <= n), ``"column"`` uses (17) (needs p >= n),
+            ``"auto"`` chooses from the (static) shapes.
+
+    Returns:
+        ``(tau_c, qdd)``: (n,) reaction (control) force and (n,) resulting acceleration
+        ``q̈ = M⁻¹(τ + τ_c − n)``.
+    """
+    p, n = W.shape
+    method = _resolve_method(method, p, n)
+    f = tau - n_vec
+    if method == "row":
+        # (16): W M⁻¹ Wᵀ λ = W M⁻¹ (τ − n) + h,  τ_c = −Wᵀ λ.
+        cM = jsl.cho_factor(M, lower=True)
+        Minv_WT = jsl.cho_solve(cM, W.T)
+        Minv_f = jsl.cho_solve(cM, f)
+        S = W @ Minv_WT
+        lam = jsl.cho_solve(jsl.cho_factor(S, lower=True), W @ Minv_f + h)
+        tau_c = -W.T @ lam
+        qdd = Minv_f - Minv_WT @ lam
+    else:
+        # (17): τ_c = n − τ − M W† h, W† h computed by a reduced QR (least squares).
+        Q, R = jnp.linalg.qr(W, mode="reduced")
+        qdd = -jsl.solve_triangular(R, Q.T @ h, lower=False)
+        tau_c = M @ qdd - f
+    return tau_c, qdd
+
+
+def reaction_force(
+    system: MechanicalSystem,
+    cons: VirtualConstraints,
+    gains: VCMGains,
+    q,
+    qd,
+    t,
+    tau=None,
+    args=None,
+    method: Method = "auto",
+):
+    """VCM control force: the reaction force of the virtual constraints (16)/(17).
+
+    Args:
+        system: the (design) model ``M(q)``, ``n(q, q̇)``.
+        cons: the virtual constraints.
+        gains: ``P_G``, ``P_Φ``.
+        q: (n,) generalised coordinates.
+        qd: (n,) generalised velocities.
+        t: () time [s].
+        tau: (n,) impressed generalised force other than the control (default 0).
+        args: any pytree passed through to the model and constraint functions.
+        method: see :func:`constrained_acceleration`.
+
+    Returns:
+        ``(tau_c, qdd, diagnostics)``: (n,) control force, (n,) acceleration it produces on the
+        design model, and :class:`Diagnostics`.
+    """
+    if tau is None:
+        tau = jnp.zeros_like(q)
+    terms = constraint_terms(cons, gains, q, qd, t, args)
+    M = system.mass_matrix(q, args)
+    n_vec = system.bias_force(q, qd, args)
+    tau_c, qdd = constrained_acceleration(M, n_vec, tau, terms.W, terms.h, method)
+    rank, cond, full = _rank_cond(terms.W)
+    residual = jnp.linalg.norm(terms.W @ qdd + terms.h)
+    diag = Diagnostics(
+        Phi=terms.Phi,
+        G=terms.G,
+        K=terms.K,
+        rank=rank,
+        cond=cond,
+        full_rank=full,
+        residual=residual,
+    )
+    return tau_c, qdd, diag
+
+
+def from_body_frame(
+    body_mass_matrix: Callable, body_bias_force: Callable, kinematics: Callable
+) -> MechanicalSystem:
+    """Express a quasi-velocity model in generalised coordinates.
+
+    Given ``M_b(q) ν̇ + n_b(q, ν) = τ_b`` with ``q̇ = J(q) ν`` (J invertible), returns the
+    :class:`MechanicalSystem` of (1) with ``M(q) = J⁻ᵀ M_b J⁻¹`` and
+    ``n(q, q̇) = J⁻ᵀ (n_b(q, ν) − M_b J⁻¹ J̇ ν)``, ``ν = J⁻¹ q̇``; generalised forces map as
+    ``τ = J⁻ᵀ τ_b``. ``J̇`` comes from a ``jvp`` of ``J`` along ``q̇``.
+
+    Args:
+        body_mass_matrix: ``M_b(q, args) -> (n, n)``.
+        body_bias_force: ``n_b(q, nu, args) -> (n,)``.
+        kinematics: ``J(q, args) -> (n, n)``.
+    """
+
+    def mass_matrix(q, args):
+        J = kinematics(q, args)
+        Jinv_T = jnp.linalg.solve(J.T, jnp.eye(J.shape[0], dtype=J.dtype))
+        M = Jinv_T @ body_mass_matrix(q, args) @ Jinv_T.T
+        return 0.5 * (M + M.T)
+
+    def bias_force(q, qd, args):
+        J, J_dot = jax.jvp(lambda q_: kinematics(q_, args), (q,), (qd,))
+        nu = jnp.linalg.solve(J, qd)
+        Mb = body_mass_matrix(q, args)
+        rhs = body_bias_force(q, nu, args) - Mb @ jnp.linalg.solve(J, J_dot @ nu)
+        return jnp.linalg.solve(J.T, rhs)
+
+    return MechanicalSystem(mass_matrix=mass_matrix, bias_force=bias_force)
+
+
+def check_state(q, qd, n: int | None = None) -> None:
+    """Eager check of an initial state: shapes ``(n,)`` and finite values."""
+    if is_concrete(q):
+        check_array("q", q, (n,))
+        check_array("qd", qd, (np.asarray(q).shape[0],))
