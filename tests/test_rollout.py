@@ -1,0 +1,173 @@
+"""Rollout: no retrace on new traced values, sampled vs continuous timing, health flags,
+checkpointing, float32."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from vcjax.rollout import RolloutConfig, rollout
+
+TRACES = {"n": 0}
+
+
+def plant(t, x, u, p):
+    """Mass-spring-damper, force input; p = (k, c)."""
+    TRACES["n"] += 1  # side effect runs at trace time only
+    return jnp.stack([x[1], -p[0] * x[0] - p[1] * x[1] + u])
+
+
+def pd_controller(t, x, z, gains):
+    """PD with an integral state z (z_dot = position error)."""
+    kp, kd, ki = gains
+    u = -kp * x[0] - kd * x[1] - ki * z
+    return u, x[0], {"u": u}
+
+
+run = jax.jit(rollout, static_argnames=("plant", "controller", "config"))
+
+
+def test_new_gains_and_dt_reuse_the_compiled_function():
+    cfg = RolloutConfig(num_steps=50)
+    x0 = jnp.array([1.0, 0.0])
+    run(
+        plant,
+        pd_controller,
+        cfg,
+        jnp.array([1.0, 0.1]),
+        jnp.array([2.0, 1.0, 0.1]),
+        x0,
+        jnp.array(0.0),
+        0.01,
+    )
+    n = TRACES["n"]
+    assert n > 0
+    for k in range(3):
+        traj = run(
+            plant,
+            pd_controller,
+            cfg,
+            jnp.array([1.0 + k, 0.2]),
+            jnp.array([3.0 + k, 1.0, 0.2]),
+            x0 + k,
+            jnp.array(0.5),
+            0.02 + 0.01 * k,
+        )
+        traj.t.block_until_ready()
+    assert TRACES["n"] == n, "new traced values must not retrace"
+    assert np.isclose(float(traj.t[-1]), 50 * 0.04)
+
+
+def test_linear_closed_loop_matches_matrix_exponential():
+    # continuous PD on a linear plant: x(t) = expm(A t) x0 exactly (to RK4 accuracy)
+    k, c, kp, kd = 2.0, 0.3, 1.5, 0.8
+    cfg = RolloutConfig(num_steps=200)
+    traj = run(
+        plant,
+        pd_controller,
+        cfg,
+        jnp.array([k, c]),
+        jnp.array([kp, kd, 0.0]),
+        jnp.array([1.0, -0.5]),
+        jnp.array(0.0),
+        0.01,
+    )
+    A = np.array([[0.0, 1.0], [-(k + kp), -(c + kd)]])
+    w, V = np.linalg.eig(A)
+    x_T = (V @ np.diag(np.exp(w * 2.0)) @ np.linalg.solve(V, [1.0, -0.5])).real
+    np.testing.assert_allclose(traj.x[-1], x_T, atol=1e-9)
+    assert traj.x.shape == (201, 2) and traj.u.shape == (200,) and traj.aux["u"].shape == (200,)
+
+
+def test_sampled_controller_converges_to_continuous_first_order():
+    x0, z0 = jnp.array([1.0, 0.0]), jnp.array(0.0)
+    pp, gg = jnp.array([2.0, 0.3]), jnp.array([1.5, 0.8, 0.4])
+    T = 2.0
+    ref = run(plant, pd_controller, RolloutConfig(num_steps=400), pp, gg, x0, z0, T / 400).x[-1]
+    errs = []
+    for n in (50, 100, 200):
+        cfg = RolloutConfig(num_steps=n, timing="sampled")
+        errs.append(
+            float(
+                jnp.linalg.norm(run(plant, pd_controller, cfg, pp, gg, x0, z0, T / n).x[-1] - ref)
+            )
+        )
+    ratios = np.array(errs[:-1]) / np.array(errs[1:])
+    assert errs[0] > 1e-4  # sampling is visible
+    assert np.all(np.abs(ratios - 2.0) < 0.3), (errs, ratios)  # zero-order hold: O(dt)
+
+
+def test_divergence_is_flagged_and_state_frozen():
+    blow = lambda t, x, u, p: x**2  # x(t) = 1/(1 - t): blows up at t = 1
+    ctrl = lambda t, x, z, p: (jnp.zeros(()), z, None)
+    traj = run(
+        blow,
+        ctrl,
+        RolloutConfig(num_steps=200, integrator="euler"),
+        None,
+        None,
+        jnp.array([1.0]),
+        jnp.zeros(0),
+        0.01,
+    )
+    finite = np.asarray(traj.finite)
+    assert not finite.all() and finite[:50].all()
+    assert np.all(np.isfinite(traj.x))
+
+
+def test_checkpoint_gives_same_gradient():
+    def loss(gains, checkpoint):
+        cfg = RolloutConfig(num_steps=100, checkpoint=checkpoint)
+        traj = rollout(
+            plant,
+            pd_controller,
+            cfg,
+            jnp.array([2.0, 0.3]),
+            gains,
+            jnp.array([1.0, 0.0]),
+            jnp.array(0.0),
+            0.02,
+        )
+        return jnp.sum(traj.x[:, 0] ** 2)
+
+    g = jnp.array([1.5, 0.8, 0.4])
+    a = jax.jit(jax.grad(loss), static_argnums=1)(g, False)
+    b = jax.jit(jax.grad(loss), static_argnums=1)(g, True)
+    np.testing.assert_allclose(a, b, rtol=1e-12)
+
+
+def test_float32_rollout_close_to_float64():
+    args = dict(plant_params=jnp.array([2.0, 0.3]), ctrl_params=jnp.array([1.5, 0.8, 0.4]))
+    cfg = RolloutConfig(num_steps=100)
+    t64 = run(
+        plant,
+        pd_controller,
+        cfg,
+        args["plant_params"],
+        args["ctrl_params"],
+        jnp.array([1.0, 0.0]),
+        jnp.array(0.0),
+        0.02,
+    )
+    f32 = lambda a: jnp.asarray(a, jnp.float32)
+    t32 = run(
+        plant,
+        pd_controller,
+        cfg,
+        f32(args["plant_params"]),
+        f32(args["ctrl_params"]),
+        f32([1.0, 0.0]),
+        f32(0.0),
+        0.02,
+    )
+    assert t32.x.dtype == jnp.float32 and t32.t.dtype == jnp.float32
+    np.testing.assert_allclose(t32.x, t64.x, atol=1e-5)
+
+
+def test_config_validation():
+    with pytest.raises(ValueError, match="num_steps"):
+        RolloutConfig(num_steps=0)
+    with pytest.raises(ValueError, match="timing"):
+        RolloutConfig(num_steps=10, timing="discrete")
+    with pytest.raises(ValueError, match="unknown integrator"):
+        RolloutConfig(num_steps=10, integrator="dopri5")
