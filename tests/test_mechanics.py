@@ -328,3 +328,37 @@ def test_rollout_cost_gradient_matches_finite_differences():
 @pytest.mark.slow
 def test_rollout_cost_gradient_fwd_and_rev_full_constraint_set():
     _gradient_check(ARM_CONS, jnp.array([2.0, 1.5, 3.0]), modes=("rev", "fwd"))
+
+
+def test_constraints_on_an_auxiliary_state_decay_exactly():
+    """G depends on a particle z with z_dot = f(q, z): Φ still decays as exp(-P_Φ t)."""
+
+    def target(z):
+        return CENTER + RADIUS * jnp.stack([jnp.cos(z[0]), jnp.sin(z[0])])
+
+    def G(q, t, p, z):
+        return arm_end_effector(q, p) - target(z)
+
+    def rate(q, t, z, p):  # depends on the arm's state and on z itself
+        return jnp.atleast_1d(0.6 + 0.3 * jnp.sin(q[0]) * jnp.cos(z[0]))
+
+    cons = VirtualConstraints(holonomic=G, state_rate=rate)
+    pG, pPhi = np.array([2.0, 1.0]), np.array([1.5, 3.0])
+    gains = vcm_gains(P_G=pG, P_Phi=pPhi)
+    p = arm_params()
+
+    def controller(t, x, z, ctrl):
+        q, qd = x
+        tau_c, _, diag = reaction_force(TWO_LINK_ARM, cons, ctrl, q, qd, t, None, p, z=z)
+        return tau_c, rate(q, t, z, p), diag
+
+    cfg = RolloutConfig(num_steps=2000, integrator="rk4")
+    run = jax.jit(rollout, static_argnames=("plant", "controller", "config"))
+    traj = run(arm_plant, controller, cfg, p, gains, ARM_Q0, jnp.array([0.3]), 1e-3)
+    t = np.asarray(traj.t[:-1])
+    Phi = np.asarray(traj.aux.Phi)
+    assert np.all(np.abs(Phi[0]) > 0.05)
+    rel = np.max(np.abs(Phi - Phi[0] * np.exp(-np.outer(t, pPhi)))) / np.max(np.abs(Phi[0]))
+    assert rel < 1e-6, rel
+    with pytest.raises(ValueError, match="auxiliary state"):
+        reaction_force(TWO_LINK_ARM, cons, gains, ARM_Q0[0], ARM_Q0[1], 0.0, None, p)

@@ -78,13 +78,19 @@ class VirtualConstraints:
         velocity: ``K(q, qd, t, args) -> (m,)``, linear-in-velocity constraints
             ``A(q, t) q̇ + B(q, t)`` (6), or ``None``. Must be affine in ``qd``; the engine
             obtains ``A`` and ``B`` by differentiation.
+        state_rate: optional ``z_dot(q, t, z, args)``. When given, the constraints may also
+            depend on an auxiliary (controller) state ``z`` that evolves as ``ż = z_dot(q, t, z)``
+            — e.g. a path particle — and take it as a trailing argument: ``G(q, t, args, z)``,
+            ``K(q, qd, t, args, z)``. ``z_dot`` must not depend on ``q̇``; time derivatives then
+            follow ``z`` along its flow (``∂/∂t → ∂/∂t + ż·∂/∂z``).
 
     Ordering follows the paper: ``Φ = [K; Ġ + P_G G]``, so ``P_Φ`` lists the m velocity rows
     first, then the k holonomic rows.
     """
 
-    holonomic: Callable[[Any, Any, Any], Any] | None = None
-    velocity: Callable[[Any, Any, Any, Any], Any] | None = None
+    holonomic: Callable[..., Any] | None = None
+    velocity: Callable[..., Any] | None = None
+    state_rate: Callable[..., Any] | None = None
 
     def __post_init__(self):
         if self.holonomic is None and self.velocity is None:
@@ -150,27 +156,42 @@ class ConstraintTerms(NamedTuple):
     K: Any
 
 
-def constraint_terms(cons: VirtualConstraints, gains: VCMGains, q, qd, t, args=None):
-    """Evaluate Φ, W and h by autodiff (one ``jacfwd`` over q̇, one ``jvp`` over (q, t))."""
-    t = jnp.asarray(t, dtype=q.dtype)
+def constraint_terms(cons: VirtualConstraints, gains: VCMGains, q, qd, t, args=None, z=None):
+    """Evaluate Φ, W and h by autodiff (one ``jacfwd`` over q̇, one ``jvp`` over (q, t, z)).
 
-    def parts(q, qd, t):
-        K = cons.velocity(q, qd, t, args) if cons.velocity is not None else jnp.zeros((0,), q.dtype)
-        if cons.holonomic is not None:
-            G, G_dot = jax.jvp(
-                lambda q_, t_: cons.holonomic(q_, t_, args), (q, t), (qd, jnp.ones_like(t))
-            )
+    ``z`` is the auxiliary state of ``cons.state_rate`` (ignored when that is ``None``).
+    """
+    t = jnp.asarray(t, dtype=q.dtype)
+    if cons.state_rate is None:
+        z = jnp.zeros((0,), q.dtype)
+        G_fn = None if cons.holonomic is None else lambda q, t, z: cons.holonomic(q, t, args)
+        K_fn = None if cons.velocity is None else lambda q, qd, t, z: cons.velocity(q, qd, t, args)
+        rate = lambda q, t, z: z
+    else:
+        if z is None:
+            raise ValueError("constraint_terms: these constraints need the auxiliary state `z`")
+        G_fn = None if cons.holonomic is None else lambda q, t, z: cons.holonomic(q, t, args, z)
+        K_fn = (
+            None if cons.velocity is None else lambda q, qd, t, z: cons.velocity(q, qd, t, args, z)
+        )
+        rate = lambda q, t, z: cons.state_rate(q, t, z, args)
+
+    def parts(q, qd, t, z):
+        K = K_fn(q, qd, t, z) if K_fn is not None else jnp.zeros((0,), q.dtype)
+        if G_fn is not None:
+            G, G_dot = jax.jvp(G_fn, (q, t, z), (qd, jnp.ones_like(t), rate(q, t, z)))
             Phi_G = G_dot + _apply(gains.P_G, G)
         else:
             G = jnp.zeros((0,), q.dtype)
             Phi_G = G
         return jnp.concatenate([jnp.atleast_1d(K), jnp.atleast_1d(Phi_G)]), (K, G)
 
+    # Total time derivative of Φ at fixed q̇ (q̈ = 0): Ẇ q̇ + ȧ = Φ_q q̇ + Φ_t + Φ_z ż.
     (Phi, (K, G)), (Phi_dot_free, _) = jax.jvp(
-        lambda q_, t_: parts(q_, qd, t_), (q, t), (qd, jnp.ones_like(t))
+        lambda q_, t_, z_: parts(q_, qd, t_, z_), (q, t, z), (qd, jnp.ones_like(t), rate(q, t, z))
     )
     # Φ is affine in q̇: W = ∂Φ/∂q̇ exactly (a jacfwd of an affine map).
-    W = jax.jacfwd(lambda qd_: parts(q, qd_, t)[0])(qd)
+    W = jax.jacfwd(lambda qd_: parts(q, qd_, t, z)[0])(qd)
     h = Phi_dot_free + _apply(gains.P_Phi, Phi)
     return ConstraintTerms(Phi=Phi, W=W, h=h, G=jnp.atleast_1d(G), K=jnp.atleast_1d(K))
 
@@ -267,6 +288,7 @@ def reaction_force(
     tau=None,
     args=None,
     method: Method = "auto",
+    z=None,
 ):
     """VCM control force: the reaction force of the virtual constraints (16)/(17).
 
@@ -280,6 +302,7 @@ def reaction_force(
         tau: (n,) impressed generalised force other than the control (default 0).
         args: any pytree passed through to the model and constraint functions.
         method: see :func:`constrained_acceleration`.
+        z: auxiliary state for constraints with a ``state_rate`` (see :class:`VirtualConstraints`).
 
     Returns:
         ``(tau_c, qdd, diagnostics)``: (n,) control force, (n,) acceleration it produces on the
@@ -287,7 +310,7 @@ def reaction_force(
     """
     if tau is None:
         tau = jnp.zeros_like(q)
-    terms = constraint_terms(cons, gains, q, qd, t, args)
+    terms = constraint_terms(cons, gains, q, qd, t, args, z)
     M = system.mass_matrix(q, args)
     n_vec = system.bias_force(q, qd, args)
     tau_c, qdd = constrained_acceleration(M, n_vec, tau, terms.W, terms.h, method)
