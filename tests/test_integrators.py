@@ -33,7 +33,7 @@ def run(name, dt, T):
 def test_rk4_matches_analytic_exponential():
     f = lambda t, y, a: (-y, None)
     y = jnp.array(1.0)
-    for k in range(100):
+    for _ in range(100):
         y, _ = get_integrator("rk4")(f, 0.0, y, 0.01, None)
     assert abs(float(y) - decay_exact(1.0)) < 1e-10  # RK4 global error ~ dt^4 / 120
 

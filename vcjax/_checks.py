@@ -38,7 +38,9 @@ def check_array(name: str, x, shape: Sequence[int | None] | None = None) -> np.n
         return None
     a = np.asarray(x)
     if shape is not None:
-        ok = a.ndim == len(shape) and all(s is None or s == d for s, d in zip(shape, a.shape))
+        ok = a.ndim == len(shape) and all(
+            s is None or s == d for s, d in zip(shape, a.shape, strict=True)
+        )
         if not ok:
             want = "(" + ", ".join("?" if s is None else str(s) for s in shape) + ")"
             raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
