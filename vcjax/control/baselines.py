@@ -1,0 +1,184 @@
+"""Baseline path-following controllers the paper compares against (Section 4.2), in the same
+harness as the VCM law (same path particle (22), design model, plants and metrics).
+
+* LOS-PID (39): LOS heading ``psi_d = psi_p + atan(-e / Delta)`` tracked by a model-based heading
+  PD, plus cross-track PID terms in the yaw moment,
+  ``tau_r = tau_n,r - m33 (k_ed e_dot + k_ep e + k_ei int e)``;
+* ILOS (40): integral LOS, ``psi_r = atan(-(e + sigma_i e_int) / Delta)`` with the
+  Børhaug–Pettersen integral law ``e_int_dot = Delta e / ((e + sigma_i e_int)^2 + Delta^2)``,
+  tracked by the same heading PD.
+
+Both use a model-based surge-speed loop ``tau_u = n_u + m11 (u_d_dot - k_u (u - u_d))``, are
+underactuated (``tau_v`` is the rudder's own sway force ``k_rudder tau_r``), and take every gain
+as a traced parameter. The heading PD ``tau_n,r = n_r + m33 (psi_p_ddot - k_psi_d psi~_dot -
+k_psi_p psi~)`` defaults to the same characteristic polynomial as the VCM heading error (37).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Literal, NamedTuple
+
+import jax.numpy as jnp
+
+from vcjax._checks import check_positive
+from vcjax.guidance import los_angle, path_kinematics
+from vcjax.linalg import wrap_angle
+from vcjax.paths import path_frame
+from vcjax.vehicles import design3dof as d3
+
+__all__ = [
+    "BaselineGains",
+    "baseline_gains",
+    "BaselineParams",
+    "baseline_params",
+    "BaselineConfig",
+    "BaselineState",
+    "baseline_state",
+    "BaselineAux",
+    "baseline_law",
+]
+
+
+class BaselineGains(NamedTuple):
+    """Gains of the LOS-PID / ILOS baselines (traced).
+
+    Attributes:
+        Delta: () look-ahead distance [m].
+        sigma: () particle-speed gain [1/s] (as in the VCM law).
+        k_u: () surge-speed gain [1/s].
+        k_psi_p, k_psi_d: () heading PD gains [1/s^2, 1/s].
+        k_ep, k_ed, k_ei: () cross-track PID gains of (39), normalised by m33
+            [rad/(s^2 m), rad/(s m), rad/(s^3 m)] (LOS-PID only).
+        sigma_i: () ILOS integral gain of (40) [-] (ILOS only).
+    """
+
+    Delta: Any
+    sigma: Any
+    k_u: Any
+    k_psi_p: Any
+    k_psi_d: Any
+    k_ep: Any
+    k_ed: Any
+    k_ei: Any
+    sigma_i: Any
+
+
+def baseline_gains(
+    Delta=5.0,
+    sigma=0.5,
+    k_u=1.0,
+    k_psi_p=2.0,
+    k_psi_d=3.0,
+    k_ep=0.01,
+    k_ed=0.05,
+    k_ei=0.001,
+    sigma_i=0.4,
+) -> BaselineGains:
+    """Validated :class:`BaselineGains`; every gain > 0 except the cross-track PID ones (>= 0)."""
+    vals = dict(Delta=Delta, sigma=sigma, k_u=k_u, k_psi_p=k_psi_p, k_psi_d=k_psi_d)
+    for name, v in vals.items():
+        check_positive(name, v, ())
+    for name, v in dict(k_ep=k_ep, k_ed=k_ed, k_ei=k_ei, sigma_i=sigma_i).items():
+        check_positive(name, v, (), strict=False)
+    f = lambda x: jnp.asarray(x, dtype=float)
+    return BaselineGains(
+        *(f(x) for x in (Delta, sigma, k_u, k_psi_p, k_psi_d, k_ep, k_ed, k_ei, sigma_i))
+    )
+
+
+class BaselineParams(NamedTuple):
+    """Traced parameters: gains, design model, desired speed, rudder sway ratio, path coeffs."""
+
+    gains: BaselineGains
+    model: Any
+    u_d: Any
+    k_rudder: Any
+    int_limit: Any
+    path: Any
+
+
+def baseline_params(gains, model, path, u_d=2.0, k_rudder=0.0, int_limit=50.0) -> BaselineParams:
+    """Validated :class:`BaselineParams`."""
+    check_positive("u_d", u_d, ())
+    check_positive("int_limit", int_limit, ())
+    f = lambda x: jnp.asarray(x, dtype=float)
+    return BaselineParams(gains, model, f(u_d), f(k_rudder), f(int_limit), path)
+
+
+@dataclasses.dataclass(frozen=True)
+class BaselineConfig:
+    """Static: the path kind and which baseline (``"los_pid"`` or ``"ilos"``)."""
+
+    path: Any
+    kind: Literal["los_pid", "ilos"] = "ilos"
+
+    def __post_init__(self):
+        if self.kind not in ("los_pid", "ilos"):
+            raise ValueError(f"kind: 'los_pid' or 'ilos', got {self.kind!r}")
+
+
+class BaselineState(NamedTuple):
+    """``varpi`` (path particle) and ``e_int`` (the cross-track integral state)."""
+
+    varpi: Any
+    e_int: Any
+
+
+def baseline_state(varpi0=0.0, e_int0=0.0) -> BaselineState:
+    f = lambda x: jnp.asarray(x, dtype=float)
+    return BaselineState(f(varpi0), f(e_int0))
+
+
+class BaselineAux(NamedTuple):
+    """Recorded signals (same names as the VCM law's where they mean the same)."""
+
+    eps: Any
+    eps_dot: Any
+    u_tilde: Any
+    psi_tilde: Any
+    psi_d: Any
+    tau: Any
+
+
+def baseline_law(cfg: BaselineConfig, params: BaselineParams, t, eta, nu, z: BaselineState):
+    """LOS-PID (39) or ILOS (40); returns ``(tau (3,), z_dot, aux)`` like the VCM law."""
+    g = params.gains
+    m = params.model
+    frame = path_frame(cfg.path, params.path, z.varpi)
+    u_d = params.u_d
+    kin = path_kinematics(frame, eta, nu, u_d, g.sigma)
+    e, e_dot = kin.eps[1], kin.eps_dot[1]
+    zero = jnp.zeros_like(e)
+    if cfg.kind == "ilos":
+        E = e + g.sigma_i * z.e_int
+        e_int_dot = g.Delta * e / (E**2 + g.Delta**2)
+        E_dot = e_dot + g.sigma_i * e_int_dot
+        psi_r = jnp.arctan(-E / g.Delta)
+        psi_r_dot = -g.Delta * E_dot / (g.Delta**2 + E**2)
+        extra = zero
+    else:
+        los = los_angle(e, e_dot, zero, g.Delta)
+        psi_r, psi_r_dot = los.psi_r, los.psi_r_dot
+        clipped = jnp.clip(z.e_int, -params.int_limit, params.int_limit)
+        e_int_dot = e - (z.e_int - clipped)  # back-calculation anti-windup
+        extra = g.k_ed * e_dot + g.k_ep * e + g.k_ei * z.e_int
+    psi_d = kin.psi_p + psi_r
+    psi_tilde = wrap_angle(eta[2] - psi_d)
+    psi_tilde_dot = nu[2] - (kin.psi_p_dot + psi_r_dot)
+    n_b = d3.body_bias(m, nu)
+    u_dot_cmd = -g.k_u * (nu[0] - u_d)
+    r_dot_cmd = kin.psi_p_ddot - g.k_psi_d * psi_tilde_dot - g.k_psi_p * psi_tilde - extra
+    tau_u = n_b[0] + m.m11 * u_dot_cmd
+    tau_r = n_b[2] + m.m33 * r_dot_cmd
+    tau = jnp.stack([tau_u, params.k_rudder * tau_r, tau_r])
+    z_dot = BaselineState(varpi=kin.varpi_dot, e_int=e_int_dot)
+    aux = BaselineAux(
+        eps=kin.eps,
+        eps_dot=kin.eps_dot,
+        u_tilde=nu[0] - u_d,
+        psi_tilde=psi_tilde,
+        psi_d=psi_d,
+        tau=tau,
+    )
+    return tau, z_dot, aux

@@ -1,0 +1,455 @@
+"""Parametric paths ``p_p(w)`` and their frames (paper eq. (21); SPEC §3).
+
+A path is two things, kept apart like every other part of vcjax:
+
+* a static :class:`Path` — the *kind* of curve, a pure function ``fn(w, coeffs) -> (3,)`` position
+  in NED [m] (hashable, so a jitted rollout compiles once per kind);
+* its traced coefficients ``coeffs`` (any pytree of arrays), so that moving a line, resizing a
+  circle or a helix, or changing waypoint positions never recompiles.
+
+Every constructor returns the pair ``(path, coeffs)``::
+
+    path, coeffs = paths.line(origin=(10.0, 0.0), direction=(0.0, 1.0))
+    frame = paths.path_frame(path, coeffs, w)
+
+Kinds: :func:`line`, :func:`circle`, :func:`helix`, :func:`waypoints` (a C² cubic spline through
+user waypoints, parametrised by chord length) and :func:`custom` (any user callable ``p_p(w)``).
+The paper's two paths are :func:`paper_line` (Simulation 1, ``[10, w]``) and :func:`paper_helix`
+(Simulation 2, ``[10 sin(w/5), 8 cos(w/5), 0.1 w - 100]``).
+
+The azimuth ``psi_p = atan2(y', x')`` and elevation ``theta_p = atan2(-z', ||p_bar'||)`` (21) and
+their ``w``-derivatives come from JAX autodiff of ``fn`` (nested ``jvp``); nobody differentiates
+a path by hand. The 2-D guidance needs the horizontal tangent ``p_bar'(w)`` to be non-zero: every
+constructor samples the path over a range of ``w`` and raises a ``ValueError`` if it vanishes
+there (e.g. a vertical segment, or a user curve with a cusp). Inside ``jit`` the division by
+``||p_bar'||`` is floored, so a bad path never yields NaN gradients; :attr:`PathFrame.regular`
+reports it as data.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from vcjax._checks import check_array, check_positive
+
+__all__ = [
+    "Path",
+    "PathFrame",
+    "path_frame",
+    "path_point",
+    "validate_path",
+    "line",
+    "circle",
+    "helix",
+    "waypoints",
+    "custom",
+    "paper_line",
+    "paper_helix",
+    "LINE",
+    "CIRCLE",
+    "HELIX",
+    "SPLINE",
+    "MIN_TANGENT",
+]
+
+#: Smallest admissible horizontal tangent length ``||p_bar'(w)||`` (relative to the path's
+#: typical tangent length) accepted by :func:`validate_path`.
+MIN_TANGENT = 1e-6
+
+
+@dataclasses.dataclass(frozen=True)
+class Path:
+    """Static path kind: ``fn(w, coeffs) -> (3,)`` NED position [m] of the point at parameter w.
+
+    Attributes:
+        fn: the curve; must be smooth (at least C³ where it is used: ``psi_p''`` needs ``p'''``).
+        name: a label for plots and messages.
+    """
+
+    fn: Callable[[Any, Any], Any]
+    name: str = "path"
+
+
+class PathFrame(NamedTuple):
+    """The path and its frame at one parameter value ``w`` (scalars unless noted).
+
+    Attributes:
+        w: () path parameter.
+        p: (3,) position ``p_p(w)`` [m]; p_bar: (2,) its horizontal projection.
+        dp_dw: (3,) tangent ``p_p'(w)``.
+        psi_p, dpsi_dw, d2psi_dw2: azimuth (21) [rad] and its first two w-derivatives.
+        theta_p, dtheta_dw: elevation (21) [rad] and its w-derivative.
+        speed_bar, dspeed_bar_dw: ``||p_bar'(w)||`` and its w-derivative; (22) reads
+            ``w_dot = ubar_p / speed_bar``.
+        z_p, dz_dw, d2z_dw2: depth of the path [m] and its w-derivatives (for depth loops).
+        regular: () bool, ``speed_bar`` above the floor (False: the frame is not defined there).
+    """
+
+    w: Any
+    p: Any
+    p_bar: Any
+    dp_dw: Any
+    psi_p: Any
+    dpsi_dw: Any
+    d2psi_dw2: Any
+    theta_p: Any
+    dtheta_dw: Any
+    speed_bar: Any
+    dspeed_bar_dw: Any
+    z_p: Any
+    dz_dw: Any
+    d2z_dw2: Any
+    regular: Any
+
+
+def path_point(path: Path, coeffs, w):
+    """(3,) position ``p_p(w)``; 2-D curves are lifted to z = 0."""
+    p = jnp.asarray(path.fn(w, coeffs))
+    if p.shape == (2,):
+        p = jnp.concatenate([p, jnp.zeros((1,), p.dtype)])
+    if p.shape != (3,):
+        raise ValueError(f"path {path.name!r}: fn must return shape (2,) or (3,), got {p.shape}")
+    return p
+
+
+def path_frame(path: Path, coeffs, w) -> PathFrame:
+    """Evaluate the path and its frame (21) at ``w`` by autodiff (jit/vmap/grad-safe)."""
+    w = jnp.asarray(w)
+    if not jnp.issubdtype(w.dtype, jnp.floating):
+        w = w.astype(jnp.result_type(float))
+
+    def tangent(w_):
+        return jax.jvp(lambda a: path_point(path, coeffs, a), (w_,), (jnp.ones_like(w_),))
+
+    (p, dp), (_, d2p) = jax.jvp(tangent, (w,), (jnp.ones_like(w),))
+    tiny = jnp.asarray(MIN_TANGENT, w.dtype)
+
+    def angles(w_):
+        _, d = tangent(w_)
+        hx, hy = d[0], d[1]
+        sq = hx * hx + hy * hy
+        ok = sq > tiny * tiny
+        # double-where: atan2/sqrt are never evaluated at the zero vector (no NaN gradients)
+        hx_s = jnp.where(ok, hx, jnp.ones_like(hx))
+        hy_s = jnp.where(ok, hy, jnp.zeros_like(hy))
+        sb = jnp.sqrt(jnp.where(ok, sq, tiny * tiny))
+        return jnp.stack([jnp.arctan2(hy_s, hx_s), sb, jnp.arctan2(-d[2], sb)]), ok
+
+    def angles_d(w_):
+        return jax.jvp(lambda a: angles(a)[0], (w_,), (jnp.ones_like(w_),))
+
+    (a0, a1), (_, a2) = jax.jvp(angles_d, (w,), (jnp.ones_like(w),))
+    ok = angles(w)[1]
+    return PathFrame(
+        w=w,
+        p=p,
+        p_bar=p[:2],
+        dp_dw=dp,
+        psi_p=a0[0],
+        dpsi_dw=a1[0],
+        d2psi_dw2=a2[0],
+        theta_p=a0[2],
+        dtheta_dw=a1[2],
+        speed_bar=a0[1],
+        dspeed_bar_dw=a1[1],
+        z_p=p[2],
+        dz_dw=dp[2],
+        d2z_dw2=d2p[2],
+        regular=ok,
+    )
+
+
+def validate_path(path: Path, coeffs, w_range=(-50.0, 50.0), num: int = 401) -> None:
+    """Eagerly check a path: finite values and a non-vanishing horizontal tangent on ``w_range``.
+
+    Raises:
+        ValueError: naming the path and the first ``w`` where ``||p_bar'(w)||`` vanishes (or where
+            the path is not finite).
+    """
+    w0, w1 = (float(x) for x in w_range)
+    if not (np.isfinite(w0) and np.isfinite(w1) and w1 > w0):
+        raise ValueError(f"path {path.name!r}: w_range must be finite with w0 < w1, got {w_range}")
+    ws = jnp.linspace(w0, w1, num)
+
+    def tangent(w_):
+        return jax.jvp(lambda a: path_point(path, coeffs, a), (w_,), (jnp.ones_like(w_),))
+
+    try:
+        p, dp = jax.vmap(tangent)(ws)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"path {path.name!r}: cannot evaluate p_p(w): {err}") from None
+    p, dp = np.asarray(p), np.asarray(dp)
+    bad = ~np.all(np.isfinite(p), axis=1) | ~np.all(np.isfinite(dp), axis=1)
+    if np.any(bad):
+        w_bad = float(ws[int(np.argmax(bad))])
+        raise ValueError(f"path {path.name!r}: p_p or its derivative is not finite at w = {w_bad}")
+    sb = np.hypot(dp[:, 0], dp[:, 1])
+    scale = max(float(np.median(np.linalg.norm(dp, axis=1))), 1.0)
+    small = sb <= MIN_TANGENT * scale
+    if np.any(small):
+        w_bad = float(ws[int(np.argmax(small))])
+        raise ValueError(
+            f"path {path.name!r}: the horizontal derivative p_bar'(w) vanishes at w = {w_bad:.6g} "
+            f"(|p_bar'| = {sb[int(np.argmax(small))]:.3g}); the azimuth psi_p and the particle "
+            "speed (22) are undefined there. Reparametrise the path or avoid vertical segments."
+        )
+
+
+def _vec(name, x, n=None, dtype=None):
+    a = check_array(name, x, (n,) if n is not None else None)
+    dt = dtype or jnp.result_type(float)
+    return jnp.asarray(a if a is not None else x, dtype=dt)
+
+
+def _lift3(name, x):
+    a = np.asarray(x, dtype=float)
+    if a.shape == (2,):
+        a = np.concatenate([a, [0.0]])
+    check_array(name, a, (3,))
+    return a
+
+
+# ------------------------------------------------------------------------------------ line
+
+
+class LineCoeffs(NamedTuple):
+    """``p(w) = origin + w * direction`` (direction a unit vector: w is arc length)."""
+
+    origin: Any  # (3,)
+    direction: Any  # (3,)
+
+
+def _line_fn(w, c: LineCoeffs):
+    return c.origin + w * c.direction
+
+
+#: Straight line kind (coefficients :class:`LineCoeffs`).
+LINE = Path(_line_fn, "line")
+
+
+def line(origin=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0)):
+    """A straight line through ``origin`` along ``direction`` (2- or 3-vectors, NED [m]).
+
+    ``direction`` is normalised, so ``w`` is arc length. A vertical line is rejected (no
+    horizontal tangent).
+    """
+    o = _lift3("origin", origin)
+    d = _lift3("direction", direction)
+    n = np.linalg.norm(d)
+    if n == 0:
+        raise ValueError("direction: must be a non-zero vector")
+    coeffs = LineCoeffs(_vec("origin", o, 3), _vec("direction", d / n, 3))
+    validate_path(LINE, coeffs, (-1.0, 1.0), num=3)
+    return LINE, coeffs
+
+
+def paper_line():
+    """Simulation 1's path ``p_p(w) = [10, w]`` (a line x = 10 m heading east)."""
+    return line(origin=(10.0, 0.0, 0.0), direction=(0.0, 1.0, 0.0))
+
+
+# ---------------------------------------------------------------------------------- circle
+
+
+class CircleCoeffs(NamedTuple):
+    """``p(w) = center + radius [cos(phi), sign sin(phi), 0]``, ``phi = phase + w / radius``."""
+
+    center: Any  # (3,)
+    radius: Any  # ()
+    sign: Any  # () +1 clockwise seen from above in NED (north -> east), -1 counter-clockwise
+    phase: Any  # () [rad]
+
+
+def _circle_fn(w, c: CircleCoeffs):
+    phi = c.phase + w / c.radius
+    return c.center + c.radius * jnp.stack(
+        [jnp.cos(phi), c.sign * jnp.sin(phi), jnp.zeros_like(phi)]
+    )
+
+
+#: Circle kind (coefficients :class:`CircleCoeffs`).
+CIRCLE = Path(_circle_fn, "circle")
+
+
+def circle(center=(0.0, 0.0, 0.0), radius=10.0, clockwise=True, phase=0.0):
+    """A horizontal circle, parametrised by arc length ``w`` [m].
+
+    ``clockwise`` is as seen from above on a north-up, east-right chart (NED: a right turn,
+    positive yaw rate).
+    """
+    check_positive("radius", radius, ())
+    check_array("phase", phase, ())
+    c = _lift3("center", center)
+    coeffs = CircleCoeffs(
+        _vec("center", c, 3),
+        _vec("radius", radius),
+        _vec("sign", 1.0 if clockwise else -1.0),
+        _vec("phase", phase),
+    )
+    validate_path(CIRCLE, coeffs, (0.0, 2 * np.pi * float(radius)))
+    return CIRCLE, coeffs
+
+
+# ----------------------------------------------------------------------------------- helix
+
+
+class HelixCoeffs(NamedTuple):
+    """``p(w) = center + [a sin(w / T + phase), b cos(w / T + phase), climb w]``."""
+
+    center: Any  # (3,)
+    a: Any  # () semi-axis along north [m]
+    b: Any  # () semi-axis along east [m]
+    T: Any  # () parameter scale [m/rad]
+    climb: Any  # () dz/dw (positive: deeper, NED)
+    phase: Any  # () [rad]
+
+
+def _helix_fn(w, c: HelixCoeffs):
+    phi = w / c.T + c.phase
+    return c.center + jnp.stack([c.a * jnp.sin(phi), c.b * jnp.cos(phi), c.climb * w])
+
+
+#: Helix kind (coefficients :class:`HelixCoeffs`), elliptic in general.
+HELIX = Path(_helix_fn, "helix")
+
+
+def helix(center=(0.0, 0.0, 0.0), a=10.0, b=10.0, T=5.0, climb=0.1, phase=0.0):
+    """An (elliptic) helix ``center + [a sin(w/T + phase), b cos(w/T + phase), climb w]``.
+
+    With ``a = b`` and ``T = a`` it is a circular helix parametrised by horizontal arc length.
+    """
+    for name, v in dict(a=a, b=b, T=T).items():
+        check_positive(name, v, ())
+    check_array("climb", climb, ())
+    check_array("phase", phase, ())
+    c = _lift3("center", center)
+    coeffs = HelixCoeffs(
+        _vec("center", c, 3),
+        _vec("a", a),
+        _vec("b", b),
+        _vec("T", T),
+        _vec("climb", climb),
+        _vec("phase", phase),
+    )
+    validate_path(HELIX, coeffs, (0.0, 2 * np.pi * float(T)))
+    return HELIX, coeffs
+
+
+def paper_helix():
+    """Simulation 2's helix ``p_p(w) = [10 sin(w/5), 8 cos(w/5), 0.1 w - 100]``."""
+    return helix(center=(0.0, 0.0, -100.0), a=10.0, b=8.0, T=5.0, climb=0.1)
+
+
+# --------------------------------------------------------------------------- cubic spline
+
+
+class SplineCoeffs(NamedTuple):
+    """Piecewise cubic ``p(w) = c0 + c1 d + c2 d^2 + c3 d^3``, ``d = w - knots[i]`` on piece i.
+
+    Attributes:
+        knots: (n,) parameter at each waypoint (cumulative chord length [m]).
+        c: (n - 1, 4, 3) polynomial coefficients of each piece.
+    """
+
+    knots: Any
+    c: Any
+
+
+def _spline_fn(w, c: SplineCoeffs):
+    n = c.knots.shape[0]
+    i = jnp.clip(jnp.searchsorted(c.knots, w, side="right") - 1, 0, n - 2)
+    d = w - c.knots[i]
+    k = c.c[i]
+    return k[0] + d * (k[1] + d * (k[2] + d * k[3]))
+
+
+#: Cubic-spline kind (coefficients :class:`SplineCoeffs`).
+SPLINE = Path(_spline_fn, "waypoints")
+
+
+def _natural_cubic(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(n-1, 4) coefficients of the natural cubic spline through ``(t, y)`` (C², y''(ends) = 0)."""
+    n = t.size
+    h = np.diff(t)
+    A = np.zeros((n, n))
+    rhs = np.zeros(n)
+    A[0, 0] = A[-1, -1] = 1.0
+    for i in range(1, n - 1):
+        A[i, i - 1] = h[i - 1]
+        A[i, i] = 2 * (h[i - 1] + h[i])
+        A[i, i + 1] = h[i]
+        rhs[i] = 3 * ((y[i + 1] - y[i]) / h[i] - (y[i] - y[i - 1]) / h[i - 1])
+    c2 = np.linalg.solve(A, rhs)
+    c1 = (y[1:] - y[:-1]) / h - h * (2 * c2[:-1] + c2[1:]) / 3
+    c3 = (c2[1:] - c2[:-1]) / (3 * h)
+    return np.stack([y[:-1], c1, c2[:-1], c3], axis=1)
+
+
+def waypoints(points, extend: float = 0.0):
+    """A C² natural cubic spline through waypoints, parametrised by cumulative chord length.
+
+    Args:
+        points: (n, 2) or (n, 3) waypoints, NED [m], n >= 2, consecutive points distinct.
+        extend: not used for interpolation; the path is validated over
+            ``[-extend, length + extend]`` (outside the waypoints the end cubics extrapolate,
+            which is what the particle follows if it overshoots).
+
+    Raises:
+        ValueError: for bad shapes, repeated consecutive waypoints or a spline whose horizontal
+            tangent vanishes between waypoints (e.g. a sharp reversal).
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] not in (2, 3) or pts.shape[0] < 2:
+        raise ValueError(f"points: expected shape (n, 2) or (n, 3) with n >= 2, got {pts.shape}")
+    check_array("points", pts, (None, None))
+    if pts.shape[1] == 2:
+        pts = np.concatenate([pts, np.zeros((pts.shape[0], 1))], axis=1)
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    if np.any(seg <= 0):
+        i = int(np.argmax(seg <= 0))
+        raise ValueError(f"points: waypoints {i} and {i + 1} coincide")
+    knots = np.concatenate([[0.0], np.cumsum(seg)])
+    c = np.stack([_natural_cubic(knots, pts[:, j]) for j in range(3)], axis=2)
+    coeffs = SplineCoeffs(_vec("knots", knots), jnp.asarray(c, dtype=jnp.result_type(float)))
+    check_positive("extend", extend, (), strict=False)
+    validate_path(SPLINE, coeffs, (-float(extend), knots[-1] + float(extend)), num=2001)
+    return SPLINE, coeffs
+
+
+# ---------------------------------------------------------------------------------- custom
+
+
+def custom(fn: Callable, coeffs=None, w_range=(-50.0, 50.0), name: str = "custom"):
+    """Wrap a user curve.
+
+    Args:
+        fn: ``fn(w) -> (2,) or (3,)`` when ``coeffs`` is None, else ``fn(w, coeffs)``; written in
+            ``jax.numpy`` so that it can be differentiated. Keep the function object the same
+            between calls (a module-level function) to reuse compiled rollouts.
+        coeffs: optional pytree of arrays (traced).
+        w_range: the range of ``w`` on which the path will be used; validated eagerly.
+        name: label.
+
+    Raises:
+        ValueError: if the path is not finite or its horizontal tangent vanishes on ``w_range``.
+    """
+    if not callable(fn):
+        raise ValueError(f"fn: expected a callable p_p(w), got {type(fn).__name__}")
+    path = Path(fn if coeffs is not None else _NoCoeffs(fn), name)
+    coeffs = () if coeffs is None else coeffs
+    validate_path(path, coeffs, w_range)
+    return path, coeffs
+
+
+@dataclasses.dataclass(frozen=True)
+class _NoCoeffs:
+    fn: Callable
+
+    def __call__(self, w, coeffs):
+        return self.fn(w)

@@ -1,0 +1,117 @@
+"""Matplotlib figures written by the CLI (Agg backend; files, never windows)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["sim1_figures", "STYLE"]
+
+#: Line styles of the Simulation 1 variants (the paper: solid blue with integral action,
+#: dashed red without).
+STYLE = {
+    "vcm_integral": dict(color="C0", ls="-", label="VCM + integral (41)"),
+    "vcm": dict(color="C3", ls="--", label="VCM (31)/(38)"),
+    "ilos": dict(color="C2", ls="-.", label="ILOS (40)"),
+    "los_pid": dict(color="C1", ls=":", label="LOS + PID yaw (39)"),
+}
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    _plt().close(fig)
+    return path
+
+
+def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
+    """Figures like the paper's Figs. 4–5 for every variant in ``trajs`` (name -> Trajectory)."""
+    plt = _plt()
+    out = Path(out)
+    files = []
+    order = [v for v in STYLE if v in trajs]
+
+    # Fig. 4: paths (north up, east right)
+    fig, ax = plt.subplots(figsize=(7, 6))
+    y_all = np.concatenate([np.asarray(trajs[v].x.eta[:, 1]) for v in order])
+    ax.plot([y_all.min() - 5, y_all.max() + 5], [10, 10], "k-", lw=3, alpha=0.25, label="path")
+    for v in order:
+        eta = np.asarray(trajs[v].x.eta)
+        ax.plot(eta[:, 1], eta[:, 0], **STYLE[v])
+    eta0 = np.asarray(scenario.eta0)
+    ax.plot(eta0[1], eta0[0], "ko", label="start")
+    V_c = np.asarray(scenario.V_c)
+    heading = np.degrees(np.arctan2(V_c[1], V_c[0])) % 360
+    ax.set_title(
+        f"Simulation 1: paths travelled (current {np.hypot(*V_c):.2f} m/s toward {heading:.0f}°)"
+    )
+    ax.set_xlabel("y (east) [m]")
+    ax.set_ylabel("x (north) [m]")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    files.append(_save(fig, out / "sim1_paths.png"))
+
+    # Fig. 5 (left): u and heading error
+    fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    for v in order:
+        tr = trajs[v]
+        t = np.asarray(tr.t[:-1])
+        ax[0].plot(t, np.asarray(tr.x.nu[:-1, 0]), **STYLE[v])
+        ax[1].plot(t, np.degrees(np.asarray(tr.aux.psi_tilde)), **STYLE[v])
+    ax[0].axhline(float(scenario.u_d), color="k", lw=0.8, alpha=0.5)
+    ax[0].set_ylabel("u [m/s]")
+    ax[1].set_ylabel("heading error ψ̃ [deg]")
+    ax[1].set_xlabel("t [s]")
+    ax[0].legend(fontsize=8)
+    for a in ax:
+        a.grid(alpha=0.3)
+    files.append(_save(fig, out / "sim1_speed_heading.png"))
+
+    # Fig. 5 (right): control signals (actual actuator states)
+    fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    for v in order:
+        tr = trajs[v]
+        t = np.asarray(tr.t)
+        act = np.asarray(tr.x.act)
+        ax[0].plot(t, act[:, 0], **STYLE[v])
+        ax[1].plot(t, np.degrees(act[:, 1]), **STYLE[v])
+    vehicle = scenario.vehicle
+    for s in (-1, 1):
+        ax[0].axhline(s * float(vehicle.thrust_max), color="k", lw=0.8, ls="--", alpha=0.5)
+        ax[1].axhline(
+            s * np.degrees(float(vehicle.rudder_max)), color="k", lw=0.8, ls="--", alpha=0.5
+        )
+    ax[0].set_ylabel("thrust τ_u [N]")
+    ax[1].set_ylabel("rudder δ [deg]")
+    ax[1].set_xlabel("t [s]")
+    ax[0].legend(fontsize=8)
+    for a in ax:
+        a.grid(alpha=0.3)
+    files.append(_save(fig, out / "sim1_controls.png"))
+
+    # path-following errors
+    fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    for v in order:
+        tr = trajs[v]
+        t = np.asarray(tr.t[:-1])
+        eps = np.asarray(tr.aux.eps)
+        ax[0].plot(t, eps[:, 0], **STYLE[v])
+        ax[1].plot(t, eps[:, 1], **STYLE[v])
+    ax[0].set_ylabel("along-track s [m]")
+    ax[1].set_ylabel("cross-track e [m]")
+    ax[1].set_xlabel("t [s]")
+    ax[0].legend(fontsize=8)
+    for a in ax:
+        a.grid(alpha=0.3)
+    files.append(_save(fig, out / "sim1_errors.png"))
+    return files
