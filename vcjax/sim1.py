@@ -27,6 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import paths
+from vcjax._checks import check_array, check_positive
 from vcjax.control.baselines import (
     BaselineConfig,
     baseline_gains,
@@ -59,8 +60,11 @@ class Sim1Scenario(NamedTuple):
 
     Attributes:
         eta0: (3,) initial pose; nu0: (3,) initial body velocity; V_c: (2,) current [m/s];
-        u_d: () desired speed [m/s]; vehicle: :class:`~vcjax.vehicles.infante.InfanteParams`;
-        path: coefficients of the path (kind :data:`PATH`).
+        u_d: () desired speed [m/s]; vehicle: :class:`~vcjax.vehicles.infante.InfanteParams`
+        of the simulated plant; path: coefficients of the path (kind :data:`PATH`);
+        design_vehicle: the parameters the *controller* believes (its design model (20) and
+        rudder map are derived from them). Equal to ``vehicle`` unless a study perturbs the
+        plant (model-error Monte-Carlo runs).
     """
 
     eta0: Any
@@ -69,21 +73,42 @@ class Sim1Scenario(NamedTuple):
     u_d: Any
     vehicle: Any
     path: Any
+    design_vehicle: Any
 
 
 PATH, _PATH_COEFFS = paths.paper_line()
 
 
-def sim1_scenario(eta0=(0.0, 0.0, np.pi / 2), nu0=(2.0, 0.0, 0.0), V_c=(0.0, 0.5), u_d=2.0):
-    """The paper's Simulation 1 scenario (defaults), validated."""
-    from vcjax._checks import check_array, check_positive
+def sim1_scenario(
+    eta0=(0.0, 0.0, np.pi / 2),
+    nu0=(2.0, 0.0, 0.0),
+    V_c=(0.0, 0.5),
+    u_d=2.0,
+    vehicle=None,
+    design_vehicle=None,
+) -> Sim1Scenario:
+    """The paper's Simulation 1 scenario (defaults), validated eagerly.
 
+    Args:
+        eta0: (3,) initial pose ``[x, y, psi]`` [m, m, rad] (paper: ``[0, 0, pi/2]``).
+        nu0: (3,) initial body velocity (paper: ``[2, 0, 0]``).
+        V_c: (2,) ocean current in NED [m/s] (paper: ``[0, 0.5]``, along the path).
+        u_d: () desired surge speed [m/s].
+        vehicle: plant parameters (default :func:`~vcjax.vehicles.infante.infante_params`).
+        design_vehicle: the controller's belief (default: ``vehicle``).
+    """
     check_array("eta0", eta0, (3,))
     check_array("nu0", nu0, (3,))
     check_array("V_c", V_c, (2,))
     check_positive("u_d", u_d, ())
-    f = lambda x: jnp.asarray(x, dtype=float)
-    return Sim1Scenario(f(eta0), f(nu0), f(V_c), f(u_d), infante.infante_params(), _PATH_COEFFS)
+    vehicle = infante.infante_params() if vehicle is None else vehicle
+    design_vehicle = vehicle if design_vehicle is None else design_vehicle
+    for name, v in (("vehicle", vehicle), ("design_vehicle", design_vehicle)):
+        if not isinstance(v, infante.InfanteParams):
+            raise ValueError(f"{name}: expected InfanteParams, got {type(v).__name__}")
+    dt = jnp.asarray(vehicle.mass).dtype
+    f = lambda x: jnp.asarray(x, dtype=dt)
+    return Sim1Scenario(f(eta0), f(nu0), f(V_c), f(u_d), vehicle, _PATH_COEFFS, design_vehicle)
 
 
 class Sim1Gains(NamedTuple):
@@ -156,8 +181,8 @@ def _loop(variant: str, edd: str = "paper", smooth: bool = False) -> _Loop:
 
 
 def _controller_params(variant, gains: Sim1Gains, sc: Sim1Scenario):
-    model = infante.design_model(sc.vehicle)
-    k_rudder = _rudder_ratio(sc.vehicle)
+    model = infante.design_model(sc.design_vehicle)
+    k_rudder = _rudder_ratio(sc.design_vehicle)
     if variant.startswith("vcm"):
         return vcm_params(gains.vcm, model, sc.path, u_d=sc.u_d, k_rudder=k_rudder)
     return baseline_params(gains.baseline, model, sc.path, u_d=sc.u_d, k_rudder=k_rudder)
@@ -175,7 +200,37 @@ def _initial_z(variant, sc: Sim1Scenario):
     return vcm_state(varpi0=w0) if variant.startswith("vcm") else baseline_state(varpi0=w0)
 
 
-_run = jax.jit(rollout, static_argnames=("plant", "controller", "config"))
+def simulate(
+    variant: str,
+    gains: Sim1Gains,
+    scenario: Sim1Scenario,
+    config: RolloutConfig,
+    dt,
+    edd: str = "paper",
+    smooth: bool = False,
+):
+    """Pure closed-loop rollout of one controller on a scenario (not jitted).
+
+    ``variant``, ``config``, ``edd`` and ``smooth`` are static; ``gains``, ``scenario`` and ``dt``
+    are traced, so this function can be ``jax.vmap``-ed over scenarios (or gains) and
+    differentiated. The controller maps its ``[tau_u, tau_r]`` to thrust and rudder commands
+    with the *design* vehicle's actuator model, from the measured velocity over ground.
+
+    Returns:
+        :class:`~vcjax.rollout.Trajectory` (plant state: ``InfanteState``).
+    """
+    loop = _loop(variant, edd, smooth)
+    x0 = infante.InfanteState(
+        eta=scenario.eta0, nu=scenario.nu0, act=jnp.zeros(2, scenario.eta0.dtype)
+    )
+    zero2 = jnp.zeros(2, scenario.eta0.dtype)
+    args = infante.PlantArgs(vehicle=scenario.vehicle, V_c=scenario.V_c, V_c_dot=zero2)
+    ctrl = (_controller_params(variant, gains, scenario), scenario.design_vehicle)
+    z0 = _initial_z(variant, scenario)
+    return rollout(loop.plant, loop.controller, config, args, ctrl, x0, z0, dt)
+
+
+_run = jax.jit(simulate, static_argnames=("variant", "config", "edd", "smooth"))
 
 
 def run_variant(
@@ -188,19 +243,18 @@ def run_variant(
     timing: str = "continuous",
     smooth: bool = False,
 ):
-    """Roll one controller out on the scenario; returns the :class:`~vcjax.rollout.Trajectory`."""
+    """Roll one controller out on the scenario (jitted; compiled once per static setting).
+
+    Returns the :class:`~vcjax.rollout.Trajectory`.
+    """
     if variant not in VARIANTS:
         raise ValueError(f"variant: expected one of {VARIANTS}, got {variant!r}")
     if not (horizon > 0 and dt > 0 and horizon / dt >= 1):
         raise ValueError(f"horizon and dt must be positive with horizon >= dt, got {horizon}, {dt}")
     gains = default_gains() if gains is None else gains
     sc = sim1_scenario() if scenario is None else scenario
-    loop = _loop(variant, edd, smooth)
     cfg = RolloutConfig(num_steps=int(round(horizon / dt)), integrator="rk4", timing=timing)
-    x0 = infante.infante_state(sc.eta0, sc.nu0)
-    args = infante.plant_args(sc.vehicle, sc.V_c)
-    ctrl = (_controller_params(variant, gains, sc), sc.vehicle)
-    return _run(loop.plant, loop.controller, cfg, args, ctrl, x0, _initial_z(variant, sc), dt)
+    return _run(variant, gains, sc, cfg, dt, edd, smooth)
 
 
 def tracking_metrics(traj, vehicle, tail: float = 0.2) -> dict:
