@@ -20,6 +20,7 @@ import dataclasses
 from typing import Any, Literal, NamedTuple
 
 import jax.numpy as jnp
+import numpy as np
 
 from vcjax._checks import check_positive
 from vcjax.guidance import los_angle, path_kinematics
@@ -28,6 +29,7 @@ from vcjax.paths import path_frame
 from vcjax.vehicles import design3dof as d3
 
 __all__ = [
+    "MAX_CRAB",
     "BaselineGains",
     "baseline_gains",
     "BaselineParams",
@@ -38,6 +40,10 @@ __all__ = [
     "BaselineAux",
     "baseline_law",
 ]
+
+
+#: Largest heading offset [rad] the LOS-PID cross-track integral may ask for (anti-windup).
+MAX_CRAB = float(np.pi / 4)
 
 
 class BaselineGains(NamedTuple):
@@ -70,9 +76,9 @@ def baseline_gains(
     k_u=1.0,
     k_psi_p=2.0,
     k_psi_d=3.0,
-    k_ep=0.01,
-    k_ed=0.05,
-    k_ei=0.001,
+    k_ep=0.02,
+    k_ed=0.1,
+    k_ei=0.005,
     sigma_i=0.4,
 ) -> BaselineGains:
     """Validated :class:`BaselineGains`; every gain > 0 except the cross-track PID ones (>= 0)."""
@@ -160,8 +166,14 @@ def baseline_law(cfg: BaselineConfig, params: BaselineParams, t, eta, nu, z: Bas
     else:
         los = los_angle(e, e_dot, zero, g.Delta)
         psi_r, psi_r_dot = los.psi_r, los.psi_r_dot
-        clipped = jnp.clip(z.e_int, -params.int_limit, params.int_limit)
-        e_int_dot = e - (z.e_int - clipped)  # back-calculation anti-windup
+        # Anti-windup in the units that matter: the integral term k_ei e_int acts like a heading
+        # offset k_ei e_int / k_psi_p; it is clamped to a crab angle of at most MAX_CRAB (and to
+        # int_limit when k_ei = 0), with back-calculation.
+        lim = jnp.where(
+            g.k_ei > 0, g.k_psi_p * MAX_CRAB / jnp.where(g.k_ei > 0, g.k_ei, 1.0), params.int_limit
+        )
+        clipped = jnp.clip(z.e_int, -lim, lim)
+        e_int_dot = e - (z.e_int - clipped)
         extra = g.k_ed * e_dot + g.k_ep * e + g.k_ei * z.e_int
     psi_d = kin.psi_p + psi_r
     psi_tilde = wrap_angle(eta[2] - psi_d)
