@@ -8,6 +8,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _craft import CRAFT as MODEL
+from _craft import K_RUDDER
 
 from vcjax import paths
 from vcjax.control.baselines import (
@@ -20,12 +22,7 @@ from vcjax.control.baselines import (
 from vcjax.rollout import RolloutConfig, rollout
 from vcjax.vehicles import design3dof as d3
 
-MODEL = d3.design3dof(
-    m11=3687.0, m22=5900.0, m23=-252.0, m33=9211.0, d11=400.0, d22=1000.0, d23=-1400.0, d32=345.0,
-    d33=3360.0,
-)  # fmt: skip
 PATH, COEFFS = paths.paper_line()
-K_RUDDER = -0.46
 CROSS_CURRENT = jnp.array([0.5, 0.0])  # perpendicular to the path (which points east)
 
 

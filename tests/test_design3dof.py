@@ -4,21 +4,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _craft import CRAFT as P
 
 from vcjax.integrators import rk4
 from vcjax.vehicles import design3dof as d3
 
-P = d3.design3dof(
-    m11=3687.0,
-    m22=5900.0,
-    m23=-252.0,
-    m33=9211.0,
-    d11=400.0,
-    d22=1000.0,
-    d23=-1400.0,
-    d32=345.0,
-    d33=3360.0,
-)
 P_NODAMP = P._replace(
     d11=0.0 * P.d11, d22=0.0 * P.d22, d23=0.0 * P.d23, d32=0.0 * P.d32, d33=0.0 * P.d33
 )

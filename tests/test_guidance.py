@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _craft import CRAFT as MODEL
 
 from vcjax import paths
 from vcjax.control.vcm import VCMConfig, pm_gains, vcm_law, vcm_params, vcm_state
@@ -97,12 +98,6 @@ def test_los_angle_derivatives_36():
         assert float(los.psi_r_ddot) == pytest.approx(
             float(jax.grad(jax.grad(psi_r))(t)), rel=1e-10
         )
-
-
-MODEL = d3.design3dof(
-    m11=3687.0, m22=5900.0, m23=-252.0, m33=9211.0, d11=400.0, d22=1000.0, d23=-1400.0, d32=345.0,
-    d33=3360.0,
-)  # fmt: skip
 
 
 @functools.cache

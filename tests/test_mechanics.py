@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _craft import CRAFT
 
 from vcjax.mechanics import (
     VCMGains,
@@ -172,17 +173,6 @@ def test_overdetermined_marine_constraints_residual_and_consistent_rows():
 
 
 # ---------------------------------------------------------------- 3-DOF marine craft
-CRAFT = d3.design3dof(
-    m11=3687.0,
-    m22=5900.0,
-    m23=-252.0,
-    m33=9211.0,
-    d11=400.0,
-    d22=1000.0,
-    d23=-1400.0,
-    d32=345.0,
-    d33=3360.0,
-)
 
 
 def craft_constraints():

@@ -7,6 +7,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _craft import CRAFT as MODEL
+from _craft import K_RUDDER
 
 from vcjax import paths
 from vcjax.control.vcm import VCMConfig, pm_gains, vcm_law, vcm_params, vcm_state
@@ -15,18 +17,6 @@ from vcjax.mechanics import VCMGains, VirtualConstraints, reaction_force
 from vcjax.rollout import RolloutConfig, rollout
 from vcjax.vehicles import design3dof as d3
 
-MODEL = d3.design3dof(
-    m11=3687.0,
-    m22=5900.0,
-    m23=-252.0,
-    m33=9211.0,
-    d11=400.0,
-    d22=1000.0,
-    d23=-1400.0,
-    d32=345.0,
-    d33=3360.0,
-)
-K_RUDDER = -0.46  # sway force per yaw moment of a stern rudder [1/m]
 LINE_PATH, LINE_COEFFS = paths.paper_line()  # p_p(w) = [10, w, 0] (Simulation 1)
 GAINS = pm_gains()  # SPEC §3 order-one gains
 Q0 = jnp.array([0.0, 0.0, np.pi / 2])
