@@ -43,8 +43,19 @@ def _cmd_simulate(args) -> int:
         except (OSError, json.JSONDecodeError, ValueError) as err:
             print(f"vcjax simulate: cannot use gains file {args.gains}: {err}", file=sys.stderr)
             return 2
+    try:
+        scenario = sim1.sim1_scenario(V_c=args.current)
+    except ValueError as err:
+        print(f"vcjax simulate: {err}", file=sys.stderr)
+        return 2
     result = sim1.run_sim1(
-        Path(args.out), gains, horizon=args.horizon, dt=args.dt, edd=args.edd, timing=args.timing
+        Path(args.out),
+        gains,
+        horizon=args.horizon,
+        dt=args.dt,
+        edd=args.edd,
+        timing=args.timing,
+        scenario=scenario,
     )
     _print_metrics(result["metrics"])
     for f in result["files"]:
@@ -73,6 +84,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--gains", help="JSON file of gains (e.g. written by `vcjax tune`)")
     s.add_argument("--horizon", type=float, default=150.0, help="simulated time [s]")
     s.add_argument("--dt", type=float, default=0.05, help="RK4 step [s]")
+    s.add_argument(
+        "--current",
+        type=float,
+        nargs=2,
+        metavar=("V_N", "V_E"),
+        default=(0.0, 0.5),
+        help="ocean current, north and east [m/s] (paper: 0 0.5, along the path)",
+    )
     s.add_argument(
         "--edd",
         choices=["paper", "implied"],

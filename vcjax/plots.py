@@ -61,57 +61,54 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
     ax.grid(alpha=0.3)
     files.append(_save(fig, out / "sim1_paths.png"))
 
-    # Fig. 5 (left): u and heading error
-    fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    for v in order:
-        tr = trajs[v]
-        t = np.asarray(tr.t[:-1])
-        ax[0].plot(t, np.asarray(tr.x.nu[:-1, 0]), **STYLE[v])
-        ax[1].plot(t, np.degrees(np.asarray(tr.aux.psi_tilde)), **STYLE[v])
-    ax[0].axhline(float(scenario.u_d), color="k", lw=0.8, alpha=0.5)
-    ax[0].set_ylabel("u [m/s]")
-    ax[1].set_ylabel("heading error ψ̃ [deg]")
-    ax[1].set_xlabel("t [s]")
-    ax[0].legend(fontsize=8)
-    for a in ax:
-        a.grid(alpha=0.3)
-    files.append(_save(fig, out / "sim1_speed_heading.png"))
+    def two_panel(name, series, ylabels, t_slice, hlines=((), ())):
+        """Two stacked time plots; ``series[i](traj)`` gives panel i's samples."""
+        fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+        for v in order:
+            tr = trajs[v]
+            t = np.asarray(tr.t)[t_slice]
+            for i in range(2):
+                ax[i].plot(t, series[i](tr), **STYLE[v])
+        for i in range(2):
+            for y in hlines[i]:
+                ax[i].axhline(y, color="k", lw=0.8, ls="--", alpha=0.5)
+            ax[i].set_ylabel(ylabels[i])
+            ax[i].grid(alpha=0.3)
+        ax[1].set_xlabel("t [s]")
+        ax[0].legend(fontsize=8)
+        return _save(fig, out / name)
 
-    # Fig. 5 (right): control signals (actual actuator states)
-    fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    for v in order:
-        tr = trajs[v]
-        t = np.asarray(tr.t)
-        act = np.asarray(tr.x.act)
-        ax[0].plot(t, act[:, 0], **STYLE[v])
-        ax[1].plot(t, np.degrees(act[:, 1]), **STYLE[v])
     vehicle = scenario.vehicle
-    for s in (-1, 1):
-        ax[0].axhline(s * float(vehicle.thrust_max), color="k", lw=0.8, ls="--", alpha=0.5)
-        ax[1].axhline(
-            s * np.degrees(float(vehicle.rudder_max)), color="k", lw=0.8, ls="--", alpha=0.5
+    thrust_max = float(vehicle.thrust_max)
+    rudder_max = np.degrees(float(vehicle.rudder_max))
+    head = slice(None, -1)
+    # Fig. 5 (left): u and heading error
+    files.append(
+        two_panel(
+            "sim1_speed_heading.png",
+            (lambda tr: np.asarray(tr.x.nu[:-1, 0]), lambda tr: np.degrees(tr.aux.psi_tilde)),
+            ("u [m/s]", "heading error ψ̃ [deg]"),
+            head,
+            ((float(scenario.u_d),), ()),
         )
-    ax[0].set_ylabel("thrust τ_u [N]")
-    ax[1].set_ylabel("rudder δ [deg]")
-    ax[1].set_xlabel("t [s]")
-    ax[0].legend(fontsize=8)
-    for a in ax:
-        a.grid(alpha=0.3)
-    files.append(_save(fig, out / "sim1_controls.png"))
-
+    )
+    # Fig. 5 (right): control signals (actual actuator states)
+    files.append(
+        two_panel(
+            "sim1_controls.png",
+            (lambda tr: np.asarray(tr.x.act[:, 0]), lambda tr: np.degrees(tr.x.act[:, 1])),
+            ("thrust τ_u [N]", "rudder δ [deg]"),
+            slice(None),
+            ((-thrust_max, thrust_max), (-rudder_max, rudder_max)),
+        )
+    )
     # path-following errors
-    fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    for v in order:
-        tr = trajs[v]
-        t = np.asarray(tr.t[:-1])
-        eps = np.asarray(tr.aux.eps)
-        ax[0].plot(t, eps[:, 0], **STYLE[v])
-        ax[1].plot(t, eps[:, 1], **STYLE[v])
-    ax[0].set_ylabel("along-track s [m]")
-    ax[1].set_ylabel("cross-track e [m]")
-    ax[1].set_xlabel("t [s]")
-    ax[0].legend(fontsize=8)
-    for a in ax:
-        a.grid(alpha=0.3)
-    files.append(_save(fig, out / "sim1_errors.png"))
+    files.append(
+        two_panel(
+            "sim1_errors.png",
+            (lambda tr: np.asarray(tr.aux.eps[:, 0]), lambda tr: np.asarray(tr.aux.eps[:, 1])),
+            ("along-track s [m]", "cross-track e [m]"),
+            head,
+        )
+    )
     return files

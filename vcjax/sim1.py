@@ -296,13 +296,18 @@ def run_sim1(
     edd: str = "paper",
     timing: str = "continuous",
     progress=print,
+    scenario: Sim1Scenario | None = None,
 ) -> dict:
-    """Run all four variants, write ``metrics.json`` and the figures into ``out``."""
+    """Run all four variants, write ``metrics.json`` and the figures into ``out``.
+
+    ``scenario`` defaults to the paper's (:func:`sim1_scenario`); pass another current or start
+    to compare the controllers elsewhere.
+    """
     from vcjax import plots
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    sc = sim1_scenario()
+    sc = sim1_scenario() if scenario is None else scenario
     trajs, metrics = {}, {}
     for i, v in enumerate(VARIANTS):
         progress(f"[{i + 1}/{len(VARIANTS)}] simulating {v} ({horizon:g} s, dt {dt:g} s)")
