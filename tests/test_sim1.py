@@ -92,3 +92,16 @@ def test_scenario_validation():
         sim1.run_variant("pid")
     with pytest.raises(ValueError, match="horizon"):
         sim1.run_variant("vcm", horizon=-1.0)
+
+
+def test_cli_sim2_and_argument_errors(tmp_path, capsys):
+    out = tmp_path / "sim2"
+    assert cli.main(["simulate", "sim2", "--out", str(out), "--horizon", "4", "--dt", "0.1"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert {"rms_dist_3d", "max_dist_3d", "rms_depth_err", "thruster_sat_fraction"} <= set(m)
+    assert set(m["by_actuation"]) == {"underactuated", "full"}
+    assert (out / "sim2_path_3d.png").exists()
+    assert cli.main(["simulate", "sim2", "--out", str(out), "--current", "0", "1"]) == 2
+    assert "not supported" in capsys.readouterr().err
+    assert cli.main(["simulate", "sim1", "--out", str(out), "--dt", "-1"]) == 2
+    assert "dt" in capsys.readouterr().err

@@ -27,35 +27,45 @@ def _cmd_demo(args) -> int:
     return 0
 
 
+def _fail(msg: str) -> int:
+    print(f"vcjax: {msg}", file=sys.stderr)
+    return 2
+
+
+#: Per-experiment defaults of ``vcjax simulate`` (horizon [s], RK4 step [s]).
+_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05)}
+
+
 def _cmd_simulate(args) -> int:
     _enable_x64(args.x64)
+    horizon, dt = _SIM_DEFAULTS[args.experiment]
+    horizon = horizon if args.horizon is None else args.horizon
+    dt = dt if args.dt is None else args.dt
+    if not (horizon > 0 and dt > 0 and horizon >= dt):
+        return _fail(f"simulate: need 0 < dt <= horizon, got dt={dt}, horizon={horizon}")
+    out = Path(args.out or f"out/{args.experiment}")
+    if args.experiment == "sim2":
+        return _simulate_sim2(args, out, horizon, dt)
+    return _simulate_sim1(args, out, horizon, dt)
+
+
+def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
     import json
 
     from vcjax import sim1
 
-    if args.experiment != "sim1":
-        print(f"vcjax simulate: unknown experiment {args.experiment!r}", file=sys.stderr)
-        return 2
     gains = None
     if args.gains:
         try:
             gains = sim1.gains_from_json(json.loads(Path(args.gains).read_text()))
         except (OSError, json.JSONDecodeError, ValueError) as err:
-            print(f"vcjax simulate: cannot use gains file {args.gains}: {err}", file=sys.stderr)
-            return 2
+            return _fail(f"simulate: cannot use gains file {args.gains}: {err}")
     try:
-        scenario = sim1.sim1_scenario(V_c=args.current)
+        scenario = sim1.sim1_scenario(V_c=args.current or (0.0, 0.5))
     except ValueError as err:
-        print(f"vcjax simulate: {err}", file=sys.stderr)
-        return 2
+        return _fail(f"simulate: {err}")
     result = sim1.run_sim1(
-        Path(args.out),
-        gains,
-        horizon=args.horizon,
-        dt=args.dt,
-        edd=args.edd,
-        timing=args.timing,
-        scenario=scenario,
+        out, gains, horizon=horizon, dt=dt, edd=args.edd, timing=args.timing, scenario=scenario
     )
     _print_metrics(result["metrics"])
     for f in result["files"]:
@@ -63,11 +73,34 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
+def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
+    from vcjax import sim2
+
+    for flag, value in (("--gains", args.gains), ("--current", args.current)):
+        if value:
+            return _fail(f"simulate sim2: {flag} is not supported for Simulation 2")
+    result = sim2.run_sim2(out, horizon=horizon, dt=dt, actuation=args.actuation)
+    by_mode = result["metrics"]["by_actuation"]
+    _print_metrics(
+        {mode: {k: v for k, v in m.items() if _is_number(v)} for mode, m in by_mode.items()}
+    )
+    for f in result["files"]:
+        print(f"wrote {f}")
+    return 0
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
 def _print_metrics(metrics: dict) -> None:
-    keys = [k for k in next(iter(metrics.values())) if k != "healthy"]
-    print("variant".ljust(14) + "".join(k.rjust(20) for k in keys))
+    """A table: one row per variant, one column per numeric metric."""
+    keys = [k for k, v in next(iter(metrics.values())).items() if _is_number(v)]
+    widths = [max(len(k), 10) + 2 for k in keys]
+    print("variant".ljust(14) + "".join(k.rjust(w) for k, w in zip(keys, widths, strict=True)))
     for name, m in metrics.items():
-        print(name.ljust(14) + "".join(f"{m[k]:20.4g}" for k in keys))
+        cells = (f"{m[k]:{w}.4g}" for k, w in zip(keys, widths, strict=True))
+        print(name.ljust(14) + "".join(cells))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -79,30 +112,40 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
     s = sub.add_parser("simulate", help="run one of the paper's experiments and write figures")
-    s.add_argument("experiment", choices=["sim1"], help="sim1: the paper's Simulation 1")
-    s.add_argument("--out", default="out/sim1", help="output directory (default: out/sim1)")
-    s.add_argument("--gains", help="JSON file of gains (e.g. written by `vcjax tune`)")
-    s.add_argument("--horizon", type=float, default=150.0, help="simulated time [s]")
-    s.add_argument("--dt", type=float, default=0.05, help="RK4 step [s]")
+    s.add_argument(
+        "experiment",
+        choices=sorted(_SIM_DEFAULTS),
+        help="sim1: Simulation 1 (INFANTE-class, line, Figs. 4-5); "
+        "sim2: Simulation 2 (ODIN-class, helix, Figs. 6-7)",
+    )
+    s.add_argument("--out", help="output directory (default: out/EXPERIMENT)")
+    s.add_argument("--gains", help="sim1: JSON file of gains (e.g. written by `vcjax tune`)")
+    s.add_argument("--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300)")
+    s.add_argument("--dt", type=float, help="RK4 step [s] (default 0.05)")
     s.add_argument(
         "--current",
         type=float,
         nargs=2,
         metavar=("V_N", "V_E"),
-        default=(0.0, 0.5),
-        help="ocean current, north and east [m/s] (paper: 0 0.5, along the path)",
+        help="sim1: ocean current, north and east [m/s] (paper: 0 0.5, along the path)",
     )
     s.add_argument(
         "--edd",
         choices=["paper", "implied"],
         default="paper",
-        help="which e_ddot enters psi_d_ddot (SPEC §3; paper = reference mode)",
+        help="sim1: which e_ddot enters psi_d_ddot (SPEC §3; paper = reference mode)",
     )
     s.add_argument(
         "--timing",
         choices=["continuous", "sampled"],
         default="continuous",
-        help="controller evaluated at every RK4 stage, or once per step and held",
+        help="sim1: controller evaluated at every RK4 stage, or once per step and held",
+    )
+    s.add_argument(
+        "--actuation",
+        choices=["underactuated", "full"],
+        default="underactuated",
+        help="sim2: headline mode (the paper: underactuated); the other is run for comparison",
     )
     s.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
     s.set_defaults(func=_cmd_simulate)
