@@ -93,6 +93,27 @@ def _is_number(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool)
 
 
+def _cmd_tune(args) -> int:
+    _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
+    from tuning.cli import run_tune_config
+
+    try:
+        result = run_tune_config(args.config, args.out)
+    except (OSError, ValueError) as err:
+        return _fail(f"tune: {err}")
+    for f in result["files"]:
+        print(f"wrote {f}")
+    summary = result["summary"]
+    before, after = summary.get("heldout_loss_before"), summary.get("heldout_loss_after")
+    if before is not None and after is not None:
+        print(
+            f"held-out loss: {before:.4g} -> {after:.4g} ({100 * (1 - after / before):.1f} % lower)"
+        )
+    if summary.get("aborted"):
+        return _fail(f"tune: aborted: {summary.get('reason', 'non-finite steps')}")
+    return 0
+
+
 def _print_metrics(metrics: dict) -> None:
     """A table: one row per variant, one column per numeric metric."""
     keys = [k for k, v in next(iter(metrics.values())).items() if _is_number(v)]
@@ -149,6 +170,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     s.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
     s.set_defaults(func=_cmd_simulate)
+
+    t = sub.add_parser(
+        "tune", help="tune the VCM gains by gradient descent through the closed loop (TOML)"
+    )
+    t.add_argument("config", help="TOML config (see examples/tuning/)")
+    t.add_argument("--out", default="out/tune", help="output directory (default: out/tune)")
+    t.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    t.set_defaults(func=_cmd_tune)
 
     d = sub.add_parser(
         "demo",

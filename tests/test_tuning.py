@@ -1,0 +1,264 @@
+"""Gain tuning (issue 6): parametrisation, loss gradient vs finite differences, guarded optimiser,
+CMA-ES, configuration validation, and the tuned-gains file format.
+
+The closed-loop tests use a tiny problem (Euler, sampled controller, a few seconds, two
+scenarios) so that compilation stays short; ``slow`` ones run the whole CLI.
+"""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from tuning.blackbox import batch_objective, run_cmaes, run_random_search
+from tuning.cli import run_tune_config
+from tuning.cmaes import CMAES, cmaes_minimize
+from tuning.config import ConfigError, validate_config
+from tuning.loss import TuningProblem, aggregate, objective, problem_data
+from tuning.optim import forward_mode, run_gradient_tuner
+from tuning.params import FRAC_MAX, GainSpace, rh_bound
+from tuning.scenarios import sample_scenarios
+from vcjax import cli, sim1
+from vcjax.control.vcm import pm_gains
+
+TINY = TuningProblem(num_steps=40, integrator="euler", timing="sampled")
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    data = problem_data(TINY, dt=0.1)
+    scen = sample_scenarios(0, 2, current_max=1.0)
+    return data, scen
+
+
+# ------------------------------------------------------------------ parametrisation
+
+
+def test_parametrisation_gives_valid_gains_and_inverts():
+    space = GainSpace()
+    assert space.size == 12 and len(space.labels()) == 12
+    base = sim1.default_gains().vcm
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        theta = jnp.asarray(rng.normal(scale=3.0, size=space.size))
+        g = space.decode(theta, base)
+        pm_gains(**{k: np.asarray(v) for k, v in g._asdict().items()})  # validates, incl. R-H
+        assert np.all(np.asarray(g.P_int) < FRAC_MAX * np.asarray(rh_bound(g.P_G, g.P_Phi)) + 1e-15)
+        np.testing.assert_allclose(space.encode(g), theta, rtol=1e-9, atol=1e-9)
+    # the default gains (P_int[1] = 0) encode and decode back (the zero within 1e-6 of the bound)
+    g0 = space.decode(space.encode(base), base)
+    for a, b in zip(g0, base, strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-6)
+
+
+def test_parametrisation_subsets_and_variant():
+    base = sim1.default_gains().vcm
+    s = GainSpace(variant="vcm", tune=("sigma", "Delta", "P_int"))
+    assert s.tune == ("Delta", "sigma")  # canonical order, no integral gains for "vcm"
+    g = s.decode(jnp.log(jnp.asarray([2.0, 3.0])), base)
+    assert float(g.Delta) == pytest.approx(2.0) and float(g.sigma) == pytest.approx(3.0)
+    np.testing.assert_array_equal(g.P_G, base.P_G)
+    with pytest.raises(ValueError, match="unknown"):
+        GainSpace(tune=("P_K",))
+    with pytest.raises(ValueError, match="variant"):
+        GainSpace(variant="ilos")
+
+
+# ------------------------------------------------------------------ loss and gradients
+
+
+def test_loss_gradient_matches_central_differences(tiny):
+    data, scen = tiny
+    f = jax.jit(lambda th: objective(th, data, scen, TINY)[0])
+    g = jax.jit(jax.grad(lambda th: objective(th, data, scen, TINY)[0]))
+    theta = data.theta_ref + 0.1 * jnp.arange(12.0) / 12.0
+    grad = np.asarray(g(theta))
+    h = 1e-5
+    fd = np.array(
+        [
+            (float(f(theta.at[i].add(h))) - float(f(theta.at[i].add(-h)))) / (2 * h)
+            for i in range(theta.size)
+        ]
+    )
+    np.testing.assert_allclose(grad, fd, rtol=1e-4, atol=1e-6 * np.max(np.abs(fd)))
+    assert np.max(np.abs(grad)) > 0
+
+
+def test_forward_mode_gradient_equals_reverse():
+    def f(th, a):
+        return jnp.sum(jnp.sin(th) * a) + jnp.sum(th**4)
+
+    th = jnp.asarray([0.3, -1.2, 2.0])
+    a = jnp.asarray([1.0, 2.0, 3.0])
+    v1, g1 = jax.value_and_grad(f)(th, a)
+    v2, g2 = jax.value_and_grad(forward_mode(f))(th, a)
+    assert float(v1) == pytest.approx(float(v2))
+    np.testing.assert_allclose(g1, g2, rtol=1e-12)
+
+
+def test_cvar_aggregation():
+    losses = jnp.asarray([1.0, 5.0, 2.0, 4.0, 3.0])
+    assert float(aggregate(losses, TuningProblem(risk="mean"))) == pytest.approx(3.0)
+    assert float(aggregate(losses, TuningProblem(risk="cvar", alpha=0.4))) == pytest.approx(4.5)
+    assert float(aggregate(losses, TuningProblem(risk="cvar", alpha=0.01))) == pytest.approx(5.0)
+
+
+# ------------------------------------------------------------------ optimiser and guard
+
+
+def test_tiny_tuning_run_lowers_the_loss(tiny):
+    data, scen = tiny
+    loss = lambda th, d, s: objective(th, d, s, TINY)[0]
+    res = run_gradient_tuner(
+        loss, data.theta_ref, (data, scen), optimizer="adam", steps=4, learning_rate=0.1
+    )
+    assert res.n_bad == 0 and not res.aborted
+    assert res.loss < res.history[0]["loss"]
+    assert [h["iter"] for h in res.history] == [0, 1, 2, 3]
+    gains = data.base._replace(vcm=TINY.space.decode(jnp.asarray(res.theta), data.base.vcm))
+    d = json.loads(json.dumps(sim1.gains_to_json(gains)))
+    back = sim1.gains_from_json(d)  # the file `vcjax simulate --gains` loads
+    for a, b in zip(back.vcm, gains.vcm, strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_lbfgs_on_a_quadratic():
+    A = jnp.diag(jnp.asarray([1.0, 10.0, 100.0]))
+    loss = lambda th: 0.5 * th @ A @ th - jnp.sum(th)
+    res = run_gradient_tuner(loss, jnp.zeros(3), optimizer="lbfgs", steps=30)
+    np.testing.assert_allclose(res.theta, 1.0 / jnp.diag(A), rtol=1e-6)
+    assert res.evals >= len(res.history)
+
+
+def test_nan_guard_skips_reports_and_aborts():
+    # NaN beyond theta = 0.5: Adam steps into it, the guard rejects and backtracks
+    def loss(th):
+        bad = th[0] > 0.5
+        return jnp.where(bad, jnp.nan, jnp.sum((th - 1.0) ** 2))
+
+    res = run_gradient_tuner(loss, jnp.zeros(2), optimizer="adam", steps=30, learning_rate=0.2)
+    assert res.n_bad > 0 and not res.aborted
+    assert any(not h["ok"] for h in res.history)
+    assert all(np.isfinite(res.theta)) and float(res.theta[0]) <= 0.5
+    assert res.loss < 2.0
+    # NaN everywhere: aborts after max_bad_steps consecutive rejections, never "succeeds"
+    res = run_gradient_tuner(
+        lambda th: jnp.sum(th) * jnp.nan, jnp.zeros(2), optimizer="adam", steps=20, max_bad_steps=3
+    )
+    assert res.aborted and res.n_bad == 3 and len(res.history) == 3 and "abort" in res.reason
+
+
+# ------------------------------------------------------------------ black-box baselines
+
+
+def test_cmaes_minimises_rosenbrock_and_sphere():
+    rosen = lambda X: np.sum(100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2, axis=1)
+    es = cmaes_minimize(rosen, np.zeros(4), 0.5, 6000, seed=1, tol_f=1e-10)
+    assert es.best_f < 1e-8
+    np.testing.assert_allclose(es.best_x, 1.0, atol=1e-3)
+    es = cmaes_minimize(lambda X: np.sum((X - 3) ** 2, 1), np.zeros(6), 1.0, 3000, tol_f=1e-12)
+    assert es.best_f < 1e-10
+    assert CMAES.create(np.zeros(12), 0.5).lam == 4 + int(3 * np.log(12))
+
+
+def test_blackbox_drivers_on_a_jax_objective():
+    loss = lambda th, c: jnp.sum((th - c) ** 2)
+    f = batch_objective(loss, (jnp.asarray([1.0, -2.0, 0.5]),))
+    res = run_cmaes(f, np.zeros(3), sigma0=1.0, max_evals=1200)
+    assert res.loss < 1e-6 and res.evals <= 1200
+    res = run_random_search(f, np.zeros(3), radius=1.0, max_evals=400, popsize=20)
+    assert res.loss < 1.0 and res.history[-1]["cum_evals"] == 400
+
+
+# ------------------------------------------------------------------ configuration
+
+
+@pytest.mark.parametrize(
+    ("raw", "match"),
+    [
+        ({"problme": {}}, "unknown sections"),
+        ({"problem": {"horizn": 1.0}}, "problem: unknown keys"),
+        ({"problem": {"horizon": -1.0}}, "problem.horizon"),
+        ({"problem": {"dt": "0.1"}}, "problem.dt: expected a number"),
+        ({"problem": {"variant": "ilos"}}, "problem.variant"),
+        ({"problem": {"tune": ["P_K"]}}, "problem.tune: unknown gains"),
+        ({"problem": {"alpha": 1.5}}, "problem.alpha"),
+        ({"weights": {"eps": -1.0}}, "weights.eps"),
+        ({"train": {"size": 0}}, "train.size"),
+        ({"train": {"size": 2.5}}, "train.size: expected an integer"),
+        ({"optimizer": {"name": "sgd"}}, "optimizer.name"),
+        ({"optimizer": {"grad_mode": "both"}}, "optimizer.grad_mode"),
+        ({"heldout": {"smooth": 1}}, "heldout.smooth"),
+        ({"problem": {"horizon": 0.05, "dt": 0.1}}, "horizon"),
+        ({"problem": 3}, "expected a table"),
+    ],
+)
+def test_config_validation_errors(raw, match):
+    with pytest.raises(ConfigError, match=match):
+        validate_config(raw)
+
+
+def test_config_defaults_and_file_errors(tmp_path):
+    cfg = validate_config({"optimizer": {"steps": 3}, "weights": {"eps": 2}})
+    assert cfg["optimizer"]["steps"] == 3 and cfg["weights"]["eps"] == 2.0
+    assert cfg["optimizer"]["name"] == "lbfgs" and cfg["problem"]["variant"] == "vcm_integral"
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[problem\nhorizon = 1")
+    with pytest.raises(ConfigError, match="invalid TOML"):
+        run_tune_config(bad, tmp_path / "out", progress=None)
+    same = tmp_path / "same.toml"
+    same.write_text("[train]\nseed = 3\n[heldout]\nseed = 3\n")
+    with pytest.raises(ConfigError, match="heldout.seed"):
+        run_tune_config(same, tmp_path / "out", progress=None)
+    with pytest.raises(ConfigError, match="cannot read"):
+        run_tune_config(tmp_path / "missing.toml", tmp_path / "out", progress=None)
+
+
+# ------------------------------------------------------------------ end to end (slow)
+
+TINY_TOML = """
+[problem]
+horizon = 4.0
+dt = 0.1
+integrator = "euler"
+timing = "sampled"
+[train]
+size = 2
+[heldout]
+size = 3
+[optimizer]
+name = "adam"
+steps = 3
+learning_rate = 0.1
+[report]
+plot_scenarios = 2
+"""
+
+
+def test_vcjax_tune_end_to_end(tmp_path, capsys):
+    """``vcjax tune`` writes every artefact; the gains load into ``vcjax simulate --gains``."""
+    cfg = tmp_path / "tiny.toml"
+    cfg.write_text(TINY_TOML)
+    out = tmp_path / "out"
+    assert cli.main(["tune", str(cfg), "--out", str(out)]) == 0
+    assert "held-out loss" in capsys.readouterr().out
+    result = {"summary": json.loads((out / "summary.json").read_text())}
+    for name in ("gains.json", "history.json", "summary.json", "loss_curve.png"):
+        assert (out / name).exists()
+    assert (out / "before_after_paths.png").read_bytes()[:4] == b"\x89PNG"
+    s = json.loads((out / "summary.json").read_text())
+    assert s == json.loads(json.dumps(result["summary"]))
+    assert np.isfinite(s["heldout_loss_before"]) and np.isfinite(s["heldout_loss_after"])
+    h = json.loads((out / "history.json").read_text())
+    assert len(h["iterations"]) == 3 and "gains" in h["iterations"][0]
+    g = sim1.gains_from_json(json.loads((out / "gains.json").read_text()))
+    np.testing.assert_allclose(g.vcm.Delta, s["tuned_gains"]["Delta"])
+
+
+def test_vcjax_tune_rejects_a_bad_config(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[optimizer]\nname = 'sgd-with-magic'\n")
+    assert cli.main(["tune", str(bad), "--out", str(tmp_path / "o")]) == 2
+    assert "optimizer" in capsys.readouterr().err

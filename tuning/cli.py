@@ -1,0 +1,262 @@
+"""``vcjax tune CONFIG.toml --out DIR``: tune the VCM gains of Simulation 1 from a TOML file.
+
+:func:`run_tune_config` is the entry point (the ``vcjax`` CLI calls it; ``python -m tuning.cli``
+works too). It writes into ``out_dir``:
+
+* ``gains.json``: the tuned gains, in :func:`vcjax.sim1.gains_to_json` format (``vcjax simulate
+  sim1 --gains DIR/gains.json`` loads it);
+* ``history.json``: per iteration the training loss, gradient norm, acceptance, evaluations and
+  the gains; plus the validated configuration and how the run ended;
+* ``summary.json``: ``heldout_loss_before`` / ``heldout_loss_after`` (default vs tuned gains on
+  the held-out batch, evaluated with the hard-clipped plant unless configured otherwise), the
+  loss terms of each, the training losses, run statistics;
+* ``loss_curve.png``, ``before_after_paths.png``, ``before_after_cross_track.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from tuning.config import ConfigError, load_config
+from tuning.loss import TERMS, TuningProblem, objective, problem_data
+from tuning.loss import loss_weights as make_weights
+from tuning.optim import run_gradient_tuner
+from tuning.params import GainSpace
+from tuning.report import ProgressBar, plot_before_after, plot_loss_curve
+from tuning.scenarios import SCENARIO_AXES, sample_scenarios, scenario_at
+from vcjax import sim1
+
+__all__ = ["build", "run_tune_config", "main"]
+
+
+def build(cfg: dict):
+    """Objects of a validated config: ``(problem, eval_problem, data, train, heldout)``."""
+    p, sc = cfg["problem"], cfg["scenarios"]
+    if p["initial_gains"]:
+        try:
+            base = sim1.gains_from_json(json.loads(Path(p["initial_gains"]).read_text()))
+        except (OSError, json.JSONDecodeError, ValueError) as err:
+            raise ConfigError(
+                f"problem.initial_gains: cannot use {p['initial_gains']}: {err}"
+            ) from None
+    else:
+        base = sim1.default_gains()
+    space = GainSpace(variant=p["variant"], tune=tuple(p["tune"]))
+    num_steps = int(round(p["horizon"] / p["dt"]))
+    problem = TuningProblem(
+        space=space,
+        num_steps=num_steps,
+        integrator=p["integrator"],
+        timing=p["timing"],
+        checkpoint=p["checkpoint"],
+        smooth=p["smooth"],
+        edd=p["edd"],
+        risk=p["risk"],
+        alpha=p["alpha"],
+    )
+    eval_problem = dataclasses.replace(problem, smooth=cfg["heldout"]["smooth"], checkpoint=False)
+    dtype = base.vcm.Delta.dtype
+    weights = make_weights(**cfg["weights"], dtype=dtype)
+    data = problem_data(problem, base, weights, p["dt"], p["log_box"], p["box_weight"])
+    if cfg["train"]["seed"] == cfg["heldout"]["seed"]:
+        raise ConfigError("heldout.seed: must differ from train.seed (held-out scenarios)")
+    kw = dict(
+        current_max=sc["current_max"],
+        position_offset=sc["position_offset"],
+        heading_offset=math.radians(sc["heading_offset_deg"]),
+    )
+    train = sample_scenarios(cfg["train"]["seed"], cfg["train"]["size"], **kw)
+    heldout = sample_scenarios(cfg["heldout"]["seed"], cfg["heldout"]["size"], **kw)
+    return problem, eval_problem, data, train, heldout
+
+
+def _evaluate(eval_fn, theta, data, batch) -> dict:
+    loss, (losses, terms) = jax.device_get(eval_fn(theta, data, batch))
+    losses = np.asarray(losses)
+    return {
+        "loss": float(loss),
+        "terms": {k: float(np.mean(terms[k])) for k in TERMS},
+        "scenario_loss_median": float(np.median(losses)),
+        "scenario_loss_max": float(np.max(losses)),
+    }
+
+
+def _trajectories(problem, gains, batch, dt, n):
+    idx = list(range(n))
+    sub = batch._replace(eta0=batch.eta0[:n], nu0=batch.nu0[:n], V_c=batch.V_c[:n])
+    cfg = problem.rollout_config()
+
+    def one(s):
+        tr = sim1.simulate(
+            problem.space.variant, gains, s, cfg, dt, edd=problem.edd, smooth=problem.smooth
+        )
+        return tr.t, tr.x.eta, tr.aux.eps[:, 1]
+
+    t, eta, e = jax.device_get(jax.jit(jax.vmap(one, in_axes=(SCENARIO_AXES,)))(sub))
+    del idx
+    return np.asarray(t[0]), {"eta": np.asarray(eta), "e": np.asarray(e)}
+
+
+def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
+    """Run the tuning described by the TOML file ``config_path``; write results into ``out_dir``.
+
+    Args:
+        config_path: TOML configuration (see :mod:`tuning.config`).
+        out_dir: output folder (created).
+        progress: text stream for the progress bar and messages (default ``sys.stderr``);
+            ``None`` for silence.
+
+    Returns:
+        dict: ``{"summary": <summary.json content>, "files": [Path, ...]}``.
+
+    Raises:
+        tuning.config.ConfigError (a ``ValueError``): invalid configuration.
+
+    The caller chooses the floating-point precision (``vcjax`` enables float64 by default).
+    A run that stops after repeated non-finite steps still writes its outputs, with
+    ``summary["aborted"] = True``.
+    """
+    say = (lambda msg: print(msg, file=progress, flush=True)) if progress else (lambda m: None)
+    cfg = load_config(config_path)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    t_start = time.perf_counter()
+    problem, eval_problem, data, train, heldout = build(cfg)
+    space = problem.space
+    o = cfg["optimizer"]
+    B = cfg["train"]["size"]
+    say(
+        f"tuning {space.variant}: {space.size} parameters ({', '.join(space.tune)}), "
+        f"{B} training / {cfg['heldout']['size']} held-out scenarios, "
+        f"horizon {cfg['problem']['horizon']:g} s, {o['name']} x {o['steps']} steps "
+        f"({o['grad_mode']} mode)"
+    )
+    eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
+    loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
+    theta0 = data.theta_ref
+    say("evaluating the initial gains on the held-out batch (compiling) ...")
+    before = _evaluate(eval_fn, theta0, data, heldout)
+    say(f"held-out loss before: {before['loss']:.6g}; compiling the training step ...")
+
+    bar = ProgressBar(o["steps"], label="tune ", stream=progress) if progress else None
+    res = run_gradient_tuner(
+        loss_fn,
+        theta0,
+        (data, train),
+        optimizer=o["name"],
+        steps=o["steps"],
+        learning_rate=o["learning_rate"],
+        memory_size=o["memory_size"],
+        max_linesearch_steps=o["max_linesearch_steps"],
+        grad_mode=o["grad_mode"],
+        max_bad_steps=o["max_bad_steps"],
+        grad_tol=o["grad_tol"],
+        on_step=lambda k, th, rec: {"gains": space.describe(th, data.base.vcm)},
+        progress=bar,
+    )
+    if bar is not None and len(res.history) < o["steps"]:
+        bar.close()
+    if res.n_bad:
+        say(f"warning: {res.n_bad} step(s) rejected for non-finite loss/gradient/update")
+    say(f"stopped: {res.reason}; evaluating the tuned gains on the held-out batch ...")
+    after = _evaluate(eval_fn, jnp.asarray(res.theta), data, heldout)
+    tuned = data.base._replace(vcm=space.decode(jnp.asarray(res.theta), data.base.vcm))
+    gains_json = sim1.gains_to_json(tuned)
+    sim1.gains_from_json(gains_json)  # what `vcjax simulate --gains` will do: must validate
+
+    files = []
+    f = out / "gains.json"
+    f.write_text(json.dumps(gains_json, indent=2) + "\n")
+    files.append(f)
+    f = out / "history.json"
+    hist = {
+        "config": cfg,
+        "labels": space.labels(),
+        "initial_gains": sim1.gains_to_json(data.base),
+        "iterations": res.history,
+        "n_bad": res.n_bad,
+        "aborted": res.aborted,
+        "reason": res.reason,
+        "evals": res.evals,
+        "rollouts": res.evals * B,
+    }
+    f.write_text(json.dumps(hist, indent=1) + "\n")
+    files.append(f)
+    files.append(plot_loss_curve(res.history, out / "loss_curve.png", f"{o['name']} tuning"))
+    n_plot = min(cfg["report"]["plot_scenarios"], cfg["heldout"]["size"])
+    if n_plot:
+        t, tr_before = _trajectories(eval_problem, data.base, heldout, data.dt, n_plot)
+        _, tr_after = _trajectories(eval_problem, tuned, heldout, data.dt, n_plot)
+        V_c = np.stack([np.asarray(scenario_at(heldout, i).V_c) for i in range(n_plot)])
+        files += plot_before_after(t, tr_before, tr_after, V_c, out)
+
+    lb, la = before["loss"], after["loss"]
+    summary = {
+        "heldout_loss_before": lb,
+        "heldout_loss_after": la,
+        "heldout_reduction_pct": 100.0 * (lb - la) / lb if lb > 0 else None,
+        "heldout_terms_before": before["terms"],
+        "heldout_terms_after": after["terms"],
+        "heldout_scenario_loss_before": {
+            "median": before["scenario_loss_median"],
+            "max": before["scenario_loss_max"],
+        },
+        "heldout_scenario_loss_after": {
+            "median": after["scenario_loss_median"],
+            "max": after["scenario_loss_max"],
+        },
+        "heldout_smooth_saturation": eval_problem.smooth,
+        "train_loss_before": res.history[0]["loss"] if res.history else None,
+        "train_loss_after": res.loss,
+        "tuned_gains": gains_json["vcm"],
+        "initial_gains": sim1.gains_to_json(data.base)["vcm"],
+        "iterations": len(res.history),
+        "n_bad": res.n_bad,
+        "aborted": res.aborted,
+        "reason": res.reason,
+        "evals": res.evals,
+        "rollouts": res.evals * B,
+        "rollout_convention": "one batch value_and_grad = train.size rollouts (forward+backward)",
+        "tuning_wall_s": res.history[-1]["wall_s"] if res.history else 0.0,
+        "total_wall_s": time.perf_counter() - t_start,
+    }
+    f = out / "summary.json"
+    f.write_text(json.dumps(summary, indent=2) + "\n")
+    files.append(f)
+    say(
+        f"held-out loss {lb:.6g} -> {la:.6g} "
+        f"({summary['heldout_reduction_pct']:.1f} % lower); wrote {len(files)} files to {out}"
+    )
+    return {"summary": summary, "files": files}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m tuning.cli CONFIG.toml --out DIR`` (float64 unless ``--no-x64``)."""
+    ap = argparse.ArgumentParser(prog="python -m tuning.cli", description=__doc__.split("\n")[0])
+    ap.add_argument("config", help="TOML configuration")
+    ap.add_argument("--out", default="out/tune", help="output folder (default: out/tune)")
+    ap.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    args = ap.parse_args(argv)
+    jax.config.update("jax_enable_x64", bool(args.x64))
+    try:
+        result = run_tune_config(args.config, args.out)
+    except ValueError as err:
+        print(f"tune: {err}", file=sys.stderr)
+        return 2
+    for f in result["files"]:
+        print(f"wrote {f}")
+    return 1 if result["summary"]["aborted"] else 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

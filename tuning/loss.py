@@ -1,0 +1,248 @@
+"""Tuning loss: tracking, saturation and effort costs of closed-loop rollouts (SPEC §6).
+
+Per rollout of horizon ``T = N dt`` (every integral normalised by ``T``, i.e. a time average):
+
+* ``eps``: ``1/T ∫ (s² + e²) dt`` [m²], path errors (23);
+* ``u_tilde``: ``1/T ∫ ũ² dt`` [(m/s)²], surge-speed error;
+* ``psi_tilde``: ``1/T ∫ ψ̃² dt`` [rad²], heading error (25);
+* ``sat_excess``: ``1/T ∫ Σ_i (x_i)² dt`` with ``x_i = max(|cmd_i| - lim_i, 0) / lim_i``: how far
+  the thrust and rudder *commands* go beyond the actuator limits (920 N, 30°), relative;
+* ``sat_time``: ``1/T ∫ Σ_i x_i² / (x_i² + w²) dt``: a smooth count of the time spent beyond the
+  limits (0 inside them, → 1 per channel when ``x_i >> w``; ``w = sat_width``, C¹ at the limit so
+  the gradient exists everywhere; a plain indicator has zero gradient almost everywhere);
+* ``effort``: ``1/T ∫ Σ_i (cmd_i / lim_i)² dt`` (optional, weight 0 by default);
+* ``unhealthy``: fraction of steps that produced a non-finite state (the rollout then freezes
+  the state; weighted heavily so a diverging candidate never looks good).
+
+The scenario loss is ``Σ_k w_k term_k``; a batch is aggregated by the mean, or by the CVaR at
+level ``alpha`` (the mean of the worst ``ceil(alpha B)`` scenario losses). A quadratic penalty
+keeps ``theta`` within ``log_box`` of its reference (gains within a factor ``e^log_box`` of the
+starting gains), which also gives the black-box tuners a bounded search region.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from tuning.params import GainSpace
+from tuning.scenarios import SCENARIO_AXES
+from vcjax import sim1
+from vcjax.rollout import RolloutConfig
+from vcjax.vehicles.infante import InfanteParams
+
+__all__ = [
+    "TERMS",
+    "LossWeights",
+    "loss_weights",
+    "rollout_terms",
+    "TuningProblem",
+    "ProblemData",
+    "problem_data",
+    "scenario_losses",
+    "objective",
+    "aggregate",
+]
+
+TERMS = ("eps", "u_tilde", "psi_tilde", "sat_excess", "sat_time", "effort", "unhealthy")
+
+
+class LossWeights(NamedTuple):
+    """Weights of the loss terms (traced scalars; see the module docstring for units).
+
+    Attributes:
+        eps, u_tilde, psi_tilde, sat_excess, sat_time, effort, unhealthy: () weights >= 0.
+        sat_width: () smoothing width ``w`` of the time-over-limit count (fraction of the limit).
+    """
+
+    eps: Any
+    u_tilde: Any
+    psi_tilde: Any
+    sat_excess: Any
+    sat_time: Any
+    effort: Any
+    unhealthy: Any
+    sat_width: Any
+
+
+def loss_weights(
+    eps=1.0,
+    u_tilde=1.0,
+    psi_tilde=1.0,
+    sat_excess=10.0,
+    sat_time=1.0,
+    effort=0.0,
+    unhealthy=1000.0,
+    sat_width=0.05,
+    dtype=None,
+) -> LossWeights:
+    """Validated :class:`LossWeights` (every weight finite and >= 0, ``sat_width`` > 0)."""
+    vals = dict(locals())
+    vals.pop("dtype")
+    for k, v in vals.items():
+        if isinstance(v, bool) or not isinstance(v, int | float | np.floating | np.integer):
+            raise ValueError(f"weights.{k}: expected a number, got {v!r}")
+        if not (math.isfinite(v) and v >= 0):
+            raise ValueError(f"weights.{k}: expected a finite value >= 0, got {v!r}")
+    if not vals["sat_width"] > 0:
+        raise ValueError(f"weights.sat_width: expected > 0, got {sat_width!r}")
+    dtype = jnp.zeros(()).dtype if dtype is None else dtype
+    return LossWeights(**{k: jnp.asarray(v, dtype=dtype) for k, v in vals.items()})
+
+
+def rollout_terms(traj, vehicle: InfanteParams, sat_width) -> dict:
+    """Loss terms of one VCM rollout (dict of () arrays, keys :data:`TERMS`).
+
+    Args:
+        traj: :class:`~vcjax.rollout.Trajectory` of ``sim1.simulate`` with a VCM variant
+            (``aux`` is :class:`~vcjax.control.vcm.VCMAux`, ``u`` (N, 2) commands
+            ``[thrust N, rudder rad]``).
+        vehicle: the simulated plant (its actuator limits).
+        sat_width: () smoothing width of the time-over-limit count.
+    """
+    eps = traj.aux.eps
+    limits = jnp.stack([vehicle.thrust_max, vehicle.rudder_max])
+    x = traj.u / limits
+    over = jnp.maximum(jnp.abs(x) - 1.0, jnp.zeros_like(x))
+    over2 = over * over
+    return {
+        "eps": jnp.mean(jnp.sum(eps * eps, axis=-1)),
+        "u_tilde": jnp.mean(traj.aux.u_tilde**2),
+        "psi_tilde": jnp.mean(traj.aux.psi_tilde**2),
+        "sat_excess": jnp.mean(jnp.sum(over2, axis=-1)),
+        "sat_time": jnp.mean(jnp.sum(over2 / (over2 + sat_width * sat_width), axis=-1)),
+        "effort": jnp.mean(jnp.sum(x * x, axis=-1)),
+        "unhealthy": jnp.mean((~traj.finite).astype(eps.dtype)),
+    }
+
+
+@dataclasses.dataclass(frozen=True)
+class TuningProblem:
+    """Static description of a tuning objective (hashable; a change recompiles).
+
+    Attributes:
+        space: :class:`~tuning.params.GainSpace` (variant and tuned gains).
+        num_steps: rollout length N (horizon ``N dt``).
+        integrator: ``"rk4"`` (default), ``"heun"`` or ``"euler"``.
+        timing: ``"continuous"`` or ``"sampled"`` controller.
+        checkpoint: ``jax.checkpoint`` each step (long horizons under reverse mode).
+        smooth: tanh actuator saturation in the plant (gradients pass through saturation).
+        edd: ``"paper"`` or ``"implied"`` (see :mod:`vcjax.control.vcm`).
+        risk: ``"mean"`` or ``"cvar"`` aggregation over the batch.
+        alpha: CVaR level in (0, 1]: the fraction of worst scenarios averaged.
+    """
+
+    space: GainSpace = GainSpace()
+    num_steps: int = 800
+    integrator: str = "rk4"
+    timing: str = "continuous"
+    checkpoint: bool = False
+    smooth: bool = True
+    edd: str = "paper"
+    risk: str = "mean"
+    alpha: float = 0.2
+
+    def __post_init__(self):
+        if self.risk not in ("mean", "cvar"):
+            raise ValueError(f"risk: expected 'mean' or 'cvar', got {self.risk!r}")
+        if not (0.0 < float(self.alpha) <= 1.0):
+            raise ValueError(f"alpha: expected a value in (0, 1], got {self.alpha!r}")
+        if self.edd not in ("paper", "implied"):
+            raise ValueError(f"edd: expected 'paper' or 'implied', got {self.edd!r}")
+        self.rollout_config()  # validates num_steps, integrator, timing
+
+    def rollout_config(self) -> RolloutConfig:
+        return RolloutConfig(
+            num_steps=self.num_steps,
+            integrator=self.integrator,
+            timing=self.timing,
+            checkpoint=self.checkpoint,
+        )
+
+
+class ProblemData(NamedTuple):
+    """Traced data of a tuning objective.
+
+    Attributes:
+        base: :class:`~vcjax.sim1.Sim1Gains` (untuned gains come from ``base.vcm``).
+        weights: :class:`LossWeights`.
+        dt: () step [s].
+        theta_ref: (n,) centre of the box penalty (usually the encoded starting gains).
+        log_box: () half-width of the box; box_weight: () its weight.
+    """
+
+    base: Any
+    weights: Any
+    dt: Any
+    theta_ref: Any
+    log_box: Any
+    box_weight: Any
+
+
+def problem_data(
+    problem: TuningProblem,
+    base: sim1.Sim1Gains | None = None,
+    weights: LossWeights | None = None,
+    dt: float = 0.1,
+    log_box: float = 3.0,
+    box_weight: float = 10.0,
+) -> ProblemData:
+    """Validated :class:`ProblemData`; ``theta_ref`` is the encoding of ``base``."""
+    base = sim1.default_gains() if base is None else base
+    weights = loss_weights() if weights is None else weights
+    for name, v in (("dt", dt), ("log_box", log_box), ("box_weight", box_weight)):
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"{name}: expected a finite value > 0, got {v!r}")
+    dtype = base.vcm.Delta.dtype
+    f = lambda x: jnp.asarray(x, dtype=dtype)
+    theta_ref = problem.space.encode(base.vcm)
+    return ProblemData(base, weights, f(dt), theta_ref, f(log_box), f(box_weight))
+
+
+def scenario_losses(theta, data: ProblemData, scenarios, problem: TuningProblem):
+    """Per-scenario losses ``(B,)`` and terms ``{name: (B,)}`` of the gains ``theta`` (n,)."""
+    vcm = problem.space.decode(theta, data.base.vcm)
+    gains = data.base._replace(vcm=vcm)
+    cfg = problem.rollout_config()
+    w = data.weights
+
+    def one(sc):
+        traj = sim1.simulate(
+            problem.space.variant, gains, sc, cfg, data.dt, edd=problem.edd, smooth=problem.smooth
+        )
+        terms = rollout_terms(traj, sc.vehicle, w.sat_width)
+        loss = sum(getattr(w, k) * terms[k] for k in TERMS)
+        return loss, terms
+
+    return jax.vmap(one, in_axes=(SCENARIO_AXES,))(scenarios)
+
+
+def aggregate(losses, problem: TuningProblem):
+    """Batch loss: mean, or CVaR (mean of the worst ``ceil(alpha B)``) of ``losses`` (B,)."""
+    if problem.risk == "mean":
+        return jnp.mean(losses)
+    k = max(1, math.ceil(problem.alpha * losses.shape[0] - 1e-9))
+    return jnp.mean(jax.lax.top_k(losses, k)[0])
+
+
+def box_penalty(theta, data: ProblemData):
+    """Quadratic penalty on ``theta`` leaving ``theta_ref ± log_box``."""
+    d = jnp.abs(theta - data.theta_ref) - data.log_box
+    d = jnp.maximum(d, jnp.zeros_like(d))
+    return data.box_weight * jnp.sum(d * d)
+
+
+def objective(theta, data: ProblemData, scenarios, problem: TuningProblem):
+    """Scalar tuning loss of ``theta`` on a scenario batch, and ``(losses (B,), terms)``.
+
+    Returns:
+        ``(loss, (losses, terms))``: aggregated loss + box penalty; per-scenario losses and
+        terms (for reports).
+    """
+    losses, terms = scenario_losses(theta, data, scenarios, problem)
+    return aggregate(losses, problem) + box_penalty(theta, data), (losses, terms)

@@ -1,0 +1,314 @@
+"""Gradient-based tuning loop: optax Adam or L-BFGS (zoom line search), guarded against NaN/inf.
+
+One ``jax.jit`` wraps loss + gradient + optimiser update (:func:`make_step`). Every step reports
+its loss, gradient norm, whether it was accepted, and how many batch ``value_and_grad``
+evaluations it used (L-BFGS's line search evaluates more than once).
+
+Guard: a step whose loss, gradient or update is not finite is *rejected*: the parameters and the
+optimiser state go back to those of the last accepted step's input and the step size is halved
+(a backtrack; for L-BFGS the line search already backtracks, so only the revert applies). Each
+rejection is counted and reported (:class:`TuneResult` ``n_bad``, ``history[k]["ok"]``); after
+``max_bad_steps`` consecutive rejections the run stops with ``aborted=True`` and a reason.
+
+Gradient modes: ``"reverse"`` (``jax.value_and_grad``) or ``"forward"`` (``jax.jacfwd``: n
+forward tangents, worth it when the gains are few and the horizon long, as memory stays O(1) in
+the horizon). Forward mode is wrapped in a ``jax.custom_vjp`` so that optax's line search, which
+calls ``jax.value_and_grad`` itself, also uses it.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+__all__ = [
+    "OPTIMIZERS",
+    "GRAD_MODES",
+    "make_optimizer",
+    "forward_mode",
+    "StepInfo",
+    "make_step",
+    "init_state",
+    "TuneResult",
+    "run_gradient_tuner",
+]
+
+OPTIMIZERS = ("lbfgs", "adam")
+GRAD_MODES = ("reverse", "forward")
+
+
+def make_optimizer(
+    name: str = "lbfgs",
+    learning_rate: float = 0.05,
+    memory_size: int = 10,
+    max_linesearch_steps: int = 15,
+) -> optax.GradientTransformationExtraArgs:
+    """optax optimiser: ``"lbfgs"`` (zoom line search; ``learning_rate`` unused) or ``"adam"``."""
+    if name == "lbfgs":
+        ls = optax.scale_by_zoom_linesearch(
+            max_linesearch_steps=max_linesearch_steps, initial_guess_strategy="one"
+        )
+        return optax.lbfgs(memory_size=memory_size, linesearch=ls)
+    if name == "adam":
+        return optax.adam(learning_rate)
+    raise ValueError(f"optimizer: expected one of {OPTIMIZERS}, got {name!r}")
+
+
+def _zero_cotangent(x):
+    x = jnp.asarray(x)
+    if jnp.issubdtype(x.dtype, jnp.inexact):
+        return jnp.zeros_like(x)
+    return np.zeros(x.shape, dtype=jax.dtypes.float0)
+
+
+def forward_mode(f: Callable) -> Callable:
+    """``f(theta, *args) -> ()`` whose reverse-mode derivative in ``theta`` uses ``jax.jacfwd``.
+
+    The returned function has the same value; ``jax.grad`` of it (w.r.t. ``theta`` (n,))
+    computes the gradient with n forward tangents. ``args`` get zero cotangents.
+    """
+
+    @jax.custom_vjp
+    def g(theta, *args):
+        return f(theta, *args)
+
+    def g_fwd(theta, *args):
+        both = lambda th: (lambda v: (v, v))(f(th, *args))
+        jac, value = jax.jacfwd(both, has_aux=True)(theta)
+        return value, (jac, args)
+
+    def g_bwd(res, ct):
+        jac, args = res
+        return (ct * jac, *jax.tree_util.tree_map(_zero_cotangent, args))
+
+    g.defvjp(g_fwd, g_bwd)
+    return g
+
+
+class StepInfo(NamedTuple):
+    """What one optimiser step reports (traced scalars).
+
+    Attributes:
+        loss: () loss at the step's input parameters.
+        grad_norm: () Euclidean norm of the gradient there.
+        ok: () bool, the step was accepted (loss, gradient and update finite).
+        evals: () int, batch ``value_and_grad`` evaluations used.
+        update_norm: () norm of the accepted update (0 when rejected).
+    """
+
+    loss: Any
+    grad_norm: Any
+    ok: Any
+    evals: Any
+    update_norm: Any
+
+
+def init_state(opt, theta):
+    """``opt.init(theta)`` with every leaf strongly typed.
+
+    optax initialises some scalars as weakly typed while its updates return them strongly
+    typed; starting strong makes the jitted step compile once, not twice.
+    """
+    st = opt.init(theta)
+    return jax.tree_util.tree_map(lambda x: jnp.asarray(x, dtype=jnp.asarray(x).dtype), st)
+
+
+def _finite(tree):
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree_util.tree_leaves(tree)]))
+
+
+def make_step(loss_fn: Callable, opt, optimizer: str = "lbfgs", grad_mode: str = "reverse"):
+    """Jitted ``step(theta, opt_state, scale, args) -> (theta, opt_state, StepInfo)``.
+
+    Args:
+        loss_fn: ``loss_fn(theta, *args) -> ()`` (pure, differentiable).
+        opt: the optax transformation (from :func:`make_optimizer`).
+        optimizer: ``"lbfgs"`` or ``"adam"`` (how the step calls ``opt``).
+        grad_mode: ``"reverse"`` or ``"forward"``.
+
+    ``scale`` () multiplies the update (the guard's backtracking factor; 1 normally); ``args``
+    is a tuple of traced arguments of ``loss_fn`` (e.g. problem data and scenarios), so a new
+    batch does not recompile.
+    """
+    if optimizer not in OPTIMIZERS:
+        raise ValueError(f"optimizer: expected one of {OPTIMIZERS}, got {optimizer!r}")
+    if grad_mode not in GRAD_MODES:
+        raise ValueError(f"grad_mode: expected one of {GRAD_MODES}, got {grad_mode!r}")
+    f = forward_mode(loss_fn) if grad_mode == "forward" else loss_fn
+
+    def step(theta, state, scale, args):
+        # optax's own arithmetic (e.g. Adam's bias correction, float ** int32 count) is not
+        # written for strict dtype promotion: allow standard promotion inside the update only
+        with jax.numpy_dtype_promotion("standard"):
+            return _step(theta, state, scale, args)
+
+    def _step(theta, state, scale, args):
+        value_fn = lambda p: f(p, *args)
+        if optimizer == "lbfgs":
+            stored = optax.tree.get(state, "value")
+            value, grad = optax.value_and_grad_from_state(value_fn)(theta, state=state)
+            ok = jnp.isfinite(value) & _finite(grad)
+            updates, new_state = opt.update(
+                grad, state, theta, value=value, grad=grad, value_fn=value_fn
+            )
+            info = optax.tree.get(new_state, "info")
+            evals = info.num_linesearch_steps + (~jnp.isfinite(stored)).astype(jnp.int32)
+        else:
+            value, grad = jax.value_and_grad(value_fn)(theta)
+            ok = jnp.isfinite(value) & _finite(grad)
+            safe = jnp.where(ok, grad, jnp.zeros_like(grad))
+            updates, new_state = opt.update(safe, state, theta)
+            updates = scale * updates
+            evals = jnp.ones((), jnp.int32)
+        ok = ok & _finite(updates)
+        new_theta = theta + jnp.where(ok, updates, jnp.zeros_like(updates))
+        new_state = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_state, state)
+        gnorm = jnp.sqrt(jnp.sum(grad * grad))
+        unorm = jnp.where(ok, jnp.sqrt(jnp.sum(updates * updates)), jnp.zeros_like(gnorm))
+        return new_theta, new_state, StepInfo(value, gnorm, ok, evals.astype(jnp.int32), unorm)
+
+    return jax.jit(step)
+
+
+class TuneResult(NamedTuple):
+    """Outcome of :func:`run_gradient_tuner`.
+
+    Attributes:
+        theta: (n,) best accepted parameters (lowest loss seen at an accepted step's input, or
+            the final iterate when its loss is lower).
+        loss: () loss at ``theta``.
+        history: list of per-step dicts (``iter``, ``loss``, ``grad_norm``, ``ok``, ``evals``,
+            ``update_norm``, ``wall_s``; plus whatever ``on_step`` returns).
+        n_bad: rejected steps (non-finite loss / gradient / update).
+        aborted: stopped after ``max_bad_steps`` consecutive rejections.
+        reason: why the loop stopped (``"steps"``, ``"converged"``, ``"stalled"``, ``"aborted:
+            ..."``).
+        evals: total batch ``value_and_grad`` evaluations.
+    """
+
+    theta: Any
+    loss: float
+    history: list
+    n_bad: int
+    aborted: bool
+    reason: str
+    evals: int
+
+
+def run_gradient_tuner(
+    loss_fn: Callable,
+    theta0,
+    args: tuple = (),
+    *,
+    optimizer: str = "lbfgs",
+    steps: int = 50,
+    learning_rate: float = 0.05,
+    memory_size: int = 10,
+    max_linesearch_steps: int = 15,
+    grad_mode: str = "reverse",
+    max_bad_steps: int = 5,
+    grad_tol: float = 1e-8,
+    on_step: Callable | None = None,
+    progress: Callable | None = None,
+    step_fn: Callable | None = None,
+) -> TuneResult:
+    """Minimise ``loss_fn(theta, *args)`` from ``theta0`` (n,).
+
+    Args:
+        loss_fn: pure scalar loss.
+        theta0: (n,) start.
+        args: tuple of traced extra arguments of ``loss_fn``.
+        optimizer, learning_rate, memory_size, max_linesearch_steps: see
+            :func:`make_optimizer`.
+        steps: number of optimiser steps.
+        grad_mode: ``"reverse"`` or ``"forward"``.
+        max_bad_steps: abort after this many consecutive rejected steps.
+        grad_tol: stop (``"converged"``) when the gradient norm drops below it.
+        on_step: ``on_step(k, theta, record) -> dict | None`` called after each step with the
+            new parameters; a returned dict is merged into the history record. Its run time is
+            excluded from ``wall_s``.
+        progress: ``progress(k, steps, record)`` for a progress bar.
+        step_fn: a step from :func:`make_step` to reuse (avoids recompiling).
+    """
+    if not (isinstance(steps, int) and steps >= 1):
+        raise ValueError(f"steps: expected a positive int, got {steps!r}")
+    if not (isinstance(max_bad_steps, int) and max_bad_steps >= 1):
+        raise ValueError(f"max_bad_steps: expected a positive int, got {max_bad_steps!r}")
+    opt = make_optimizer(optimizer, learning_rate, memory_size, max_linesearch_steps)
+    step = step_fn or make_step(loss_fn, opt, optimizer, grad_mode)
+    theta = jnp.asarray(theta0)
+    state = init_state(opt, theta)
+    scale = 1.0
+    good = (theta, state)  # input of the last accepted step
+    best_theta, best_loss = theta, np.inf
+    history, n_bad, consecutive, total_evals, stalls = [], 0, 0, 0, 0
+    reason = "steps"
+    wall = 0.0
+    for k in range(steps):
+        t0 = time.perf_counter()
+        new_theta, new_state, info = step(theta, state, jnp.asarray(scale, theta.dtype), args)
+        info = jax.device_get(info)
+        wall += time.perf_counter() - t0
+        loss, ok = float(info.loss), bool(info.ok)
+        total_evals += int(info.evals)
+        rec = {
+            "iter": k,
+            "loss": loss if np.isfinite(loss) else None,
+            "grad_norm": float(info.grad_norm) if np.isfinite(info.grad_norm) else None,
+            "ok": ok,
+            "evals": int(info.evals),
+            "cum_evals": total_evals,
+            "update_norm": float(info.update_norm),
+            "wall_s": wall,
+        }
+        if ok:
+            consecutive = 0
+            if loss < best_loss:
+                best_theta, best_loss = theta, loss
+            good = (theta, state)
+            theta, state = new_theta, new_state
+        else:
+            n_bad += 1
+            consecutive += 1
+            theta, state = good  # revert to the last good input and take a smaller step
+            scale *= 0.5
+        if on_step is not None:
+            extra = on_step(k, theta, rec)
+            if extra:
+                rec.update(extra)
+        history.append(rec)
+        if progress is not None:
+            progress(k + 1, steps, rec)
+        if consecutive >= max_bad_steps:
+            reason = f"aborted: {consecutive} consecutive non-finite steps"
+            break
+        if ok and rec["grad_norm"] is not None and rec["grad_norm"] < grad_tol:
+            reason = "converged"
+            break
+        stalls = stalls + 1 if ok and rec["update_norm"] == 0.0 else 0
+        if stalls >= 3:
+            reason = "stalled"
+            break
+    aborted = reason.startswith("aborted")
+    if not aborted:  # the final iterate's loss (L-BFGS keeps it in its state; else evaluate)
+        if optimizer == "lbfgs":
+            final = float(jax.device_get(optax.tree.get(state, "value")))
+        else:
+            final = float(jax.device_get(jax.jit(loss_fn)(theta, *args)))
+        if np.isfinite(final) and final < best_loss:
+            best_theta, best_loss = theta, final
+    return TuneResult(
+        theta=best_theta,
+        loss=float(best_loss),
+        history=history,
+        n_bad=n_bad,
+        aborted=aborted,
+        reason=reason,
+        evals=total_evals,
+    )
