@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 import jax.numpy as jnp
 
 from vcjax._checks import check_array, check_spd
-from vcjax.linalg import rot2
+from vcjax.linalg import rot2, solve_surge_decoupled
 from vcjax.mechanics import MechanicalSystem, from_body_frame
 
 __all__ = [
@@ -148,7 +148,7 @@ def vector_field(p: Design3DOF, eta, nu, tau, V_c=None, V_c_dot=None):
     else:
         nu_c, nu_c_dot = current_in_body(eta[2], nu[2], V_c, V_c_dot)
         nu_r = nu - nu_c
-    nu_r_dot = jnp.linalg.solve(mass_matrix(p), tau - body_bias(p, nu_r))
+    nu_r_dot = solve_surge_decoupled(mass_matrix(p), tau - body_bias(p, nu_r))
     return eta_dot, nu_r_dot + nu_c_dot
 
 

@@ -88,7 +88,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax._checks import check_array, check_positive, check_spd, is_concrete
-from vcjax.linalg import saturate, smooth_saturate
+from vcjax.linalg import saturate, smooth_saturate, solve_surge_decoupled
 from vcjax.vehicles.design3dof import Design3DOF, current_in_body, design3dof, kinematics
 
 __all__ = [
@@ -473,7 +473,7 @@ def _plant(t, x: InfanteState, u_cmd, args: PlantArgs, smooth: bool) -> InfanteS
 
     nu_c, nu_c_dot = current_in_body(eta[2], nu[2], args.V_c, args.V_c_dot)
     nu_r = nu - nu_c
-    nu_r_dot = jnp.linalg.solve(mass_matrix(p), body_forces(p, nu_r, act))
+    nu_r_dot = solve_surge_decoupled(mass_matrix(p), body_forces(p, nu_r, act))
     eta_dot = kinematics(eta[2]) @ nu
     return InfanteState(eta=eta_dot, nu=nu_r_dot + nu_c_dot, act=act_dot)
 
