@@ -21,6 +21,14 @@ Controller timing:
   over the step (zero-order hold, as on a real vehicle); its state ``z`` is advanced by forward
   Euler with the held ``z_dot``.
 
+Exogenous inputs (optional): ``exogenous(k, t, s, plant_params, ctrl_params) -> (s_next,
+plant_params_k, ctrl_params_k)`` is called once at the start of every step ``k`` (an int32
+step index) with its own carried state ``s`` (initial value ``s0``, any pytree); plant and
+controller see ``plant_params_k`` and ``ctrl_params_k`` during that step. It feeds processes that
+do not depend on the closed loop's state into it without precomputed ``(N, ...)`` arrays: a
+slowly varying ocean current (a Gauss–Markov state in ``s``), per-step sensor noise drawn from
+``jax.random.fold_in(key, k)``, scheduled parameters. Without it (the default) nothing changes.
+
 Health is data: ``Trajectory.finite[k]`` is False when step k produced a non-finite state; the
 state is then frozen at its last finite value so that a vmapped sweep never propagates NaNs.
 """
@@ -104,6 +112,9 @@ def rollout(
     z0,
     dt,
     t0=0.0,
+    *,
+    exogenous: Callable | None = None,
+    s0=None,
 ) -> Trajectory:
     """Roll the closed loop out for ``config.num_steps`` steps of size ``dt``.
 
@@ -115,6 +126,10 @@ def rollout(
         x0, z0: initial plant and controller states (pytrees of arrays).
         dt: () step size [s] (traced).
         t0: () initial time [s].
+        exogenous: optional ``g(k, t, s, plant_params, ctrl_params) -> (s_next, plant_params_k,
+            ctrl_params_k)`` (static), evaluated at the start of each step (see module
+            docstring); the parameters it returns are held over the step.
+        s0: initial state of ``exogenous`` (pytree of arrays; ``None`` when it has none).
 
     Returns:
         :class:`Trajectory`.
@@ -124,41 +139,43 @@ def rollout(
     dt = jnp.asarray(dt, dtype=dtype)
     t0 = jnp.asarray(t0, dtype=dtype)
 
-    if config.timing == "continuous":
+    def advance(t, y, pp, cp):
+        if config.timing == "continuous":
 
-        def field(t, y, args):
-            x, z = y
-            u, z_dot, aux = controller(t, x, z, ctrl_params)
-            return (plant(t, x, u, plant_params), z_dot), (u, aux)
+            def field(t_, y_, args):
+                x, z = y_
+                u, z_dot, aux = controller(t_, x, z, cp)
+                return (plant(t_, x, u, pp), z_dot), (u, aux)
 
-        def advance(t, y):
             return step_fn(field, t, y, dt, None)
 
-    else:
+        x, z = y
+        u, z_dot, aux = controller(t, x, z, cp)
 
-        def advance(t, y):
-            x, z = y
-            u, z_dot, aux = controller(t, x, z, ctrl_params)
+        def field(t_, x_, u_):
+            return plant(t_, x_, u_, pp), None
 
-            def field(t_, x_, u_):
-                return plant(t_, x_, u_, plant_params), None
+        x_next, _ = step_fn(field, t, x, dt, u)
+        z_next = jax.tree_util.tree_map(lambda a, b: a + dt * b, z, z_dot)
+        return (x_next, z_next), (u, aux)
 
-            x_next, _ = step_fn(field, t, x, dt, u)
-            z_next = jax.tree_util.tree_map(lambda a, b: a + dt * b, z, z_dot)
-            return (x_next, z_next), (u, aux)
-
-    def step(y, k):
-        t = t0 + k * dt
-        y_next, (u, aux) = advance(t, y)
+    def step(carry, k):
+        y, s = carry
+        t = t0 + k.astype(dtype) * dt
+        if exogenous is None:
+            pp, cp = plant_params, ctrl_params
+        else:
+            s, pp, cp = exogenous(k, t, s, plant_params, ctrl_params)
+        y_next, (u, aux) = advance(t, y, pp, cp)
         ok = all_finite(y_next)
         y_next = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), y_next, y)
-        return y_next, (y_next, u, aux, ok)
+        return (y_next, s), (y_next, u, aux, ok)
 
     if config.checkpoint:
         step = jax.checkpoint(step)
 
-    ks = jnp.arange(config.num_steps, dtype=dtype)
-    _, (ys, us, auxs, oks) = jax.lax.scan(step, (x0, z0), ks)
+    ks = jnp.arange(config.num_steps, dtype=jnp.int32)
+    _, (ys, us, auxs, oks) = jax.lax.scan(step, ((x0, z0), s0), ks)
     xs, zs = ys
     t = t0 + jnp.arange(config.num_steps + 1, dtype=dtype) * dt
     return Trajectory(t=t, x=_stack0(x0, xs), z=_stack0(z0, zs), u=us, aux=auxs, finite=oks)

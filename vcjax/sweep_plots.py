@@ -1,0 +1,175 @@
+"""Figures of a Monte-Carlo sweep (:mod:`vcjax.sweep`; Agg backend, files, never windows).
+
+* ``sweep_error_vs_current.png``: steady-state |e| of every run against the mean current speed
+  and against the current direction, one colour per variant, with binned medians;
+* ``sweep_metrics.png``: box plots of the main metrics per variant;
+* ``sweep_envelopes.png``: cross-track error against time, median and 25–75 % / 5–95 % bands
+  per variant;
+* ``sweep_paths.png``: a sample of the paths travelled, per variant.
+
+Runs flagged ``diverged`` are left out of every panel (their count is in the titles).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from vcjax.plots import STYLE, _plt, _save
+
+__all__ = ["sweep_figures"]
+
+_FLOOR = 1e-6  # log-scale floor for errors [m]
+
+
+def _variants(result):
+    return [v for v in STYLE if v in result.metrics]
+
+
+def _ok(result, v):
+    return ~np.asarray(result.metrics[v]["diverged"], dtype=bool)
+
+
+def _binned_median(x, y, edges):
+    mid, med = [], []
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        sel = (x >= lo) & (x <= hi)
+        if np.any(sel):
+            mid.append(0.5 * (lo + hi))
+            med.append(np.median(y[sel]))
+    return np.array(mid), np.array(med)
+
+
+def _error_vs_current(result, out: Path) -> Path:
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
+    speed = np.asarray(result.scenarios["current_speed"], dtype=np.float64)
+    direction = np.degrees(np.asarray(result.scenarios["current_direction"], np.float64)) % 360
+    n = speed.size
+    alpha = float(np.clip(30.0 / max(n, 1), 0.05, 0.6))
+    for ax, x, label in (
+        (axes[0], speed, "mean current speed [m/s]"),
+        (axes[1], direction, "current direction (towards, from north) [deg]"),
+    ):
+        span = (x.min(), x.max()) if n else (0.0, 1.0)
+        edges = np.linspace(span[0], span[1] + 1e-12, 11)
+        for v in _variants(result):
+            ok = _ok(result, v)
+            y = np.maximum(np.asarray(result.metrics[v]["ss_abs_e"], np.float64)[ok], _FLOOR)
+            st = STYLE[v]
+            ax.scatter(x[ok], y, s=6, color=st["color"], alpha=alpha, lw=0)
+            if np.ptp(x) > 0:
+                mx, my = _binned_median(x[ok], y, edges)
+                ax.plot(mx, my, color=st["color"], ls=st["ls"], lw=2, label=st["label"])
+            else:
+                ax.plot([], [], color=st["color"], ls=st["ls"], lw=2, label=st["label"])
+        ax.set_xlabel(label)
+        ax.set_yscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("steady-state mean |e| [m] (last %.0f %%)" % (100 * result.spec.tail))
+    fails = ", ".join(f"{v}: {int((~_ok(result, v)).sum())}" for v in _variants(result))
+    axes[0].set_title(f"{n} scenarios; lines: binned medians")
+    axes[1].set_title(f"diverged runs (left out): {fails}")
+    axes[0].legend(fontsize=8)
+    return _save(fig, out / "sweep_error_vs_current.png")
+
+
+def _metric_boxes(result, out: Path) -> Path:
+    plt = _plt()
+    panels = [
+        ("ss_abs_e", "steady-state |e| [m]", True),
+        ("ss_abs_u_err", "steady-state |u - u_d| [m/s]", True),
+        ("iae_e", "IAE of e [m s]", True),
+        ("max_abs_e", "max |e| [m]", True),
+        ("max_abs_rudder_deg", "max |rudder| [deg]", False),
+        ("sat_fraction", "fraction of steps saturated", False),
+    ]
+    fig, axes = plt.subplots(2, 3, figsize=(13, 7))
+    vs = _variants(result)
+    for ax, (key, title, log) in zip(axes.ravel(), panels, strict=True):
+        data = []
+        for v in vs:
+            y = np.asarray(result.metrics[v][key], np.float64)[_ok(result, v)]
+            data.append(np.maximum(y, _FLOOR) if log else y)
+        bp = ax.boxplot(data, whis=(5, 95), showfliers=False, patch_artist=True)
+        for patch, v in zip(bp["boxes"], vs, strict=True):
+            patch.set_facecolor(STYLE[v]["color"])
+            patch.set_alpha(0.5)
+        ax.set_xticks(range(1, len(vs) + 1), vs, fontsize=8)
+        ax.set_title(title, fontsize=10)
+        if log:
+            ax.set_yscale("log")
+        ax.grid(True, axis="y", alpha=0.3)
+    fig.suptitle("Sweep metrics per variant (boxes: quartiles; whiskers: 5-95 %)")
+    return _save(fig, out / "sweep_metrics.png")
+
+
+def _grid(plt, n):
+    rows = 1 if n <= 2 else 2
+    cols = int(np.ceil(n / rows))
+    fig, axes = plt.subplots(rows, cols, figsize=(5.5 * cols, 4.2 * rows), squeeze=False)
+    return fig, axes.ravel()
+
+
+def _envelopes(result, out: Path) -> Path:
+    plt = _plt()
+    vs = _variants(result)
+    fig, axes = _grid(plt, len(vs))
+    t = np.asarray(result.trace_t)
+    for ax, v in zip(axes, vs, strict=False):
+        e = np.asarray(result.traces[v]["e"], np.float64)[_ok(result, v)]
+        st = STYLE[v]
+        if e.shape[0]:
+            q = np.percentile(e, [5, 25, 50, 75, 95], axis=0)
+            ax.fill_between(t, q[0], q[4], color=st["color"], alpha=0.15, label="5-95 %")
+            ax.fill_between(t, q[1], q[3], color=st["color"], alpha=0.35, label="25-75 %")
+            ax.plot(t, q[2], color=st["color"], lw=1.5, label="median")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_title(f"{st['label']} ({e.shape[0]} runs)", fontsize=10)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("cross-track error e [m]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    for ax in axes[len(vs) :]:
+        ax.set_visible(False)
+    return _save(fig, out / "sweep_envelopes.png")
+
+
+def _paths(result, out: Path, max_paths: int = 60) -> Path:
+    plt = _plt()
+    vs = _variants(result)
+    fig, axes = _grid(plt, len(vs))
+    for ax, v in zip(axes, vs, strict=False):
+        xy = np.asarray(result.traces[v]["xy"], np.float64)
+        ok = np.flatnonzero(_ok(result, v))[:max_paths]
+        bad = np.flatnonzero(~_ok(result, v))[:max_paths]
+        st = STYLE[v]
+        for i in ok:
+            ax.plot(xy[i, :, 1], xy[i, :, 0], color=st["color"], lw=0.6, alpha=0.5)
+        for i in bad:
+            ax.plot(xy[i, :, 1], xy[i, :, 0], color="k", lw=0.6, alpha=0.5)
+        if xy.size:
+            y_lo, y_hi = np.nanmin(xy[..., 1]), np.nanmax(xy[..., 1])
+            ax.plot([y_lo, y_hi], [10, 10], "k-", lw=3, alpha=0.25, label="path x = 10 m")
+        ax.set_title(f"{st['label']}: {len(ok)} paths (black: diverged)", fontsize=10)
+        ax.set_xlabel("y (east) [m]")
+        ax.set_ylabel("x (north) [m]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    for ax in axes[len(vs) :]:
+        ax.set_visible(False)
+    return _save(fig, out / "sweep_paths.png")
+
+
+def sweep_figures(result, out: Path) -> list[Path]:
+    """Write the sweep figures for a :class:`~vcjax.sweep.SweepResult` into ``out``.
+
+    The envelope and path figures need recorded traces (``record_points > 0``).
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    files = [_error_vs_current(result, out), _metric_boxes(result, out)]
+    if np.asarray(result.trace_t).size:
+        files += [_envelopes(result, out), _paths(result, out)]
+    return files
