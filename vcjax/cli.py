@@ -93,6 +93,28 @@ def _is_number(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool)
 
 
+def _cmd_sweep(args) -> int:
+    _enable_x64(args.x64)
+    from vcjax.sweep import run_sweep_config
+
+    try:
+        result = run_sweep_config(args.config, args.out, progress=True)
+    except (OSError, ValueError) as err:
+        return _fail(f"sweep: {err}")
+    summary = result["summary"]
+    if summary is not None:  # None on the non-zero processes of a multi-host run
+        for variant, s in summary.get("variants", {}).items():
+            e = s.get("metrics", {}).get("ss_abs_e", {})
+            if e:
+                print(
+                    f"{variant:<14} ss_abs_e median {e['p50']:.3g} m, p95 {e['p95']:.3g} m; "
+                    f"diverged {s.get('n_diverged', 0)} of {s.get('n', '?')}"
+                )
+    for f in result["files"]:
+        print(f"wrote {f}")
+    return 0
+
+
 def _cmd_tune(args) -> int:
     _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
     from tuning.cli import run_tune_config
@@ -170,6 +192,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     s.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
     s.set_defaults(func=_cmd_simulate)
+
+    w = sub.add_parser("sweep", help="Monte-Carlo sweep of Simulation 1 scenarios (TOML)")
+    w.add_argument("config", help="TOML config (see examples/sweeps/)")
+    w.add_argument("--out", default="out/sweep", help="output directory (default: out/sweep)")
+    w.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    w.set_defaults(func=_cmd_sweep)
 
     t = sub.add_parser(
         "tune", help="tune the VCM gains by gradient descent through the closed loop (TOML)"
