@@ -1,9 +1,10 @@
 """Batches of Simulation 1 scenarios for robust tuning (random currents and initial offsets).
 
-A compact sampler (``vcjax`` had no Monte-Carlo sweep module when this was written): around the
-paper's Simulation 1 (path ``x = 10 m`` heading east, ``eta0 = [0, 0, pi/2]``, ``nu0 = [2, 0, 0]``)
+Drawn with the Monte-Carlo sweep API (:func:`vcjax.sweep.sample_scenarios`, so a tuning batch is
+exactly the scenarios a ``vcjax sweep`` with the same distribution and seed would run), around the
+paper's Simulation 1 (path ``x = 10 m`` heading east, ``eta0 = [0, 0, pi/2]``, ``nu0 = [2, 0, 0]``):
 
-* current speed ``|V_c| ~ U(0, current_max)`` in a direction ``~ U(0, 2 pi)`` (NED);
+* current speed ``|V_c| ~ U(0, current_max)`` in a direction ``~ U(0, 360 deg)`` (NED);
 * initial position offset ``~ U(-position_offset, position_offset)`` on each of x and y [m];
 * initial heading offset ``~ U(-heading_offset, heading_offset)`` [rad].
 
@@ -13,11 +14,11 @@ batch axis; vmap it with :data:`SCENARIO_AXES`.
 
 from __future__ import annotations
 
-import jax
-import jax.numpy as jnp
+import math
+
 import numpy as np
 
-from vcjax import sim1
+from vcjax import sim1, sweep
 
 __all__ = ["SCENARIO_AXES", "sample_scenarios", "scenario_at", "batch_size"]
 
@@ -61,16 +62,19 @@ def sample_scenarios(
         if not (np.isfinite(v) and v >= 0):
             raise ValueError(f"{name}: expected a finite value >= 0, got {v!r}")
     base = sim1.sim1_scenario() if base is None else base
-    dtype = base.eta0.dtype
-    k_speed, k_dir, k_pos, k_head = jax.random.split(jax.random.PRNGKey(int(seed)), 4)
-    speed = current_max * jax.random.uniform(k_speed, (n,), dtype=dtype)
-    direction = 2 * np.pi * jax.random.uniform(k_dir, (n,), dtype=dtype)
-    V_c = jnp.stack([speed * jnp.cos(direction), speed * jnp.sin(direction)], axis=1)
-    d_pos = jax.random.uniform(k_pos, (n, 2), dtype=dtype, minval=-1.0, maxval=1.0)
-    d_head = jax.random.uniform(k_head, (n, 1), dtype=dtype, minval=-1.0, maxval=1.0)
-    offset = jnp.concatenate([position_offset * d_pos, heading_offset * d_head], axis=1)
-    eta0 = base.eta0[None, :] + offset
-    nu0 = jnp.broadcast_to(base.nu0, (n, 3))
+    x0, y0, psi0 = (float(v) for v in np.asarray(base.eta0))
+    h = math.degrees(float(heading_offset))
+    spec = sweep.ScenarioSpec(
+        current_speed=(0.0, float(current_max)),
+        current_direction_deg=(0.0, 360.0),
+        x0=(x0 - position_offset, x0 + position_offset),
+        y0=(y0 - position_offset, y0 + position_offset),
+        heading0_deg=(math.degrees(psi0) - h, math.degrees(psi0) + h),
+        speed0=(float(base.nu0[0]),) * 2,
+        u_d=(float(base.u_d),) * 2,
+    )
+    mc = sweep.sample_scenarios(spec, int(seed), np.arange(n), dtype=base.eta0.dtype)
+    eta0, nu0, V_c = mc.eta0, mc.nu0, mc.V_c
     return base._replace(eta0=eta0, nu0=nu0, V_c=V_c)
 
 

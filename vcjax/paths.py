@@ -40,6 +40,10 @@ from vcjax._checks import check_array, check_positive
 
 __all__ = [
     "Path",
+    "LineCoeffs",
+    "CircleCoeffs",
+    "HelixCoeffs",
+    "SplineCoeffs",
     "PathFrame",
     "path_frame",
     "path_point",

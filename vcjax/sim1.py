@@ -48,6 +48,12 @@ __all__ = [
     "gains_to_json",
     "gains_from_json",
     "run_variant",
+    "simulate",
+    "closed_loop",
+    "controller_params",
+    "initial_controller_state",
+    "path_coeffs",
+    "PATH",
     "run_sim1",
     "tracking_metrics",
 ]
@@ -76,7 +82,18 @@ class Sim1Scenario(NamedTuple):
     design_vehicle: Any
 
 
-PATH, _PATH_COEFFS = paths.paper_line()
+#: Static path kind of Simulation 1 (the line ``[10, w]``); its coefficients: :func:`path_coeffs`.
+PATH = paths.paper_line()[0]
+#: The line's coefficients in float64 numpy (validated once, at import, by ``paper_line``).
+_LINE = paths.LineCoeffs(origin=np.array([10.0, 0.0, 0.0]), direction=np.array([0.0, 1.0, 0.0]))
+
+
+def path_coeffs(dtype=None):
+    """Coefficients of Simulation 1's line ``[10, w]`` as arrays of ``dtype`` (default: JAX's
+    default float when called, not at import, so enabling float64 after importing vcjax works).
+    Safe to call inside ``jit``."""
+    dtype = jnp.asarray(0.0).dtype if dtype is None else dtype
+    return jax.tree_util.tree_map(lambda a: jnp.asarray(a, dtype=dtype), _LINE)
 
 
 def sim1_scenario(
@@ -108,7 +125,7 @@ def sim1_scenario(
             raise ValueError(f"{name}: expected InfanteParams, got {type(v).__name__}")
     dt = jnp.asarray(vehicle.mass).dtype
     f = lambda x: jnp.asarray(x, dtype=dt)
-    return Sim1Scenario(f(eta0), f(nu0), f(V_c), f(u_d), vehicle, _PATH_COEFFS, design_vehicle)
+    return Sim1Scenario(f(eta0), f(nu0), f(V_c), f(u_d), vehicle, path_coeffs(dt), design_vehicle)
 
 
 class Sim1Gains(NamedTuple):
@@ -159,8 +176,9 @@ class _Loop:
 
 
 @functools.cache
-def _loop(variant: str, edd: str = "paper", smooth: bool = False) -> _Loop:
-    """Closed loop for one variant; cached so that jitted rollouts compile once per variant."""
+def closed_loop(variant: str, edd: str = "paper", smooth: bool = False) -> _Loop:
+    """``(plant, controller)`` of one variant for :func:`vcjax.rollout.rollout`; cached, so the
+    same function objects come back and jitted rollouts compile once per variant."""
     if variant in ("vcm", "vcm_integral"):
         cfg = VCMConfig(
             path=PATH, actuation="underactuated", edd=edd, integral=variant == "vcm_integral"
@@ -180,7 +198,9 @@ def _loop(variant: str, edd: str = "paper", smooth: bool = False) -> _Loop:
     return _Loop(plant=plant, controller=controller)
 
 
-def _controller_params(variant, gains: Sim1Gains, sc: Sim1Scenario):
+def controller_params(variant, gains: Sim1Gains, sc: Sim1Scenario):
+    """The traced controller parameters of ``variant``: its law's params (design model derived
+    from ``sc.design_vehicle``, rudder sway ratio, desired speed, path)."""
     model = infante.design_model(sc.design_vehicle)
     k_rudder = _rudder_ratio(sc.design_vehicle)
     if variant.startswith("vcm"):
@@ -194,7 +214,8 @@ def _rudder_ratio(vehicle):
     return Y / N
 
 
-def _initial_z(variant, sc: Sim1Scenario):
+def initial_controller_state(variant, sc: Sim1Scenario):
+    """Initial controller state: the particle starts abreast of the vehicle (``w0 = y0``)."""
     # particle starts at the point of the path closest to the start (the line x = 10: w = y0)
     w0 = sc.eta0[1]
     return vcm_state(varpi0=w0) if variant.startswith("vcm") else baseline_state(varpi0=w0)
@@ -219,14 +240,14 @@ def simulate(
     Returns:
         :class:`~vcjax.rollout.Trajectory` (plant state: ``InfanteState``).
     """
-    loop = _loop(variant, edd, smooth)
+    loop = closed_loop(variant, edd, smooth)
     x0 = infante.InfanteState(
         eta=scenario.eta0, nu=scenario.nu0, act=jnp.zeros(2, scenario.eta0.dtype)
     )
     zero2 = jnp.zeros(2, scenario.eta0.dtype)
     args = infante.PlantArgs(vehicle=scenario.vehicle, V_c=scenario.V_c, V_c_dot=zero2)
-    ctrl = (_controller_params(variant, gains, scenario), scenario.design_vehicle)
-    z0 = _initial_z(variant, scenario)
+    ctrl = (controller_params(variant, gains, scenario), scenario.design_vehicle)
+    z0 = initial_controller_state(variant, scenario)
     return rollout(loop.plant, loop.controller, config, args, ctrl, x0, z0, dt)
 
 

@@ -523,7 +523,7 @@ class _MCLoop:
 @functools.cache
 def _mc_loop(variant: str, edd: str, smooth: bool, gm: bool, noise: bool) -> _MCLoop:
     """Simulation 1's loop with a per-step current and measurement noise (cached: one trace)."""
-    base = sim1._loop(variant, edd, smooth)
+    base = sim1.closed_loop(variant, edd, smooth)
 
     def exogenous(k, t, s, plant_params, ctrl_params):
         args, gm_p, key_steps, dt = plant_params
@@ -571,7 +571,7 @@ def _sim1_scenario(nominal, sc: MCScenario, config: MCConfig) -> sim1.Sim1Scenar
         V_c=sc.V_c,
         u_d=sc.u_d,
         vehicle=vehicle,
-        path=sim1._PATH_COEFFS,
+        path=sim1.path_coeffs(sc.eta0.dtype),
         design_vehicle=nominal,
     )
 
@@ -600,9 +600,9 @@ def simulate_scenario(
     gm_p = GaussMarkovCurrent(sc.V_c, sc.current_sigma, sc.current_tau, sc.current_max_speed)
     s0 = gm_init(gm_p, k_init) if gm else None
     x0 = infante.InfanteState(eta=sc.eta0, nu=sc.nu0, act=jnp.zeros(2, dtype))
-    z0 = sim1._initial_z(variant, s1)
+    z0 = sim1.initial_controller_state(variant, s1)
     args = infante.PlantArgs(vehicle=s1.vehicle, V_c=sc.V_c, V_c_dot=jnp.zeros(2, dtype))
-    ctrl = (sim1._controller_params(variant, gains, s1), nominal)
+    ctrl = (sim1.controller_params(variant, gains, s1), nominal)
     return rollout(
         loop.plant,
         loop.controller,
@@ -636,9 +636,8 @@ def scenario_metrics(traj: Trajectory, sc: MCScenario, vehicle, config: MCConfig
     n = traj.u.shape[0]
     eta = traj.x.eta[:n]
     if config.sensor_noise:
-        frames = jax.vmap(lambda w: paths.path_frame(sim1.PATH, sim1._PATH_COEFFS, w))(
-            traj.z.varpi[:n]
-        )
+        coeffs = sim1.path_coeffs(eta.dtype)
+        frames = jax.vmap(lambda w: paths.path_frame(sim1.PATH, coeffs, w))(traj.z.varpi[:n])
         eps = jax.vmap(lambda psi_p, p_bar, xy: rot2(psi_p).T @ (xy - p_bar))(
             frames.psi_p, frames.p_bar, eta[:, :2]
         )
