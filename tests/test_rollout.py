@@ -115,9 +115,13 @@ def test_divergence_is_flagged_and_state_frozen():
     assert np.all(np.isfinite(traj.x))
 
 
-def test_checkpoint_gives_same_gradient():
+@pytest.mark.parametrize("every", [1, 7, 100, 250])
+def test_checkpoint_gives_same_trajectory_and_gradient(every):
+    """Per-step and segment checkpointing (7 does not divide 100: a remainder segment) change
+    memory, not results."""
+
     def loss(gains, checkpoint):
-        cfg = RolloutConfig(num_steps=100, checkpoint=checkpoint)
+        cfg = RolloutConfig(num_steps=100, checkpoint=checkpoint, checkpoint_every=every)
         traj = rollout(
             plant,
             pd_controller,
@@ -131,9 +135,12 @@ def test_checkpoint_gives_same_gradient():
         return jnp.sum(traj.x[:, 0] ** 2)
 
     g = jnp.array([1.5, 0.8, 0.4])
-    a = jax.jit(jax.grad(loss), static_argnums=1)(g, False)
-    b = jax.jit(jax.grad(loss), static_argnums=1)(g, True)
-    np.testing.assert_allclose(a, b, rtol=1e-12)
+    a = jax.jit(jax.value_and_grad(loss), static_argnums=1)(g, False)
+    b = jax.jit(jax.value_and_grad(loss), static_argnums=1)(g, True)
+    np.testing.assert_allclose(a[0], b[0], rtol=1e-13)
+    np.testing.assert_allclose(a[1], b[1], rtol=1e-12)
+    with pytest.raises(ValueError, match="checkpoint_every"):
+        RolloutConfig(num_steps=10, checkpoint=True, checkpoint_every=0)
 
 
 def test_float32_rollout_close_to_float64():

@@ -45,7 +45,7 @@ import numpy as np
 
 from vcjax._checks import check_array, check_positive
 from vcjax.guidance import los_angle, path_kinematics
-from vcjax.linalg import wrap_angle
+from vcjax.linalg import safe_sqrt, wrap_angle
 from vcjax.paths import path_frame
 from vcjax.vehicles import design3dof as d3
 
@@ -249,6 +249,7 @@ def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState):
     M_b = d3.mass_matrix(m)
 
     def command(v_d_dot):
+        # Everything here is affine in v_d_dot (the only unknown of the underactuated case).
         alpha_K = jnp.stack([u_d_dot - g.P_Phi[0] * (u - u_d), v_d_dot - g.P_Phi[1] * (v - v_d)])
         w_dot = 0.5 * (alpha_K + R_g.T @ alpha_eps)
         edd_implied = (R_g @ w_dot + kin.eps_ddot_drift)[1]
@@ -257,21 +258,26 @@ def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState):
         r_dot = psi_d_ddot - pG1 * psi_tilde_dot - pPhi3 * (psi_tilde_dot + pG1 * psi_tilde)
         nu_dot = jnp.concatenate([w_dot, r_dot[None]])
         tau = M_b @ nu_dot + n_b
-        res = jnp.sqrt(jnp.sum((w_dot - alpha_K) ** 2) + jnp.sum((R_g @ w_dot - alpha_eps) ** 2))
-        return tau, (nu_dot, edd_implied, res)
+        return tau, nu_dot, edd_implied, alpha_K
 
     zero = jnp.zeros_like(u)
     if cfg.actuation == "underactuated":
-        # sway row of (31) must equal the rudder's own sway force: tau_v - k tau_r = 0 (Remark 4)
-        def sway_gap(x):
-            tau = command(x)[0]
-            return tau[1] - params.k_rudder * tau[2]
-
-        a0, a1 = jax.jvp(sway_gap, (zero,), (jnp.ones_like(zero),))
-        v_d_dot = -a0 / a1  # a1 = m22/2 - k m23/2 (+ coupling via e_ddot): bounded away from 0
+        # The sway row of (31) must equal the rudder's own sway force: tau_v - k tau_r = 0
+        # (Remark 4). One jvp gives the value at v_d_dot = 0 and the (constant) slope of every
+        # output; the exact root follows, and the outputs by linearity (no re-evaluation).
+        out0, slope = jax.jvp(command, (zero,), (jnp.ones_like(zero),))
+        gap0 = out0[0][1] - params.k_rudder * out0[0][2]
+        dgap = slope[0][1] - params.k_rudder * slope[0][2]
+        v_d_dot = -gap0 / dgap  # dgap = m22/2 - k m23/2 (+ coupling via e_ddot): away from 0
+        tau, nu_dot, edd_implied, alpha_K = jax.tree_util.tree_map(
+            lambda a, b: a + v_d_dot * b, out0, slope
+        )
     else:
         v_d_dot = zero
-    tau, (nu_dot, edd_implied, res) = command(v_d_dot)
+        tau, nu_dot, edd_implied, alpha_K = command(zero)
+    w_dot = nu_dot[:2]
+    # NaN-safe at 0 (consistent rows): its cotangent is a materialised zero inside scans
+    res = safe_sqrt(jnp.sum((w_dot - alpha_K) ** 2) + jnp.sum((R_g @ w_dot - alpha_eps) ** 2))
 
     if cfg.integral:
         clipped = jnp.clip(z.int_eps, -params.int_limit, params.int_limit)
