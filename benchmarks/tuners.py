@@ -37,7 +37,7 @@ from tuning.cli import build
 from tuning.cmaes import CMAES
 from tuning.config import load_config
 from tuning.loss import objective
-from tuning.optim import init_state, make_optimizer, make_step, run_gradient_tuner
+from tuning.optim import init_state, make_optimizer, make_step, run_gradient_tuner, tuner_options
 from tuning.report import ProgressBar
 
 __all__ = ["measure_grad_cost", "run_benchmark", "main"]
@@ -93,7 +93,8 @@ def run_benchmark(
     o = cfg["optimizer"]
     loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
     held_fn = jax.jit(lambda th: objective(th, data, heldout, eval_problem)[0])
-    theta0 = data.theta_ref
+    # every tuner starts from the default gains, split where the loss is symmetric
+    theta0 = data.theta_ref + problem.space.symmetry_break(data.base.vcm)
     say("measuring the cost of a gradient relative to a forward pass (compiling) ...")
     cost = measure_grad_cost(loss_fn, theta0, (data, train))
     r = cost["ratio"]
@@ -101,7 +102,7 @@ def run_benchmark(
         f"batch forward {cost['forward_s']:.3g} s, value_and_grad {cost['value_and_grad_s']:.3g} s"
         f": one gradient = {r:.2f} forward passes"
     )
-    h0 = float(held_fn(theta0))
+    h0 = float(held_fn(data.theta_ref))
     results = {}
 
     def curve_cb(tag, cum_rollouts_of):
@@ -130,14 +131,7 @@ def run_benchmark(
             loss_fn,
             theta0,
             (data, train),
-            optimizer=o["name"],
-            steps=steps,
-            learning_rate=o["learning_rate"],
-            memory_size=o["memory_size"],
-            max_linesearch_steps=o["max_linesearch_steps"],
-            grad_mode=o["grad_mode"],
-            max_bad_steps=o["max_bad_steps"],
-            grad_tol=o["grad_tol"],
+            **{**tuner_options(o), "steps": steps},
             on_step=curve_cb("gradient", lambda rec: rec["cum_evals"] * r * B),
             progress=bar,
             step_fn=step,

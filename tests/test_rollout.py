@@ -141,6 +141,8 @@ def test_checkpoint_gives_same_trajectory_and_gradient(every):
     np.testing.assert_allclose(a[1], b[1], rtol=1e-12)
     with pytest.raises(ValueError, match="checkpoint_every"):
         RolloutConfig(num_steps=10, checkpoint=True, checkpoint_every=0)
+    with pytest.raises(ValueError, match="unroll"):
+        RolloutConfig(num_steps=10, unroll=0)
 
 
 def test_float32_rollout_close_to_float64():
@@ -178,3 +180,12 @@ def test_config_validation():
         RolloutConfig(num_steps=10, timing="discrete")
     with pytest.raises(ValueError, match="unknown integrator"):
         RolloutConfig(num_steps=10, integrator="dopri5")
+
+
+def test_unrolled_loop_gives_the_same_trajectory():
+    args = (jnp.array([2.0, 0.3]), jnp.array([1.5, 0.8, 0.4]), jnp.array([1.0, 0.0]))
+    a = run(plant, pd_controller, RolloutConfig(num_steps=37), *args, jnp.array(0.0), 0.02)
+    b = run(
+        plant, pd_controller, RolloutConfig(num_steps=37, unroll=4), *args, jnp.array(0.0), 0.02
+    )
+    np.testing.assert_allclose(a.x, b.x, rtol=1e-14)

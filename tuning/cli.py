@@ -30,7 +30,7 @@ import numpy as np
 from tuning.config import ConfigError, load_config
 from tuning.loss import TERMS, TuningProblem, objective, problem_data
 from tuning.loss import loss_weights as make_weights
-from tuning.optim import run_gradient_tuner
+from tuning.optim import run_gradient_tuner, tuner_options
 from tuning.params import GainSpace
 from tuning.report import ProgressBar, plot_before_after, plot_loss_curve
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, scenario_at
@@ -143,7 +143,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     )
     eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
     loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
-    theta0 = data.theta_ref
+    theta0 = data.theta_ref  # the default gains: what 'before' means
     say("evaluating the initial gains on the held-out batch (compiling) ...")
     before = _evaluate(eval_fn, theta0, data, heldout)
     say(f"held-out loss before: {before['loss']:.6g}; compiling the training step ...")
@@ -151,16 +151,9 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     bar = ProgressBar(o["steps"], label="tune ", stream=progress) if progress else None
     res = run_gradient_tuner(
         loss_fn,
-        theta0,
+        theta0 + space.symmetry_break(data.base.vcm),
         (data, train),
-        optimizer=o["name"],
-        steps=o["steps"],
-        learning_rate=o["learning_rate"],
-        memory_size=o["memory_size"],
-        max_linesearch_steps=o["max_linesearch_steps"],
-        grad_mode=o["grad_mode"],
-        max_bad_steps=o["max_bad_steps"],
-        grad_tol=o["grad_tol"],
+        **tuner_options(o),
         on_step=lambda k, th, rec: {"gains": space.describe(th, data.base.vcm)},
         progress=bar,
     )

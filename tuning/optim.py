@@ -37,6 +37,7 @@ __all__ = [
     "init_state",
     "TuneResult",
     "run_gradient_tuner",
+    "tuner_options",
 ]
 
 OPTIMIZERS = ("lbfgs", "adam")
@@ -199,6 +200,14 @@ class TuneResult(NamedTuple):
     aborted: bool
     reason: str
     evals: int
+
+
+def tuner_options(optimizer_section: dict) -> dict:
+    """Keyword arguments of :func:`run_gradient_tuner` from a config's ``[optimizer]`` section."""
+    o = optimizer_section
+    keys = ("steps", "learning_rate", "memory_size", "max_linesearch_steps", "grad_mode")
+    opts = {k: o[k] for k in keys + ("max_bad_steps", "grad_tol")}
+    return {"optimizer": o["name"], **opts}
 
 
 def run_gradient_tuner(

@@ -117,6 +117,31 @@ class GainSpace:
                 parts.append(jnp.log(g))
         return jnp.concatenate(parts)
 
+    def symmetry_break(self, gains: PMGains, eps: float = 0.1) -> np.ndarray:
+        """(n,) offset of ``theta`` that splits equal ``(p_G, p_Phi)`` pairs of the ``eps`` rows.
+
+        The closed loop depends on each pair only through ``P_eps2 = p_G + p_Phi`` and
+        ``P_eps1 = p_G p_Phi`` (35), so the loss is symmetric under swapping them and a start
+        with ``p_G = p_Phi`` (the defaults) is a critical point along ``log(p_G / p_Phi)``:
+        gradient descent would never separate them. The offset multiplies ``p_G`` by
+        ``exp(eps)`` and divides ``p_Phi`` by it (``P_eps1`` unchanged, ``P_eps2`` up by
+        ``O(eps^2)``). Zero where the pair is already unequal or not both tuned.
+        """
+        off = np.zeros(self.size)
+        if not ("P_G" in self.tune and "P_Phi" in self.tune):
+            return off
+        start = {}
+        i = 0
+        for n in self.tune:
+            start[n] = i
+            i += GAIN_NAMES[n]
+        pg, pphi = np.asarray(gains.P_G), np.asarray(gains.P_Phi)
+        for row in (1, 2):  # s, e rows: P_G[1:] pairs with P_Phi[3:]
+            if np.isclose(pg[row], pphi[row + 2]):
+                off[start["P_G"] + row] = eps
+                off[start["P_Phi"] + row + 2] = -eps
+        return off
+
     def describe(self, theta, base: PMGains) -> dict:
         """Plain-JSON dict of the decoded gains (for histories and reports)."""
         g = self.decode(jnp.asarray(np.asarray(theta)), base)

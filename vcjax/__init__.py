@@ -1,1 +1,51 @@
-"""vcjax: virtually constrained motion control of underwater vehicles, in JAX."""
+"""vcjax: virtually constrained motion control of underwater vehicles, in JAX.
+
+The public API, by stage of the data flow (each module's docstring has the details):
+
+* :mod:`vcjax.mechanics` — the generic VCM engine: ``MechanicalSystem``, ``VirtualConstraints``,
+  ``vcm_gains``, ``reaction_force`` (16)/(17) with autodiff constraint Jacobians.
+* :mod:`vcjax.vehicles` — ``design3dof`` (20), ``sixdof`` (2), ``infante`` (INFANTE-class),
+  ``odin`` (ODIN-class), ``remus100`` (PythonVehicleSimulator's REMUS 100).
+* :mod:`vcjax.paths`, :mod:`vcjax.guidance` — paths and their frames, path particle, errors.
+* :mod:`vcjax.control` — ``vcm`` (path maneuvering (31)/(38)/(41)), ``baselines`` (LOS-PID, ILOS).
+* :mod:`vcjax.allocation` — thruster allocation with limits.
+* :mod:`vcjax.integrators`, :mod:`vcjax.rollout` — ``euler``/``heun``/``rk4``; the scan rollout.
+* :mod:`vcjax.sim1`, :mod:`vcjax.sim2` — the paper's two experiments; :mod:`vcjax.sweep` —
+  Monte-Carlo batches; :mod:`vcjax.currents` — current models.
+
+The library never enables float64 and never jits for you.
+"""
+
+from vcjax.integrators import euler, get_integrator, heun, rk4
+from vcjax.mechanics import (
+    Diagnostics,
+    MechanicalSystem,
+    VCMGains,
+    VirtualConstraints,
+    constraint_terms,
+    reaction_force,
+    vcm_gains,
+)
+from vcjax.paths import Path, PathFrame, path_frame
+from vcjax.rollout import RolloutConfig, Trajectory
+
+__all__ = [
+    "Diagnostics",
+    "MechanicalSystem",
+    "Path",
+    "PathFrame",
+    "RolloutConfig",
+    "Trajectory",
+    "VCMGains",
+    "VirtualConstraints",
+    "constraint_terms",
+    "euler",
+    "get_integrator",
+    "heun",
+    "path_frame",
+    "reaction_force",
+    "rk4",
+    "vcm_gains",
+]
+
+__version__ = "0.1.0"

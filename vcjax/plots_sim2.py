@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from vcjax.paths import path_point
+from vcjax.plots import _plt, _save
 
 __all__ = ["sim2_figures", "STYLE"]
 
@@ -15,22 +16,6 @@ STYLE = {
     "underactuated": dict(color="C0", ls="-", label="VCM, underactuated (τ_v = 0, paper)"),
     "full": dict(color="C3", ls="--", label="VCM, fully actuated (sway thrust)"),
 }
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    _plt().close(fig)
-    return path
 
 
 def _desired(path, coeffs, trajs):

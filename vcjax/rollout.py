@@ -68,10 +68,13 @@ class RolloutConfig:
     timing: Literal["continuous", "sampled"] = "continuous"
     checkpoint: bool = False
     checkpoint_every: int = 1
+    unroll: int = 1
 
     def __post_init__(self):
         if not isinstance(self.num_steps, int) or self.num_steps < 1:
             raise ValueError(f"num_steps: expected a positive int, got {self.num_steps!r}")
+        if not isinstance(self.unroll, int) or self.unroll < 1:
+            raise ValueError(f"unroll: expected a positive int, got {self.unroll!r}")
         if not isinstance(self.checkpoint_every, int) or self.checkpoint_every < 1:
             raise ValueError(
                 f"checkpoint_every: expected a positive int, got {self.checkpoint_every!r}"
@@ -183,7 +186,7 @@ def rollout(
     ks = jnp.arange(config.num_steps, dtype=jnp.int32)
     K = min(config.checkpoint_every, config.num_steps)
     if not config.checkpoint:
-        _, (ys, us, auxs, oks) = jax.lax.scan(step, ((x0, z0), s0), ks)
+        _, (ys, us, auxs, oks) = jax.lax.scan(step, ((x0, z0), s0), ks, unroll=config.unroll)
     elif K == 1:
         _, (ys, us, auxs, oks) = jax.lax.scan(jax.checkpoint(step), ((x0, z0), s0), ks)
     else:

@@ -143,29 +143,7 @@ __all__ = [
 ]
 
 #: Plant fields perturbed by default: inertia, added mass, hydrodynamic and rudder coefficients.
-DEFAULT_MODEL_FIELDS = (
-    "mass",
-    "Iz",
-    "X_udot",
-    "Y_vdot",
-    "Y_rdot",
-    "N_vdot",
-    "N_rdot",
-    "X_uu",
-    "X_vv",
-    "X_vr",
-    "X_rr",
-    "Y_uv",
-    "Y_ur",
-    "N_uv",
-    "N_ur",
-    "X_urdr",
-    "X_uvdr",
-    "X_uudrdr",
-    "Y_uudr",
-    "N_uudr",
-    "cf_coeff",
-)
+DEFAULT_MODEL_FIELDS = infante.INERTIA_FIELDS + infante.HYDRODYNAMIC_FIELDS
 _SCALAR_FIELDS = tuple(f for f in infante.InfanteParams._fields if f != "cf_x")
 
 #: Per-scenario metrics (float), see the module docstring.

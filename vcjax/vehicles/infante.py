@@ -95,6 +95,8 @@ __all__ = [
     "NPS_LENGTH",
     "NPS_PRIME",
     "InfanteParams",
+    "HYDRODYNAMIC_FIELDS",
+    "INERTIA_FIELDS",
     "infante_params",
     "ideal_fluid",
     "InfanteState",
@@ -140,6 +142,27 @@ NPS_PRIME: dict[str, float] = {
     "Ydr": 2.7e-2,
     "Ndr": -1.3e-2,
 }
+
+
+#: Fields of :class:`InfanteParams` holding damping, lift, cross-flow and rudder coefficients.
+HYDRODYNAMIC_FIELDS = (
+    "X_uu",
+    "X_vv",
+    "X_vr",
+    "X_rr",
+    "Y_uv",
+    "Y_ur",
+    "N_uv",
+    "N_ur",
+    "X_urdr",
+    "X_uvdr",
+    "X_uudrdr",
+    "Y_uudr",
+    "N_uudr",
+    "cf_coeff",
+)
+#: Fields holding mass, inertia and added mass.
+INERTIA_FIELDS = ("mass", "Iz", "X_udot", "Y_vdot", "Y_rdot", "N_vdot", "N_rdot")
 
 
 class InfanteParams(NamedTuple):
@@ -345,23 +368,7 @@ def ideal_fluid(params: InfanteParams) -> InfanteParams:
     Mass, added mass and the rigid-body Coriolis terms remain, so ``0.5 nu^T M nu`` is conserved
     in calm water with zero thrust (a check of the skew-symmetry of ``C_RB``).
     """
-    zero = [
-        "X_uu",
-        "X_vv",
-        "X_vr",
-        "X_rr",
-        "Y_uv",
-        "Y_ur",
-        "N_uv",
-        "N_ur",
-        "X_urdr",
-        "X_uvdr",
-        "X_uudrdr",
-        "Y_uudr",
-        "N_uudr",
-        "cf_coeff",
-    ]
-    return params._replace(**{k: jnp.zeros_like(getattr(params, k)) for k in zero})
+    return params._replace(**{k: jnp.zeros_like(getattr(params, k)) for k in HYDRODYNAMIC_FIELDS})
 
 
 def _as_vector(name, x, n, dtype):
