@@ -5,6 +5,7 @@ The closed-loop tests use a tiny problem (Euler, sampled controller, a few secon
 scenarios) so that compilation stays short; ``slow`` ones run the whole CLI.
 """
 
+import dataclasses
 import json
 
 import jax
@@ -84,6 +85,29 @@ def test_loss_gradient_matches_central_differences(tiny):
     )
     np.testing.assert_allclose(grad, fd, rtol=1e-4, atol=1e-6 * np.max(np.abs(fd)))
     assert np.max(np.abs(grad)) > 0
+
+
+def test_checkpointed_loss_gradient_is_the_same(tiny):
+    """Segment checkpointing (7 does not divide 40) changes memory, not the gradient."""
+    data, scen = tiny
+    ck = dataclasses.replace(TINY, checkpoint=True, checkpoint_every=7)
+    theta = data.theta_ref + 0.05
+    a = jax.jit(jax.value_and_grad(lambda th: objective(th, data, scen, TINY)[0]))(theta)
+    b = jax.jit(jax.value_and_grad(lambda th: objective(th, data, scen, ck)[0]))(theta)
+    np.testing.assert_allclose(a[0], b[0], rtol=1e-12)
+    np.testing.assert_allclose(a[1], b[1], rtol=1e-9, atol=1e-12)
+
+
+def test_symmetry_break_splits_equal_pairs_only():
+    space = GainSpace()
+    base = sim1.default_gains().vcm  # P_G[1:] == P_Phi[3:] == 0.5
+    off = space.symmetry_break(base, eps=0.1)
+    g = space.decode(space.encode(base) + off, base)
+    np.testing.assert_allclose(np.asarray(g.P_G[1:]) * np.asarray(g.P_Phi[3:]), 0.25, rtol=1e-12)
+    assert float(g.P_G[1]) > float(g.P_Phi[3])
+    assert float(g.P_G[0]) == pytest.approx(float(base.P_G[0]))  # heading row untouched
+    uneven = base._replace(P_G=jnp.asarray([1.0, 0.3, 0.5]))
+    assert np.count_nonzero(space.symmetry_break(uneven)) == 2  # only the e row
 
 
 def test_forward_mode_gradient_equals_reverse():

@@ -59,6 +59,7 @@ def build(cfg: dict):
         integrator=p["integrator"],
         timing=p["timing"],
         checkpoint=p["checkpoint"],
+        checkpoint_every=p["checkpoint_every"],
         smooth=p["smooth"],
         edd=p["edd"],
         risk=p["risk"],

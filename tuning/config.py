@@ -12,7 +12,8 @@ out-of-range values raise :class:`ConfigError` naming the offending ``section.ke
     integrator = "rk4"
     timing = "continuous"           # or "sampled"
     smooth = true                   # tanh actuator saturation while training (gradients pass)
-    checkpoint = false              # jax.checkpoint every step (long horizons)
+    checkpoint = false              # jax.checkpoint (long horizons under reverse mode)
+    checkpoint_every = 10           # with checkpoint: segment length (1 = every step)
     edd = "paper"                   # or "implied"
     risk = "mean"                   # or "cvar"
     alpha = 0.2                     # CVaR level (fraction of worst scenarios)
@@ -85,6 +86,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "timing": "continuous",
         "smooth": True,
         "checkpoint": False,
+        "checkpoint_every": 10,
         "edd": "paper",
         "risk": "mean",
         "alpha": 0.2,
@@ -129,7 +131,14 @@ _CHOICES = {
 # (section, key): (lower bound, strict) for numbers
 _POSITIVE = {"horizon", "dt", "log_box", "box_weight", "learning_rate", "sat_width"}
 _NONNEG = {"current_max", "position_offset", "heading_offset_deg", "grad_tol"}
-_INT_MIN1 = {"size", "steps", "memory_size", "max_linesearch_steps", "max_bad_steps"}
+_INT_MIN1 = {
+    "size",
+    "steps",
+    "memory_size",
+    "max_linesearch_steps",
+    "max_bad_steps",
+    "checkpoint_every",
+}
 
 
 def _type_name(v) -> str:

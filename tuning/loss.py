@@ -130,7 +130,8 @@ class TuningProblem:
         num_steps: rollout length N (horizon ``N dt``).
         integrator: ``"rk4"`` (default), ``"heun"`` or ``"euler"``.
         timing: ``"continuous"`` or ``"sampled"`` controller.
-        checkpoint: ``jax.checkpoint`` each step (long horizons under reverse mode).
+        checkpoint: rematerialise in the backward pass (long horizons under reverse mode).
+        checkpoint_every: with ``checkpoint``, the segment length (``RolloutConfig``).
         smooth: tanh actuator saturation in the plant (gradients pass through saturation).
         edd: ``"paper"`` or ``"implied"`` (see :mod:`vcjax.control.vcm`).
         risk: ``"mean"`` or ``"cvar"`` aggregation over the batch.
@@ -142,6 +143,7 @@ class TuningProblem:
     integrator: str = "rk4"
     timing: str = "continuous"
     checkpoint: bool = False
+    checkpoint_every: int = 10
     smooth: bool = True
     edd: str = "paper"
     risk: str = "mean"
@@ -162,6 +164,7 @@ class TuningProblem:
             integrator=self.integrator,
             timing=self.timing,
             checkpoint=self.checkpoint,
+            checkpoint_every=self.checkpoint_every,
         )
 
 
