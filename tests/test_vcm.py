@@ -186,3 +186,29 @@ def test_gain_validation():
         pm_gains(P_int=(0.5, 0.5))
     with pytest.raises(ValueError, match="actuation"):
         VCMConfig(path=LINE_PATH, actuation="sway")
+
+
+def test_ilos_guidance_keeps_37_exact_and_removes_the_cross_current_offset():
+    """Extension: the ILOS approach angle inside the VCM heading row. (37) still holds exactly
+    (implied mode, perfect model) for the new psi_d; under a cross current the underactuated
+    craft crabs with e -> 0, where the paper's LOS angle needs e = Delta tan(crab)."""
+    cfg = VCMConfig(path=LINE_PATH, actuation="underactuated", edd="implied", guidance="ilos")
+    traj, _ = simulate(cfg, T=15.0, dt=0.01, k_rudder=K_RUDDER)  # perfect model: no current
+    t = np.asarray(traj.t[:-1])
+    psit = np.asarray(traj.aux.psi_tilde)
+    exact = _two_pole(t, psit[0], float(traj.aux.psi_tilde_dot[0]), 1.0, 2.0)
+    assert np.max(np.abs(psit - exact)) / abs(psit[0]) < 1e-6
+    assert np.max(np.abs(np.asarray(traj.z.e_int))) > 0.1  # the integral is really in the loop
+
+    V_c = (0.5, 0.0)  # perpendicular to the path, which points east
+    tails = {}
+    for guidance in ("los", "ilos"):
+        cfg = VCMConfig(path=LINE_PATH, actuation="underactuated", edd="paper", guidance=guidance)
+        traj, _ = simulate(cfg, T=300.0, dt=0.1, k_rudder=K_RUDDER, V_c=V_c)
+        tails[guidance] = np.max(np.abs(np.asarray(traj.aux.eps[-300:, 1])))
+    assert tails["los"] > 0.5
+    assert tails["ilos"] < 1e-3
+    with pytest.raises(ValueError, match="guidance"):
+        VCMConfig(path=LINE_PATH, guidance="pure-pursuit")
+    with pytest.raises(ValueError, match="sigma_i"):
+        pm_gains(sigma_i=-0.1)

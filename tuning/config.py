@@ -4,7 +4,7 @@ Every section and key is optional (defaults below); unknown sections or keys, wr
 out-of-range values raise :class:`ConfigError` naming the offending ``section.key``::
 
     [problem]                       # what is tuned and how a rollout is simulated
-    variant = "vcm_integral"        # or "vcm"
+    variant = "vcm_integral"        # or "vcm", "vcm_ilos"
     tune = ["P_G", "P_Phi", "Delta", "sigma", "P_int"]
     initial_gains = ""              # gains JSON (sim1.gains_to_json format); "" = defaults
     horizon = 80.0                  # [s]
@@ -120,7 +120,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
 }
 
 _CHOICES = {
-    ("problem", "variant"): ("vcm", "vcm_integral"),
+    ("problem", "variant"): ("vcm", "vcm_integral", "vcm_ilos"),
     ("problem", "integrator"): ("euler", "heun", "rk4"),
     ("problem", "timing"): ("continuous", "sampled"),
     ("problem", "edd"): ("paper", "implied"),

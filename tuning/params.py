@@ -25,7 +25,7 @@ from vcjax.control.vcm import PMGains
 __all__ = ["GAIN_NAMES", "FRAC_MAX", "GainSpace", "rh_bound"]
 
 #: tunable gain groups and their sizes
-GAIN_NAMES = {"P_G": 3, "P_Phi": 5, "Delta": 1, "sigma": 1, "P_int": 2}
+GAIN_NAMES = {"P_G": 3, "P_Phi": 5, "Delta": 1, "sigma": 1, "P_int": 2, "sigma_i": 1}
 #: largest fraction of the Routh–Hurwitz bound the integral gains may reach
 FRAC_MAX = 0.95
 _FRAC_CLIP = 1e-6  # integral gains of exactly 0 are encoded as this fraction of FRAC_MAX
@@ -42,7 +42,8 @@ class GainSpace:
     """Which VCM gains are tuned, and how (static, hashable).
 
     Attributes:
-        variant: ``"vcm_integral"`` (default) or ``"vcm"``. For ``"vcm"`` the integral gains
+        variant: ``"vcm_integral"`` (default), ``"vcm"`` or ``"vcm_ilos"``. ``sigma_i`` is tuned
+            only for ``"vcm_ilos"``. For ``"vcm"`` the integral gains
             are never tuned (the law ignores them).
         tune: names of the tuned groups, a subset of :data:`GAIN_NAMES`, kept in that order.
     """
@@ -51,8 +52,10 @@ class GainSpace:
     tune: tuple[str, ...] = ("P_G", "P_Phi", "Delta", "sigma", "P_int")
 
     def __post_init__(self):
-        if self.variant not in ("vcm", "vcm_integral"):
-            raise ValueError(f"variant: expected 'vcm' or 'vcm_integral', got {self.variant!r}")
+        if self.variant not in ("vcm", "vcm_integral", "vcm_ilos"):
+            raise ValueError(
+                f"variant: expected 'vcm', 'vcm_integral' or 'vcm_ilos', got {self.variant!r}"
+            )
         tune = tuple(self.tune)
         unknown = [t for t in tune if t not in GAIN_NAMES]
         if unknown:
@@ -62,6 +65,8 @@ class GainSpace:
         tune = tuple(n for n in GAIN_NAMES if n in tune)
         if self.variant == "vcm":
             tune = tuple(n for n in tune if n != "P_int")
+        if self.variant != "vcm_ilos":  # only the ILOS approach angle uses sigma_i
+            tune = tuple(n for n in tune if n != "sigma_i")
         if not tune:
             raise ValueError("tune: nothing to tune")
         object.__setattr__(self, "tune", tune)
@@ -114,7 +119,7 @@ class GainSpace:
                 f = jnp.clip(f, _FRAC_CLIP, 1.0 - _FRAC_CLIP)
                 parts.append(jnp.log(f) - jnp.log1p(-f))
             else:
-                parts.append(jnp.log(g))
+                parts.append(jnp.log(jnp.maximum(g, 1e-12)))  # sigma_i may be 0
         return jnp.concatenate(parts)
 
     def symmetry_break(self, gains: PMGains, eps: float = 0.1) -> np.ndarray:

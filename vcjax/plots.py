@@ -15,6 +15,7 @@ STYLE = {
     "vcm": dict(color="C3", ls="--", label="VCM (31)/(38)"),
     "ilos": dict(color="C2", ls="-.", label="ILOS (40)"),
     "los_pid": dict(color="C1", ls=":", label="LOS + PID yaw (39)"),
+    "vcm_ilos": dict(color="C4", ls=(0, (5, 1, 1, 1)), label="VCM + (41) + ILOS angle (ext.)"),
 }
 
 

@@ -7,7 +7,10 @@ controllers). Four controllers on the identical scenario:
 * ``vcm``: VCM path maneuvering (31)/(38), no integral action;
 * ``vcm_integral``: the same gains plus integral action (41);
 * ``ilos``: integral LOS (40) with a heading PD;
-* ``los_pid``: LOS heading with the PID yaw law (39).
+* ``los_pid``: LOS heading with the PID yaw law (39);
+* ``vcm_ilos`` (an extension, not in the paper): ``vcm_integral`` with the integral-LOS approach
+  angle inside the VCM heading row (``VCMConfig(guidance="ilos")``), which removes the
+  cross-track offset a cross current leaves with the paper's LOS angle.
 
 Every controller maps its ``[tau_u, tau_r]`` to thrust and rudder commands with the vehicle's
 actuator model (:func:`vcjax.vehicles.infante.actuator_commands`), using the *measured* velocity
@@ -43,6 +46,7 @@ __all__ = [
     "Sim1Scenario",
     "sim1_scenario",
     "VARIANTS",
+    "PAPER_VARIANTS",
     "Sim1Gains",
     "default_gains",
     "gains_to_json",
@@ -58,7 +62,9 @@ __all__ = [
     "tracking_metrics",
 ]
 
-VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid")
+VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos")
+#: The four controllers of the paper's comparison (Simulation 1).
+PAPER_VARIANTS = VARIANTS[:4]
 
 
 class Sim1Scenario(NamedTuple):
@@ -179,9 +185,13 @@ class _Loop:
 def closed_loop(variant: str, edd: str = "paper", smooth: bool = False) -> _Loop:
     """``(plant, controller)`` of one variant for :func:`vcjax.rollout.rollout`; cached, so the
     same function objects come back and jitted rollouts compile once per variant."""
-    if variant in ("vcm", "vcm_integral"):
+    if variant in ("vcm", "vcm_integral", "vcm_ilos"):
         cfg = VCMConfig(
-            path=PATH, actuation="underactuated", edd=edd, integral=variant == "vcm_integral"
+            path=PATH,
+            actuation="underactuated",
+            edd=edd,
+            integral=variant != "vcm",
+            guidance="ilos" if variant == "vcm_ilos" else "los",
         )
         law = functools.partial(vcm_law, cfg)
     elif variant in ("ilos", "los_pid"):

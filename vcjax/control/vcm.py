@@ -72,6 +72,8 @@ class PMGains(NamedTuple):
         sigma: () particle-speed gain of ``ubar_p = u_d + sigma s`` [1/s].
         P_int: (2,) integral gains ``P_eps0`` on ``[s, e]`` of (41) [1/s^3] (used when
             :attr:`VCMConfig.integral`).
+        sigma_i: () integral gain of the approach angle when :attr:`VCMConfig.guidance` is
+            ``"ilos"`` [-] (unused otherwise).
     """
 
     P_G: Any
@@ -79,6 +81,7 @@ class PMGains(NamedTuple):
     Delta: Any
     sigma: Any
     P_int: Any
+    sigma_i: Any
 
 
 def pm_gains(
@@ -87,6 +90,7 @@ def pm_gains(
     Delta=5.0,
     sigma=0.5,
     P_int=(0.05, 0.05),
+    sigma_i=0.4,
 ) -> PMGains:
     """Validated :class:`PMGains` (defaults: SPEC §3's order-one gains).
 
@@ -98,6 +102,7 @@ def pm_gains(
     check_positive("Delta", Delta, ())
     check_positive("sigma", sigma, ())
     check_positive("P_int", P_int, (2,), strict=False)
+    check_positive("sigma_i", sigma_i, (), strict=False)
     pg, pphi, pint = (np.asarray(x, float) for x in (P_G, P_Phi, P_int))
     p2 = pg[1:] + pphi[3:]
     p1 = pg[1:] * pphi[3:]
@@ -106,7 +111,8 @@ def pm_gains(
             f"P_int: integral gains {pint} make (41) unstable; need P_int < (P_Geps + P_Phieps) "
             f"* P_Geps * P_Phieps = {p2 * p1}"
         )
-    return PMGains(*(jnp.asarray(x, dtype=float) for x in (P_G, P_Phi, Delta, sigma, P_int)))
+    vals = (P_G, P_Phi, Delta, sigma, P_int, sigma_i)
+    return PMGains(*(jnp.asarray(x, dtype=float) for x in vals))
 
 
 class VCMParams(NamedTuple):
@@ -150,14 +156,25 @@ class VCMConfig:
             (``tau_v`` is whatever the rudder gives; ``v_d`` follows (38)).
         edd: ``"paper"`` or ``"implied"`` (module docstring).
         integral: integral action on ``eps`` (41) with anti-windup.
+        guidance: the approach angle of the heading constraint: ``"los"`` (24),
+            ``psi_r = atan(-e / Delta)``, as the paper; or ``"ilos"``, the integral LOS angle
+            ``psi_r = atan(-(e + sigma_i e_int) / Delta)`` with the Børhaug–Pettersen law
+            ``e_int_dot = Delta e / ((e + sigma_i e_int)^2 + Delta^2)`` (40) *inside* the VCM
+            heading row. An extension, not in the paper: an underactuated craft must crab into a
+            cross current, which with (24) needs ``e = Delta tan(crab)`` because the heading row
+            (37) is enforced exactly; with ``"ilos"`` the integral supplies the crab angle and
+            ``e -> 0``.
     """
 
     path: Any
     actuation: Literal["full", "underactuated"] = "underactuated"
     edd: Literal["paper", "implied"] = "paper"
     integral: bool = False
+    guidance: Literal["los", "ilos"] = "los"
 
     def __post_init__(self):
+        if self.guidance not in ("los", "ilos"):
+            raise ValueError(f"guidance: 'los' or 'ilos', got {self.guidance!r}")
         if self.actuation not in ("full", "underactuated"):
             raise ValueError(f"actuation: 'full' or 'underactuated', got {self.actuation!r}")
         if self.edd not in ("paper", "implied"):
@@ -171,20 +188,23 @@ class VCMState(NamedTuple):
         varpi: () path-particle parameter.
         v_d: () desired sway velocity [m/s] (a state only when underactuated).
         int_eps: (2,) integral of ``eps`` [m s] (41).
+        e_int: () integral state of the ``"ilos"`` approach angle [m s].
     """
 
     varpi: Any
     v_d: Any
     int_eps: Any
+    e_int: Any
 
 
-def vcm_state(varpi0=0.0, v_d0=0.0, int_eps0=(0.0, 0.0)) -> VCMState:
+def vcm_state(varpi0=0.0, v_d0=0.0, int_eps0=(0.0, 0.0), e_int0=0.0) -> VCMState:
     """Initial controller state (validated)."""
     check_array("varpi0", varpi0, ())
     check_array("v_d0", v_d0, ())
     check_array("int_eps0", int_eps0, (2,))
+    check_array("e_int0", e_int0, ())
     f = lambda x: jnp.asarray(x, dtype=float)
-    return VCMState(f(varpi0), f(v_d0), f(int_eps0))
+    return VCMState(f(varpi0), f(v_d0), f(int_eps0), f(e_int0))
 
 
 class VCMAux(NamedTuple):
@@ -239,8 +259,25 @@ def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState):
     alpha_eps = eps_ddot_des - kin.eps_ddot_drift
     R_g = kin.R_gamma
 
-    # heading errors (24)-(25)
-    los0 = los_angle(e, e_dot, jnp.zeros_like(e), g.Delta)
+    # heading errors (24)-(25). The approach angle is atan(-E / Delta) with E = e (LOS) or
+    # E = e + sigma_i e_int (ILOS, (40)); (36) holds with e replaced by E, and E_ddot is affine in
+    # e_ddot: E_ddot = e_ddot + sigma_i e_int_ddot.
+    if cfg.guidance == "ilos":
+        E = e + g.sigma_i * z.e_int
+        den = E * E + g.Delta * g.Delta
+        e_int_dot = g.Delta * e / den
+        E_dot = e_dot + g.sigma_i * e_int_dot
+        e_int_ddot_free = g.Delta * e_dot / den - 2 * g.Delta * e * E * E_dot / (den * den)
+
+        def E_ddot(edd):
+            return edd + g.sigma_i * e_int_ddot_free
+    else:
+        E, E_dot, e_int_dot = e, e_dot, jnp.zeros_like(e)
+
+        def E_ddot(edd):
+            return edd
+
+    los0 = los_angle(E, E_dot, jnp.zeros_like(e), g.Delta)
     psi_d = kin.psi_p + los0.psi_r
     psi_tilde = wrap_angle(eta[2] - psi_d)
     psi_tilde_dot = r - (kin.psi_p_dot + los0.psi_r_dot)
@@ -254,7 +291,7 @@ def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState):
         w_dot = 0.5 * (alpha_K + R_g.T @ alpha_eps)
         edd_implied = (R_g @ w_dot + kin.eps_ddot_drift)[1]
         edd = eps_ddot_des[1] if cfg.edd == "paper" else edd_implied
-        psi_d_ddot = kin.psi_p_ddot + los_angle(e, e_dot, edd, g.Delta).psi_r_ddot
+        psi_d_ddot = kin.psi_p_ddot + los_angle(E, E_dot, E_ddot(edd), g.Delta).psi_r_ddot
         r_dot = psi_d_ddot - pG1 * psi_tilde_dot - pPhi3 * (psi_tilde_dot + pG1 * psi_tilde)
         nu_dot = jnp.concatenate([w_dot, r_dot[None]])
         tau = M_b @ nu_dot + n_b
@@ -284,7 +321,7 @@ def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState):
         int_dot = eps - (z.int_eps - clipped)  # back-calculation anti-windup, unit gain
     else:
         int_dot = jnp.zeros_like(z.int_eps)
-    z_dot = VCMState(varpi=kin.varpi_dot, v_d=v_d_dot, int_eps=int_dot)
+    z_dot = VCMState(varpi=kin.varpi_dot, v_d=v_d_dot, int_eps=int_dot, e_int=e_int_dot)
     aux = VCMAux(
         eps=eps,
         eps_dot=eps_dot,
