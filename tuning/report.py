@@ -1,49 +1,31 @@
-"""Figures and a tiny progress bar for tuning runs (matplotlib, Agg backend)."""
+"""Figures and the progress hook of tuning runs (matplotlib, Agg backend)."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
 
+from vcjax.plots import _plt
+from vcjax.progress import ProgressBar as _Bar
+
 __all__ = ["ProgressBar", "plot_loss_curve", "plot_before_after"]
 
 
-class ProgressBar:
-    """``[#####-----] k/total suffix`` on one line of ``stream`` (stderr by default)."""
-
-    def __init__(self, total: int, label: str = "", stream=None, width: int = 24):
-        self.total, self.label, self.width = max(1, int(total)), label, width
-        self.stream = sys.stderr if stream is None else stream
+class ProgressBar(_Bar):
+    """The library's progress bar, called as an optimiser's ``progress(k, total, rec)`` hook:
+    ``[#####-----] k/total ... loss L`` (and ``(rejected: non-finite)`` for a rejected step)."""
 
     def __call__(self, k: int, total: int | None = None, rec: dict | None = None) -> None:
-        total = self.total if total is None else max(1, int(total))
-        n = int(self.width * min(k, total) / total)
-        suffix = ""
+        if total is not None:
+            self.total = max(1, int(total))
+        note = ""
         if rec:
             loss = rec.get("loss", rec.get("best_loss"))
-            suffix = f" loss {loss:.4g}" if loss is not None else " loss nan"
+            note = f"loss {loss:.4g}" if loss is not None else "loss nan"
             if rec.get("ok") is False:
-                suffix += " (rejected: non-finite)"
-        line = f"\r{self.label}[{'#' * n}{'-' * (self.width - n)}] {k}/{total}{suffix}"
-        self.stream.write(line.ljust(78))
-        if k >= total:
-            self.stream.write("\n")
-        self.stream.flush()
-
-    def close(self) -> None:
-        self.stream.write("\n")
-        self.stream.flush()
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+                note += " (rejected: non-finite)"
+        self.show(k, note)
 
 
 def plot_loss_curve(history: list, path, title: str = "gain tuning") -> Path:

@@ -100,7 +100,6 @@ import dataclasses
 import functools
 import json
 import math
-import sys
 import time
 import tomllib
 from collections.abc import Callable
@@ -115,6 +114,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from vcjax import paths, sim1
 from vcjax.currents import GaussMarkovCurrent, current_vector, gm_init, gm_step, gm_value
 from vcjax.linalg import rot2
+from vcjax.progress import ProgressBar
 from vcjax.rollout import RolloutConfig, Trajectory, rollout
 from vcjax.vehicles import infante
 
@@ -679,36 +679,6 @@ def run_batch(variant, gains, nominal, scenarios: MCScenario, config: MCConfig, 
 # --------------------------------------------------------------------------------------------
 
 
-class _Bar:
-    """A tiny progress bar on stderr (or a callable that receives one line per update)."""
-
-    def __init__(self, total: int, progress, label: str = "sweep"):
-        self.total, self.done, self.t0, self.label = total, 0, time.perf_counter(), label
-        self.sink = progress if callable(progress) else None
-        self.enabled = bool(progress)
-
-    def update(self, note: str = "") -> None:
-        self.done += 1
-        if not self.enabled:
-            return
-        el = time.perf_counter() - self.t0
-        left = el / self.done * (self.total - self.done)
-        frac = self.done / self.total
-        if self.sink is not None:
-            self.sink(
-                f"{self.label}: {self.done}/{self.total} {note} {el:.1f} s (~{left:.0f} s left)"
-            )
-            return
-        bar = "#" * int(round(24 * frac))
-        sys.stderr.write(
-            f"\r{self.label} [{bar:<24}] {self.done}/{self.total} {100 * frac:3.0f}% "
-            f"{el:6.1f} s, ~{left:.0f} s left {note:<16}"
-        )
-        if self.done == self.total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
-
-
 @dataclasses.dataclass
 class SweepResult:
     """Per-scenario results of a sweep (host numpy arrays, aligned with ``index``).
@@ -740,6 +710,14 @@ _SCENARIO_FIELDS = tuple(f for f in MCScenario._fields if f not in ("index", "ke
 
 def _mesh(devices) -> Mesh:
     return Mesh(np.asarray(devices), ("scenarios",))
+
+
+def _progress_bar(total: int, progress) -> ProgressBar | None:
+    """``progress``: True (bar on stderr), a callable (one line per update) or False."""
+    if not progress:
+        return None
+    sink = progress if callable(progress) else None
+    return ProgressBar(total, "sweep ", sink=sink)
 
 
 def run_sweep(
@@ -795,7 +773,7 @@ def run_sweep(
         put_repl = lambda tree: jax.device_put(tree, repl)
     gains_d, nominal_d, dt_d, div_d = put_repl((gains, nominal, dt, diverge_e))
 
-    bar = _Bar(len(mine) * len(spec.variants), progress, label="sweep")
+    bar = _progress_bar(len(mine) * len(spec.variants), progress)
     parts_idx, parts_sc = [], []
     parts_m = {v: [] for v in spec.variants}
     parts_tr = {v: [] for v in spec.variants}
@@ -814,7 +792,8 @@ def run_sweep(
             m, tr = jax.device_get((m, tr))
             parts_m[v].append({k: np.asarray(a)[:n_valid] for k, a in m.items()})
             parts_tr[v].append({k: np.asarray(a)[:n_valid] for k, a in tr.items()})
-            bar.update(f"chunk {c + 1}/{n_chunks} {v}")
+            if bar is not None:
+                bar.update(f"chunk {c + 1}/{n_chunks} {v}")
 
     def cat(parts, key):
         arrs = [p[key] for p in parts]

@@ -1,0 +1,71 @@
+"""A one-line progress bar for long jobs (sweeps, tuning), written to stderr.
+
+``ProgressBar(total, label)``; ``update(note)`` advances by one, ``show(k, note)`` jumps to ``k``;
+each redraw shows ``label [#####---] k/total pct elapsed ~left note``. With ``sink`` (a callable)
+it hands one plain line per update to it instead (logs, notebooks).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+
+__all__ = ["ProgressBar"]
+
+
+class ProgressBar:
+    """Progress of ``total`` units of work.
+
+    Args:
+        total: number of units (>= 1).
+        label: text in front of the bar.
+        stream: where the bar is drawn (default: ``sys.stderr``).
+        width: characters of the bar.
+        sink: optional ``f(line)`` that receives one plain line per update instead of a redrawn
+            bar.
+    """
+
+    def __init__(
+        self,
+        total: int,
+        label: str = "",
+        stream=None,
+        width: int = 24,
+        sink: Callable[[str], object] | None = None,
+    ):
+        self.total, self.label, self.width = max(1, int(total)), label, width
+        self.stream = sys.stderr if stream is None else stream
+        self.sink = sink
+        self.done = 0
+        self.t0 = time.perf_counter()
+        self._closed = False
+
+    def update(self, note: str = "") -> None:
+        """Advance by one unit."""
+        self.show(self.done + 1, note)
+
+    def show(self, k: int, note: str = "") -> None:
+        """Draw the bar at ``k`` of ``total`` units (with the ETA from the elapsed time)."""
+        self.done = min(int(k), self.total)
+        elapsed = time.perf_counter() - self.t0
+        left = elapsed / max(self.done, 1) * (self.total - self.done)
+        frac = self.done / self.total
+        timing = f"{elapsed:.1f} s, ~{left:.0f} s left"
+        if self.sink is not None:
+            self.sink(f"{self.label.strip()}: {self.done}/{self.total} {note} {timing}".rstrip())
+            return
+        n = int(round(self.width * frac))
+        bar = "#" * n + "-" * (self.width - n)
+        line = f"\r{self.label}[{bar}] {self.done}/{self.total} {100 * frac:3.0f}% {timing} {note}"
+        self.stream.write(line.ljust(90))
+        if self.done >= self.total:
+            self.close()
+        self.stream.flush()
+
+    def close(self) -> None:
+        """End the line (once)."""
+        if not self._closed and self.sink is None:
+            self.stream.write("\n")
+            self.stream.flush()
+        self._closed = True
