@@ -1,0 +1,61 @@
+"""Figure of the throughput benchmark: trajectory-steps/s against batch size, per dtype.
+
+Reads the ``--json`` files written by :mod:`benchmarks.throughput` and writes a PNG::
+
+    python -m benchmarks.plot_throughput benchmarks/results/throughput_float32.json \
+        benchmarks/results/throughput_float64.json --out benchmarks/results/throughput.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+TARGET_BATCH = 10e6  # issue 5: >= 10 M steps/s at batch >= 4096
+TARGET_SINGLE = 200e3  # issue 5: a single trajectory >= 200 k steps/s
+
+
+def main(argv=None) -> Path:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("json", nargs="+", help="throughput JSON files (one per dtype)")
+    p.add_argument("--out", default="benchmarks/results/throughput.png")
+    args = p.parse_args(argv)
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    device = ""
+    for f in args.json:
+        rows = json.loads(Path(f).read_text())["rows"]
+        vmap = sorted((r for r in rows if r["kind"] == "vmap"), key=lambda r: r["batch"])
+        single = [r for r in rows if r["kind"] == "single"]
+        if not vmap:
+            raise SystemExit(f"{f}: no 'vmap' rows")
+        dtype, device = vmap[0]["dtype"], vmap[0]["device"]
+        b = np.array([r["batch"] for r in vmap])
+        ax.loglog(b, [r["steps_per_s"] for r in vmap], "o-", label=f"vmap, {dtype}")
+        if single:
+            ax.loglog([1], [single[0]["steps_per_s"]], "s", label=f"single (no vmap), {dtype}")
+    ax.axhline(TARGET_BATCH, color="k", ls="--", lw=0.8, label="target, batch >= 4096")
+    ax.axhline(TARGET_SINGLE, color="k", ls=":", lw=0.8, label="target, single trajectory")
+    ax.set_xlabel("batch size (trajectories)")
+    ax.set_ylabel("trajectory-steps per second")
+    ax.set_title(f"Simulation 1 closed loop, RK4 — {device}")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    out = Path(args.out)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    print(f"wrote {out}")
+    return out
+
+
+if __name__ == "__main__":
+    main()
