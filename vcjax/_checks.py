@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import jax.numpy as jnp
 import numpy as np
 
 __all__ = [
@@ -17,6 +18,8 @@ __all__ = [
     "check_finite",
     "check_positive",
     "check_spd",
+    "float_dtype",
+    "as_float_array",
 ]
 
 
@@ -83,3 +86,18 @@ def check_spd(name: str, M, n: int | None = None, rtol: float = 1e-8) -> None:
         raise ValueError(
             f"{name}: matrix is not positive definite (smallest eigenvalue {eig[0]:.3g})"
         )
+
+
+def float_dtype(dtype=None):
+    """``dtype`` as a numpy dtype, or JAX's default float *now* when ``None``."""
+    return jnp.asarray(0.0).dtype if dtype is None else jnp.dtype(dtype)
+
+
+def as_float_array(name: str, x, shape: Sequence[int | None], dtype=None):
+    """Check ``x`` (shape, finiteness; :func:`check_array`) and return it as a float array: of
+    ``dtype`` when given, else of ``x``'s own float dtype (integers: JAX's default float)."""
+    check_array(name, x, shape)
+    a = jnp.asarray(x)
+    if dtype is not None:
+        return a.astype(dtype)
+    return a if jnp.issubdtype(a.dtype, jnp.floating) else a.astype(float_dtype())

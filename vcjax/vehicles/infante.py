@@ -87,7 +87,14 @@ from typing import Any, NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax._checks import check_array, check_positive, check_spd, is_concrete
+from vcjax._checks import (
+    as_float_array,
+    check_array,
+    check_positive,
+    check_spd,
+    float_dtype,
+    is_concrete,
+)
 from vcjax.linalg import saturate, smooth_saturate, solve_surge_decoupled
 from vcjax.vehicles.design3dof import Design3DOF, current_in_body, design3dof, kinematics
 
@@ -250,10 +257,6 @@ class PlantArgs(NamedTuple):
 # --------------------------------------------------------------------------------------------
 
 
-def _float_dtype(dtype):
-    return jnp.asarray(0.0).dtype if dtype is None else jnp.dtype(dtype)
-
-
 def infante_params(
     length=4.5,
     thrust_max=920.0,
@@ -311,7 +314,7 @@ def infante_params(
     n = _NPS_STRIPS
     cf_x = np.linspace(-L / 2, L / 2, n + 1)
 
-    dt = _float_dtype(dtype)
+    dt = float_dtype(dtype)
     vals = dict(
         length=L,
         rho=float(rho),
@@ -371,16 +374,6 @@ def ideal_fluid(params: InfanteParams) -> InfanteParams:
     return params._replace(**{k: jnp.zeros_like(getattr(params, k)) for k in HYDRODYNAMIC_FIELDS})
 
 
-def _as_vector(name, x, n, dtype):
-    check_array(name, x, (n,))
-    a = jnp.asarray(x)
-    if dtype is not None:
-        return a.astype(dtype)
-    if not jnp.issubdtype(a.dtype, jnp.floating):
-        a = a.astype(_float_dtype(None))
-    return a
-
-
 def infante_state(eta, nu, act=None, dtype=None) -> InfanteState:
     """Validated :class:`InfanteState`.
 
@@ -392,10 +385,10 @@ def infante_state(eta, nu, act=None, dtype=None) -> InfanteState:
     Raises:
         ValueError: naming the field for a wrong shape or a NaN/inf entry.
     """
-    eta = _as_vector("eta", eta, 3, dtype)
+    eta = as_float_array("eta", eta, (3,), dtype)
     dtype = eta.dtype
-    nu = _as_vector("nu", nu, 3, dtype)
-    act = jnp.zeros(2, dtype=dtype) if act is None else _as_vector("act", act, 2, dtype)
+    nu = as_float_array("nu", nu, (3,), dtype)
+    act = jnp.zeros(2, dtype=dtype) if act is None else as_float_array("act", act, (2,), dtype)
     return InfanteState(eta=eta, nu=nu, act=act)
 
 
@@ -407,8 +400,10 @@ def plant_args(vehicle: InfanteParams, V_c=None, V_c_dot=None) -> PlantArgs:
     if not isinstance(vehicle, InfanteParams):
         raise ValueError(f"vehicle: expected InfanteParams, got {type(vehicle).__name__}")
     dt = jnp.asarray(vehicle.mass).dtype
-    V_c = jnp.zeros(2, dtype=dt) if V_c is None else _as_vector("V_c", V_c, 2, dt)
-    V_c_dot = jnp.zeros(2, dtype=dt) if V_c_dot is None else _as_vector("V_c_dot", V_c_dot, 2, dt)
+    V_c = jnp.zeros(2, dtype=dt) if V_c is None else as_float_array("V_c", V_c, (2,), dt)
+    V_c_dot = (
+        jnp.zeros(2, dtype=dt) if V_c_dot is None else as_float_array("V_c_dot", V_c_dot, (2,), dt)
+    )
     return PlantArgs(vehicle=vehicle, V_c=V_c, V_c_dot=V_c_dot)
 
 

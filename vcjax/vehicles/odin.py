@@ -77,7 +77,7 @@ from typing import Any, NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax._checks import check_array, check_positive, is_concrete
+from vcjax._checks import as_float_array, check_array, check_positive, float_dtype, is_concrete
 from vcjax.linalg import safe_norm, saturate, smooth_saturate
 from vcjax.vehicles import sixdof as sd
 from vcjax.vehicles.design3dof import Design3DOF, design3dof
@@ -151,10 +151,6 @@ class OdinArgs(NamedTuple):
     v_c: Any
 
 
-def _float_dtype(dtype):
-    return jnp.asarray(0.0).dtype if dtype is None else jnp.dtype(dtype)
-
-
 def thruster_matrix(R_hor=0.356, R_ver=0.252, dtype=None):
     """(6, 8) ODIN thruster configuration matrix of ``vehicles.md`` §3.1 (module docstring).
 
@@ -176,7 +172,7 @@ def thruster_matrix(R_hor=0.356, R_ver=0.252, dtype=None):
             [rh, -rh, rh, -rh, 0, 0, 0, 0],
         ]
     )
-    return jnp.asarray(T, dtype=_float_dtype(dtype))
+    return jnp.asarray(T, dtype=float_dtype(dtype))
 
 
 def odin_params(
@@ -223,7 +219,7 @@ def odin_params(
     R = float(radius)
     if not float(z_g) < R:
         raise ValueError(f"z_g: the CG must lie inside the hull (z_g < radius = {R}), got {z_g}")
-    dt = _float_dtype(dtype)
+    dt = float_dtype(dtype)
     V = 4.0 / 3.0 * math.pi * R**3
     m = float(rho) * V
     Ig = 0.4 * m * R**2
@@ -252,11 +248,6 @@ def odin_params(
     )
 
 
-def _as_vector(name, x, n, dtype):
-    check_array(name, x, (n,))
-    return jnp.asarray(x, dtype=dtype)
-
-
 def odin_state(eta, nu=None, thrust=None, dtype=None) -> OdinState:
     """Validated :class:`OdinState`; ``nu`` (6,) and ``thrust`` (8,) default to zeros.
 
@@ -267,10 +258,10 @@ def odin_state(eta, nu=None, thrust=None, dtype=None) -> OdinState:
     Raises:
         ValueError: naming the field for a wrong shape or a NaN/inf entry.
     """
-    dt = _float_dtype(dtype)
-    eta = _as_vector("eta", eta, 6, dt)
-    nu = jnp.zeros(6, dt) if nu is None else _as_vector("nu", nu, 6, dt)
-    thrust = jnp.zeros(8, dt) if thrust is None else _as_vector("thrust", thrust, 8, dt)
+    dt = float_dtype(dtype)
+    eta = as_float_array("eta", eta, (6,), dt)
+    nu = jnp.zeros(6, dt) if nu is None else as_float_array("nu", nu, (6,), dt)
+    thrust = jnp.zeros(8, dt) if thrust is None else as_float_array("thrust", thrust, (8,), dt)
     return OdinState(eta=eta, nu=nu, thrust=thrust)
 
 
@@ -295,7 +286,7 @@ def odin_args(vehicle: OdinParams, tau_dist=None, v_c=None) -> OdinArgs:
         tau_dist = jnp.asarray(tau_dist, dtype=dt)
         if tau_dist.shape == (3,):
             tau_dist = jnp.concatenate([tau_dist, jnp.zeros(3, dt)])
-    v_c = jnp.zeros(3, dt) if v_c is None else _as_vector("v_c", v_c, 3, dt)
+    v_c = jnp.zeros(3, dt) if v_c is None else as_float_array("v_c", v_c, (3,), dt)
     return OdinArgs(vehicle=vehicle, tau_dist=tau_dist, v_c=v_c)
 
 

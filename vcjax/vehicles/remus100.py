@@ -84,7 +84,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax._checks import check_array, check_positive
+from vcjax._checks import as_float_array, check_array, check_positive, float_dtype
 from vcjax.linalg import safe_norm, saturate, smooth_saturate
 from vcjax.vehicles.sixdof import (
     SixDofParams,
@@ -228,10 +228,6 @@ class Remus100Args(NamedTuple):
 # --------------------------------------------------------------------------------------------
 
 
-def _float_dtype(dtype):
-    return jnp.asarray(0.0).dtype if dtype is None else jnp.dtype(dtype)
-
-
 def _spheroid(rho, a, b, r_bg, r44):
     """PVS's spheroid mass, rigid-body mass about the CO and Lamb added mass (float64)."""
     m = 4.0 / 3.0 * math.pi * rho * a * b**2
@@ -335,7 +331,7 @@ def remus100_params(
     cf_coeff = 0.5 * rho * T_draft * hoerner(diam, T_draft)
 
     S_fin = 0.00665
-    dt = _float_dtype(dtype)
+    dt = float_dtype(dtype)
     body = sixdof_params(M_RB, M_A, D, W, B, rbg, rbb, dtype=dt)
 
     def s(v):
@@ -374,11 +370,6 @@ def remus100_params(
     )
 
 
-def _as_vector(name, x, n, dtype):
-    check_array(name, x, (n,))
-    return jnp.asarray(x, dtype=dtype)
-
-
 def remus100_state(eta=None, nu=None, act=None, dtype=None) -> Remus100State:
     """Validated :class:`Remus100State`; every field defaults to zeros.
 
@@ -389,10 +380,10 @@ def remus100_state(eta=None, nu=None, act=None, dtype=None) -> Remus100State:
     Raises:
         ValueError: naming the field for a wrong shape or a NaN/inf entry.
     """
-    dt = _float_dtype(dtype)
-    eta = jnp.zeros(6, dtype=dt) if eta is None else _as_vector("eta", eta, 6, dt)
-    nu = jnp.zeros(6, dtype=dt) if nu is None else _as_vector("nu", nu, 6, dt)
-    act = jnp.zeros(3, dtype=dt) if act is None else _as_vector("act", act, 3, dt)
+    dt = float_dtype(dtype)
+    eta = jnp.zeros(6, dtype=dt) if eta is None else as_float_array("eta", eta, (6,), dt)
+    nu = jnp.zeros(6, dtype=dt) if nu is None else as_float_array("nu", nu, (6,), dt)
+    act = jnp.zeros(3, dtype=dt) if act is None else as_float_array("act", act, (3,), dt)
     return Remus100State(eta=eta, nu=nu, act=act)
 
 
@@ -419,8 +410,10 @@ def remus100_args(
         check_array("beta_c", beta_c, ())
         v_c = current_ned(jnp.asarray(V_c, dtype=dt), jnp.asarray(beta_c, dtype=dt))[:2]
     else:
-        v_c = _as_vector("v_c", v_c, 2, dt)
-    v_c_dot = jnp.zeros(2, dtype=dt) if v_c_dot is None else _as_vector("v_c_dot", v_c_dot, 2, dt)
+        v_c = as_float_array("v_c", v_c, (2,), dt)
+    v_c_dot = (
+        jnp.zeros(2, dtype=dt) if v_c_dot is None else as_float_array("v_c_dot", v_c_dot, (2,), dt)
+    )
     return Remus100Args(vehicle=vehicle, v_c=v_c, v_c_dot=v_c_dot)
 
 

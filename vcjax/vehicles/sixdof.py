@@ -32,7 +32,14 @@ from typing import Any, NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax._checks import check_array, check_positive, check_spd, is_concrete
+from vcjax._checks import (
+    as_float_array,
+    check_array,
+    check_positive,
+    check_spd,
+    float_dtype,
+    is_concrete,
+)
 
 __all__ = [
     "Smtrx",
@@ -288,15 +295,6 @@ class SixDofArgs(NamedTuple):
     v_c_dot: Any
 
 
-def _float_dtype(dtype):
-    return jnp.asarray(0.0).dtype if dtype is None else jnp.dtype(dtype)
-
-
-def _as_array(name, x, shape, dtype):
-    check_array(name, x, shape)
-    return jnp.asarray(x, dtype=dtype)
-
-
 def _check_symmetric(name, a, rtol=1e-8):
     if not is_concrete(a):
         return
@@ -321,7 +319,7 @@ def sixdof_params(M_RB, M_A=None, D=None, W=0.0, B=None, r_bg=None, r_bb=None, d
     Raises:
         ValueError: naming the offending field (wrong shape, NaN/inf, not SPD, ...).
     """
-    dt = _float_dtype(dtype)
+    dt = float_dtype(dtype)
     M_A = np.zeros((6, 6)) if M_A is None else M_A
     D = np.zeros((6, 6)) if D is None else D
     B = W if B is None else B
@@ -345,13 +343,13 @@ def sixdof_params(M_RB, M_A=None, D=None, W=0.0, B=None, r_bg=None, r_bb=None, d
     check_positive("W", W, (), strict=False)
     check_positive("B", B, (), strict=False)
     return SixDofParams(
-        M_RB=_as_array("M_RB", M_RB, (6, 6), dt),
-        M_A=_as_array("M_A", M_A, (6, 6), dt),
-        D=_as_array("D", D, (6, 6), dt),
+        M_RB=as_float_array("M_RB", M_RB, (6, 6), dt),
+        M_A=as_float_array("M_A", M_A, (6, 6), dt),
+        D=as_float_array("D", D, (6, 6), dt),
         W=jnp.asarray(W, dtype=dt),
         B=jnp.asarray(B, dtype=dt),
-        r_bg=_as_array("r_bg", r_bg, (3,), dt),
-        r_bb=_as_array("r_bb", r_bb, (3,), dt),
+        r_bg=as_float_array("r_bg", r_bg, (3,), dt),
+        r_bb=as_float_array("r_bb", r_bb, (3,), dt),
     )
 
 
@@ -361,9 +359,9 @@ def sixdof_state(eta=None, nu=None, dtype=None) -> SixDofState:
     Raises:
         ValueError: naming the field for a wrong shape or a NaN/inf entry.
     """
-    dt = _float_dtype(dtype)
-    eta = jnp.zeros(6, dtype=dt) if eta is None else _as_array("eta", eta, (6,), dt)
-    nu = jnp.zeros(6, dtype=dt) if nu is None else _as_array("nu", nu, (6,), dt)
+    dt = float_dtype(dtype)
+    eta = jnp.zeros(6, dtype=dt) if eta is None else as_float_array("eta", eta, (6,), dt)
+    nu = jnp.zeros(6, dtype=dt) if nu is None else as_float_array("nu", nu, (6,), dt)
     return SixDofState(eta=eta, nu=nu)
 
 
@@ -375,8 +373,10 @@ def sixdof_args(vehicle: SixDofParams, v_c=None, v_c_dot=None) -> SixDofArgs:
     if not isinstance(vehicle, SixDofParams):
         raise ValueError(f"vehicle: expected SixDofParams, got {type(vehicle).__name__}")
     dt = jnp.asarray(vehicle.M_RB).dtype
-    v_c = jnp.zeros(3, dtype=dt) if v_c is None else _as_array("v_c", v_c, (3,), dt)
-    v_c_dot = jnp.zeros(3, dtype=dt) if v_c_dot is None else _as_array("v_c_dot", v_c_dot, (3,), dt)
+    v_c = jnp.zeros(3, dtype=dt) if v_c is None else as_float_array("v_c", v_c, (3,), dt)
+    v_c_dot = (
+        jnp.zeros(3, dtype=dt) if v_c_dot is None else as_float_array("v_c_dot", v_c_dot, (3,), dt)
+    )
     return SixDofArgs(vehicle=vehicle, v_c=v_c, v_c_dot=v_c_dot)
 
 
