@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax._checks import check_positive
+from vcjax.control.params import LawParams, law_params
 from vcjax.guidance import los_angle, path_kinematics
 from vcjax.linalg import wrap_angle
 from vcjax.paths import path_frame
@@ -93,23 +94,10 @@ def baseline_gains(
     )
 
 
-class BaselineParams(NamedTuple):
-    """Traced parameters: gains, design model, desired speed, rudder sway ratio, path coeffs."""
-
-    gains: BaselineGains
-    model: Any
-    u_d: Any
-    k_rudder: Any
-    int_limit: Any
-    path: Any
-
-
-def baseline_params(gains, model, path, u_d=2.0, k_rudder=0.0, int_limit=50.0) -> BaselineParams:
-    """Validated :class:`BaselineParams`."""
-    check_positive("u_d", u_d, ())
-    check_positive("int_limit", int_limit, ())
-    f = lambda x: jnp.asarray(x, dtype=float)
-    return BaselineParams(gains, model, f(u_d), f(k_rudder), f(int_limit), path)
+#: The baselines' traced parameters (:class:`~vcjax.control.params.LawParams` with
+#: :class:`BaselineGains`); :func:`baseline_params` validates them.
+BaselineParams = LawParams
+baseline_params = law_params
 
 
 @dataclasses.dataclass(frozen=True)

@@ -44,6 +44,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax._checks import check_array, check_positive
+from vcjax.control.params import LawParams, law_params
 from vcjax.guidance import los_angle, path_kinematics
 from vcjax.linalg import safe_sqrt, wrap_angle
 from vcjax.paths import path_frame
@@ -115,34 +116,10 @@ def pm_gains(
     return PMGains(*(jnp.asarray(x, dtype=float) for x in vals))
 
 
-class VCMParams(NamedTuple):
-    """Everything continuous the VCM law uses (traced).
-
-    Attributes:
-        gains: :class:`PMGains`.
-        model: :class:`vcjax.vehicles.design3dof.Design3DOF`, the controller's design model.
-        u_d: () desired surge speed [m/s].
-        k_rudder: () sway force the rudder produces per unit yaw moment [1/m] (Remark 4; 0 if
-            the rudder's sway force is neglected).
-        int_limit: () anti-windup clamp on each component of ``int(eps)`` [m s].
-        path: the path's coefficients (see :mod:`vcjax.paths`).
-    """
-
-    gains: PMGains
-    model: Any
-    u_d: Any
-    k_rudder: Any
-    int_limit: Any
-    path: Any
-
-
-def vcm_params(gains, model, path, u_d=2.0, k_rudder=0.0, int_limit=50.0) -> VCMParams:
-    """Validated :class:`VCMParams`."""
-    check_positive("u_d", u_d, ())
-    check_array("k_rudder", k_rudder, ())
-    check_positive("int_limit", int_limit, ())
-    f = lambda x: jnp.asarray(x, dtype=float)
-    return VCMParams(gains, model, f(u_d), f(k_rudder), f(int_limit), path)
+#: The VCM law's traced parameters (:class:`~vcjax.control.params.LawParams` with
+#: :class:`PMGains`); :func:`vcm_params` validates them.
+VCMParams = LawParams
+vcm_params = law_params
 
 
 @dataclasses.dataclass(frozen=True)
