@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -15,12 +16,47 @@ def _enable_x64(flag: bool) -> None:
     jax.config.update("jax_enable_x64", bool(flag))
 
 
+class _CLIError(Exception):
+    """A bad input of the command line: printed as one line, exit code 2."""
+
+
+def _out_dir(path) -> Path:
+    """Create the output directory ``path`` (and parents) or raise :class:`_CLIError`."""
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise _CLIError(f"--out {path}: exists and is not a directory") from None
+    except OSError as err:
+        raise _CLIError(f"--out {path}: cannot create the directory: {err.strerror}") from None
+    if not out.is_dir():
+        raise _CLIError(f"--out {path}: exists and is not a directory")
+    return out
+
+
+def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
+    """Number of steps of ``horizon`` in steps of ``dt``; both finite, ``0 < dt <= horizon``."""
+    if not (math.isfinite(horizon) and math.isfinite(dt)):
+        raise _CLIError(f"need finite --dt and --horizon, got dt={dt}, horizon={horizon}")
+    if not (horizon > 0 and dt > 0 and horizon >= dt):
+        raise _CLIError(f"need 0 < dt <= horizon, got dt={dt}, horizon={horizon}")
+    n = int(round(horizon / dt))
+    if n > max_steps:
+        raise _CLIError(
+            f"--horizon {horizon:g} / --dt {dt:g} = {n} steps: more than {max_steps} "
+            "(the trajectory is kept in memory); use a larger --dt or a shorter --horizon"
+        )
+    return n
+
+
 def _cmd_demo(args) -> int:
+    from vcjax.demos import ARM_DT
+
+    _time_grid(args.horizon, ARM_DT)
+    out = _out_dir(args.out)
     _enable_x64(args.x64)
     from vcjax.demos import arm_demo
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     files = arm_demo(out, horizon=args.horizon)
     for f in files:
         print(f"wrote {f}")
@@ -41,9 +77,8 @@ def _cmd_simulate(args) -> int:
     horizon, dt = _SIM_DEFAULTS[args.experiment]
     horizon = horizon if args.horizon is None else args.horizon
     dt = dt if args.dt is None else args.dt
-    if not (horizon > 0 and dt > 0 and horizon >= dt):
-        return _fail(f"simulate: need 0 < dt <= horizon, got dt={dt}, horizon={horizon}")
-    out = Path(args.out or f"out/{args.experiment}")
+    _time_grid(horizon, dt)
+    out = _out_dir(args.out or f"out/{args.experiment}")
     if args.experiment == "sim2":
         return _simulate_sim2(args, out, horizon, dt)
     return _simulate_sim1(args, out, horizon, dt)
@@ -70,7 +105,19 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
     _print_metrics(result["metrics"])
     for f in result["files"]:
         print(f"wrote {f}")
-    return 0
+    return _report_unhealthy(result["unhealthy"], dt)
+
+
+def _report_unhealthy(unhealthy: dict, dt: float) -> int:
+    """Print one line per unhealthy run (stderr); exit code 1 if there is any, else 0."""
+    for variant, (k, t) in unhealthy.items():
+        print(
+            f"vcjax: UNHEALTHY RUN: {variant} diverged at step {k} (t = {t:g} s, dt {dt:g} s): "
+            "its state became non-finite or left the divergence bound and was frozen there; "
+            "its metrics and figures after that time are not meaningful",
+            file=sys.stderr,
+        )
+    return 1 if unhealthy else 0
 
 
 def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
@@ -86,7 +133,10 @@ def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
     )
     for f in result["files"]:
         print(f"wrote {f}")
-    return 0
+    unhealthy = {f"sim2 {mode}": m for mode, m in by_mode.items() if not m.get("healthy", True)}
+    for name in unhealthy:
+        print(f"vcjax: UNHEALTHY RUN: {name} diverged (see metrics.json)", file=sys.stderr)
+    return 1 if unhealthy else 0
 
 
 def _is_number(v) -> bool:
@@ -142,7 +192,10 @@ def _print_metrics(metrics: dict) -> None:
     widths = [max(len(k), 10) + 2 for k in keys]
     print("variant".ljust(14) + "".join(k.rjust(w) for k, w in zip(keys, widths, strict=True)))
     for name, m in metrics.items():
-        cells = (f"{m[k]:{w}.4g}" for k, w in zip(keys, widths, strict=True))
+        cells = (
+            f"{m[k]:{w}.4g}" if _is_number(m.get(k)) else "-".rjust(w)
+            for k, w in zip(keys, widths, strict=True)
+        )
         print(name.ljust(14) + "".join(cells))
 
 
@@ -224,7 +277,10 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
-    return int(args.func(args) or 0)
+    try:
+        return int(args.func(args) or 0)
+    except _CLIError as err:
+        return _fail(f"{args.command}: {err}")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -39,7 +39,7 @@ from vcjax.control.baselines import (
     baseline_state,
 )
 from vcjax.control.vcm import VCMConfig, pm_gains, vcm_law, vcm_params, vcm_state
-from vcjax.rollout import RolloutConfig, rollout
+from vcjax.rollout import RolloutConfig, first_unhealthy_step, rollout
 from vcjax.vehicles import infante
 
 __all__ = [
@@ -60,6 +60,7 @@ __all__ = [
     "PATH",
     "run_sim1",
     "tracking_metrics",
+    "unhealthy_runs",
 ]
 
 VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos")
@@ -127,8 +128,7 @@ def sim1_scenario(
     vehicle = infante.infante_params() if vehicle is None else vehicle
     design_vehicle = vehicle if design_vehicle is None else design_vehicle
     for name, v in (("vehicle", vehicle), ("design_vehicle", design_vehicle)):
-        if not isinstance(v, infante.InfanteParams):
-            raise ValueError(f"{name}: expected InfanteParams, got {type(v).__name__}")
+        infante.validate(v, name)
     dt = jnp.asarray(vehicle.mass).dtype
     f = lambda x: jnp.asarray(x, dtype=dt)
     return Sim1Scenario(f(eta0), f(nu0), f(V_c), f(u_d), vehicle, path_coeffs(dt), design_vehicle)
@@ -164,9 +164,20 @@ def gains_to_json(g: Sim1Gains) -> dict:
 
 def gains_from_json(d: dict) -> Sim1Gains:
     """Inverse of :func:`gains_to_json`, validated; missing entries take the defaults."""
+    if not isinstance(d, dict):
+        raise ValueError(
+            f"gains file: expected a JSON object with sections 'vcm' and/or 'baseline', "
+            f"got {type(d).__name__}"
+        )
     unknown = set(d) - {"vcm", "baseline"}
     if unknown:
         raise ValueError(f"gains file: unknown sections {sorted(unknown)}")
+    for section in ("vcm", "baseline"):
+        if not isinstance(d.get(section, {}), dict):
+            raise ValueError(
+                f"gains file: section '{section}' must be an object of gains, "
+                f"got {type(d[section]).__name__}"
+            )
     try:
         vcm = pm_gains(**d.get("vcm", {}))
         base = baseline_gains(**d.get("baseline", {}))
@@ -294,7 +305,8 @@ def tracking_metrics(traj, vehicle, tail: float = 0.2) -> dict:
     ``ss_abs_*``: mean absolute value over the last ``tail`` fraction of the run; ``iae_e``:
     integral of |e| dt; ``max_abs_tau_u``: largest actual thrust [N]; ``max_abs_rudder_deg``:
     largest actual rudder angle [deg]; ``sat_fraction``: fraction of steps in which any command
-    exceeded its actuator limit; ``healthy``: every step finite.
+    exceeded its actuator limit; ``healthy``: no step diverged (every state finite and within
+    the rollout's bound, :attr:`vcjax.rollout.Trajectory.diverged`).
     """
     t = np.asarray(traj.t)
     dt = float(t[1] - t[0])
@@ -315,7 +327,8 @@ def tracking_metrics(traj, vehicle, tail: float = 0.2) -> dict:
         "max_abs_tau_u": float(np.max(np.abs(act[:, 0]))),
         "max_abs_rudder_deg": float(np.degrees(np.max(np.abs(act[:, 1])))),
         "sat_fraction": float(np.mean(sat)),
-        "healthy": bool(np.all(np.asarray(traj.finite))),
+        "healthy": not bool(np.any(np.asarray(traj.diverged))),
+        "unhealthy_step": first_unhealthy_step(traj),
     }
 
 
@@ -346,4 +359,19 @@ def run_sim1(
         metrics[v] = tracking_metrics(trajs[v], sc.vehicle)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     files = plots.sim1_figures(trajs, sc, out)
-    return {"metrics": metrics, "files": [out / "metrics.json", *files]}
+    return {
+        "metrics": metrics,
+        "files": [out / "metrics.json", *files],
+        "unhealthy": unhealthy_runs(trajs),
+    }
+
+
+def unhealthy_runs(trajs: dict) -> dict:
+    """``{variant: (k, t_k)}`` for every run with a diverged step (first such step k and its
+    end time [s]); empty when every run is healthy."""
+    bad = {}
+    for v, traj in trajs.items():
+        k = first_unhealthy_step(traj)
+        if k is not None:
+            bad[v] = (k, float(np.asarray(traj.t)[k + 1]))
+    return bad

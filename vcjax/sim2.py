@@ -126,7 +126,7 @@ def sim2_scenario(
     check_array("psi0", psi0, ())
     check_positive("u_d", u_d, ())
     check_array("varpi0", varpi0, ())
-    vehicle = odin.odin_params() if vehicle is None else vehicle
+    vehicle = odin.odin_params() if vehicle is None else odin.validate(vehicle)
     args = odin.odin_args(vehicle, tau_dist, v_c)
     f = lambda x: jnp.asarray(x, dtype=args.tau_dist.dtype)
     eta0 = jnp.concatenate([f(p0), jnp.zeros(2, args.tau_dist.dtype), f(psi0)[None]])
@@ -393,7 +393,7 @@ def sim2_metrics(traj, skip: float = 0.2) -> dict:
         "final_varpi": float(np.asarray(traj.z.vcm.varpi)[-1]),
         "settled_from_s": float(t[k0]),
         "horizon_s": float(t[-1] + (t[1] - t[0])),
-        "healthy": bool(np.all(np.asarray(traj.finite))),
+        "healthy": not bool(np.any(np.asarray(traj.diverged))),
     }
 
 
