@@ -58,12 +58,14 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
     )
     ax.set_xlabel("y (east) [m]")
     ax.set_ylabel("x (north) [m]")
+    ax.set_aspect("equal", adjustable="datalim")  # one metre is one metre in both directions
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     files.append(_save(fig, out / "sim1_paths.png"))
 
     def two_panel(name, series, ylabels, t_slice, hlines=((), ())):
-        """Two stacked time plots; ``series[i](traj)`` gives panel i's samples."""
+        """Two stacked time plots; ``series[i](traj)`` gives panel i's samples; ``hlines[i]``
+        is a sequence of ``(values, label)`` reference lines drawn and labelled in panel i."""
         fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
         for v in order:
             tr = trajs[v]
@@ -71,12 +73,20 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
             for i in range(2):
                 ax[i].plot(t, series[i](tr), **STYLE[v])
         for i in range(2):
-            for y in hlines[i]:
-                ax[i].axhline(y, color="k", lw=0.8, ls="--", alpha=0.5)
+            refs = []
+            for values, label in hlines[i]:
+                for j, y in enumerate(values):
+                    line = ax[i].axhline(y, color="k", lw=1.0, ls="--", alpha=0.6)
+                    if j == 0:
+                        line.set_label(label)
+                        refs.append(line)
             ax[i].set_ylabel(ylabels[i])
             ax[i].grid(alpha=0.3)
+            if i == 0:
+                ax[i].legend(fontsize=8)
+            elif refs:
+                ax[i].legend(handles=refs, fontsize=8, loc="upper right")
         ax[1].set_xlabel("t [s]")
-        ax[0].legend(fontsize=8)
         return _save(fig, out / name)
 
     vehicle = scenario.vehicle
@@ -90,7 +100,7 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
             (lambda tr: np.asarray(tr.x.nu[:-1, 0]), lambda tr: np.degrees(tr.aux.psi_tilde)),
             ("u [m/s]", "heading error ψ̃ [deg]"),
             head,
-            ((float(scenario.u_d),), ()),
+            ((((float(scenario.u_d),), f"desired speed u_d = {float(scenario.u_d):g} m/s"),), ()),
         )
     )
     # Fig. 5 (right): control signals (actual actuator states)
@@ -100,7 +110,10 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
             (lambda tr: np.asarray(tr.x.act[:, 0]), lambda tr: np.degrees(tr.x.act[:, 1])),
             ("thrust τ_u [N]", "rudder δ [deg]"),
             slice(None),
-            ((-thrust_max, thrust_max), (-rudder_max, rudder_max)),
+            (
+                (((-thrust_max, thrust_max), f"thrust limit ±{thrust_max:g} N"),),
+                (((-rudder_max, rudder_max), f"rudder limit ±{rudder_max:g}°"),),
+            ),
         )
     )
     # path-following errors

@@ -4,14 +4,15 @@
   and against the current direction, one colour per variant, with binned medians;
 * ``sweep_metrics.png``: box plots of the main metrics per variant;
 * ``sweep_envelopes.png``: cross-track error against time, median and 25–75 % / 5–95 % bands
-  per variant;
-* ``sweep_paths.png``: a sample of the paths travelled, per variant.
+  per variant, all panels on one y scale;
+* ``sweep_paths.png``: a sample of the paths travelled, per variant (equal axis scales).
 
 Runs flagged ``diverged`` are left out of every panel (their count is in the titles).
 """
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -69,8 +70,10 @@ def _error_vs_current(result, out: Path) -> Path:
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("steady-state mean |e| [m] (last %.0f %%)" % (100 * result.spec.tail))
     fails = ", ".join(f"{v}: {int((~_ok(result, v)).sum())}" for v in _variants(result))
-    axes[0].set_title(f"{n} scenarios; lines: binned medians")
-    axes[1].set_title(f"diverged runs (left out): {fails}")
+    title = f"{n} scenarios; lines: binned medians; diverged runs (left out): {fails}"
+    fig.suptitle("\n".join(textwrap.wrap(title, 110)), fontsize=10)
+    axes[0].set_title("against the current's speed", fontsize=10)
+    axes[1].set_title("against the current's direction", fontsize=10)
     axes[0].legend(fontsize=8)
     return _save(fig, out / "sweep_error_vs_current.png")
 
@@ -105,17 +108,19 @@ def _metric_boxes(result, out: Path) -> Path:
     return _save(fig, out / "sweep_metrics.png")
 
 
-def _grid(plt, n):
+def _grid(plt, n, sharey=False):
     rows = 1 if n <= 2 else 2
     cols = int(np.ceil(n / rows))
-    fig, axes = plt.subplots(rows, cols, figsize=(5.5 * cols, 4.2 * rows), squeeze=False)
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(5.5 * cols, 4.2 * rows), squeeze=False, sharey=sharey
+    )
     return fig, axes.ravel()
 
 
 def _envelopes(result, out: Path) -> Path:
     plt = _plt()
     vs = _variants(result)
-    fig, axes = _grid(plt, len(vs))
+    fig, axes = _grid(plt, len(vs), sharey=True)  # one y scale: the variants compare by eye
     t = np.asarray(result.trace_t)
     for ax, v in zip(axes, vs, strict=False):
         e = np.asarray(result.traces[v]["e"], np.float64)[_ok(result, v)]
@@ -129,10 +134,12 @@ def _envelopes(result, out: Path) -> Path:
         ax.set_title(f"{st['label']} ({e.shape[0]} runs)", fontsize=10)
         ax.set_xlabel("t [s]")
         ax.set_ylabel("cross-track error e [m]")
+        ax.yaxis.set_tick_params(labelleft=True)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     for ax in axes[len(vs) :]:
         ax.set_visible(False)
+    fig.suptitle("Cross-track error envelopes (shared y-axis)", fontsize=11)
     return _save(fig, out / "sweep_envelopes.png")
 
 
@@ -155,6 +162,7 @@ def _paths(result, out: Path, max_paths: int = 60) -> Path:
         ax.set_title(f"{st['label']}: {len(ok)} paths (black: diverged)", fontsize=10)
         ax.set_xlabel("y (east) [m]")
         ax.set_ylabel("x (north) [m]")
+        ax.set_aspect("equal", adjustable="datalim")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     for ax in axes[len(vs) :]:
