@@ -15,6 +15,7 @@ LAYERS = [
     {"plots", "plots_sim2", "sweep_plots"},
     {"sim1", "sim2", "demos"},
     {"sweep"},
+    {"identify"},
     {"cli"},
 ]
 LAYER_OF = {name: i for i, names in enumerate(LAYERS) for name in names}
