@@ -10,7 +10,7 @@ step = "pvs"                  # "pvs" (PythonVehicleSimulator's Euler step, REMU
 current_speed = 0.5           # m/s, known current (or the initial guess with fit_current)
 current_direction_deg = 170.0 # deg, towards which the water flows (from north towards east)
 [fit]
-params = ["CD_0", "CL_delta_r", "CL_delta_s", "cf_coeff"]   # scalar fields of the vehicle's parameters
+params = ["CD_0", "CL_delta_r", "CL_delta_s", "cf_coeff"]  # scalar fields of the parameters
 fit_current = false           # also estimate the current's speed and direction
 initial_scale = 1.0           # start from nominal * scale (1.3 = 30 % off, for studies and tests)
 segment_steps = 50

@@ -8,7 +8,8 @@ Gauss–Newton system ::
     [ A + lam D_A     B_1   ...   B_J  ] [dz  ]     [g_z]     A   = sum_j Jz_j^T Jz_j
     [ B_1^T      C_1 + lam D_1         ] [ds_1] = - [g_1]     B_j = Jz_j^T Js_j
     [  ...                 ...         ] [... ]     [...]     C_j = Js_j^T Js_j
-                                                              g_z = sum_j Jz_j^T r_j, g_j = Js_j^T r_j
+                                                              g_z = sum_j Jz_j^T r_j
+                                                              g_j = Js_j^T r_j
 
 is solved by eliminating the blocks (Schur complement)::
 

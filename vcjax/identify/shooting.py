@@ -137,7 +137,8 @@ class ShootingProblem:
                 )
             if float(getattr(base, name)) == 0.0:
                 raise ValueError(
-                    f"params: {name!r} is 0 in the nominal model; it cannot be fitted on a log scale"
+                    f"params: {name!r} is 0 in the nominal model; "
+                    "it cannot be fitted on a log scale"
                 )
         if len(set(names)) != len(names):
             raise ValueError(f"params: names must be unique, got {list(names)}")
