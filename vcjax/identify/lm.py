@@ -112,7 +112,7 @@ def levenberg_marquardt(
     lam0: float = 1e-3,
     ftol: float = 1e-6,
     xtol: float = 1e-8,
-    rtol_cost: float = 1e-16,
+    rtol_cost: float = 1e-20,
     callback: Callable | None = None,
 ) -> LMResult:
     """Minimise ``0.5 |r(z, s)|^2`` over ``z`` and the blocks ``s``.
