@@ -93,7 +93,20 @@ def _is_number(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool)
 
 
+def _use_cores(args, command: str) -> int | None:
+    """Split the host CPU into devices (before JAX initialises); a bad count is one line."""
+    from vcjax.devices import use_cpu_cores
+
+    try:
+        use_cpu_cores(args.cpu_devices)
+    except ValueError as err:
+        return _fail(f"{command}: {err}")
+    return None
+
+
 def _cmd_sweep(args) -> int:
+    if (rc := _use_cores(args, "sweep")) is not None:
+        return rc
     _enable_x64(args.x64)
     from vcjax.sweep import run_sweep_config
 
@@ -116,6 +129,8 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_tune(args) -> int:
+    if (rc := _use_cores(args, "tune")) is not None:
+        return rc
     _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
     from tuning.cli import run_tune_config
 
@@ -169,6 +184,16 @@ def _print_metrics(metrics: dict) -> None:
         print(name.ljust(14) + "".join(cells))
 
 
+def _add_cpu_devices(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--cpu-devices",
+        metavar="N",
+        default=None,
+        help="split the host CPU into N JAX devices and shard the scenarios over them "
+        "(default: $VCJAX_CPU_DEVICES, else one per core; 1: no sharding)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="vcjax",
@@ -220,6 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("config", help="TOML config (see examples/sweeps/)")
     w.add_argument("--out", default="out/sweep", help="output directory (default: out/sweep)")
     w.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    _add_cpu_devices(w)
     w.set_defaults(func=_cmd_sweep)
 
     t = sub.add_parser(
@@ -228,6 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("config", help="TOML config (see examples/tuning/)")
     t.add_argument("--out", default="out/tune", help="output directory (default: out/tune)")
     t.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    _add_cpu_devices(t)
     t.set_defaults(func=_cmd_tune)
 
     f = sub.add_parser(
