@@ -198,7 +198,7 @@ def run_fit_config(config_path, out, progress: bool = False) -> dict:
     fit["files"] = [str(x) for x in cfg["data"]["files"]]
     fit["config"] = {k: dict(v) for k, v in cfg.items()}
     files = [out / "fit.json"]
-    (out / "fit.json").write_text(json.dumps(fit, indent=2, allow_nan=True) + "\n")
+    (out / "fit.json").write_text(json.dumps(fit, indent=2, allow_nan=False) + "\n")
     from vcjax.identify.figures import cost_history_figure, prediction_figure
 
     files.append(cost_history_figure(result, out / "cost_history.png"))

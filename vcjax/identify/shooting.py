@@ -314,7 +314,7 @@ class FitResult:
     def to_json(self) -> dict:
         """fit.json's content: ``estimates`` is a flat {parameter: value} map (vehicle parameters
         only, so that it can be applied to a vehicle as overrides); a fitted current is reported
-        under ``current``."""
+        under ``current``; non-finite numbers (a free run that diverged) become ``null``."""
         par = [n for n in self.names if n not in CURRENT_NAMES]
         out = {
             "vehicle": self.problem.model.vehicle,
@@ -350,7 +350,18 @@ class FitResult:
             samples=self.samples,
             warnings=self.warnings,
         )
-        return out
+        return _finite_or_none(out)
+
+
+def _finite_or_none(tree):
+    """Non-finite floats as ``None`` (strict JSON), recursively through dicts and lists."""
+    if isinstance(tree, dict):
+        return {k: _finite_or_none(v) for k, v in tree.items()}
+    if isinstance(tree, list | tuple):
+        return [_finite_or_none(v) for v in tree]
+    if isinstance(tree, float) and not math.isfinite(tree):
+        return None
+    return tree
 
 
 def _channel_rms(phys, mask, columns) -> dict[str, float]:
