@@ -37,6 +37,7 @@ def prediction_figure(result, log, pred_initial, pred_fitted, path, index: int =
         ax.set_visible(False)
     for ax in axes[max(n - ncol, 0) : n]:
         ax.set_xlabel("t [s]")
+        ax.xaxis.set_tick_params(labelbottom=True)
     axes[0].legend(fontsize=8)
     fig.suptitle(
         f"{log.name}: measured vs free simulation from the first sample "
