@@ -381,3 +381,29 @@ def test_step_pvs_rejected_for_infante(tmp_path, capsys):
 def test_missing_file_named(tmp_path, capsys):
     err = _cli_error(_write_config(tmp_path, [tmp_path / "nope.csv"]), tmp_path, capsys)
     assert "nope.csv" in err and "no such file" in err
+
+
+# ---------------------------------------------------------------------------------------------
+# The study's manoeuvres
+# ---------------------------------------------------------------------------------------------
+
+
+def test_manoeuvres_against_steady_state_and_switching_rule():
+    """Speed steps settle at the calibrated straight-line speed 5 sqrt(T / 920) m/s (920 N gives
+    5 m/s by construction of X_u|u|); the zig-zag reverses the rudder where the heading crosses
+    +-20 deg, and only there."""
+    from vcjax.identify.manoeuvres import simulate_trial
+
+    p = get_fit_model("infante").nominal(jnp.float64)
+    t, x, u = simulate_trial(p, "speed_steps", dt=0.2, horizon=800.0, thrust=600.0)
+    for level, T in enumerate([600.0, 900.0, 300.0, 600.0]):
+        k = int(round((level + 1) * 200.0 / 0.2)) - 1  # end of each 200 s level
+        assert u[k, 0] == T
+        assert x[k, 3] == pytest.approx(5.0 * math.sqrt(T / 920.0), rel=2e-4)
+    t, x, u = simulate_trial(p, "zigzag", dt=0.1, horizon=60.0)
+    psi, delta_cmd = np.degrees(x[:, 2]), np.degrees(u[:, 1])
+    flips = np.flatnonzero(np.diff(delta_cmd) != 0) + 1
+    assert flips.size >= 3
+    for k in flips:  # rudder reversed at the first sample beyond +-20 deg
+        assert abs(psi[k]) >= 20.0 and abs(psi[k - 1]) < 20.0 + 1e-9
+        assert np.sign(delta_cmd[k]) == np.sign(psi[k])  # positive rudder turns to port
