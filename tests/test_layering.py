@@ -16,7 +16,7 @@ LAYERS = [
     {"metrics"},
     {"plots", "plots_sim2", "sweep_plots"},
     {"sweep"},
-    {"sim1", "sim2", "demos"},
+    {"sim1", "sim2", "demos", "identify"},
     {"cli"},
 ]
 LAYER_OF = {name: i for i, names in enumerate(LAYERS) for name in names}

@@ -151,6 +151,29 @@ def _cmd_tune(args) -> int:
     return 0
 
 
+def _cmd_fit(args) -> int:
+    _enable_x64(args.x64)
+    from vcjax.identify import run_fit_config
+
+    print(f"fit: {args.config} (compiling the multiple-shooting Jacobian first)")
+    try:
+        result = run_fit_config(args.config, args.out, progress=not args.quiet)
+    except (OSError, ValueError) as err:
+        return _fail(f"fit: {err}")
+    fit = result["fit"]
+    print(f"{'parameter':<22}{'initial':>14}{'estimate':>14}{'std':>12}")
+    sections = [fit] + ([fit["current"]] if "current" in fit else [])
+    for sec in sections:
+        for name, value in sec["estimates"].items():
+            print(f"{name:<22}{sec['initial'][name]:>14.6g}{value:>14.6g}{sec['std'][name]:>12.3g}")
+    print(f"{fit['iterations']} iterations, {fit['wall_time_s']:.1f} s ({fit['reason']})")
+    for w in fit["warnings"]:
+        print(f"vcjax: fit: warning: {w}", file=sys.stderr)
+    for f in result["files"]:
+        print(f"wrote {f}")
+    return 0
+
+
 def _print_metrics(metrics: dict) -> None:
     """A table: one row per variant, one column per numeric metric."""
     keys = [k for k, v in next(iter(metrics.values())).items() if _is_number(v)]
@@ -233,6 +256,16 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
     _add_cpu_devices(t)
     t.set_defaults(func=_cmd_tune)
+
+    f = sub.add_parser(
+        "fit",
+        help="identify plant parameters from logged runs by multiple shooting (TOML)",
+    )
+    f.add_argument("config", help="TOML config (see examples/fit/)")
+    f.add_argument("--out", default="out/fit", help="output directory (default: out/fit)")
+    f.add_argument("--quiet", action="store_true", help="no per-iteration progress lines")
+    f.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    f.set_defaults(func=_cmd_fit)
 
     d = sub.add_parser(
         "demo",
