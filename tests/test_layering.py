@@ -12,8 +12,8 @@ LAYERS = [
     {"mechanics", "systems", "paths", "currents"},
     {"vehicles", "guidance", "allocation", "rollout"},
     {"control"},
-    {"plots", "plots_sim2", "sweep_plots"},
-    {"sim1", "sim2", "demos"},
+    {"plots", "plots_sim2", "sweep_plots", "plots_remus100"},
+    {"sim1", "sim2", "demos", "sim_remus100"},
     {"sweep"},
     {"cli"},
 ]
