@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -33,7 +34,7 @@ def _fail(msg: str) -> int:
 
 
 #: Per-experiment defaults of ``vcjax simulate`` (horizon [s], RK4 step [s]).
-_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05)}
+_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05), "remus100": (920.0, 0.05)}
 
 
 def _cmd_simulate(args) -> int:
@@ -46,6 +47,8 @@ def _cmd_simulate(args) -> int:
     out = Path(args.out or f"out/{args.experiment}")
     if args.experiment == "sim2":
         return _simulate_sim2(args, out, horizon, dt)
+    if args.experiment == "remus100":
+        return _simulate_remus100(args, out, horizon, dt)
     return _simulate_sim1(args, out, horizon, dt)
 
 
@@ -84,6 +87,21 @@ def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
     _print_metrics(
         {mode: {k: v for k, v in m.items() if _is_number(v)} for mode, m in by_mode.items()}
     )
+    for f in result["files"]:
+        print(f"wrote {f}")
+    return 0
+
+
+def _simulate_remus100(args, out: Path, horizon: float, dt: float) -> int:
+    from vcjax import sim_remus100
+
+    if args.gains:
+        return _fail("simulate remus100: --gains is not supported (tune through `vcjax tune`)")
+    current = tuple(args.current) if args.current else (0.0, 0.3)
+    if not all(math.isfinite(c) for c in current):
+        return _fail(f"simulate remus100: --current must be finite, got {current}")
+    result = sim_remus100.run_remus100(out, horizon=horizon, dt=dt, current=current)
+    _print_metrics(result["metrics"])
     for f in result["files"]:
         print(f"wrote {f}")
     return 0
@@ -207,18 +225,22 @@ def build_parser() -> argparse.ArgumentParser:
         "experiment",
         choices=sorted(_SIM_DEFAULTS),
         help="sim1: Simulation 1 (INFANTE-class, line, Figs. 4-5); "
-        "sim2: Simulation 2 (ODIN-class, helix, Figs. 6-7)",
+        "sim2: Simulation 2 (ODIN-class, helix, Figs. 6-7); "
+        "remus100: 3-D survey mission of the PVS REMUS 100 under a cross current",
     )
     s.add_argument("--out", help="output directory (default: out/EXPERIMENT)")
     s.add_argument("--gains", help="sim1: JSON file of gains (e.g. written by `vcjax tune`)")
-    s.add_argument("--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300)")
+    s.add_argument(
+        "--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300, remus100: 920)"
+    )
     s.add_argument("--dt", type=float, help="RK4 step [s] (default 0.05)")
     s.add_argument(
         "--current",
         type=float,
         nargs=2,
         metavar=("V_N", "V_E"),
-        help="sim1: ocean current, north and east [m/s] (paper: 0 0.5, along the path)",
+        help="sim1/remus100: ocean current, north and east [m/s] (sim1: 0 0.5, along the path; "
+        "remus100: 0 0.3, across the legs)",
     )
     s.add_argument(
         "--edd",
