@@ -20,10 +20,12 @@ from vcjax.integrators import euler, get_integrator, heun, rk4
 from vcjax.mechanics import (
     Diagnostics,
     MechanicalSystem,
+    Underactuation,
     VCMGains,
     VirtualConstraints,
     constraint_terms,
     reaction_force,
+    underactuated_reaction_force,
     vcm_gains,
 )
 from vcjax.paths import Path, PathFrame, path_frame
@@ -36,6 +38,7 @@ __all__ = [
     "PathFrame",
     "RolloutConfig",
     "Trajectory",
+    "Underactuation",
     "VCMGains",
     "VirtualConstraints",
     "constraint_terms",
@@ -45,6 +48,7 @@ __all__ = [
     "path_frame",
     "reaction_force",
     "rk4",
+    "underactuated_reaction_force",
     "vcm_gains",
 ]
 
