@@ -38,6 +38,7 @@ import jax.scipy.linalg as jsl
 import numpy as np
 
 from vcjax._checks import check_array, is_concrete
+from vcjax.linalg import safe_norm
 
 __all__ = [
     "MechanicalSystem",
@@ -480,6 +481,6 @@ def underactuated_reaction_force(
         rank=rank,
         cond=cond,
         full_rank=full,
-        residual=jnp.linalg.norm(terms.W @ qdd + terms.h),
+        residual=safe_norm(terms.W @ qdd + terms.h),
     )
     return tau_c, qdd, mu, diag

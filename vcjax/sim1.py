@@ -10,7 +10,9 @@ controllers). Four controllers on the identical scenario:
 * ``los_pid``: LOS heading with the PID yaw law (39);
 * ``vcm_ilos`` (an extension, not in the paper): ``vcm_integral`` with the integral-LOS approach
   angle inside the VCM heading row (``VCMConfig(guidance="ilos")``), which removes the
-  cross-track offset a cross current leaves with the paper's LOS angle.
+  cross-track offset a cross current leaves with the paper's LOS angle;
+* ``alos`` (a baseline not in the paper): Fossen's adaptive LOS (2023) with the same heading PD
+  and surge loop as ``ilos`` and ``los_pid``.
 
 Every controller maps its ``[tau_u, tau_r]`` to thrust and rudder commands with the vehicle's
 actuator model (:func:`vcjax.vehicles.infante.actuator_commands`), using the *measured* velocity
@@ -62,7 +64,7 @@ __all__ = [
     "tracking_metrics",
 ]
 
-VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos")
+VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos", "alos")
 #: The four controllers of the paper's comparison (Simulation 1).
 PAPER_VARIANTS = VARIANTS[:4]
 
@@ -138,7 +140,7 @@ class Sim1Gains(NamedTuple):
     """Gains of every controller in the comparison (traced)."""
 
     vcm: Any  # PMGains, shared by vcm and vcm_integral (as in the paper)
-    baseline: Any  # BaselineGains, shared by ilos and los_pid
+    baseline: Any  # BaselineGains, shared by ilos, los_pid and alos
 
 
 def default_gains() -> Sim1Gains:
@@ -194,7 +196,7 @@ def closed_loop(variant: str, edd: str = "paper", smooth: bool = False) -> _Loop
             guidance="ilos" if variant == "vcm_ilos" else "los",
         )
         law = functools.partial(vcm_law, cfg)
-    elif variant in ("ilos", "los_pid"):
+    elif variant in ("ilos", "los_pid", "alos"):
         law = functools.partial(baseline_law, BaselineConfig(path=PATH, kind=variant))
     else:
         raise ValueError(f"variant: expected one of {VARIANTS}, got {variant!r}")
@@ -329,7 +331,7 @@ def run_sim1(
     progress=print,
     scenario: Sim1Scenario | None = None,
 ) -> dict:
-    """Run all four variants, write ``metrics.json`` and the figures into ``out``.
+    """Run every variant (:data:`VARIANTS`), write ``metrics.json`` and the figures into ``out``.
 
     ``scenario`` defaults to the paper's (:func:`sim1_scenario`); pass another current or start
     to compare the controllers elsewhere.
