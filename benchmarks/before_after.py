@@ -49,6 +49,8 @@ def parse_args(argv=None):
     p.add_argument("--single-steps", type=int, default=2000)
     p.add_argument("--rounds", type=int, default=2, help="alternating before/after rounds")
     p.add_argument("--cores", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--timings", nargs="+", default=["sampled", "continuous"])
+    p.add_argument("--kinds", nargs="+", default=["single", "vmap", "sharded"])
     p.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.quick:
@@ -152,11 +154,12 @@ def run_worker(case: dict, lib_path: Path | None) -> dict:
 
 def cases(args) -> list[dict]:
     out = []
-    for timing in ("sampled", "continuous"):
+    for timing in args.timings:
         base = {"dtype": args.dtype, "timing": timing, "repeats": args.repeats}
-        out.append({**base, "kind": "single", "steps": args.single_steps, "devices": 1})
+        if "single" in args.kinds:
+            out.append({**base, "kind": "single", "steps": args.single_steps, "devices": 1})
         for kind, dev in (("vmap", 1), ("sharded", args.cores)):
-            if kind == "sharded" and dev < 2:
+            if kind not in args.kinds or (kind == "sharded" and dev < 2):
                 continue
             out.append({**base, "kind": kind, "batch": args.batch, "steps": args.steps})
             out[-1]["devices"] = dev

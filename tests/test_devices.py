@@ -87,6 +87,11 @@ def test_sweep_sharded_over_two_cpu_devices_equals_one_device(tmp_path):
         assert r.returncode == 0, r.stderr[-3000:]
         summary = json.loads((out / "summary.json").read_text())
         assert summary["devices"] == n, summary
+        t = summary["variants"]["vcm_integral"]["timing"]
+        assert (t["scenarios"], t["steps"], t["devices"]) == (5, 40, n)
+        assert t["compile_s"] > 0 and t["run_s"] > 0
+        assert t["traj_steps_per_s"] == pytest.approx(5 * 40 / t["run_s"], rel=1e-3)
+        assert "M trajectory-steps/s (5 x 40 steps" in r.stderr
         with np.load(out / "results.npz") as z:
             runs[(n, len(how))] = {k: z[k] for k in z.files if k != "meta_json"}
     one = runs[(1, 2)]

@@ -135,6 +135,14 @@ def _cmd_sweep(args) -> int:
     summary = result["summary"]
     if summary is not None:  # None on the non-zero processes of a multi-host run
         for variant, s in summary.get("variants", {}).items():
+            t = s.get("timing")
+            if t and t.get("traj_steps_per_s"):
+                print(
+                    f"{variant}: compile {t['compile_s']:.2f} s, run {t['run_s']:.2f} s, "
+                    f"{t['traj_steps_per_s'] / 1e6:.3g} M trajectory-steps/s "
+                    f"({t['scenarios']} x {t['steps']} steps, {t['devices']} device(s))",
+                    file=sys.stderr,
+                )
             e = s.get("metrics", {}).get("ss_abs_e", {})
             if e:
                 print(
