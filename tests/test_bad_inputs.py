@@ -313,8 +313,8 @@ def test_edited_odin_and_remus_params():
 @pytest.mark.parametrize(
     "data, message",
     [
-        (None, "expected a JSON object"),
-        ([1, 2], "expected a JSON object"),
+        (None, "gains file: expected an object, got NoneType"),
+        ([1, 2], "gains file: expected an object, got list"),
         ({"vcm": None}, "section 'vcm' must be an object"),
         ({"vcm": {"P_G": None}}, r"P_G: expected shape \(3,\)"),
         ({"vcm": {"P_G": [None, 1, 1]}}, "P_G: expected a numeric array"),
@@ -364,7 +364,7 @@ def test_cli_out_under_dev_null(capsys):
 @pytest.mark.parametrize(
     "content, fragment",
     [
-        ("null", "expected a JSON object"),
+        ("null", "expected an object, got NoneType"),
         ('{"vcm": {"P_G": [1, 1, 1],}}', "Expecting"),
         ('{"vcm": {"P_G": [1, 1]}}', "P_G: expected shape (3,)"),
     ],
@@ -415,7 +415,7 @@ def test_cli_simulate_bad_time_grid(capsys, tmp_path, dt, horizon, fragment):
 def test_cli_simulate_bad_current_and_sim2_options(capsys, tmp_path):
     rc, _, err = _cli(capsys, "simulate", "sim1", "--current", "nan", "0", "--out", str(tmp_path))
     assert rc == 2
-    _one_line_error(err, "V_c: contains NaN")
+    _one_line_error(err, "current: contains NaN")
     rc, _, err = _cli(capsys, "simulate", "sim2", "--gains", "g.json", "--out", str(tmp_path))
     assert rc == 2
     _one_line_error(err, "--gains is not supported")
@@ -439,3 +439,74 @@ def test_cli_unhealthy_simulation_exits_nonzero_and_still_writes(capsys, tmp_pat
         assert f"UNHEALTHY RUN: {v} diverged at step {k} " in err
     assert "Traceback" not in err
     assert (out / "sim1_path.png").exists() or any(out.glob("*.png"))
+
+
+# ------------------------------------------------------------------ sweep, tune, fit (CLI)
+
+_SWEEP = """
+[sweep]
+num_scenarios = 2
+seed = 0
+variants = ["vcm"]
+
+[simulation]
+horizon = 2.0
+dt = 0.05
+gains = "g.json"
+
+[output]
+record_points = 10
+"""
+
+
+@pytest.mark.parametrize("command", ["sweep", "tune", "fit"])
+def test_cli_out_checked_before_any_work(capsys, tmp_path, command):
+    f = tmp_path / "file"
+    f.write_text("x")
+    rc, _, err = _cli(capsys, command, str(tmp_path / "missing.toml"), "--out", str(f / "sub"))
+    assert rc == 2
+    _one_line_error(err, f"vcjax: {command}: --out {f / 'sub'}", "is a file")
+
+
+def test_cli_sweep_malformed_gains_file_is_named(capsys, tmp_path):
+    (tmp_path / "g.json").write_text('{"vcm": {"P_G": [1, 1, 1],}}')
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(_SWEEP)
+    rc, _, err = _cli(capsys, "sweep", str(cfg), "--out", str(tmp_path / "out"))
+    assert rc == 2
+    _one_line_error(err, "[simulation] gains", str(tmp_path / "g.json"), "Expecting")
+
+
+def test_cli_sweep_with_a_diverging_variant_completes(capsys, tmp_path):
+    # the issue's gains: every run of vcm diverges; divergence is data in a Monte-Carlo study
+    (tmp_path / "g.json").write_text(json.dumps({"vcm": {"P_Phi": [1000] * 5, "P_G": [1000] * 3}}))
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(_SWEEP)
+    out = tmp_path / "out"
+    rc, stdout, err = _cli(capsys, "sweep", str(cfg), "--out", str(out))
+    assert rc == 0, err
+    summary = json.loads((out / "summary.json").read_text())
+    s = summary["variants"]["vcm"]
+    assert s["n"] == 2 and s["n_diverged"] == 2
+    assert s["metrics"]["ss_abs_e"]["p50"] is None  # no healthy run to summarise
+    assert "vcjax: warning: sweep: vcm: 2 of 2 runs diverged" in err
+    assert "vcm            no metrics: diverged 2 of 2" in stdout
+    assert "Traceback" not in err
+    assert (out / "sweep_envelopes.png").exists()
+
+
+def test_progress_eta_excludes_the_compiling_step(monkeypatch):
+    """The ETA of a run whose first step compiles (55 s) and later steps take 1 s is based on
+    the later steps: 3 steps left -> 3 s, not 3 x 55 s."""
+    import io
+
+    from vcjax import progress
+
+    clock = iter([0.0, 55.0, 56.0, 57.0])
+    monkeypatch.setattr(progress.time, "perf_counter", lambda: next(clock))
+    stream = io.StringIO()
+    bar = progress.ProgressBar(5, "tune ", stream=stream, warmup=1)
+    bar.show(1)
+    assert "ETA after warm-up" in stream.getvalue() and "incl. compiling" in stream.getvalue()
+    bar.show(2)
+    assert "~3 s left (1 s/step)" in stream.getvalue()

@@ -34,6 +34,21 @@ def _out_dir(path) -> Path:
     return out
 
 
+def _check_out(path) -> None:
+    """Raise :class:`_CLIError` if ``path`` cannot become a directory (checked, not created):
+    it, or its first existing ancestor, is not a directory."""
+    p = Path(path)
+    if p.exists():
+        if not p.is_dir():
+            raise _CLIError(f"--out {path}: exists and is not a directory")
+        return
+    for parent in p.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise _CLIError(f"--out {path}: cannot create the directory: {parent} is a file")
+            return
+
+
 def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
     """Number of steps of ``horizon`` in steps of ``dt``; both finite, ``0 < dt <= horizon``."""
     if not (math.isfinite(horizon) and math.isfinite(dt)):
@@ -172,6 +187,7 @@ def _use_cores(args, command: str) -> int | None:
 
 
 def _cmd_sweep(args) -> int:
+    _check_out(args.out)
     if (rc := _use_cores(args, "sweep")) is not None:
         return rc
     _enable_x64(args.x64)
@@ -192,11 +208,20 @@ def _cmd_sweep(args) -> int:
                     f"({t['scenarios']} x {t['steps']} steps, {t['devices']} device(s))",
                     file=sys.stderr,
                 )
+            n, n_div = s.get("n", 0), s.get("n_diverged", 0)
             e = s.get("metrics", {}).get("ss_abs_e", {})
-            if e:
+            if e and e.get("p50") is not None:
                 print(
                     f"{variant:<14} ss_abs_e median {e['p50']:.3g} m, p95 {e['p95']:.3g} m; "
-                    f"diverged {s.get('n_diverged', 0)} of {s.get('n', '?')}"
+                    f"diverged {n_div} of {n}"
+                )
+            else:
+                print(f"{variant:<14} no metrics: diverged {n_div} of {n}")
+            if n_div:
+                print(
+                    f"vcjax: warning: sweep: {variant}: {n_div} of {n} runs diverged "
+                    "(left out of the metrics and figures; flagged in results.npz)",
+                    file=sys.stderr,
                 )
     for f in result["files"]:
         print(f"wrote {f}")
@@ -204,6 +229,7 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_tune(args) -> int:
+    _check_out(args.out)
     if (rc := _use_cores(args, "tune")) is not None:
         return rc
     _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
@@ -227,6 +253,7 @@ def _cmd_tune(args) -> int:
 
 
 def _cmd_fit(args) -> int:
+    _check_out(args.out)
     _enable_x64(args.x64)
     from vcjax.identify import run_fit_config
 

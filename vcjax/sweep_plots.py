@@ -136,7 +136,8 @@ def _envelopes(result, out: Path) -> Path:
         ax.set_ylabel("cross-track error e [m]")
         ax.yaxis.set_tick_params(labelleft=True)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
+        if e.shape[0]:
+            ax.legend(fontsize=8)
     for ax in axes[len(vs) :]:
         ax.set_visible(False)
     fig.suptitle("Cross-track error envelopes (shared y-axis)", fontsize=11)
