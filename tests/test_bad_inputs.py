@@ -442,6 +442,7 @@ def test_cli_unhealthy_simulation_exits_nonzero_and_still_writes(capsys, tmp_pat
 
 
 # ------------------------------------------------------------------ sweep, tune, fit (CLI)
+# in-process, JAX already runs with one CPU device: the sweeps say --cpu-devices 1
 
 _SWEEP = """
 [sweep]
@@ -472,7 +473,9 @@ def test_cli_sweep_malformed_gains_file_is_named(capsys, tmp_path):
     (tmp_path / "g.json").write_text('{"vcm": {"P_G": [1, 1, 1],}}')
     cfg = tmp_path / "s.toml"
     cfg.write_text(_SWEEP)
-    rc, _, err = _cli(capsys, "sweep", str(cfg), "--out", str(tmp_path / "out"))
+    rc, _, err = _cli(
+        capsys, "sweep", str(cfg), "--out", str(tmp_path / "out"), "--cpu-devices", "1"
+    )
     assert rc == 2
     _one_line_error(err, "[simulation] gains", str(tmp_path / "g.json"), "Expecting")
 
@@ -483,7 +486,7 @@ def test_cli_sweep_with_a_diverging_variant_completes(capsys, tmp_path):
     cfg = tmp_path / "s.toml"
     cfg.write_text(_SWEEP)
     out = tmp_path / "out"
-    rc, stdout, err = _cli(capsys, "sweep", str(cfg), "--out", str(out))
+    rc, stdout, err = _cli(capsys, "sweep", str(cfg), "--out", str(out), "--cpu-devices", "1")
     assert rc == 0, err
     summary = json.loads((out / "summary.json").read_text())
     s = summary["variants"]["vcm"]

@@ -66,7 +66,8 @@ def _error_vs_current(result, out: Path) -> Path:
             else:
                 ax.plot([], [], color=st["color"], ls=st["ls"], lw=2, label=st["label"])
         ax.set_xlabel(label)
-        ax.set_yscale("log")
+        if any(_ok(result, v).any() for v in _variants(result)):  # no data: no log scale
+            ax.set_yscale("log")
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("steady-state mean |e| [m] (last %.0f %%)" % (100 * result.spec.tail))
     fails = ", ".join(f"{v}: {int((~_ok(result, v)).sum())}" for v in _variants(result))
@@ -101,7 +102,7 @@ def _metric_boxes(result, out: Path) -> Path:
             patch.set_alpha(0.5)
         ax.set_xticks(range(1, len(vs) + 1), vs, fontsize=8)
         ax.set_title(title, fontsize=10)
-        if log:
+        if log and any(d.size for d in data):
             ax.set_yscale("log")
         ax.grid(True, axis="y", alpha=0.3)
     fig.suptitle("Sweep metrics per variant (boxes: quartiles; whiskers: 5-95 %)")
