@@ -168,7 +168,14 @@ def _simulate_remus100(args, out: Path, horizon: float, dt: float) -> int:
     _print_metrics(result["metrics"])
     for f in result["files"]:
         print(f"wrote {f}")
-    return 0
+    unhealthy = [name for name, m in result["metrics"].items() if not m.get("healthy", True)]
+    for name in unhealthy:
+        print(
+            f"vcjax: UNHEALTHY RUN: remus100 {name}: a non-finite or runaway state, or more "
+            "than 25 m off the path (see metrics.json)",
+            file=sys.stderr,
+        )
+    return 1 if unhealthy else 0
 
 
 def _is_number(v) -> bool:

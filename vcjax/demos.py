@@ -90,10 +90,12 @@ def arm_demo(out: Path, horizon: float = 6.0, dt: float = ARM_DT) -> list[Path]:
         ax[1].semilogy(
             tt,
             Phi[0, i] * np.exp(-P_Phi[i] * tt),
-            f"C{i}",
-            linestyle=(0, (4, 3)),
-            linewidth=2.5,
-            alpha=0.5,
+            color="k",
+            linestyle="none",
+            marker="o",
+            markersize=5,
+            markerfacecolor="none",
+            markevery=max(len(tt) // 12, 1),
             label=f"|Φ{'₁₂'[i]}(0)| exp(−P_Φ{'₁₂'[i]} t), P_Φ{'₁₂'[i]} = {P_Phi[i]:g} /s",
         )
     ax[1].semilogy(tt, np.abs(np.asarray(traj.aux.G)[:, 0]), "C2", label="|G| (distance to circle)")
