@@ -43,25 +43,33 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
     files = []
     order = [v for v in STYLE if v in trajs]
 
-    # Fig. 4: paths (north up, east right)
-    fig, ax = plt.subplots(figsize=(7, 6))
+    # Fig. 4: paths (north up, east right), equal scales: the whole run and the approach
+    fig, axes = plt.subplots(2, 1, figsize=(9, 7.5), height_ratios=(1, 1.6))
     y_all = np.concatenate([np.asarray(trajs[v].x.eta[:, 1]) for v in order])
-    ax.plot([y_all.min() - 5, y_all.max() + 5], [10, 10], "k-", lw=3, alpha=0.25, label="path")
-    for v in order:
-        eta = np.asarray(trajs[v].x.eta)
-        ax.plot(eta[:, 1], eta[:, 0], **STYLE[v])
+    x_all = np.concatenate([np.asarray(trajs[v].x.eta[:, 0]) for v in order])
     eta0 = np.asarray(scenario.eta0)
-    ax.plot(eta0[1], eta0[0], "ko", label="start")
     V_c = np.asarray(scenario.current)[:2]
     heading = np.degrees(np.arctan2(V_c[1], V_c[0])) % 360
-    ax.set_title(
+    for ax in axes:
+        ax.plot([y_all.min() - 5, y_all.max() + 5], [10, 10], "k-", lw=3, alpha=0.25, label="path")
+        for v in order:
+            eta = np.asarray(trajs[v].x.eta)
+            ax.plot(eta[:, 1], eta[:, 0], **STYLE[v])
+        ax.plot(eta0[1], eta0[0], "ko", label="start")
+        ax.set_xlabel("y (east) [m]")
+        ax.set_ylabel("x (north) [m]")
+        ax.set_aspect("equal", adjustable="datalim")  # one metre is one metre both ways
+        ax.grid(alpha=0.3)
+    axes[0].set_title(
         f"Simulation 1: paths travelled (current {np.hypot(*V_c):.2f} m/s toward {heading:.0f}°)"
     )
-    ax.set_xlabel("y (east) [m]")
-    ax.set_ylabel("x (north) [m]")
-    ax.set_aspect("equal", adjustable="datalim")  # one metre is one metre in both directions
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+    # the approach: where the paths differ (the vehicles cross x = 10 m and settle)
+    span = max(float(np.ptp(x_all)), 10.0)
+    axes[1].set_xlim(float(eta0[1]) - 0.5 * span, float(eta0[1]) + 3.0 * span)
+    axes[1].set_ylim(float(x_all.min()) - 0.3 * span, float(x_all.max()) + 0.3 * span)
+    axes[1].set_aspect("equal", adjustable="box")
+    axes[1].set_title("the approach (same scale on both axes)", fontsize=10)
+    axes[1].legend(fontsize=8, loc="lower right")
     files.append(_save(fig, out / "sim1_paths.png"))
 
     def two_panel(name, series, ylabels, t_slice, hlines=((), ())):
