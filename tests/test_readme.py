@@ -55,12 +55,15 @@ def test_python_examples_run_and_their_claims_hold():
     assert abs(float(path["frame"].psi_p) - psi_fd) < 1e-6
 
     # 3. REMUS 100 replay: "every command finite, every state finite", (501, 6) poses, and the
-    #    commanded 1525 rpm with 5° rudder / −5° stern plane is what the actuator states reach
+    #    actuator states follow PVS's Euler lag exactly: a_k = a_cmd (1 - (1 - dt/T)^k) from 0
+    #    (fins T = 0.1 s, propeller T = 1 s; commands inside the limits)
     rep = remus["rep"]
     assert bool(rep.ok.all()) and rep.x.eta.shape == (501, 6)
     assert np.all(np.isfinite(np.asarray(rep.x.nu)))
-    act = np.asarray(rep.x.act[-1])
-    np.testing.assert_allclose(act, [np.radians(5.0), np.radians(-5.0), 1525.0], rtol=1e-6)
+    cmd = np.array([np.radians(5.0), np.radians(-5.0), 1525.0])
+    T = np.array([0.1, 0.1, 1.0])
+    expected = cmd * (1.0 - (1.0 - 0.02 / T) ** 500)
+    np.testing.assert_allclose(np.asarray(rep.x.act[-1]), expected, rtol=1e-9)
 
 
 def test_quick_start_test_command_is_what_ci_runs():
