@@ -74,12 +74,19 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
 
 
 def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
+    import json
+
     from vcjax import sim2
 
-    for flag, value in (("--gains", args.gains), ("--current", args.current)):
-        if value:
-            return _fail(f"simulate sim2: {flag} is not supported for Simulation 2")
-    result = sim2.run_sim2(out, horizon=horizon, dt=dt, actuation=args.actuation)
+    if args.current:
+        return _fail("simulate sim2: --current is not supported for Simulation 2")
+    gains = None
+    if args.gains:
+        try:
+            gains = sim2.gains_from_json(json.loads(Path(args.gains).read_text()), args.actuation)
+        except (OSError, json.JSONDecodeError, ValueError) as err:
+            return _fail(f"simulate sim2: cannot use gains file {args.gains}: {err}")
+    result = sim2.run_sim2(out, gains, horizon=horizon, dt=dt, actuation=args.actuation)
     by_mode = result["metrics"]["by_actuation"]
     _print_metrics(
         {mode: {k: v for k, v in m.items() if _is_number(v)} for mode, m in by_mode.items()}
@@ -162,7 +169,7 @@ def build_parser() -> argparse.ArgumentParser:
         "sim2: Simulation 2 (ODIN-class, helix, Figs. 6-7)",
     )
     s.add_argument("--out", help="output directory (default: out/EXPERIMENT)")
-    s.add_argument("--gains", help="sim1: JSON file of gains (e.g. written by `vcjax tune`)")
+    s.add_argument("--gains", help="JSON file of gains (e.g. the gains.json `vcjax tune` writes)")
     s.add_argument("--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300)")
     s.add_argument("--dt", type=float, help="RK4 step [s] (default 0.05)")
     s.add_argument(
