@@ -67,7 +67,13 @@ loops.register(PointMassLoop)
 
 def test_registry_lists_vehicles_and_controllers_and_names_bad_ones():
     assert {"infante", "odin", "arm", "pointmass"} <= set(loops.vehicles())
-    assert loops.controllers("infante") == ("vcm", "vcm_integral", "vcm_ilos", "ilos", "los_pid")
+    assert loops.controllers("infante")[:5] == (
+        "vcm",
+        "vcm_integral",
+        "vcm_ilos",
+        "ilos",
+        "los_pid",
+    )
     assert loops.controllers("odin") == ("vcm", "vcm_full")
     with pytest.raises(ValueError, match=r"vehicle: expected one of \[.*'infante'"):
         loops.make_loop("submarine", "vcm")

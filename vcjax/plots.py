@@ -16,6 +16,7 @@ STYLE = {
     "ilos": dict(color="C2", ls="-.", label="ILOS (40)"),
     "los_pid": dict(color="C1", ls=":", label="LOS + PID yaw (39)"),
     "vcm_ilos": dict(color="C4", ls=(0, (5, 1, 1, 1)), label="VCM + (41) + ILOS angle (ext.)"),
+    "alos": dict(color="C5", ls=(0, (3, 1, 1, 1, 1, 1)), label="ALOS (Fossen 2023)"),
 }
 
 

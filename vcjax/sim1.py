@@ -10,7 +10,9 @@ controllers). Four controllers on the identical scenario:
 * ``los_pid``: LOS heading with the PID yaw law (39);
 * ``vcm_ilos`` (an extension, not in the paper): ``vcm_integral`` with the integral-LOS approach
   angle inside the VCM heading row (``VCMConfig(guidance="ilos")``), which removes the
-  cross-track offset a cross current leaves with the paper's LOS angle.
+  cross-track offset a cross current leaves with the paper's LOS angle;
+* ``alos`` (a baseline not in the paper): Fossen's adaptive LOS (2023) with the same heading PD
+  and surge loop as ``ilos`` and ``los_pid``.
 
 Every controller maps its ``[tau_u, tau_r]`` to thrust and rudder commands with the vehicle's
 actuator model (:func:`vcjax.vehicles.infante.actuator_commands`), using the *measured* velocity
@@ -51,7 +53,7 @@ __all__ = [
     "METRIC_KEYS",
 ]
 
-VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos")
+VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos", "alos")
 #: The four controllers of the paper's comparison (Simulation 1).
 PAPER_VARIANTS = VARIANTS[:4]
 #: What ``metrics.json`` reports per variant (see :mod:`vcjax.metrics`), plus ``healthy``.
@@ -224,7 +226,7 @@ def run_sim1(
     progress=print,
     scenario: loops.Scenario | None = None,
 ) -> dict:
-    """Run all four variants, write ``metrics.json`` and the figures into ``out``.
+    """Run every variant (:data:`VARIANTS`), write ``metrics.json`` and the figures into ``out``.
 
     ``scenario`` defaults to the paper's (:func:`sim1_scenario`); pass another current or start
     to compare the controllers elsewhere.

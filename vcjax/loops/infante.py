@@ -7,7 +7,7 @@ vehicle's actuator model (:func:`vcjax.vehicles.infante.actuator_commands`), usi
 
 Controllers: ``vcm`` (31)/(38); ``vcm_integral`` (+ integral action (41)); ``vcm_ilos``
 (``vcm_integral`` with the integral-LOS approach angle inside the VCM heading row); ``ilos``
-(40) and ``los_pid`` (39) with a heading PD.
+(40), ``los_pid`` (39) and ``alos`` (Fossen's adaptive LOS, 2023) with a heading PD.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ __all__ = [
 ]
 
 VCM_CONTROLLERS = ("vcm", "vcm_integral", "vcm_ilos")
-BASELINE_CONTROLLERS = ("ilos", "los_pid")
+BASELINE_CONTROLLERS = ("ilos", "los_pid", "alos")
 
 
 class InfanteGains(NamedTuple):
@@ -188,7 +188,9 @@ class InfanteLoop(Loop):
                 lambda g, v: g._replace(vcm=v),
             )
         names = ["Delta", "sigma", "k_u", "k_psi_p", "k_psi_d"]
-        names += ["sigma_i"] if self.controller == "ilos" else ["k_ep", "k_ed", "k_ei"]
+        names += {"ilos": ["sigma_i"], "alos": ["gamma"]}.get(
+            self.controller, ["k_ep", "k_ed", "k_ei"]
+        )
 
         def spec(name):
             return GainSpec(
