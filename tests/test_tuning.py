@@ -296,3 +296,93 @@ def test_vcjax_tune_rejects_a_bad_config(tmp_path, capsys):
     bad.write_text("[optimizer]\nname = 'sgd-with-magic'\n")
     assert cli.main(["tune", str(bad), "--out", str(tmp_path / "o")]) == 2
     assert "optimizer" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ any loop
+
+
+def test_gain_space_of_the_odin_loop_keeps_the_depth_pid_stable():
+    """Every theta decodes to gains that pass the ODIN loop's own validation (the depth PID's
+    Routh–Hurwitz condition k_d k_p > k_i included: depth_i is a fraction of k_p k_d)."""
+    from vcjax import loops
+
+    loop = loops.make_loop("odin", "vcm")
+    assert GainSpace(loop=loop).tune[-1] == "attitude"
+    space = GainSpace(
+        loop=loop, tune=("depth_i", "P_G", "P_Phi", "Delta", "sigma", "P_int", "depth_pd")
+    )
+    assert space.tune == ("P_G", "P_Phi", "Delta", "sigma", "P_int", "depth_pd", "depth_i")
+    assert space.labels()[-3:] == ["depth_pd[0]", "depth_pd[1]", "depth_i"]
+    base = loop.default_gains()
+    rng = np.random.default_rng(1)
+    for _ in range(10):
+        theta = jnp.asarray(rng.normal(scale=2.0, size=space.size))
+        g = space.decode(theta, base)
+        loops.odin_gains(vcm=g.vcm, depth=np.asarray(g.depth), attitude=np.asarray(g.attitude))
+        kp, kd, ki = np.asarray(g.depth)
+        assert ki < FRAC_MAX * kp * kd * (1 + 1e-12)
+        np.testing.assert_allclose(space.encode(g), theta, rtol=1e-9, atol=1e-9)
+        np.testing.assert_array_equal(g.attitude, base.attitude)  # attitude not in tune
+    with pytest.raises(ValueError, match=r"choose from \['P_G', 'P_Phi', 'sigma'\]"):
+        GainSpace(loop=loops.make_loop("arm", "vcm"), tune=("Delta",))
+
+
+def test_tuning_batch_is_the_sweeps_scenarios():
+    """A tuning batch is what a sweep with the same distribution and seed runs."""
+    from tuning.scenarios import scenario_at, scenario_spec
+    from vcjax import loops, sweep
+
+    loop = loops.make_loop("arm", "vcm")
+    extra = {"initial": (("q1_deg", (0.0, 30.0)),), "disturbance": ((-1.0, 1.0), (0.0, 0.0))}
+    batch = sample_scenarios(3, 5, loop=loop, current_max=0.0, extra=extra)
+    spec = scenario_spec(loop, current_max=0.0, extra=extra)
+    mc = sweep.sample_scenarios(spec, 3, np.arange(5), loop=loop)
+    np.testing.assert_array_equal(batch.eta0, mc.eta0)
+    np.testing.assert_array_equal(batch.disturbance, mc.disturbance)
+    assert np.all(np.degrees(np.asarray(batch.eta0[:, 0])) >= 0.0)
+    assert np.all(np.degrees(np.asarray(batch.eta0[:, 0])) <= 30.0)
+    one = scenario_at(batch, 2)
+    np.testing.assert_array_equal(one.eta0, batch.eta0[2])
+    assert one.path is batch.path
+
+
+@pytest.mark.parametrize(
+    ("raw", "match"),
+    [
+        ({"scenario": {"vehicle": "arm"}, "problem": {"tune": ["Delta"]}}, "problem.tune"),
+        ({"scenario": {"vehicle": "arm"}, "initial": {"x": 1.0}}, r"initial.x: unknown key"),
+        ({"scenario": {"vehicle": "odin"}, "model_error": {"fields": ["mass"]}}, "fields"),
+        ({"scenario": {"vehicle": "odin"}, "problem": {"variant": "ilos"}}, "problem.variant"),
+        ({"scenario": {"controller": "vcm"}, "problem": {"variant": "ilos"}}, "contradicts"),
+        ({"model_error": {"relative": 1.0}}, "model_error.relative"),
+        ({"disturbance": {"force": 3.0}}, "disturbance.force"),
+    ],
+)
+def test_tune_config_scenario_errors(raw, match):
+    with pytest.raises(ConfigError, match=match):
+        validate_config(raw)
+
+
+@pytest.mark.slow
+def test_engine_loop_loss_gradient_matches_central_differences():
+    """The arm's tuning loss (smooth torque limits that bind) differentiated through the
+    engine's reaction force: reverse mode against central differences."""
+    from vcjax import loops
+
+    loop = loops.make_loop("arm", "vcm")
+    problem = TuningProblem(space=GainSpace(loop=loop), num_steps=60, timing="sampled")
+    data = problem_data(problem, dt=0.01)
+    small = loops.arm_loop_params(tau_max=(20.0, 5.0))
+    batch = sample_scenarios(0, 2, loop=loop, current_max=0.0, plant=small, design=small)
+    f = jax.jit(lambda th: objective(th, data, batch, problem)[0])
+    g = np.asarray(
+        jax.jit(jax.grad(lambda th: objective(th, data, batch, problem)[0]))(data.theta_ref)
+    )
+    h = 1e-5
+    th = data.theta_ref
+    fd = np.array(
+        [(float(f(th.at[i].add(h))) - float(f(th.at[i].add(-h)))) / (2 * h) for i in range(th.size)]
+    )
+    np.testing.assert_allclose(g, fd, rtol=1e-4, atol=1e-6 * np.max(np.abs(fd)))
+    terms = objective(th, data, batch, problem)[1][1]
+    assert float(np.max(terms["sat_time"])) > 0  # the limits do bind

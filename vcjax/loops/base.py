@@ -32,6 +32,7 @@ __all__ = [
     "gauss_markov_params",
     "simulate",
     "start_parameter",
+    "path_polyline",
     "param_names",
     "get_param",
     "replace_params",
@@ -344,7 +345,25 @@ def _search_range(path: paths.Path, coeffs, w_range):
         return -2 * jnp.pi * coeffs.T, 2 * jnp.pi * coeffs.T
     if isinstance(coeffs, paths.SplineCoeffs):
         return coeffs.knots[0], coeffs.knots[-1]
+    if isinstance(coeffs, paths.LawnmowerCoeffs):
+        n = coeffs.n_legs
+        return 0.0 * n, n * coeffs.leg + (n - 1.0) * jnp.pi * coeffs.radius
     return w_range
+
+
+def path_polyline(path: paths.Path, coeffs, points=None, num: int = 400):
+    """(num, 3) points of the path for figures: one turn of a circle, two of a helix, the
+    waypoints' or survey's span; a line over the projections of ``points`` (M, 2 or 3) ±10 m
+    (default ``[-50, 50]``)."""
+    if isinstance(coeffs, paths.LineCoeffs) and points is not None:
+        pts = jnp.asarray(points)
+        pts = jnp.concatenate([pts, jnp.zeros(pts.shape[:-1] + (3 - pts.shape[-1],))], axis=-1)
+        w = (pts - coeffs.origin) @ coeffs.direction
+        lo, hi = jnp.min(w) - 10.0, jnp.max(w) + 10.0
+    else:
+        lo, hi = _search_range(path, coeffs, (-50.0, 50.0))
+    w = lo + (hi - lo) * jnp.linspace(0.0, 1.0, num)
+    return jax.vmap(lambda w_: paths.path_point(path, coeffs, w_))(w)
 
 
 def start_parameter(path: paths.Path, coeffs, point, w_range=(-50.0, 50.0), num: int = 512):

@@ -7,11 +7,12 @@
     plant_params = "plant.json"  # optional: overrides of the plant only (after params)
     edd = "paper"                # optional static loop options (VCM loops: "paper" | "implied")
     [scenario.path]
-    kind = "circle"              # "line" | "circle" | "helix" | "waypoints"
+    kind = "circle"              # "line" | "circle" | "helix" | "waypoints" | "lawnmower"
     center = [0.0, 0.0]          # kind-specific keys (vcjax.paths constructors):
     radius = 40.0                #   line: origin, direction; circle: center, radius, clockwise,
                                  #   phase; helix: center, a, b, T, climb, phase;
-                                 #   waypoints: points, extend
+                                 #   waypoints: points, extend; lawnmower: start, leg,
+                                 #   radius, n_legs, depth, descent
 
 Without ``[scenario]`` a config means Simulation 1 (INFANTE-class on the line ``[10, w]``).
 Parameter files (paths relative to the config file) are JSON: a flat ``{name: value}`` map, or a
@@ -36,6 +37,7 @@ PATH_KINDS = {
     "circle": (paths.circle, ("center", "radius", "clockwise", "phase")),
     "helix": (paths.helix, ("center", "a", "b", "T", "climb", "phase")),
     "waypoints": (paths.waypoints, ("points", "extend")),
+    "lawnmower": (paths.lawnmower, ("start", "leg", "radius", "n_legs", "depth", "descent")),
 }
 #: keys of [scenario] (besides the [scenario.path] table)
 SCENARIO_KEYS = ("vehicle", "controller", "params", "plant_params", "edd")
