@@ -386,3 +386,15 @@ def test_engine_loop_loss_gradient_matches_central_differences():
     np.testing.assert_allclose(g, fd, rtol=1e-4, atol=1e-6 * np.max(np.abs(fd)))
     terms = objective(th, data, batch, problem)[1][1]
     assert float(np.max(terms["sat_time"])) > 0  # the limits do bind
+
+
+def test_example_tuning_configs_are_valid():
+    from pathlib import Path
+
+    from tuning.config import load_config
+
+    files = sorted((Path(__file__).parents[1] / "examples" / "tuning").glob("*.toml"))
+    assert {"sim2.toml", "arm.toml", "puck.toml", "quick.toml"} <= {f.name for f in files}
+    for f in files:
+        cfg = load_config(f)
+        assert cfg["problem"]["variant"] and cfg["scenario"]["vehicle"]

@@ -165,7 +165,7 @@ def _cmd_tune(args) -> int:
     if (rc := _use_cores(args, "tune")) is not None:
         return rc
     _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
-    from tuning.cli import run_tune_config
+    from tuning import run_tune_config
 
     try:
         result = run_tune_config(args.config, args.out)
