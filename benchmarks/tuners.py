@@ -4,8 +4,9 @@
 
 The tuning problem (loss, scenario distribution, training and held-out batches) comes from a
 ``vcjax tune`` TOML file. Tuners: the gradient tuner of the config (``[optimizer]``, L-BFGS by
-default), CMA-ES (``tuning/cmaes.py``, Hansen's defaults, ``sigma0`` in log-gain units) and random
-search, all started from the same initial gains, all minimising the same training loss.
+default), CMA-ES (Hansen's pycma through :func:`tuning.blackbox.run_cmaes`, its default
+parameters, ``sigma0`` in log-gain units, one vmapped batch per generation) and random search,
+all started from the same initial gains, all minimising the same training loss.
 
 Cost convention: one *rollout* is one scenario simulated once forward. A black-box candidate
 costs ``B`` rollouts (``B`` = training batch size). A batch ``value_and_grad`` costs ``r B``
@@ -32,9 +33,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from tuning.blackbox import batch_objective, run_cmaes, run_random_search
+from tuning.blackbox import batch_objective, cmaes_popsize, run_cmaes, run_random_search
 from tuning.cli import build
-from tuning.cmaes import CMAES
 from tuning.config import load_config
 from tuning.loss import objective
 from tuning.optim import init_state, make_optimizer, make_step, run_gradient_tuner, tuner_options
@@ -152,7 +152,7 @@ def run_benchmark(
         budget = 20000
     say(f"budget: {budget} rollouts per tuner")
     f = batch_objective(loss_fn, (data, train))
-    lam = CMAES.create(np.asarray(theta0), sigma0).lam
+    lam = cmaes_popsize(int(np.asarray(theta0).size))
     t0 = time.perf_counter()
     f(np.tile(np.asarray(theta0), (lam, 1)))
     comp_bb = time.perf_counter() - t0

@@ -13,9 +13,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tuning.blackbox import batch_objective, run_cmaes, run_random_search
+from tuning.blackbox import batch_objective, cmaes_popsize, run_cmaes, run_random_search
 from tuning.cli import run_tune_config
-from tuning.cmaes import CMAES, cmaes_minimize
 from tuning.config import ConfigError, validate_config
 from tuning.loss import TuningProblem, aggregate, objective, problem_data
 from tuning.optim import forward_mode, run_gradient_tuner
@@ -177,14 +176,32 @@ def test_nan_guard_skips_reports_and_aborts():
 # ------------------------------------------------------------------ black-box baselines
 
 
-def test_cmaes_minimises_rosenbrock_and_sphere():
-    rosen = lambda X: np.sum(100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2, axis=1)
-    es = cmaes_minimize(rosen, np.zeros(4), 0.5, 6000, seed=1, tol_f=1e-10)
-    assert es.best_f < 1e-8
-    np.testing.assert_allclose(es.best_x, 1.0, atol=1e-3)
-    es = cmaes_minimize(lambda X: np.sum((X - 3) ** 2, 1), np.zeros(6), 1.0, 3000, tol_f=1e-12)
-    assert es.best_f < 1e-10
-    assert CMAES.create(np.zeros(12), 0.5).lam == 4 + int(3 * np.log(12))
+def test_pycma_driver_minimises_rosenbrock_one_batch_per_generation():
+    """pycma through run_cmaes: every generation is one (lambda, n) batch call; NaN candidates
+    rank last; the run is reproducible from its seed and leaves np.random's global state alone."""
+    calls = []
+
+    def rosen(X):
+        calls.append(X.shape)
+        v = np.sum(100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2, axis=1)
+        return np.where(X[:, 0] > 2.5, np.nan, v)  # an infeasible region
+
+    lam = cmaes_popsize(4)
+    assert lam == 4 + int(3 * np.log(4))  # Hansen's default
+    state = np.random.get_state()[1].copy()  # noqa: NPY002 - checking the legacy global state
+    res = run_cmaes(rosen, np.zeros(4), sigma0=0.5, max_evals=8000, seed=1)
+    np.testing.assert_array_equal(np.random.get_state()[1], state)  # noqa: NPY002
+    assert res.loss < 1e-8
+    np.testing.assert_allclose(res.theta, 1.0, atol=1e-3)
+    assert set(calls) == {(lam, 4)} and len(calls) == len(res.history) == res.evals // lam
+    again = run_cmaes(rosen, np.zeros(4), sigma0=0.5, max_evals=8 * lam, seed=1)
+    np.testing.assert_array_equal(
+        again.theta, run_cmaes(rosen, np.zeros(4), sigma0=0.5, max_evals=8 * lam, seed=1).theta
+    )
+    other = run_cmaes(rosen, np.zeros(4), sigma0=0.5, max_evals=8 * lam, seed=2)
+    assert not np.array_equal(again.theta, other.theta)
+    with pytest.raises(ValueError, match="sigma0"):
+        run_cmaes(rosen, np.zeros(4), sigma0=-1.0)
 
 
 def test_blackbox_drivers_on_a_jax_objective():
