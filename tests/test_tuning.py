@@ -288,6 +288,9 @@ def test_vcjax_tune_end_to_end(tmp_path, capsys):
     result = {"summary": json.loads((out / "summary.json").read_text())}
     for name in ("gains.json", "history.json", "summary.json", "loss_curve.png"):
         assert (out / name).exists()
+    run = json.loads((out / "run.json").read_text())
+    assert run["command"] == "tune" and run["seeds"] == {"train": 0, "heldout": 1001}
+    assert run["config"]["optimizer"]["steps"] == 3
     assert (out / "before_after_paths.png").read_bytes()[:4] == b"\x89PNG"
     s = json.loads((out / "summary.json").read_text())
     assert s == json.loads(json.dumps(result["summary"]))

@@ -34,7 +34,7 @@ from tuning.optim import run_gradient_tuner, tuner_options
 from tuning.params import GainSpace
 from tuning.report import ProgressBar, plot_before_after, plot_loss_curve
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, scenario_at
-from vcjax import sim1
+from vcjax import distributed, sim1
 
 __all__ = ["build", "run_tune_config", "main"]
 
@@ -108,6 +108,27 @@ def _trajectories(problem, gains, batch, dt, n):
     return np.asarray(t[0]), {"eta": np.asarray(eta), "e": np.asarray(e)}
 
 
+def distribute(train, data, theta0):
+    """With more than one device in the run (several processes, or several local devices), the
+    training batch is sharded along a global 1-D mesh of every device (:mod:`vcjax.distributed`)
+    and ``data``, ``theta0`` are replicated on it: each loss and gradient is then one SPMD
+    computation whose batch mean reduces across devices and processes, equal to the
+    single-device value. With one device, returns the inputs unchanged.
+
+    Raises:
+        ConfigError: ``train.size`` is not a multiple of the device count.
+    """
+    n = jax.device_count()
+    if n == 1:
+        return train, data, theta0
+    b = int(train.eta0.shape[0])
+    if b % n:
+        raise ConfigError(f"train.size: {b} scenarios do not split over {n} devices")
+    mesh = distributed.global_mesh("scenarios")
+    data, theta0 = distributed.replicate((data, theta0), mesh)
+    return distributed.shard_batch(train, mesh, SCENARIO_AXES), data, theta0
+
+
 def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     """Run the tuning described by the TOML file ``config_path``; write results into ``out_dir``.
 
@@ -125,8 +146,12 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
 
     The caller chooses the floating-point precision (``vcjax`` enables float64 by default).
     A run that stops after repeated non-finite steps still writes its outputs, with
-    ``summary["aborted"] = True``.
+    ``summary["aborted"] = True``. In a multi-process run (``vcjax launch -n N -- tune ...``)
+    every process runs the same steps on its shard of the training batch (:func:`distribute`)
+    and process 0 writes the outputs (the others return no files).
     """
+    writer = jax.process_index() == 0
+    progress = progress if writer else None
     say = (lambda msg: print(msg, file=progress, flush=True)) if progress else (lambda m: None)
     cfg = load_config(config_path)
     out = Path(out_dir)
@@ -150,10 +175,14 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     say(f"held-out loss before: {before['loss']:.6g}; compiling the training step ...")
 
     bar = ProgressBar(o["steps"], label="tune ", stream=progress) if progress else None
+    start = theta0 + space.symmetry_break(data.base.vcm)
+    train_d, data_d, start = distribute(train, data, start)
+    if jax.device_count() > 1:
+        say(f"training batch sharded over {jax.device_count()} devices")
     res = run_gradient_tuner(
         loss_fn,
-        theta0 + space.symmetry_break(data.base.vcm),
-        (data, train),
+        start,
+        (data_d, train_d),
         **tuner_options(o),
         on_step=lambda k, th, rec: {"gains": space.describe(th, data.base.vcm)},
         progress=bar,
@@ -163,12 +192,15 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     if res.n_bad:
         say(f"warning: {res.n_bad} step(s) rejected for non-finite loss/gradient/update")
     say(f"stopped: {res.reason}; evaluating the tuned gains on the held-out batch ...")
-    after = _evaluate(eval_fn, jnp.asarray(res.theta), data, heldout)
-    tuned = data.base._replace(vcm=space.decode(jnp.asarray(res.theta), data.base.vcm))
+    theta = jnp.asarray(np.asarray(res.theta))  # a local copy (replicated in multi-process runs)
+    after = _evaluate(eval_fn, theta, data, heldout)
+    tuned = data.base._replace(vcm=space.decode(theta, data.base.vcm))
     gains_json = sim1.gains_to_json(tuned)
     sim1.gains_from_json(gains_json)  # what `vcjax simulate --gains` will do: must validate
 
     files = []
+    if not writer:
+        return {"summary": None, "files": files}
     f = out / "gains.json"
     f.write_text(json.dumps(gains_json, indent=2) + "\n")
     files.append(f)
