@@ -77,6 +77,7 @@ def child_env(monkeypatch):
     path = os.environ.get("PYTHONPATH", "")
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join(p for p in (str(ROOT), path) if p))
     monkeypatch.delenv("XLA_FLAGS", raising=False)
+    monkeypatch.delenv("VCJAX_CPU_DEVICES", raising=False)
     for k in (distributed.ENV_COORDINATOR, distributed.ENV_NUM_PROCESSES, "SLURM_STEP_ID"):
         monkeypatch.delenv(k, raising=False)
 
@@ -85,7 +86,8 @@ def test_two_process_sweep_equals_one_process(tmp_path, child_env, capsys):
     cfg = tmp_path / "sweep.toml"
     cfg.write_text(SWEEP_TOML)
     out = tmp_path / "two"
-    argv = ["launch", "-n", "2", "--timeout", str(TIMEOUT_S), "--", "sweep", str(cfg)]
+    argv = ["launch", "-n", "2", "--cpu-devices", "1", "--timeout", str(TIMEOUT_S), "--"]
+    argv += ["sweep", str(cfg)]
     assert cli.main([*argv, "--out", str(out)]) == 0
     # each process wrote its share; process 0 merged them and recorded the run
     assert (out / "results.part0-of-2.npz").exists() and (out / "results.part1-of-2.npz").exists()
@@ -107,7 +109,7 @@ def test_two_process_tuning_loss_and_gradient_equal_one_process(tmp_path, child_
     cfg = tmp_path / "tune.toml"
     cfg.write_text(TUNE_TOML)
     worker = [sys.executable, str(ROOT / "tests" / "_mp_worker.py"), str(cfg), str(tmp_path)]
-    codes = distributed.spawn(2, worker, timeout_s=TIMEOUT_S)
+    codes = distributed.spawn(2, worker, cpu_devices=1, timeout_s=TIMEOUT_S)
     assert codes == [0, 0]
     recs = [json.loads((tmp_path / f"proc{i}.json").read_text()) for i in range(2)]
     # one device per process, half the batch on each, disjoint devices
@@ -128,7 +130,8 @@ def test_two_process_vcjax_tune_equals_one_process(tmp_path, child_env):
     """The whole ``vcjax tune`` as two processes: same iterations and tuned gains."""
     cfg = tmp_path / "tune.toml"
     cfg.write_text(TUNE_TOML.replace("steps = 1", "steps = 3"))
-    argv = ["launch", "-n", "2", "--timeout", str(TIMEOUT_S), "--", "tune", str(cfg)]
+    argv = ["launch", "-n", "2", "--cpu-devices", "1", "--timeout", str(TIMEOUT_S), "--"]
+    argv += ["tune", str(cfg)]
     assert cli.main([*argv, "--out", str(tmp_path / "two")]) == 0
     assert cli.main(["tune", str(cfg), "--out", str(tmp_path / "one")]) == 0
     h1, h2 = (json.loads((tmp_path / d / "history.json").read_text()) for d in ("one", "two"))

@@ -12,6 +12,7 @@ The public API, by stage of the data flow (each module's docstring has the detai
 * :mod:`vcjax.integrators`, :mod:`vcjax.rollout` — ``euler``/``heun``/``rk4``; the scan rollout.
 * :mod:`vcjax.sim1`, :mod:`vcjax.sim2` — the paper's two experiments; :mod:`vcjax.sweep` —
   Monte-Carlo batches; :mod:`vcjax.currents` — current models.
+* :mod:`vcjax.identify` — ``vcjax fit``: plant parameters from logged runs by multiple shooting.
 
 The library never enables float64 and never jits for you.
 """
@@ -20,10 +21,12 @@ from vcjax.integrators import euler, get_integrator, heun, rk4
 from vcjax.mechanics import (
     Diagnostics,
     MechanicalSystem,
+    Underactuation,
     VCMGains,
     VirtualConstraints,
     constraint_terms,
     reaction_force,
+    underactuated_reaction_force,
     vcm_gains,
 )
 from vcjax.paths import Path, PathFrame, path_frame
@@ -36,6 +39,7 @@ __all__ = [
     "PathFrame",
     "RolloutConfig",
     "Trajectory",
+    "Underactuation",
     "VCMGains",
     "VirtualConstraints",
     "constraint_terms",
@@ -45,6 +49,7 @@ __all__ = [
     "path_frame",
     "reaction_force",
     "rk4",
+    "underactuated_reaction_force",
     "vcm_gains",
 ]
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -48,7 +49,7 @@ def _fail(msg: str) -> int:
 
 
 #: Per-experiment defaults of ``vcjax simulate`` (horizon [s], RK4 step [s]).
-_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05)}
+_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05), "remus100": (920.0, 0.05)}
 
 
 def _cmd_simulate(args) -> int:
@@ -61,6 +62,8 @@ def _cmd_simulate(args) -> int:
     out = Path(args.out or f"out/{args.experiment}")
     if args.experiment == "sim2":
         return _simulate_sim2(args, out, horizon, dt)
+    if args.experiment == "remus100":
+        return _simulate_remus100(args, out, horizon, dt)
     return _simulate_sim1(args, out, horizon, dt)
 
 
@@ -76,7 +79,7 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
         except (OSError, json.JSONDecodeError, ValueError) as err:
             return _fail(f"simulate: cannot use gains file {args.gains}: {err}")
     try:
-        scenario = sim1.sim1_scenario(V_c=args.current or (0.0, 0.5))
+        scenario = sim1.sim1_scenario(current=args.current or (0.0, 0.5))
     except ValueError as err:
         return _fail(f"simulate: {err}")
     result = sim1.run_sim1(
@@ -108,11 +111,39 @@ def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
     return 0
 
 
+def _simulate_remus100(args, out: Path, horizon: float, dt: float) -> int:
+    from vcjax import sim_remus100
+
+    if args.gains:
+        return _fail("simulate remus100: --gains is not supported (tune through `vcjax tune`)")
+    current = tuple(args.current) if args.current else (0.0, 0.3)
+    if not all(math.isfinite(c) for c in current):
+        return _fail(f"simulate remus100: --current must be finite, got {current}")
+    result = sim_remus100.run_remus100(out, horizon=horizon, dt=dt, current=current)
+    _print_metrics(result["metrics"])
+    for f in result["files"]:
+        print(f"wrote {f}")
+    return 0
+
+
 def _is_number(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool)
 
 
+def _use_cores(args, command: str) -> int | None:
+    """Split the host CPU into devices (before JAX initialises); a bad count is one line."""
+    from vcjax.devices import use_cpu_cores
+
+    try:
+        use_cpu_cores(args.cpu_devices)
+    except ValueError as err:
+        return _fail(f"{command}: {err}")
+    return None
+
+
 def _cmd_sweep(args) -> int:
+    if (rc := _use_cores(args, "sweep")) is not None:
+        return rc
     _enable_x64(args.x64)
     from vcjax.sweep import load_config, run_sweep_config
 
@@ -124,6 +155,14 @@ def _cmd_sweep(args) -> int:
     summary = result["summary"]
     if summary is not None:  # None on the non-zero processes of a multi-host run
         for variant, s in summary.get("variants", {}).items():
+            t = s.get("timing")
+            if t and t.get("traj_steps_per_s"):
+                print(
+                    f"{variant}: compile {t['compile_s']:.2f} s, run {t['run_s']:.2f} s, "
+                    f"{t['traj_steps_per_s'] / 1e6:.3g} M trajectory-steps/s "
+                    f"({t['scenarios']} x {t['steps']} steps, {t['devices']} device(s))",
+                    file=sys.stderr,
+                )
             e = s.get("metrics", {}).get("ss_abs_e", {})
             if e:
                 print(
@@ -138,6 +177,8 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_tune(args) -> int:
+    if (rc := _use_cores(args, "tune")) is not None:
+        return rc
     _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
     from tuning.cli import run_tune_config
     from tuning.config import load_config
@@ -164,6 +205,29 @@ def _cmd_tune(args) -> int:
     return 0
 
 
+def _cmd_fit(args) -> int:
+    _enable_x64(args.x64)
+    from vcjax.identify import run_fit_config
+
+    print(f"fit: {args.config} (compiling the multiple-shooting Jacobian first)")
+    try:
+        result = run_fit_config(args.config, args.out, progress=not args.quiet)
+    except (OSError, ValueError) as err:
+        return _fail(f"fit: {err}")
+    fit = result["fit"]
+    print(f"{'parameter':<22}{'initial':>14}{'estimate':>14}{'std':>12}")
+    sections = [fit] + ([fit["current"]] if "current" in fit else [])
+    for sec in sections:
+        for name, value in sec["estimates"].items():
+            print(f"{name:<22}{sec['initial'][name]:>14.6g}{value:>14.6g}{sec['std'][name]:>12.3g}")
+    print(f"{fit['iterations']} iterations, {fit['wall_time_s']:.1f} s ({fit['reason']})")
+    for w in fit["warnings"]:
+        print(f"vcjax: fit: warning: {w}", file=sys.stderr)
+    for f in result["files"]:
+        print(f"wrote {f}")
+    return 0
+
+
 def _cmd_launch(args) -> int:
     """``vcjax launch -n N -- COMMAND ...``: N local processes of one distributed run (or, inside
     a multi-task SLURM step, this process joins the step's run and runs COMMAND itself)."""
@@ -186,11 +250,15 @@ def _cmd_launch(args) -> int:
         return _fail("launch: -n N (number of processes, >= 1) is required outside SLURM")
     if args.cpu_devices is not None and args.cpu_devices < 1:
         return _fail(f"launch: --cpu-devices must be >= 1, got {args.cpu_devices}")
+    from vcjax.devices import usable_cores
+
+    # the local processes share the cores: by default each splits off its share of them
+    cpu = max(1, usable_cores() // args.n) if args.cpu_devices is None else args.cpu_devices
     codes = distributed.spawn(
         args.n,
         [sys.executable, "-m", "vcjax.cli", *rest],
         port=args.port,
-        cpu_devices=args.cpu_devices,
+        cpu_devices=cpu,
         timeout_s=args.timeout,
     )
     if any(codes):
@@ -208,6 +276,16 @@ def _print_metrics(metrics: dict) -> None:
         print(name.ljust(14) + "".join(cells))
 
 
+def _add_cpu_devices(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--cpu-devices",
+        metavar="N",
+        default=None,
+        help="split the host CPU into N JAX devices and shard the scenarios over them "
+        "(default: $VCJAX_CPU_DEVICES, else one per core; 1: no sharding)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="vcjax",
@@ -221,18 +299,22 @@ def build_parser() -> argparse.ArgumentParser:
         "experiment",
         choices=sorted(_SIM_DEFAULTS),
         help="sim1: Simulation 1 (INFANTE-class, line, Figs. 4-5); "
-        "sim2: Simulation 2 (ODIN-class, helix, Figs. 6-7)",
+        "sim2: Simulation 2 (ODIN-class, helix, Figs. 6-7); "
+        "remus100: 3-D survey mission of the PVS REMUS 100 under a cross current",
     )
     s.add_argument("--out", help="output directory (default: out/EXPERIMENT)")
     s.add_argument("--gains", help="sim1: JSON file of gains (e.g. written by `vcjax tune`)")
-    s.add_argument("--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300)")
+    s.add_argument(
+        "--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300, remus100: 920)"
+    )
     s.add_argument("--dt", type=float, help="RK4 step [s] (default 0.05)")
     s.add_argument(
         "--current",
         type=float,
         nargs=2,
         metavar=("V_N", "V_E"),
-        help="sim1: ocean current, north and east [m/s] (paper: 0 0.5, along the path)",
+        help="sim1/remus100: ocean current, north and east [m/s] (sim1: 0 0.5, along the path; "
+        "remus100: 0 0.3, across the legs)",
     )
     s.add_argument(
         "--edd",
@@ -259,6 +341,7 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("config", help="TOML config (see examples/sweeps/)")
     w.add_argument("--out", default="out/sweep", help="output directory (default: out/sweep)")
     w.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    _add_cpu_devices(w)
     w.set_defaults(func=_cmd_sweep)
 
     t = sub.add_parser(
@@ -267,7 +350,18 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("config", help="TOML config (see examples/tuning/)")
     t.add_argument("--out", default="out/tune", help="output directory (default: out/tune)")
     t.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    _add_cpu_devices(t)
     t.set_defaults(func=_cmd_tune)
+
+    f = sub.add_parser(
+        "fit",
+        help="identify plant parameters from logged runs by multiple shooting (TOML)",
+    )
+    f.add_argument("config", help="TOML config (see examples/fit/)")
+    f.add_argument("--out", default="out/fit", help="output directory (default: out/fit)")
+    f.add_argument("--quiet", action="store_true", help="no per-iteration progress lines")
+    f.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    f.set_defaults(func=_cmd_fit)
 
     d = sub.add_parser(
         "demo",
@@ -286,7 +380,11 @@ def build_parser() -> argparse.ArgumentParser:
         "nothing: each task joins the step's run through JAX's cluster auto-detection.",
     )
     n.add_argument("-n", type=int, help="number of processes (ignored under srun)")
-    n.add_argument("--cpu-devices", type=int, help="host-platform (CPU) devices per process")
+    n.add_argument(
+        "--cpu-devices",
+        type=int,
+        help="CPU devices per process (default: the cores divided among the processes)",
+    )
     n.add_argument("--port", type=int, help="coordinator port (default: a free one)")
     n.add_argument("--timeout", type=float, help="terminate all processes after this many s")
     n.add_argument("rest", nargs=argparse.REMAINDER, help="-- COMMAND [ARGS...]")
@@ -295,7 +393,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 #: The subcommands (``vcjax launch`` runs any of the others).
-_COMMANDS = ("simulate", "sweep", "tune", "demo", "launch")
+_COMMANDS = ("simulate", "sweep", "tune", "fit", "demo", "launch")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -131,9 +131,10 @@ def spawn(
 
     Process ``i`` gets :data:`ENV_COORDINATOR` = ``localhost:port`` (a free port unless given),
     :data:`ENV_NUM_PROCESSES` = ``n`` and :data:`ENV_PROCESS_ID` = ``i`` on top of ``env``
-    (default: this process's environment); with ``cpu_devices`` each process sees that many
-    host-platform devices (``XLA_FLAGS=--xla_force_host_platform_device_count``). If one process
-    fails, or ``timeout_s`` passes, the others are terminated.
+    (default: this process's environment); with ``cpu_devices`` each process splits the host CPU
+    into that many devices (``VCJAX_CPU_DEVICES``, read by the ``vcjax`` commands, and
+    ``XLA_FLAGS=--xla_force_host_platform_device_count`` for any other JAX program). If one
+    process fails, or ``timeout_s`` passes, the others are terminated.
 
     Returns:
         the ``n`` exit codes (``-SIGTERM``'s value for a terminated process).
@@ -150,6 +151,7 @@ def spawn(
         flags = [f for f in base.get("XLA_FLAGS", "").split() if "device_count" not in f]
         flags.append(f"--xla_force_host_platform_device_count={int(cpu_devices)}")
         base["XLA_FLAGS"] = " ".join(flags)
+        base["VCJAX_CPU_DEVICES"] = str(int(cpu_devices))
     procs = []
     for i in range(int(n)):
         e = dict(base)

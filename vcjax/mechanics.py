@@ -38,6 +38,7 @@ import jax.scipy.linalg as jsl
 import numpy as np
 
 from vcjax._checks import check_array, is_concrete
+from vcjax.linalg import safe_norm
 
 __all__ = [
     "MechanicalSystem",
@@ -51,6 +52,8 @@ __all__ = [
     "constrained_acceleration",
     "from_body_frame",
     "Method",
+    "Underactuation",
+    "underactuated_reaction_force",
 ]
 
 Method = Literal["auto", "row", "column"]
@@ -365,3 +368,119 @@ def check_state(q, qd, n: int | None = None) -> None:
     if is_concrete(q):
         check_array("q", q, (n,))
         check_array("qd", qd, (np.asarray(q).shape[0],))
+
+
+# --------------------------------------------------------------------------------------------
+# Underactuation: unactuated (or tied) force directions absorbed by free desired velocities
+# --------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Underactuation:
+    """Static description of what the actuators cannot set (paper Section 4.1, Remark 4).
+
+    The reaction force of the constraints must satisfy r linear conditions
+
+        A_u(q, q̇, t) τ_c = b_u(q, q̇, t)
+
+    — e.g. a body-frame sway force that must equal the sway force the rudder produces along with
+    its yaw moment, ``τ_v − k τ_r = 0`` mapped to generalised forces. In exchange r components of
+    the auxiliary state ``z`` (the *free* desired velocities, e.g. ``v_d``, ``w_d``) get their
+    rates from the solve instead of from ``state_rate``.
+
+    Attributes:
+        unactuated: ``(q, qd, t, args) -> (A_u (r, n), b_u (r,))``, in generalised forces.
+        free: indices (static, length r) into the flat auxiliary state ``z`` (n_z,) of the
+            constraints' ``state_rate``; those components' rates are ``state_rate`` plus the
+            solved ``mu``. Only the *velocity* constraints may depend on them (the holonomic
+            rows would need their second derivative).
+    """
+
+    unactuated: Callable[..., Any]
+    free: tuple[int, ...]
+
+    def __post_init__(self):
+        free = tuple(self.free)
+        if not free or any(not isinstance(i, int) or i < 0 for i in free):
+            raise ValueError(f"free: expected a non-empty tuple of indices >= 0, got {self.free!r}")
+        if len(set(free)) != len(free):
+            raise ValueError(f"free: repeated indices in {self.free!r}")
+        object.__setattr__(self, "free", free)
+
+
+def underactuated_reaction_force(
+    system: MechanicalSystem,
+    cons: VirtualConstraints,
+    under: Underactuation,
+    gains: VCMGains,
+    q,
+    qd,
+    t,
+    tau=None,
+    args=None,
+    method: Method = "auto",
+    z=None,
+):
+    """VCM control force under underactuation: (16)/(17) with free desired velocities.
+
+    Φ (hence W) does not depend on the free rates ``mu``; ``h = Ẇq̇ + ȧ + P_Φ Φ`` is affine in
+    them through ``ȧ`` (the velocity rows contain the free desired velocities), and both solves
+    (16), (17) are affine in ``h``. So ``τ_c(mu) = τ_0 + T mu`` exactly: one ``jax.linearize``
+    gives ``τ_0`` and ``T`` (r tangent evaluations), and the r conditions
+    ``A_u τ_c = b_u`` fix ``mu = (A_u T)⁻¹ (b_u − A_u τ_0)`` — an r × r solve, no iteration.
+    With r = 1 on the 3-DOF design model this is the paper's (38) with Remark 4.
+
+    Args:
+        as :func:`reaction_force`, plus ``under``; ``z`` (n_z,) is required (a flat array).
+
+    Returns:
+        ``(tau_c, qdd, mu, diagnostics)``: (n,) control force, (n,) acceleration on the design
+        model, (r,) free rates (add them to ``state_rate`` at ``under.free``), and
+        :class:`Diagnostics` whose ``residual`` is that of (14) (the unactuated rows' own
+        residual ``‖A_u τ_c − b_u‖`` is zero to round-off whenever ``A_u T`` is invertible).
+    """
+    if cons.state_rate is None or z is None:
+        raise ValueError(
+            "underactuated_reaction_force: the free desired velocities live in the auxiliary "
+            "state; give the constraints a `state_rate` and pass `z`"
+        )
+    if is_concrete(z) and np.ndim(z) != 1:
+        raise ValueError(f"z: expected a flat (n_z,) array, got shape {np.shape(z)}")
+    if is_concrete(z) and max(under.free) >= np.shape(z)[0]:
+        raise ValueError(f"free: index {max(under.free)} out of range for z of size {len(z)}")
+    if tau is None:
+        tau = jnp.zeros_like(q)
+    idx = np.asarray(under.free)
+    r = idx.size
+    M = system.mass_matrix(q, args)
+    n_vec = system.bias_force(q, qd, args)
+
+    def solve(mu):
+        def rate(q_, t_, z_, a_):
+            return cons.state_rate(q_, t_, z_, a_).at[idx].add(mu)
+
+        c = dataclasses.replace(cons, state_rate=rate)
+        terms = constraint_terms(c, gains, q, qd, t, args, z)
+        tau_c, qdd = constrained_acceleration(M, n_vec, tau, terms.W, terms.h, method)
+        return tau_c, qdd, terms
+
+    out0, lin = jax.linearize(solve, jnp.zeros((r,), q.dtype))
+    slopes = jax.vmap(lin)(jnp.eye(r, dtype=q.dtype))  # leaves (r, ...)
+    A_u, b_u = under.unactuated(q, qd, t, args)
+    A_u = jnp.atleast_2d(A_u)
+    gap0 = A_u @ out0[0] - b_u
+    mu = -jnp.linalg.solve(A_u @ slopes[0].T, gap0)
+    tau_c, qdd, terms = jax.tree_util.tree_map(
+        lambda a, s: a + jnp.tensordot(mu, s, axes=1), out0, slopes
+    )
+    rank, cond, full = _rank_cond(terms.W)
+    diag = Diagnostics(
+        Phi=terms.Phi,
+        G=terms.G,
+        K=terms.K,
+        rank=rank,
+        cond=cond,
+        full_rank=full,
+        residual=safe_norm(terms.W @ qdd + terms.h),
+    )
+    return tau_c, qdd, mu, diag
