@@ -200,6 +200,11 @@ def run_benchmark(
             _first_reach(v["history"], target, "rollouts") if target else None
         )
         v["wall_s_to_cmaes_best"] = _first_reach(v["history"], target, "wall_s") if target else None
+        for pct in REACH_PCT:  # within pct % of CMA-ES's best held-out loss
+            t = target * (1 + pct / 100) if target else None
+            v[f"rollouts_to_cmaes_best+{pct}%"] = (
+                _first_reach(v["history"], t, "rollouts") if t else None
+            )
     return {
         "config": str(config_path),
         "budget_rollouts": budget,
@@ -214,6 +219,10 @@ def run_benchmark(
     }
 
 
+#: tolerances [%] above CMA-ES's best held-out loss at which "rollouts to reach" is also reported
+REACH_PCT = (0.1, 1.0)
+
+
 def _table(rep: dict) -> str:
     lines = [
         f"budget {rep['budget_rollouts']} rollouts/tuner; 1 gradient = "
@@ -221,7 +230,8 @@ def _table(rep: dict) -> str:
         f"{rep['grad_cost']['ratio']:.2f}); held-out loss at start "
         f"{rep['heldout_initial']:.4g}",
         f"{'tuner':10s}{'best held-out':>15s}{'rollouts used':>15s}{'wall s':>9s}"
-        f"{'rollouts to CMA best':>22s}{'wall s to CMA best':>20s}",
+        f"{'rollouts to CMA best':>22s}{'wall s to CMA best':>20s}"
+        + "".join(f"{f'to CMA best+{p}%':>18s}" for p in REACH_PCT),
     ]
     for name, v in rep["tuners"].items():
         rt = v["rollouts_to_cmaes_best"]
@@ -230,6 +240,10 @@ def _table(rep: dict) -> str:
             f"{name:10s}{v['best_heldout']:15.5g}{v['rollouts_used']:15.0f}{v['wall_s']:9.1f}"
             + ("-" if rt is None else f"{rt:.0f}").rjust(22)
             + ("-" if wt is None else f"{wt:.1f}").rjust(20)
+            + "".join(
+                ("-" if (x := v[f"rollouts_to_cmaes_best+{p}%"]) is None else f"{x:.0f}").rjust(18)
+                for p in REACH_PCT
+            )
         )
     return "\n".join(lines)
 

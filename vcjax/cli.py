@@ -22,8 +22,8 @@ def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
     parsed command-line options."""
     from vcjax.runinfo import write_run_json
 
-    if config is None:
-        config = {k: v for k, v in vars(args).items() if k != "func"}
+    config = {k: v for k, v in vars(args).items() if k != "func"} if config is None else config
+    config.pop("func", None)
     wall = {"total": time.perf_counter() - args.t_start, **wall}
     path = write_run_json(out, command, config=config, seeds=seeds, wall_s=wall)
     if path is not None:
@@ -123,6 +123,8 @@ def _simulate_remus100(args, out: Path, horizon: float, dt: float) -> int:
     _print_metrics(result["metrics"])
     for f in result["files"]:
         print(f"wrote {f}")
+    config = {**vars(args), "horizon": horizon, "dt": dt, "current": current}
+    _record(out, "simulate remus100", args, config=config)
     return 0
 
 
@@ -149,8 +151,8 @@ def _cmd_sweep(args) -> int:
 
     try:
         spec, extras = load_config(args.config)
-        result = run_sweep_config(args.config, args.out, progress=True)
-    except (OSError, ValueError) as err:
+        result = run_sweep_config(args.config, args.out, progress=True, netcdf=args.netcdf)
+    except (OSError, ValueError, ImportError) as err:
         return _fail(f"sweep: {err}")
     summary = result["summary"]
     if summary is not None:  # None on the non-zero processes of a multi-host run
@@ -225,6 +227,9 @@ def _cmd_fit(args) -> int:
         print(f"vcjax: fit: warning: {w}", file=sys.stderr)
     for f in result["files"]:
         print(f"wrote {f}")
+    from vcjax.identify.config import load_fit_config
+
+    _record(args.out, "fit", args, config={"file": args.config, **load_fit_config(args.config)})
     return 0
 
 
@@ -341,6 +346,11 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("config", help="TOML config (see examples/sweeps/)")
     w.add_argument("--out", default="out/sweep", help="output directory (default: out/sweep)")
     w.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    w.add_argument(
+        "--netcdf",
+        action="store_true",
+        help='also write results.nc (labelled xarray dataset; pip install "vcjax[xarray]")',
+    )
     _add_cpu_devices(w)
     w.set_defaults(func=_cmd_sweep)
 
