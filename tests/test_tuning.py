@@ -95,6 +95,32 @@ def test_loss_gradient_matches_central_differences(tiny):
     assert np.max(np.abs(grad)) > 0
 
 
+def test_alos_gains_are_tunable_with_exact_gradients():
+    """Fossen's ALOS baseline: its look-ahead, adaptation gain and heading-loop gains are tuned
+    like any loop's, and the loss gradient (through beta_hat's dynamics) matches central
+    differences."""
+    space = GainSpace(loop=sim1.closed_loop("alos"))
+    assert {"Delta", "gamma", "k_psi_p", "k_psi_d"} <= set(space.labels())
+    assert "sigma_i" not in space.labels() and "k_ei" not in space.labels()
+    problem = TuningProblem(space=space, num_steps=40, integrator="euler", timing="sampled")
+    data = problem_data(problem, dt=0.1)
+    scen = sample_scenarios(0, 2, loop=space.loop, current_max=1.0)
+    f = jax.jit(lambda th: objective(th, data, scen, problem)[0])
+    grad = np.asarray(
+        jax.jit(jax.grad(lambda th: objective(th, data, scen, problem)[0]))(data.theta_ref)
+    )
+    h = 1e-5
+    fd = np.array(
+        [
+            (float(f(data.theta_ref.at[i].add(h))) - float(f(data.theta_ref.at[i].add(-h))))
+            / (2 * h)
+            for i in range(space.size)
+        ]
+    )
+    np.testing.assert_allclose(grad, fd, rtol=1e-4, atol=1e-6 * np.max(np.abs(fd)))
+    assert grad[space.labels().index("gamma")] != 0.0  # the adaptation is in the loop
+
+
 def test_checkpointed_loss_gradient_is_the_same(tiny):
     """Segment checkpointing (7 does not divide 40) changes memory, not the gradient."""
     data, scen = tiny
