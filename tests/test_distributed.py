@@ -11,6 +11,8 @@ Every spawned run has a hard time limit; a hung coordinator fails the test inste
 
 import json
 import os
+import socket
+import subprocess
 import sys
 from pathlib import Path
 
@@ -123,6 +125,59 @@ def test_two_process_tuning_loss_and_gradient_equal_one_process(tmp_path, child_
     for r in recs:
         assert r["loss"] == pytest.approx(float(loss), rel=1e-12)
         np.testing.assert_allclose(r["grad"], np.asarray(grad), rtol=1e-10, atol=1e-12)
+
+
+def _slurm_port() -> int:
+    """A free port in the range JAX's SLURM auto-detection derives from the job id."""
+    lo = 65535 - 2**12 + 1
+    for port in range(lo + 1000, 65536):
+        try:
+            with socket.socket() as sock:
+                sock.bind(("localhost", port))
+            return port
+        except OSError:
+            continue
+    pytest.skip("no free port in JAX's SLURM range")
+
+
+@pytest.mark.slow
+def test_launch_inside_an_emulated_srun_step_uses_jax_auto_detection(tmp_path, child_env):
+    """``srun vcjax launch -- sweep ...`` on a cluster: each task sees SLURM's variables, spawns
+    nothing, and joins the step through ``jax.distributed.initialize()``'s SLURM detection. Two
+    local processes with the variables srun sets stand in for the two tasks."""
+    cfg = tmp_path / "sweep.toml"
+    cfg.write_text(SWEEP_TOML)
+    port = _slurm_port()
+    base = {
+        **os.environ,
+        "SLURM_JOB_ID": str(port - (65535 - 2**12 + 1)),  # JAX: port = 61440 + id % 4096
+        "SLURM_STEP_ID": "0",
+        "SLURM_STEP_NODELIST": "localhost",
+        "SLURM_STEP_NUM_NODES": "1",
+        "SLURM_NTASKS": "2",
+        "VCJAX_CPU_DEVICES": "1",
+    }
+    argv = [sys.executable, "-m", "vcjax.cli", "launch", "--", "sweep", str(cfg)]
+    argv += ["--out", str(tmp_path / "out")]
+    procs = [
+        subprocess.Popen(argv, env={**base, "SLURM_PROCID": str(i), "SLURM_LOCALID": str(i)})
+        for i in range(2)
+    ]
+    try:
+        codes = [p.wait(timeout=TIMEOUT_S) for p in procs]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+    assert codes == [0, 0]
+    run = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert run["processes"]["count"] == 2
+    spec, _ = load_config(cfg)
+    one = run_sweep(spec, progress=False, process_index=0, process_count=1)
+    two = load_results(tmp_path / "out" / "results.npz")
+    np.testing.assert_allclose(
+        two.metrics["ilos"]["iae_e"], one.metrics["ilos"]["iae_e"], rtol=1e-12
+    )
 
 
 @pytest.mark.slow
