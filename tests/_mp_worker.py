@@ -16,6 +16,7 @@ distributed.initialize_from_env()
 import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
+distributed.warm_up()
 
 import numpy as np  # noqa: E402
 

@@ -246,7 +246,9 @@ def test_launch_argument_errors(capsys, child_env):
     assert "-n N" in capsys.readouterr().err
     assert cli.main(["launch", "-n", "2", "--", "fly"]) == 2
     assert "expected a command" in capsys.readouterr().err
-    assert cli.main(["launch", "-n", "2", "--cpu-devices", "0", "--", "demo"]) == 2
+    assert cli.main(["launch", "-n", "2", "--cpu-devices", "0", "--", "sweep", "x.toml"]) == 2
+    assert cli.main(["launch", "-n", "2", "--", "simulate", "sim1"]) == 2  # nothing to split
+    assert "runs across processes" in capsys.readouterr().err
 
 
 def test_shard_batch_validates_axes_and_batch():

@@ -134,12 +134,14 @@ def _is_number(v) -> bool:
 
 def _use_cores(args, command: str) -> int | None:
     """Split the host CPU into devices (before JAX initialises); a bad count is one line."""
+    from vcjax import distributed
     from vcjax.devices import use_cpu_cores
 
     try:
         use_cpu_cores(args.cpu_devices)
     except ValueError as err:
         return _fail(f"{command}: {err}")
+    distributed.warm_up()  # a multi-process run: collectives ready before anyone compiles
     return None
 
 
@@ -241,10 +243,13 @@ def _cmd_launch(args) -> int:
     rest = list(args.rest)
     if rest[:1] == ["--"]:
         rest = rest[1:]
-    commands = sorted(set(_COMMANDS) - {"launch"})
+    commands = list(_DISTRIBUTED)
     if not rest or rest[0] not in commands:
         got = rest[0] if rest else "nothing"
-        return _fail(f"launch: expected a command after --, one of {commands}; got {got}")
+        return _fail(
+            f"launch: expected a command that runs across processes after --, one of {commands};"
+            f" got {got}"
+        )
     if distributed.in_slurm_step():
         try:
             distributed.initialize_from_env()
@@ -384,8 +389,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     n = sub.add_parser(
         "launch",
-        help="run a command as N local processes of one distributed JAX run",
-        description="Start N local processes running `vcjax COMMAND ...`, joined by "
+        help="run `sweep` or `tune` as N local processes of one distributed JAX run",
+        description="Start N local processes running `vcjax sweep|tune ...`, joined by "
         "jax.distributed (coordinator on localhost). Inside an `srun` step of SLURM it spawns "
         "nothing: each task joins the step's run through JAX's cluster auto-detection.",
     )
@@ -402,8 +407,8 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-#: The subcommands (``vcjax launch`` runs any of the others).
-_COMMANDS = ("simulate", "sweep", "tune", "fit", "demo", "launch")
+#: The subcommands that split their work across the processes of ``vcjax launch``.
+_DISTRIBUTED = ("sweep", "tune")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -39,6 +39,8 @@ __all__ = [
     "ENV_PROCESS_ID",
     "in_slurm_step",
     "initialize_from_env",
+    "joined",
+    "warm_up",
     "free_port",
     "spawn",
     "global_mesh",
@@ -107,6 +109,27 @@ def initialize_from_env(environ=None, timeout_s: int = 120) -> bool:
         jax.distributed.initialize(addr, n, i, initialization_timeout=timeout_s)
     _initialized = True
     return True
+
+
+def joined() -> bool:
+    """Whether :func:`initialize_from_env` joined this process to a multi-process run."""
+    return _initialized
+
+
+def warm_up() -> None:
+    """Set up the cross-process collectives now, while the processes are in step.
+
+    The CPU collectives (gloo) build their context at the first cross-process operation and give
+    up if a peer is not there within 30 s; processes that compile at different speeds (a loaded
+    machine) can drift further apart than that before their first collective. Built early, the
+    context then waits for late peers. Call it once after the device setup (it starts the JAX
+    backend); a no-op outside a multi-process run.
+    """
+    if not _initialized:
+        return
+    from jax.experimental import multihost_utils
+
+    multihost_utils.sync_global_devices("vcjax.distributed: joined")
 
 
 def free_port(host: str = "localhost") -> int:
