@@ -34,7 +34,7 @@ def _fail(msg: str) -> int:
 
 
 #: Per-experiment defaults of ``vcjax simulate`` (horizon [s], RK4 step [s]).
-_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05), "remus100": (920.0, 0.05)}
+_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05), "remus100": (880.0, 0.05)}
 
 
 def _cmd_simulate(args) -> int:
@@ -183,7 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", help="output directory (default: out/EXPERIMENT)")
     s.add_argument("--gains", help="sim1: JSON file of gains (e.g. written by `vcjax tune`)")
     s.add_argument(
-        "--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300, remus100: 920)"
+        "--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300, remus100: 880)"
     )
     s.add_argument("--dt", type=float, help="RK4 step [s] (default 0.05)")
     s.add_argument(
