@@ -49,7 +49,7 @@ def _fail(msg: str) -> int:
 
 
 #: Per-experiment defaults of ``vcjax simulate`` (horizon [s], RK4 step [s]).
-_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05), "remus100": (920.0, 0.05)}
+_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05), "remus100": (880.0, 0.05)}
 
 
 def _cmd_simulate(args) -> int:
@@ -324,7 +324,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--gains", help="sim1/sim2: JSON file of gains (e.g. the gains.json `vcjax tune` writes)"
     )
     s.add_argument(
-        "--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300, remus100: 920)"
+        "--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300, remus100: 880)"
     )
     s.add_argument("--dt", type=float, help="RK4 step [s] (default 0.05)")
     s.add_argument(
