@@ -14,9 +14,9 @@ LAYERS = [
     {"control"},
     {"loops"},
     {"metrics"},
-    {"plots", "plots_sim2", "sweep_plots"},
+    {"plots", "plots_sim2", "sweep_plots", "plots_remus100"},
     {"sweep"},
-    {"sim1", "sim2", "demos"},
+    {"sim1", "sim2", "demos", "sim_remus100", "identify"},
     {"cli"},
 ]
 LAYER_OF = {name: i for i, names in enumerate(LAYERS) for name in names}
