@@ -1,6 +1,7 @@
 """Throughput of every closed loop: each (vehicle, controller) of the scenario layer's registry
-(:mod:`vcjax.loops`), plus Simulation 2's ODIN-class loop (:mod:`vcjax.sim2`) while it is not
-in the registry; single trajectory, a batch on one core, the same batch on every core.
+(:mod:`vcjax.loops`), plus Simulation 2's ODIN-class loop (:mod:`vcjax.sim2`) and the REMUS 100
+survey loop (:mod:`vcjax.sim_remus100`) while they are not in the registry; single trajectory,
+a batch on one core, the same batch on every core.
 
 The process splits the host CPU into ``--cpu-devices`` JAX devices (default: one per core,
 :mod:`vcjax.devices`) before JAX starts. ``vmap`` rows run the batch on one device (one core);
@@ -132,6 +133,39 @@ def odin_case(timing: str):
     return ("odin/vcm (sim2)", one, sc0, make_batch)
 
 
+def remus_case(timing: str):
+    """The REMUS 100 survey loop of :mod:`vcjax.sim_remus100` (``vcm3d_ilos``: 3-D VCM with the
+    integral LOS angle, PVS's plant) as a case; its controller is sampled (as in the module)."""
+    import jax.numpy as jnp
+
+    from vcjax import sim_remus100 as sr
+    from vcjax.rollout import RolloutConfig, rollout
+    from vcjax.vehicles import remus100 as r100
+
+    variant = "vcm3d_ilos"
+    path, coeffs = sr.mission_path()
+    p, dm = sr.vehicle()
+    params = sr.controller_params(variant, coeffs, dm)
+    ctrl = sr.make_controller(variant, path)
+    z0 = sr.initial_controller_state(variant)
+    x00 = sr.initial_state()
+    sc0 = (x00.eta, jnp.asarray([0.0, 0.3], x00.eta.dtype))
+
+    def one(sc, n):
+        eta0, v_c = sc
+        rc = RolloutConfig(num_steps=n, integrator="rk4", timing="sampled")
+        args = r100.remus100_args(p, v_c=v_c)
+        tr = rollout(r100.remus100_plant, ctrl, rc, args, params, x00._replace(eta=eta0), z0, C.DT)
+        return jnp.mean(jnp.abs(tr.x.eta[:, 1]))
+
+    def make_batch(batch):
+        d_xy, cur = _offsets(batch, np.dtype(x00.eta.dtype))
+        eta0 = jnp.asarray(x00.eta)[None, :].repeat(batch, 0).at[:, :2].add(jnp.asarray(d_xy))
+        return (eta0, jnp.asarray(cur[:, :2])), (0, 0)
+
+    return ("remus100/vcm3d_ilos (sim_remus100)", one, sc0, make_batch)
+
+
 def _time(name, kind, f, inputs, batch, steps, cores, args):
     lower_s, compile_s, comp = C.compile_timed(f, *inputs)
     run_s = C.best_of(lambda: comp(*inputs), args.repeats)
@@ -167,6 +201,8 @@ def main(argv=None):
 
     if "odin" not in _loops.vehicles() and (not args.loops or "odin" in args.loops):
         cases.append(odin_case(args.timing))
+    if "remus100" not in _loops.vehicles() and (not args.loops or "remus100" in args.loops):
+        cases.append(remus_case(args.timing))
     rows = []
     mesh = Mesh(np.asarray(jax.devices()), ("scenarios",))
     sharding = NamedSharding(mesh, PartitionSpec("scenarios"))
