@@ -49,7 +49,7 @@ def test_plant_parameters_rebuilt_from_the_docstring_match():
     ],
 )
 def test_numpy_reference_matches_vcjax(eta0, V_c):
-    sc = sim1.sim1_scenario(eta0=eta0, V_c=V_c)
+    sc = sim1.sim1_scenario(eta0=eta0, current=V_c)
     traj = sim1.run_variant("vcm_integral", scenario=sc, horizon=HORIZON, dt=DT)
     assert bool(np.all(np.asarray(traj.finite)))
     J = _vcjax_states(traj)

@@ -61,7 +61,7 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
         except (OSError, json.JSONDecodeError, ValueError) as err:
             return _fail(f"simulate: cannot use gains file {args.gains}: {err}")
     try:
-        scenario = sim1.sim1_scenario(V_c=args.current or (0.0, 0.5))
+        scenario = sim1.sim1_scenario(current=args.current or (0.0, 0.5))
     except ValueError as err:
         return _fail(f"simulate: {err}")
     result = sim1.run_sim1(

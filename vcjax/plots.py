@@ -52,7 +52,7 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
         ax.plot(eta[:, 1], eta[:, 0], **STYLE[v])
     eta0 = np.asarray(scenario.eta0)
     ax.plot(eta0[1], eta0[0], "ko", label="start")
-    V_c = np.asarray(scenario.V_c)
+    V_c = np.asarray(scenario.current)[:2]
     heading = np.degrees(np.arctan2(V_c[1], V_c[0])) % 360
     ax.set_title(
         f"Simulation 1: paths travelled (current {np.hypot(*V_c):.2f} m/s toward {heading:.0f}°)"
@@ -80,7 +80,7 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
         ax[0].legend(fontsize=8)
         return _save(fig, out / name)
 
-    vehicle = scenario.vehicle
+    vehicle = scenario.plant
     thrust_max = float(vehicle.thrust_max)
     rudder_max = np.degrees(float(vehicle.rudder_max))
     head = slice(None, -1)
