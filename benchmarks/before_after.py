@@ -5,8 +5,8 @@ The machine may be shared, so absolute rates drift between runs; ratios measured
 not. This script extracts the ``vcjax`` package of ``--before`` (a git revision; default: the
 state before throughput round 2, issue 12) into a temporary directory and measures, in fresh
 worker processes that alternate (before, after, before, after, ... ``--rounds`` times, best of
-each), Simulation 1's ``vcm_integral`` closed loop (INFANTE-class plant, RK4, dt = 0.05 s,
-float32 by default) for every case:
+each by wall time), Simulation 1's ``vcm_integral`` closed loop (INFANTE-class plant, RK4,
+dt = 0.05 s, float32 by default) for every case:
 
 * ``single``: one trajectory, ``jit(simulate)``, no vmap;
 * ``vmap B``: ``jax.vmap`` over B scenarios on one CPU device (one core does the work);
@@ -15,8 +15,10 @@ float32 by default) for every case:
 
 each with the continuous-time controller (evaluated at every RK4 stage) and the sampled one
 (once per step, held). The worker returns the best wall time of ``--repeats`` calls after a
-warm-up, and the compile time; the timed function returns only the (B,) mean |e| (computed in
-jit), as in :mod:`benchmarks.throughput`.
+warm-up, the process CPU time of that call (``steps_per_cpu_s``: on a machine shared with other
+jobs, per-core efficiency is steadier than wall time; with N devices the CPU time is that of
+all N cores), and the compile time; the timed function returns only the (B,) mean |e|
+(computed in jit), as in :mod:`benchmarks.throughput`.
 
     python -m benchmarks.before_after --json benchmarks/results/before_after_float32.json
 """
@@ -49,6 +51,8 @@ def parse_args(argv=None):
     p.add_argument("--single-steps", type=int, default=2000)
     p.add_argument("--rounds", type=int, default=2, help="alternating before/after rounds")
     p.add_argument("--cores", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--timings", nargs="+", default=["sampled", "continuous"])
+    p.add_argument("--kinds", nargs="+", default=["single", "vmap", "sharded"])
     p.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.quick:
@@ -81,7 +85,6 @@ def measure(case: dict) -> dict:
     C.setup(case["dtype"])
     import jax.numpy as jnp
     import numpy as np
-    from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
     from vcjax.rollout import RolloutConfig
 
@@ -100,11 +103,7 @@ def measure(case: dict) -> dict:
         batch = case["batch"]
         scb = C.batched_scenario(sc, batch)
         axes = C.scenario_axes(scb)
-        if n_dev > 1:
-            mesh = Mesh(np.asarray(jax.devices()[:n_dev]), ("scenarios",))
-            shard = NamedSharding(mesh, PartitionSpec("scenarios"))
-            scb = scb._replace(eta0=jax.device_put(scb.eta0, shard))
-            scb = scb._replace(V_c=jax.device_put(scb.V_c, shard))
+        scb = C.shard_batch(scb, n_dev)
         f = jax.jit(lambda g, s, dt: jax.vmap(one, in_axes=(None, axes, None))(g, s, dt))
         inputs = (gains, scb, C.DT)
     lower_s, compile_s, comp = C.compile_timed(f, *inputs)
@@ -150,13 +149,19 @@ def run_worker(case: dict, lib_path: Path | None) -> dict:
     return json.loads(res.stdout.strip().splitlines()[-1])
 
 
+def case_steps(case: dict) -> int:
+    """Trajectory-steps of one timed call."""
+    return case.get("batch", 1) * case["steps"] if case["kind"] != "single" else case["steps"]
+
+
 def cases(args) -> list[dict]:
     out = []
-    for timing in ("sampled", "continuous"):
+    for timing in args.timings:
         base = {"dtype": args.dtype, "timing": timing, "repeats": args.repeats}
-        out.append({**base, "kind": "single", "steps": args.single_steps, "devices": 1})
+        if "single" in args.kinds:
+            out.append({**base, "kind": "single", "steps": args.single_steps, "devices": 1})
         for kind, dev in (("vmap", 1), ("sharded", args.cores)):
-            if kind == "sharded" and dev < 2:
+            if kind not in args.kinds or (kind == "sharded" and dev < 2):
                 continue
             out.append({**base, "kind": kind, "batch": args.batch, "steps": args.steps})
             out[-1]["devices"] = dev
@@ -193,6 +198,8 @@ def main(argv=None):
                 "speedup": a["steps_per_s"] / b["steps_per_s"],
                 "before_compile_s": b["compile_s"],
                 "after_compile_s": a["compile_s"],
+                "before_steps_per_cpu_s": case_steps(case) / b["cpu_s"],
+                "after_steps_per_cpu_s": case_steps(case) / a["cpu_s"],
                 "after_cpu_s_per_wall": a["cpu_s"] / a["run_s"],
                 "rel_diff_mean_abs_e": abs(a["mean_abs_e"] - b["mean_abs_e"])
                 / max(abs(b["mean_abs_e"]), 1e-30),
@@ -215,6 +222,8 @@ def main(argv=None):
             "before_steps_per_s",
             "after_steps_per_s",
             "speedup",
+            "before_steps_per_cpu_s",
+            "after_steps_per_cpu_s",
             "before_compile_s",
             "after_compile_s",
             "after_cpu_s_per_wall",

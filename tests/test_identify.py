@@ -248,6 +248,8 @@ def test_product_pair_reported_not_identifiable_cli(tmp_path, capsys):
                 "wall_time_s", "warnings", "cost_history"):  # fmt: skip
         assert key in fit, key
     assert fit["correlation"]["names"] == ["A_r", "CL_delta_r"]
+    run = json.loads((out / "run.json").read_text())  # how to reproduce it
+    assert run["command"] == "fit" and run["config"]["fit"]["segment_steps"] == 25
     assert fit["correlation"]["matrix"][0][1] < -0.99
     assert set(fit["residual_rms"]["before"]) == set(REMUS.state_columns)
     assert any("not separately identifiable" in w for w in fit["warnings"])

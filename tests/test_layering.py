@@ -9,15 +9,15 @@ ROOT = Path(__file__).resolve().parents[1] / "vcjax"
 #: layers in data-flow order; a module may import from its own layer or an earlier one
 LAYERS = [
     {"_checks", "_config", "devices", "linalg", "integrators", "progress"},
+    {"distributed", "runinfo"},
     {"mechanics", "systems", "paths", "currents"},
     {"vehicles", "guidance", "allocation", "rollout"},
     {"control"},
     {"loops"},
     {"metrics"},
-    {"plots", "plots_sim2", "sweep_plots"},
+    {"plots", "plots_sim2", "sweep_plots", "plots_remus100"},
     {"sweep"},
-    {"sim1", "sim2", "demos"},
-    {"identify"},
+    {"sim1", "sim2", "demos", "sim_remus100", "identify"},
     {"cli"},
 ]
 LAYER_OF = {name: i for i, names in enumerate(LAYERS) for name in names}

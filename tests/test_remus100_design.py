@@ -14,7 +14,8 @@ IDX = np.asarray(rd.IDX5)
 
 
 def test_design_model_is_the_plants_five_rows():
-    """M[IDX5, :] nu_dot + n5 = tau_ctrl[IDX5] on the 6-DOF plant (phi = p = 0, no current)."""
+    """M[IDX5, :] nu_dot + n5 = (tau_ctrl + crossflow)[IDX5] on the 6-DOF plant (phi = p = 0,
+    no current): the design model is the plant without roll and cross-flow drag."""
     nu5 = jnp.array([1.4, 0.12, -0.08, 0.05, -0.11])
     q5 = jnp.array([3.0, -2.0, 12.0, 0.15, 0.7])
     eta, nu = rd.to_six(q5, nu5)
@@ -23,7 +24,7 @@ def test_design_model_is_the_plants_five_rows():
     x = r100.remus100_state(eta, nu, act)
     args = r100.remus100_args(P)
     nu_dot = r100.remus100_plant(0.0, x, act, args).nu
-    tau = r100.control_forces(P, nu, nu, act)
+    tau = r100.control_forces(P, nu, nu, act) + r100.crossflow_drag(P, nu)
     lhs = r100.mass_matrix(P)[IDX] @ nu_dot + rd.body_bias5(dm, q5, nu5)
     np.testing.assert_allclose(lhs, tau[IDX], rtol=1e-10, atol=1e-10)
     # the mechanics form: M(q) qdd + n(q, qd) = J^-T tau_b with qdd = d/dt (J nu)

@@ -19,7 +19,7 @@ from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 
-from vcjax.linalg import matvec, rot2
+from vcjax.linalg import rot2
 
 __all__ = [
     "PathKinematics",
@@ -68,7 +68,7 @@ def path_kinematics(frame, eta, nu, u_d, sigma, u_d_dot=0.0) -> PathKinematics:
     """
     psi_p = frame.psi_p
     R_p = rot2(psi_p)
-    eps = matvec(R_p.T, eta[:2] - frame.p_bar)
+    eps = R_p.T @ (eta[:2] - frame.p_bar)
     s, e = eps[0], eps[1]
     ubar_p = u_d + sigma * s
     varpi_dot = ubar_p / frame.speed_bar
@@ -77,7 +77,7 @@ def path_kinematics(frame, eta, nu, u_d, sigma, u_d_dot=0.0) -> PathKinematics:
     R_g = rot2(gamma)
     w = nu[:2]
     zero = jnp.zeros_like(s)
-    eps_dot = matvec(R_g, w) + psi_p_dot * jnp.stack([e, -s]) - jnp.stack([ubar_p, zero])
+    eps_dot = R_g @ w + psi_p_dot * jnp.stack([e, -s]) - jnp.stack([ubar_p, zero])
     s_dot, e_dot = eps_dot[0], eps_dot[1]
     ubar_p_dot = u_d_dot + sigma * s_dot
     varpi_ddot = (ubar_p_dot - frame.dspeed_bar_dw * varpi_dot**2) / frame.speed_bar
@@ -85,7 +85,7 @@ def path_kinematics(frame, eta, nu, u_d, sigma, u_d_dot=0.0) -> PathKinematics:
     gamma_dot = nu[2] - psi_p_dot
     J2w = jnp.stack([-w[1], w[0]])  # d/dgamma R(gamma) w = R(gamma) J2 w
     drift = (
-        gamma_dot * matvec(R_g, J2w)
+        gamma_dot * (R_g @ J2w)
         + psi_p_ddot * jnp.stack([e, -s])
         + psi_p_dot * jnp.stack([e_dot, -s_dot])
         - jnp.stack([ubar_p_dot, zero])

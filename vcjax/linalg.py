@@ -35,8 +35,9 @@ def matvec(A, x):
 
     Same value as ``A @ x`` (the same sum, in the same order). Under ``vmap`` a ``@`` of tiny
     per-trajectory matrices becomes a batched ``dot`` kernel of its own; multiply-adds fuse with
-    the elementwise code around them into one kernel (the closed-loop step is ~100 small kernels
-    otherwise).
+    the elementwise code around them. Whether that is faster depends on what XLA then fuses
+    (measured, ``benchmarks/README.md``: faster for the plant's Coriolis/damping products, 1.4x
+    slower when used in the VCM law too, where bigger fusions recompute shared terms).
     """
     out = A[:, 0] * x[0]
     for j in range(1, A.shape[1]):

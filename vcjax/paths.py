@@ -12,7 +12,8 @@ Every constructor returns the pair ``(path, coeffs)``::
     path, coeffs = paths.line(origin=(10.0, 0.0), direction=(0.0, 1.0))
     frame = paths.path_frame(path, coeffs, w)
 
-Kinds: :func:`line`, :func:`circle`, :func:`helix`, :func:`waypoints` (a C² cubic spline through
+Kinds: :func:`line`, :func:`circle`, :func:`helix`, :func:`lawnmower` (a survey pattern),
+:func:`waypoints` (a C² cubic spline through
 user waypoints, parametrised by chord length) and :func:`custom` (any user callable ``p_p(w)``).
 The paper's two paths are :func:`paper_line` (Simulation 1, ``[10, w]``) and :func:`paper_helix`
 (Simulation 2, ``[10 sin(w/5), 8 cos(w/5), 0.1 w - 100]``).
@@ -60,6 +61,9 @@ __all__ = [
     "HELIX",
     "SPLINE",
     "MIN_TANGENT",
+    "LawnmowerCoeffs",
+    "lawnmower",
+    "LAWNMOWER",
 ]
 
 #: Smallest admissible horizontal tangent length ``||p_bar'(w)||`` (relative to the path's
@@ -457,3 +461,59 @@ class _NoCoeffs:
 
     def __call__(self, w, coeffs):
         return self.fn(w)
+
+
+# ------------------------------------------------------------------------------- lawnmower
+
+
+class LawnmowerCoeffs(NamedTuple):
+    """Coefficients of :func:`lawnmower` (traced; scalars unless noted)."""
+
+    start: Any  # (3,) NED start of the first leg [m]
+    leg: Any  # () leg length [m]
+    radius: Any  # () turn radius [m]; the legs are 2 radius apart
+    n_legs: Any  # () number of legs (a float, so that it can be traced)
+    depth: Any  # () depth change of the descent [m] (positive: deeper)
+    descent: Any  # () horizontal distance of the descent from the start [m]
+
+
+def _lawnmower_fn(w, c: LawnmowerCoeffs):
+    L, R = c.leg, c.radius
+    period = L + jnp.pi * R
+    k = jnp.clip(jnp.floor(w / period), 0.0, c.n_legs - 1.0)
+    om = w - k * period  # distance along leg k and its turn
+    d = 1.0 - 2.0 * jnp.mod(k, 2.0)  # +1 northwards, -1 southwards
+    turn = (om > L) & (k < c.n_legs - 1.0)  # the last leg runs on straight
+    x0 = c.start[0] + jnp.where(d > 0, 0.0 * L, L)
+    y0 = c.start[1] + 2.0 * R * k
+    a = (jnp.where(turn, om, L) - L) / R  # double-where: the arc is evaluated only on turns
+    x = jnp.where(turn, x0 + d * (L + R * jnp.sin(a)), x0 + d * om)
+    y = jnp.where(turn, y0 + R * (1.0 - jnp.cos(a)), y0)
+    xi = jnp.clip(w / c.descent, 0.0, 1.0)
+    z = c.start[2] + c.depth * xi**3 * (10.0 - 15.0 * xi + 6.0 * xi * xi)
+    return jnp.stack([x, y, z])
+
+
+LAWNMOWER = Path(_lawnmower_fn, "lawnmower")
+
+
+def lawnmower(start=(0.0, 0.0, 0.0), leg=150.0, radius=20.0, n_legs=4, depth=15.0, descent=150.0):
+    """A survey pattern: ``n_legs`` straight legs along north (alternating direction, stepping
+    east by ``2 radius``) joined by half circles, with a smooth (C², quintic) descent of
+    ``depth`` metres over the first ``descent`` metres. ``w`` is the horizontal arc length [m];
+    before 0 the first leg and after the last leg the last leg extend straight.
+
+    Curvature jumps where a leg meets a turn (as in a Dubins survey plan): the path angles are
+    continuous, their rates step there.
+    """
+    check_array("start", start, (3,))
+    for name, v in dict(leg=leg, radius=radius, descent=descent).items():
+        check_positive(name, v, ())
+    check_array("depth", depth, ())
+    if not (isinstance(n_legs, int | np.integer) and n_legs >= 1):
+        raise ValueError(f"n_legs: expected an int >= 1, got {n_legs!r}")
+    f = lambda x: jnp.asarray(x, dtype=jnp.result_type(float))
+    coeffs = LawnmowerCoeffs(f(start), f(leg), f(radius), f(float(n_legs)), f(depth), f(descent))
+    total = n_legs * float(leg) + (n_legs - 1) * np.pi * float(radius)
+    validate_path(LAWNMOWER, coeffs, (-10.0, total + 10.0), num=2001)
+    return LAWNMOWER, coeffs

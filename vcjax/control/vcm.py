@@ -46,7 +46,7 @@ import numpy as np
 from vcjax._checks import check_array, check_positive
 from vcjax.control.params import LawParams, law_params
 from vcjax.guidance import los_angle, path_kinematics
-from vcjax.linalg import matvec, safe_sqrt, wrap_angle
+from vcjax.linalg import safe_sqrt, wrap_angle
 from vcjax.paths import path_frame
 from vcjax.vehicles import design3dof as d3
 
@@ -265,13 +265,13 @@ def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState):
     def command(v_d_dot):
         # Everything here is affine in v_d_dot (the only unknown of the underactuated case).
         alpha_K = jnp.stack([u_d_dot - g.P_Phi[0] * (u - u_d), v_d_dot - g.P_Phi[1] * (v - v_d)])
-        w_dot = 0.5 * (alpha_K + matvec(R_g.T, alpha_eps))
-        edd_implied = (matvec(R_g, w_dot) + kin.eps_ddot_drift)[1]
+        w_dot = 0.5 * (alpha_K + R_g.T @ alpha_eps)
+        edd_implied = (R_g @ w_dot + kin.eps_ddot_drift)[1]
         edd = eps_ddot_des[1] if cfg.edd == "paper" else edd_implied
         psi_d_ddot = kin.psi_p_ddot + los_angle(E, E_dot, E_ddot(edd), g.Delta).psi_r_ddot
         r_dot = psi_d_ddot - pG1 * psi_tilde_dot - pPhi3 * (psi_tilde_dot + pG1 * psi_tilde)
         nu_dot = jnp.concatenate([w_dot, r_dot[None]])
-        tau = matvec(M_b, nu_dot) + n_b
+        tau = M_b @ nu_dot + n_b
         return tau, nu_dot, edd_implied, alpha_K
 
     zero = jnp.zeros_like(u)
@@ -291,9 +291,7 @@ def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState):
         tau, nu_dot, edd_implied, alpha_K = command(zero)
     w_dot = nu_dot[:2]
     # NaN-safe at 0 (consistent rows): its cotangent is a materialised zero inside scans
-    res = safe_sqrt(
-        jnp.sum((w_dot - alpha_K) ** 2) + jnp.sum((matvec(R_g, w_dot) - alpha_eps) ** 2)
-    )
+    res = safe_sqrt(jnp.sum((w_dot - alpha_K) ** 2) + jnp.sum((R_g @ w_dot - alpha_eps) ** 2))
 
     if cfg.integral:
         clipped = jnp.clip(z.int_eps, -params.int_limit, params.int_limit)

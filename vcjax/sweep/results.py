@@ -15,6 +15,7 @@ from vcjax.sweep.spec import ScenarioSpec, SweepSpec
 
 __all__ = [
     "SweepResult",
+    "run_timing",
     "summarize",
     "save_results",
     "load_results",
@@ -39,6 +40,7 @@ class SweepResult:
             position [m] at times ``trace_t`` (P,) [s] (float32).
         trace_t: (P,) [s].
         wall_s: wall time of the sweep [s]; devices: number of devices used (per process).
+        timing: ``timing[variant]``: :func:`run_timing` (compile and run seconds, throughput).
     """
 
     spec: SweepSpec
@@ -49,6 +51,45 @@ class SweepResult:
     trace_t: np.ndarray
     wall_s: float = 0.0
     devices: int = 1
+    timing: dict = dataclasses.field(default_factory=dict)
+
+    def to_xarray(self):
+        """An ``xarray.Dataset``: dimensions ``variant`` x ``scenario``, sampled inputs and
+        metrics as labelled variables, units as attributes (:mod:`vcjax.sweep.labelled`;
+        needs ``pip install "vcjax[xarray]"``)."""
+        from vcjax.sweep.labelled import to_xarray
+
+        return to_xarray(self)
+
+
+def run_timing(compile_s: float, run_s: float, scenarios: int, steps: int, devices: int) -> dict:
+    """One variant's timing: ``compile_s`` (trace + lower + XLA compile) [s], ``run_s``
+    (every chunk run and fetched, compilation excluded) [s], ``traj_steps_per_s`` =
+    ``scenarios x steps / run_s`` (None when nothing ran), and the counts."""
+    rate = scenarios * steps / run_s if run_s > 0 and scenarios else None
+    return {
+        "compile_s": float(compile_s),
+        "run_s": float(run_s),
+        "traj_steps_per_s": rate,
+        "scenarios": int(scenarios),
+        "steps": int(steps),
+        "devices": int(devices),
+    }
+
+
+def _merge_timing(parts: list[SweepResult]) -> dict:
+    """Processes run in parallel: the slowest sets compile and run time; scenarios add up."""
+    out = {}
+    for v in parts[0].timing:
+        ts = [p.timing[v] for p in parts if v in p.timing]
+        out[v] = run_timing(
+            max(t["compile_s"] for t in ts),
+            max(t["run_s"] for t in ts),
+            sum(t["scenarios"] for t in ts),
+            ts[0]["steps"],
+            sum(t["devices"] for t in ts),
+        )
+    return out
 
 
 def merge_results(parts: list[SweepResult]) -> SweepResult:
@@ -59,6 +100,7 @@ def merge_results(parts: list[SweepResult]) -> SweepResult:
     if any(p.spec != spec for p in parts):
         raise ValueError("parts: results of different sweeps")
     devices = sum(p.devices for p in parts)
+    timing = _merge_timing(parts)
     parts = [p for p in parts if p.index.size] or parts[:1]  # a process may have had no chunk
     index = np.concatenate([p.index for p in parts])
     order = np.argsort(index, kind="stable")
@@ -83,6 +125,7 @@ def merge_results(parts: list[SweepResult]) -> SweepResult:
         trace_t=parts[0].trace_t,
         wall_s=max(p.wall_s for p in parts),
         devices=devices,
+        timing=timing,
     )
 
 
@@ -99,7 +142,8 @@ def summarize(result: SweepResult) -> dict:
 
     ``summary["variants"][v]``: ``n``, ``n_diverged``, ``n_nonfinite`` and, for every metric,
     ``mean``, ``std``, ``p5``, ``p50``, ``p95``, ``min``, ``max`` over the runs that did not
-    diverge (``None`` where there are none).
+    diverge (``None`` where there are none); ``timing`` (:func:`run_timing`: ``compile_s``,
+    ``run_s``, ``traj_steps_per_s``, ...).
     """
     out = {}
     for v, m in result.metrics.items():
@@ -112,6 +156,8 @@ def summarize(result: SweepResult) -> dict:
         entry["metrics"] = {
             k: _stats(np.asarray(a, dtype=np.float64)[ok]) for k, a in m.items() if k not in FLAGS
         }
+        if v in result.timing:
+            entry["timing"] = result.timing[v]
         out[v] = entry
     return {
         "num_scenarios": int(result.index.size),
@@ -159,7 +205,8 @@ def save_results(result: SweepResult, path: Path) -> Path:
     arrays = {"index": result.index, "trace_t": result.trace_t}
     arrays["model_fields"] = np.array(result.spec.mc_config().model_fields, dtype=str)
     arrays["spec_json"] = np.array(json.dumps(spec_to_dict(result.spec)))
-    arrays["meta_json"] = np.array(json.dumps({"wall_s": result.wall_s, "devices": result.devices}))
+    meta = {"wall_s": result.wall_s, "devices": result.devices, "timing": result.timing}
+    arrays["meta_json"] = np.array(json.dumps(meta))
     for k, a in result.scenarios.items():
         arrays[f"scenario.{k}"] = a
     for v in result.metrics:
@@ -183,5 +230,13 @@ def load_results(path: Path) -> SweepResult:
             metrics[v] = {k[len(v) + 1 :]: z[k] for k in keys if ".trace_" not in k}
             traces[v] = {k: z[f"{v}.trace_{k}"] for k in ("e", "xy")}
         return SweepResult(
-            spec, z["index"], scen, metrics, traces, z["trace_t"], meta["wall_s"], meta["devices"]
+            spec,
+            z["index"],
+            scen,
+            metrics,
+            traces,
+            z["trace_t"],
+            meta["wall_s"],
+            meta["devices"],
+            meta.get("timing", {}),
         )

@@ -13,7 +13,7 @@ The VCM law needs ``M(q) q̈ + n(q, q̇) = τ`` (1). For REMUS 100 it is the PVS
 * Kept exactly (rows/columns ``[0, 1, 2, 4, 5]`` of the plant's 6-DOF terms): ``M = M_RB + M_A``;
   Coriolis ``C(nu) nu`` with PVS's zeroed ``C_A`` entries; the linear damping ``D`` with its
   ``exp(-3 U)`` fade of ``D11, D22`` evaluated at the **design speed** ``U_design``; hull lift
-  and drag; cross-flow drag; restoring forces.
+  and drag; restoring forces.
 * Dropped: the ocean current (the controller measures velocity over ground only: the integral
   action and the integral-LOS angles of :mod:`vcjax.control.vcm3d` take it up), the roll DOF,
   the fins' induced drag (the actuator map compensates it), and the actuator lags.
@@ -45,12 +45,14 @@ from __future__ import annotations
 
 from typing import Any, NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from vcjax._checks import check_positive
 from vcjax.linalg import safe_norm, safe_sqrt, saturate
 from vcjax.mechanics import MechanicalSystem, from_body_frame
+from vcjax.vehicles import design3dof as d3
 from vcjax.vehicles import remus100 as r100
 from vcjax.vehicles.sixdof import kinematics
 
@@ -119,7 +121,7 @@ def mass_matrix5(dm: Remus100Design):
 
 
 def body_bias5(dm: Remus100Design, q5, nu5):
-    """(5,) ``n5 = C(nu) nu + D(U_design) nu + g(eta) - lift/drag(nu) - cross-flow(nu)``.
+    """(5,) ``n5 = C(nu) nu + D(U_design) nu + g(eta) - lift/drag(nu)``.
 
     Args:
         dm: design parameters; q5: (5,) pose; nu5: (5,) body velocity over ground.
@@ -130,7 +132,6 @@ def body_bias5(dm: Remus100Design, q5, nu5):
         (r100.coriolis(p, nu) + r100.damping(p, dm.U_design)) @ nu
         + r100.restoring(p, eta)
         - r100.lift_drag(p, nu)
-        - r100.crossflow_drag(p, nu)
     )
     return n6[np.asarray(IDX5)]
 
@@ -200,3 +201,30 @@ def actuator_map(dm: Remus100Design, tau5, nu) -> ActuatorCommand:
     n = jnp.maximum(n, -b / (2.0 * a))  # (b < 0): never below the branch's minimum
     raw = jnp.stack([d_r, d_s, n])
     return ActuatorCommand(cmd=saturate(raw, p.act_max), raw=raw)
+
+
+def horizontal_design(dm: Remus100Design):
+    """The paper's 3-DOF model (20) for the horizontal law, linearised from this design model
+    at straight motion ``nu = [U_design, 0, 0]``: ``m11, m22, m23, m33`` from ``M``; ``d11`` the
+    secant ``X(U) / U`` (the steady drag is fed forward exactly); ``d22, d23, d32, d33`` such that
+    ``C_b(nu) nu + D_b nu`` of (20) has the 5-DOF model's slopes in ``(v, r)`` there (as
+    :func:`vcjax.vehicles.infante.design_model` with ``match_coriolis``). Eager (not jittable).
+    """
+
+    M = np.asarray(mass_matrix5(dm))
+    U = float(dm.U_design)
+    q0 = jnp.zeros(5, dtype=jnp.asarray(dm.U_design).dtype)
+
+    def n3(nu3):
+        nu5 = jnp.stack([nu3[0], nu3[1], 0.0 * nu3[0], 0.0 * nu3[0], nu3[2]])
+        return body_bias5(dm, q0, nu5)[np.asarray([0, 1, 4])]
+
+    nu0 = jnp.asarray([U, 0.0, 0.0], dtype=q0.dtype)
+    m11, m22, m23, m33 = M[0, 0], M[1, 1], M[1, 4], M[4, 4]
+    base = d3.design3dof(m11, m22, m23, m33, 1.0, 1.0, 0.0, 0.0, 1.0)
+    zero_d = base._replace(d11=0.0 * base.d11, d22=0.0 * base.d22, d33=0.0 * base.d33)
+    Jn = np.asarray(jax.jacfwd(n3)(nu0))
+    Jc = np.asarray(jax.jacfwd(lambda v: d3.body_bias(zero_d, v))(nu0))
+    D = Jn - Jc
+    d11 = float(n3(nu0)[0]) / U
+    return d3.design3dof(m11, m22, m23, m33, d11, D[1, 1], D[1, 2], D[2, 1], D[2, 2])
