@@ -28,10 +28,15 @@ def add_common_args(p: argparse.ArgumentParser, dtype="float32") -> None:
     p.add_argument("--quick", action="store_true", help="smoke run: small sizes, 2 repeats")
 
 
-def setup(dtype: str) -> None:
-    """Enable x64 when float64 is requested (the library never does it itself)."""
+def setup(dtype: str, cpu_devices: int | None = None) -> None:
+    """Enable x64 when float64 is requested (the library never does it itself); with
+    ``cpu_devices``, split the host CPU into that many JAX devices first (before JAX starts)."""
     import jax
 
+    if cpu_devices is not None:
+        from vcjax.devices import use_cpu_cores
+
+        use_cpu_cores(cpu_devices)
     if dtype == "float64":
         jax.config.update("jax_enable_x64", True)
 
@@ -157,7 +162,27 @@ def batched_scenario(sc, batch: int, seed: int = 0):
     return sc._replace(eta0=jnp.asarray(eta0, dtype=dt), V_c=jnp.asarray(V_c, dtype=dt))
 
 
-def metric_fn(num_steps: int, checkpoint: bool = False, batched: bool = True):
+def shard_batch(scb, devices: int):
+    """``scb`` with its batched fields (``eta0``, ``V_c``) sharded over the first ``devices``
+    JAX devices along the scenario axis (unchanged for one device)."""
+    if devices <= 1:
+        return scb
+    import jax
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+    mesh = Mesh(np.asarray(jax.devices()[:devices]), ("scenarios",))
+    sh = NamedSharding(mesh, PartitionSpec("scenarios"))
+    return scb._replace(eta0=jax.device_put(scb.eta0, sh), V_c=jax.device_put(scb.V_c, sh))
+
+
+def devices_used(x) -> int:
+    """Number of devices an array lives on."""
+    return len(x.sharding.device_set)
+
+
+def metric_fn(
+    num_steps: int, checkpoint: bool = False, batched: bool = True, timing: str = "continuous"
+):
     """``f(gains, scenario, dt) -> (B,)`` mean |e| over the run (or () when not batched).
 
     Only this reduced metric leaves the jitted function: XLA drops the unused parts of the
@@ -167,7 +192,7 @@ def metric_fn(num_steps: int, checkpoint: bool = False, batched: bool = True):
     from vcjax import sim1
     from vcjax.rollout import RolloutConfig
 
-    cfg = RolloutConfig(num_steps=num_steps, integrator="rk4", checkpoint=checkpoint)
+    cfg = RolloutConfig(num_steps=num_steps, integrator="rk4", checkpoint=checkpoint, timing=timing)
 
     def one(gains, sc, dt):
         tr = sim1.simulate(VARIANT, gains, sc, cfg, dt)

@@ -141,7 +141,7 @@ def components(batch: int, iters: int, repeats: int) -> list[dict]:
 
     def crossflow_body(s):
         xs, a = s
-        y, n = jax.vmap(lambda n: infante._crossflow(veh, n[1], n[2]))(xs.nu)
+        y, n = jax.vmap(lambda n: infante.crossflow_forces(veh, n[1], n[2]))(xs.nu)
         return xs._replace(nu=xs.nu + eps_ * jnp.stack([y, n, y], axis=1)), a
 
     def frame_body(w):
@@ -161,7 +161,7 @@ def components(batch: int, iters: int, repeats: int) -> list[dict]:
     cases = [
         ("plant vector field", plant_body, (x, args)),
         ("  plant: body_forces", forces_body, (x, args)),
-        ("  plant: cross-flow strips (private)", crossflow_body, (x, args)),
+        ("  plant: cross-flow drag (closed form)", crossflow_body, (x, args)),
         ("VCM law + actuator map", ctrl_body, (x, z)),
         ("path frame (line)", frame_body, z.varpi),
         ("3x3 jnp.linalg.solve", solve_body, f0),

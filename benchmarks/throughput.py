@@ -1,5 +1,9 @@
 """Closed-loop throughput of Simulation 1's VCM controller (``vcm_integral``, underactuated) on
-the INFANTE-class plant, RK4, continuous-time controller.
+the INFANTE-class plant, RK4, continuous-time controller (``--timing sampled``: once per step).
+
+``--cpu-devices N`` splits the host CPU into N JAX devices (:mod:`vcjax.devices`) and shards each
+batch over them (``NamedSharding`` along the scenario axis, as ``vcjax sweep`` does); the
+``cores_used`` column says over how many devices a row ran. Default 1: one device, one core.
 
 Measures, in one dtype per process:
 
@@ -24,6 +28,8 @@ from benchmarks import _common as C
 
 COLUMNS = [
     "kind",
+    "timing",
+    "cores_used",
     "batch",
     "steps",
     "dtype",
@@ -50,6 +56,8 @@ def parse_args(argv=None):
         help="batch sizes (default 1 4 16 ... 16384)",
     )
     p.add_argument("--steps", type=int, default=None, help="RK4 steps per run (default 500)")
+    p.add_argument("--timing", choices=("continuous", "sampled"), default="continuous")
+    p.add_argument("--cpu-devices", type=int, default=1, help="host CPU devices to shard over")
     p.add_argument("--compile-horizons", type=int, nargs=2, default=(1000, 4000))
     p.add_argument(
         "--compile-batch",
@@ -68,16 +76,18 @@ def parse_args(argv=None):
     return args
 
 
-def single_rollout(steps: int, repeats: int, dtype: str):
+def single_rollout(steps: int, repeats: int, dtype: str, timing: str = "continuous"):
     """Row for one trajectory (jit of the unbatched ``simulate``)."""
     import jax
 
     gains, sc = C.base_inputs()
-    f = jax.jit(C.metric_fn(steps, batched=False))
+    f = jax.jit(C.metric_fn(steps, batched=False, timing=timing))
     lower_s, compile_s, comp = C.compile_timed(f, gains, sc, C.DT)
     run_s = C.best_of(lambda: comp(gains, sc, C.DT), repeats)
     return {
         "kind": "single",
+        "timing": timing,
+        "cores_used": 1,
         "batch": 1,
         "steps": steps,
         "dtype": dtype,
@@ -93,19 +103,23 @@ def single_rollout(steps: int, repeats: int, dtype: str):
     }
 
 
-def batched_rollout(batch: int, steps: int, repeats: int, dtype: str):
-    """Row for ``batch`` trajectories (vmap over scenarios)."""
+def batched_rollout(
+    batch: int, steps: int, repeats: int, dtype: str, timing: str = "continuous", devices: int = 1
+):
+    """Row for ``batch`` trajectories (vmap over scenarios), sharded over ``devices``."""
     import jax
     import numpy as np
 
     gains, sc = C.base_inputs()
-    scb = C.batched_scenario(sc, batch)
-    f = jax.jit(C.metric_fn(steps))
+    scb = C.shard_batch(C.batched_scenario(sc, batch), devices)
+    f = jax.jit(C.metric_fn(steps, timing=timing))
     lower_s, compile_s, comp = C.compile_timed(f, gains, scb, C.DT)
     run_s = C.best_of(lambda: comp(gains, scb, C.DT), repeats)
     out = np.asarray(comp(gains, scb, C.DT))
     return {
         "kind": "vmap",
+        "timing": timing,
+        "cores_used": C.devices_used(scb.eta0),
         "batch": batch,
         "steps": steps,
         "dtype": dtype,
@@ -149,13 +163,16 @@ def compile_rows(horizons, batch: int, dtype: str):
 
 def main(argv=None):
     args = parse_args(argv)
-    C.setup(args.dtype)
+    C.setup(args.dtype, args.cpu_devices)
     rows = compile_rows(args.compile_horizons, args.compile_batch, args.dtype)
     cols = ["kind", "batch", "steps", "dtype", "device", "lower_s", "compile_s", "temp_MB"]
     C.print_table(rows, cols, "compile time vs horizon (jit lower / compile)")
-    run_rows = [single_rollout(args.steps, args.repeats, args.dtype)]
+    run_rows = [single_rollout(args.steps, args.repeats, args.dtype, args.timing)]
     for b in args.batches:
-        run_rows.append(batched_rollout(b, args.steps, args.repeats, args.dtype))
+        b_dev = args.cpu_devices if b % args.cpu_devices == 0 else 1
+        run_rows.append(
+            batched_rollout(b, args.steps, args.repeats, args.dtype, args.timing, b_dev)
+        )
         print(f"  batch {b}: {run_rows[-1]['steps_per_s']:.3e} steps/s", flush=True)
     C.print_table(run_rows, COLUMNS, "closed-loop throughput (trajectory-steps per second)")
     C.write_json(args.json, args, rows + run_rows)

@@ -83,3 +83,13 @@ def test_validation_names_the_field():
         d3.design3dof(m11=1.0, m22=float("nan"), m23=0.0, m33=1.0)
     with pytest.raises(ValueError, match="d11.*shape"):
         d3.design3dof(m11=1.0, m22=1.0, m23=0.0, m33=1.0, d11=[1.0, 2.0])
+
+
+def test_pose_rate_is_J_times_nu():
+    # J(pi/2) maps surge to east and sway to (minus) north, by hand; and the matrix form.
+    nu = jnp.array([1.5, -0.4, 0.2])
+    np.testing.assert_allclose(d3.pose_rate(jnp.pi / 2, nu), [0.4, 1.5, 0.2], atol=1e-15)
+    for psi in (-2.0, 0.0, 0.7, 3.0):
+        np.testing.assert_allclose(
+            d3.pose_rate(psi, nu), d3.kinematics(psi) @ nu, rtol=1e-15, atol=1e-15
+        )

@@ -11,7 +11,7 @@ from _craft import CRAFT as MODEL
 
 from vcjax import paths
 from vcjax.control.vcm import VCMConfig, pm_gains, vcm_law, vcm_params, vcm_state
-from vcjax.guidance import los_angle, path_kinematics
+from vcjax.guidance import alos_angle, los_angle, path_kinematics
 from vcjax.integrators import rk4
 from vcjax.rollout import RolloutConfig, rollout
 from vcjax.vehicles import design3dof as d3
@@ -98,6 +98,39 @@ def test_los_angle_derivatives_36():
         assert float(los.psi_r_ddot) == pytest.approx(
             float(jax.grad(jax.grad(psi_r))(t)), rel=1e-10
         )
+
+
+def test_alos_rates_match_finite_differences():
+    """ALOS: integrate the crab-angle estimate's rate along a prescribed e(t) with a fine RK4, then
+    compare the returned psi_r_dot with central differences of psi_r; and far from the path the
+    adaptation rate saturates at gamma Delta (the bounded-rate property of Fossen's law)."""
+    Delta, gamma = jnp.asarray(4.0), jnp.asarray(0.05)
+
+    def e_of_t(t):
+        return 6.0 * jnp.sin(0.9 * t) + t
+
+    def f(t, b, args):
+        e = e_of_t(t)
+        return alos_angle(e, jnp.zeros_like(e), b, Delta, gamma).beta_hat_dot, None
+
+    dt = 1e-3
+    step = jax.jit(lambda t, b: rk4(f, t, b, dt, None)[0])
+    ts = np.arange(0, 4001) * dt
+    bs = [jnp.asarray(0.2)]
+    for t in ts[:-1]:
+        bs.append(step(jnp.asarray(t), bs[-1]))
+    bs = jnp.stack(bs)
+
+    def at(t, b):
+        e, ed = jax.jvp(e_of_t, (t,), (jnp.ones_like(t),))
+        return alos_angle(e, ed, b, Delta, gamma)
+
+    a = jax.vmap(at)(jnp.asarray(ts), bs)
+    psi_r = np.asarray(a.psi_r)
+    fd = (psi_r[2:] - psi_r[:-2]) / (2 * dt)
+    assert np.max(np.abs(np.asarray(a.psi_r_dot)[1:-1] - fd)) < 1e-5 * np.max(np.abs(fd))
+    far = alos_angle(jnp.asarray(1e6), jnp.asarray(0.0), jnp.asarray(0.0), Delta, gamma)
+    assert float(far.beta_hat_dot) == pytest.approx(float(gamma * Delta), rel=1e-9)
 
 
 @functools.cache

@@ -276,3 +276,58 @@ def test_describe_names_the_model():
     text = inf.describe(P)
     assert "NPS-AUV-derived" in text
     assert "3686.76" in text and "-36.80" in text
+
+
+def _strip_sum(v, r):
+    """npsauv.m's cross-flow strips, summed term by term (11 stations -L/2 .. L/2, dx = L/10)."""
+    L = float(P.length)
+    x = np.linspace(-L / 2, L / 2, 11)
+    k = float(P.cf_coeff) * L / 10
+    h = v + x * r
+    Y = -k * np.sum(h * np.abs(h))
+    N = -k * np.sum(x * h * np.abs(h))
+    # gradients of h|h| are 2|h|: d/dv, d/dr of Y and N
+    dY = -k * np.array([np.sum(2 * np.abs(h)), np.sum(2 * np.abs(h) * x)])
+    dN = -k * np.array([np.sum(2 * np.abs(h) * x), np.sum(2 * np.abs(h) * x * x)])
+    scale = k * np.sum(h * h) * (1 + L)  # magnitude of the terms: round-off is relative to it
+    return Y, N, dY, dN, scale
+
+
+@pytest.mark.parametrize(
+    "v, r",
+    [
+        (0.3, 0.0),  # no yaw: one sign, N cancels
+        (-0.4, 0.0),
+        (0.0, 0.2),  # sign change at mid-ships
+        (0.17, -0.31),  # sign change between stations
+        (0.45, 0.2),  # h = 0 exactly at the station x = -2.25 m (v + x r = 0)
+        (-0.9, 0.2),  # h = 0 beyond the bow: one sign
+        (2.0, 0.05),
+        (-1e-3, 3e-4),
+        (0.0, 0.0),
+    ],
+)
+def test_crossflow_closed_form_equals_strip_sum(v, r):
+    Y, N, dY, dN, scale = _strip_sum(v, r)
+    f = lambda vr: jnp.stack(inf.crossflow_forces(P, vr[0], vr[1]))
+    vr = jnp.asarray([v, r])
+    got = f(vr)
+    np.testing.assert_allclose(got, [Y, N], rtol=0, atol=1e-13 * max(scale, 1.0))
+    jac = jax.jacfwd(f)(vr)
+    np.testing.assert_allclose(jac, np.stack([dY, dN]), rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(jax.jacrev(f)(vr), jac, rtol=1e-12, atol=1e-12)
+
+
+def test_crossflow_closed_form_random_and_float32():
+    rng = np.random.default_rng(3)
+    vr = rng.normal(size=(500, 2)) * np.array([0.5, 0.3])
+    got = jax.vmap(lambda a: jnp.stack(inf.crossflow_forces(P, a[0], a[1])))(jnp.asarray(vr))
+    for (v, r), g in zip(vr, np.asarray(got), strict=True):
+        Y, N, _, _, scale = _strip_sum(v, r)
+        np.testing.assert_allclose(g, [Y, N], rtol=0, atol=1e-13 * max(scale, 1.0))
+    P32 = inf.infante_params(dtype=jnp.float32)
+    v, r = 0.17, -0.31
+    g32 = inf.crossflow_forces(P32, jnp.float32(v), jnp.float32(r))
+    assert g32[0].dtype == jnp.float32
+    Y, N, _, _, scale = _strip_sum(v, r)
+    np.testing.assert_allclose(np.asarray(g32, dtype=float), [Y, N], rtol=0, atol=1e-5 * scale)

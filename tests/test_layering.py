@@ -8,13 +8,15 @@ ROOT = Path(__file__).resolve().parents[1] / "vcjax"
 
 #: layers in data-flow order; a module may import from its own layer or an earlier one
 LAYERS = [
-    {"_checks", "linalg", "integrators", "progress"},
+    {"_checks", "_config", "devices", "linalg", "integrators", "progress"},
     {"mechanics", "systems", "paths", "currents"},
     {"vehicles", "guidance", "allocation", "rollout"},
     {"control"},
+    {"loops"},
+    {"metrics"},
     {"plots", "plots_sim2", "sweep_plots", "plots_remus100"},
-    {"sim1", "sim2", "demos", "sim_remus100"},
     {"sweep"},
+    {"sim1", "sim2", "demos", "sim_remus100", "identify"},
     {"cli"},
 ]
 LAYER_OF = {name: i for i, names in enumerate(LAYERS) for name in names}
@@ -53,4 +55,41 @@ def test_imports_follow_the_data_flow():
         for dep in _imports(path):
             if dep != own and LAYER_OF[dep] > LAYER_OF[own]:
                 bad.append(f"{rel} imports vcjax.{dep}")
+    assert not bad, bad
+
+
+TUNING = Path(__file__).resolve().parents[1] / "tuning"
+#: what the tuner may not import: the experiments and the CLI sit above it
+ABOVE_TUNING = {"sim1", "sim2", "demos", "cli"}
+
+
+def test_tuning_imports_the_layer_never_an_experiment_and_vcjax_never_imports_tuning():
+    bad = []
+    for path in TUNING.rglob("*.py"):
+        for dep in _imports(path):
+            if dep in ABOVE_TUNING:
+                bad.append(f"tuning/{path.name} imports vcjax.{dep}")
+    for path in ROOT.rglob("*.py"):
+        rel = path.relative_to(ROOT)
+        if rel.parts[0] == "cli.py":
+            continue  # the CLI calls tuning's public entry point
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            names = []
+            if isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            if any(n == "tuning" or n.startswith("tuning.") for n in names):
+                bad.append(f"vcjax/{rel} imports tuning")
+    assert not bad, bad
+
+
+def test_sweep_never_imports_an_experiment():
+    bad = [
+        f"{p.relative_to(ROOT)} imports vcjax.{dep}"
+        for p in (ROOT / "sweep").rglob("*.py")
+        for dep in _imports(p)
+        if dep in ("sim1", "sim2", "demos")
+    ]
     assert not bad, bad

@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from vcjax import linalg
 from vcjax.linalg import safe_norm, solve_surge_decoupled, wrap_angle
 
 
@@ -28,3 +29,10 @@ def test_safe_norm_gradient_at_zero_and_wrap():
     assert np.all(np.isfinite(np.asarray(g)))
     a = wrap_angle(jnp.array([np.pi + 0.1, -np.pi - 0.1, 7.0]))
     np.testing.assert_allclose(a, [-np.pi + 0.1, np.pi - 0.1, 7.0 - 2 * np.pi], atol=1e-12)
+
+
+def test_matvec_equals_matmul_for_small_shapes():
+    rng = np.random.default_rng(0)
+    for m, n in ((2, 2), (3, 3), (2, 3), (6, 6)):
+        A, x = rng.normal(size=(m, n)), rng.normal(size=n)
+        np.testing.assert_allclose(linalg.matvec(jnp.asarray(A), jnp.asarray(x)), A @ x, rtol=1e-14)

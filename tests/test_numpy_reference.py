@@ -49,7 +49,7 @@ def test_plant_parameters_rebuilt_from_the_docstring_match():
     ],
 )
 def test_numpy_reference_matches_vcjax(eta0, V_c):
-    sc = sim1.sim1_scenario(eta0=eta0, V_c=V_c)
+    sc = sim1.sim1_scenario(eta0=eta0, current=V_c)
     traj = sim1.run_variant("vcm_integral", scenario=sc, horizon=HORIZON, dt=DT)
     assert bool(np.all(np.asarray(traj.finite)))
     J = _vcjax_states(traj)
@@ -72,3 +72,25 @@ def test_batched_numpy_matches_scalar_numpy():
     for b in range(2):
         _, SE = nr.simulate(n, DT, nr.Scenario(eta0=tuple(eta0[b]), V_c=tuple(V_c[b])))
         np.testing.assert_allclose(got[b], np.mean(np.abs(SE[:, 1])), rtol=1e-12)
+
+
+def test_numpy_remus100_step_reproduces_pvs_and_vcjax():
+    """The plain-NumPy PVS step (``benchmarks/numpy_remus100.py``, the REMUS 100 speed baseline)
+    replays the recorded PythonVehicleSimulator run to the CSV's digits, like vcjax does, and
+    agrees with ``remus100.pvs_rollout`` to round-off (3000 steps, float64)."""
+    import jax
+
+    from benchmarks import numpy_remus100 as nrm
+    from vcjax.vehicles import remus100 as rm
+
+    ref = nrm.reference()
+    p, args, x0, cmds = nrm.pvs_inputs()
+    start = (nrm.columns(ref, k)[0] for k in (nrm.POSE, nrm.VEL, nrm.ACT))
+    eta, nu, act = nrm.replay(nrm.numpy_params(p), *start, np.asarray(cmds), np.asarray(args.v_c))
+    np.testing.assert_allclose(eta[:, :3], nrm.columns(ref, nrm.POSE)[:, :3], rtol=0, atol=1e-7)
+    np.testing.assert_allclose(nu, nrm.columns(ref, nrm.VEL), rtol=0, atol=1e-8)
+    np.testing.assert_allclose(act, nrm.columns(ref, nrm.ACT), rtol=0, atol=1e-6)
+    xs = jax.jit(rm.pvs_rollout)(x0, cmds, args, nrm.DT)
+    np.testing.assert_allclose(eta, xs.eta, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(nu, xs.nu, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(act, xs.act, rtol=0, atol=1e-9)

@@ -84,8 +84,10 @@ def test_cli_rejects_a_bad_gains_file(tmp_path, capsys):
 def test_scenario_validation():
     with pytest.raises(ValueError, match="eta0"):
         sim1.sim1_scenario(eta0=(0.0, 0.0))
-    with pytest.raises(ValueError, match="V_c"):
-        sim1.sim1_scenario(V_c=(np.nan, 0.0))
+    with pytest.raises(ValueError, match="current"):
+        sim1.sim1_scenario(current=(np.nan, 0.0))
+    with pytest.raises(ValueError, match="current"):
+        sim1.sim1_scenario(current=(0.0, 0.5, 0.0, 1.0))
     with pytest.raises(ValueError, match="u_d"):
         sim1.sim1_scenario(u_d=0.0)
     with pytest.raises(ValueError, match="variant"):

@@ -15,16 +15,18 @@ import numpy as np
 import pytest
 
 from vcjax import currents, sim1
+from vcjax._config import ConfigError
+from vcjax.metrics import metric_names
 from vcjax.sweep import (
     FLAGS,
     METRICS,
     ScenarioSpec,
-    SweepConfigError,
     SweepSpec,
     load_config,
     load_results,
     merge_results,
-    perturb_vehicle,
+    nominal,
+    perturb_params,
     run_batch,
     run_sweep,
     run_sweep_config,
@@ -37,10 +39,12 @@ HORIZON, DT = 20.0, 0.1
 SCEN = ScenarioSpec(
     current_speed=(0.0, 1.0),
     current_direction_deg=(0.0, 360.0),
-    x0=(-5.0, 5.0),
-    y0=(-5.0, 5.0),
-    heading0_deg=(60.0, 120.0),
-    speed0=(1.5, 2.5),
+    initial=(
+        ("x", (-5.0, 5.0)),
+        ("y", (-5.0, 5.0)),
+        ("heading_deg", (60.0, 120.0)),
+        ("speed", (1.5, 2.5)),
+    ),
     model_error=0.1,
 )
 # The TOML twin of SPEC (test_config_end_to_end reuses the compiled batch).
@@ -106,23 +110,24 @@ def test_vmapped_sweep_equals_loop_of_single_rollouts():
     res = run_sweep(spec, progress=False)
     nominal = infante.infante_params()
     m = res.metrics["ilos"]
+    assert set(metric_names(("tau_u", "rudder_deg"))) | set(FLAGS) == set(m)
     assert res.index.tolist() == [0, 1, 2]
     assert np.ptp(res.scenarios["current_speed"]) > 0  # the scenarios really differ
     for i in range(3):
         sc = res.scenarios
-        vehicle = perturb_vehicle(
-            nominal, spec.scenario.model_fields, jnp.asarray(sc["model_factors"][i])
+        vehicle = perturb_params(
+            nominal, spec.mc_config().model_fields, jnp.asarray(sc["model_factors"][i])
         )
         s1 = sim1.sim1_scenario(
             eta0=sc["eta0"][i],
             nu0=sc["nu0"][i],
-            V_c=sc["V_c"][i],
+            current=sc["current"][i],
             u_d=float(sc["u_d"][i]),
             vehicle=vehicle,
             design_vehicle=nominal,
         )
         traj = sim1.run_variant("ilos", scenario=s1, horizon=HORIZON, dt=DT, timing="sampled")
-        ref = sim1.tracking_metrics(traj, vehicle)
+        ref = sim1.tracking_metrics("ilos", traj, s1)
         for k in ("ss_abs_e", "ss_abs_s", "ss_abs_u_err", "iae_e", "max_abs_tau_u"):
             np.testing.assert_allclose(m[k][i], ref[k], rtol=1e-9, err_msg=k)
         np.testing.assert_allclose(m["max_abs_rudder_deg"][i], ref["max_abs_rudder_deg"], rtol=1e-9)
@@ -141,12 +146,13 @@ def test_scenarios_depend_only_on_seed_and_index():
     c = as_np(sample_scenarios(SCEN, 8, np.arange(5)))
     assert not np.array_equal(a.eta0, c.eta0)
     # ranges are respected; fixed values are exact
-    speed = np.hypot(a.V_c[:, 0], a.V_c[:, 1])
+    speed = np.hypot(a.current[:, 0], a.current[:, 1])
+    np.testing.assert_array_equal(a.current[:, 2], 0.0)
     np.testing.assert_allclose(speed, a.current_speed, rtol=1e-12)
     assert np.all((a.model_factors >= 0.9) & (a.model_factors <= 1.1))
     fixed = as_np(sample_scenarios(ScenarioSpec(), 0, np.arange(2)))
     np.testing.assert_allclose(fixed.eta0, [[0.0, 0.0, np.pi / 2]] * 2, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(fixed.V_c, [[0.0, 0.5]] * 2, atol=1e-15)
+    np.testing.assert_allclose(fixed.current, [[0.0, 0.5, 0.0]] * 2, atol=1e-15)
 
 
 # ------------------------------------------------------------------------ chunks, processes
@@ -202,22 +208,21 @@ def test_gauss_markov_current_is_clipped_and_zero_sigma_is_constant():
 
 def test_zero_noise_and_zero_sigma_equal_the_plain_loop_and_nonzero_ones_act():
     spec = make_spec()
-    nominal = infante.infante_params()
     gains = sim1.default_gains()
     sc = sample_scenarios(spec.scenario, spec.seed, np.arange(3))
     plain = spec.mc_config()
     both = dataclasses.replace(plain, current_model="gauss_markov", sensor_noise=True)
-    args = (gains, nominal)
-    ref, ref_tr = as_np(run_batch("ilos", *args, sc, plain, DT, 50.0))
+    args = (spec.loop("ilos"), gains, nominal(spec))
+    ref, ref_tr = as_np(run_batch(*args, sc, plain, DT, 50.0))
     zero = sc._replace(current_sigma=jnp.zeros(3), noise_std=jnp.zeros((3, 6)))
-    got, got_tr = as_np(run_batch("ilos", *args, zero, both, DT, 50.0))
+    got, got_tr = as_np(run_batch(*args, zero, both, DT, 50.0))
     assert_metrics_equal(got, ref, rtol=1e-9)
     np.testing.assert_allclose(got_tr["e"], ref_tr["e"], rtol=1e-6, atol=1e-9)
     # noise only / current fluctuation only: different, still healthy
     noisy = zero._replace(noise_std=jnp.tile(jnp.array([0.5, 0.5, 0.02, 0.05, 0.05, 0.01]), (3, 1)))
-    m_noise, _ = as_np(run_batch("ilos", *args, noisy, both, DT, 50.0))
+    m_noise, _ = as_np(run_batch(*args, noisy, both, DT, 50.0))
     gm = zero._replace(current_sigma=jnp.full(3, 0.3, float), current_tau=jnp.full(3, 5.0, float))
-    m_gm, _ = as_np(run_batch("ilos", *args, gm, both, DT, 50.0))
+    m_gm, _ = as_np(run_batch(*args, gm, both, DT, 50.0))
     for m in (m_noise, m_gm):
         assert not m["diverged"].any()
         assert np.all(np.abs(m["iae_e"] - ref["iae_e"]) > 1e-6 * ref["iae_e"])
@@ -228,22 +233,21 @@ def test_zero_noise_and_zero_sigma_equal_the_plain_loop_and_nonzero_ones_act():
 
 def test_health_flags_catch_divergence_without_leaking_nans():
     spec = make_spec()
-    nominal = infante.infante_params()
-    gains = sim1.default_gains()
+    args = (spec.loop("ilos"), sim1.default_gains(), nominal(spec))
     cfg = spec.mc_config()
     sc = sample_scenarios(spec.scenario, spec.seed, np.arange(3))
-    ref, _ = as_np(run_batch("ilos", gains, nominal, sc, cfg, DT, 50.0))
+    ref, _ = as_np(run_batch(*args, sc, cfg, DT, 50.0))
     # scenario 1: a plant with zero mass and inertia (singular M: non-finite at once)
     bad = sc._replace(model_factors=sc.model_factors.at[1, :2].set(0.0))
     bad = bad._replace(model_factors=bad.model_factors.at[1, 2:7].set(0.0))
-    m, tr = as_np(run_batch("ilos", gains, nominal, bad, cfg, DT, 50.0))
+    m, tr = as_np(run_batch(*args, bad, cfg, DT, 50.0))
     assert m["nonfinite"].tolist() == [False, True, False]
     assert m["diverged"].tolist() == [False, True, False]
     for k in METRICS:
         np.testing.assert_allclose(m[k][[0, 2]], ref[k][[0, 2]], rtol=1e-12, err_msg=k)
         assert np.all(np.isfinite(m[k][[0, 2]]))
     # a finite run that leaves the corridor counts as diverged (threshold is traced)
-    m_tight, _ = as_np(run_batch("ilos", gains, nominal, sc, cfg, DT, 1e-3))
+    m_tight, _ = as_np(run_batch(*args, sc, cfg, DT, 1e-3))
     assert m_tight["diverged"].all() and not m_tight["nonfinite"].any()
 
 
@@ -303,7 +307,7 @@ def write(tmp_path, text, name="c.toml"):
     ],
 )
 def test_config_validation_errors(tmp_path, text, match):
-    with pytest.raises(SweepConfigError, match=match):
+    with pytest.raises(ConfigError, match=match):
         load_config(write(tmp_path, text))
 
 
@@ -329,7 +333,7 @@ def test_config_end_to_end_writes_results_summary_and_figures(tmp_path):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     entry = summary["variants"]["ilos"]
     assert entry["n"] == 3 and entry["n_diverged"] == 0
-    assert set(entry["metrics"]) == set(METRICS)
+    assert set(entry["metrics"]) == set(metric_names(("tau_u", "rudder_deg")))
     assert set(entry["metrics"]["ss_abs_e"]) == {"mean", "std", "p5", "p50", "p95", "min", "max"}
     res = load_results(tmp_path / "out" / "results.npz")
     assert res.spec == spec
@@ -354,8 +358,8 @@ spec = SweepSpec(
     num_scenarios=10, variants=("ilos",), seed=3, horizon=10.0, dt=0.1, chunk_size=6,
     timing="sampled",
     scenario=ScenarioSpec(current_speed=(0.0, 1.0), current_direction_deg=(0, 360),
-                          x0=(-5, 5), model_error=0.1,
-                          position_noise_std=0.2),
+                          initial=(("x", (-5, 5)),), model_error=0.1,
+                          noise=(("position_std", 0.2),)),
 )
 sharded = run_sweep(spec, progress=False)  # chunks of 8 over 4 devices, last one padded
 single = run_sweep(spec, progress=False, devices=jax.devices()[:1])

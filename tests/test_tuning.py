@@ -40,31 +40,40 @@ def tiny():
 def test_parametrisation_gives_valid_gains_and_inverts():
     space = GainSpace()
     assert space.size == 12 and len(space.labels()) == 12
-    base = sim1.default_gains().vcm
+    base = sim1.default_gains()
     rng = np.random.default_rng(0)
     for _ in range(20):
         theta = jnp.asarray(rng.normal(scale=3.0, size=space.size))
         g = space.decode(theta, base)
-        pm_gains(**{k: np.asarray(v) for k, v in g._asdict().items()})  # validates, incl. R-H
-        assert np.all(np.asarray(g.P_int) < FRAC_MAX * np.asarray(rh_bound(g.P_G, g.P_Phi)) + 1e-15)
+        pm = g.vcm
+        pm_gains(**{k: np.asarray(v) for k, v in pm._asdict().items()})  # validates, incl. R-H
+        bound = FRAC_MAX * np.asarray(rh_bound(pm.P_G, pm.P_Phi))
+        assert np.all(np.asarray(pm.P_int) < bound + 1e-15)
         np.testing.assert_allclose(space.encode(g), theta, rtol=1e-9, atol=1e-9)
+        for a, b in zip(g.baseline, base.baseline, strict=True):  # untouched
+            np.testing.assert_array_equal(a, b)
     # the default gains (P_int[1] = 0) encode and decode back (the zero within 1e-6 of the bound)
     g0 = space.decode(space.encode(base), base)
-    for a, b in zip(g0, base, strict=True):
+    for a, b in zip(g0.vcm, base.vcm, strict=True):
         np.testing.assert_allclose(a, b, atol=1e-6)
 
 
 def test_parametrisation_subsets_and_variant():
-    base = sim1.default_gains().vcm
-    s = GainSpace(variant="vcm", tune=("sigma", "Delta", "P_int"))
-    assert s.tune == ("Delta", "sigma")  # canonical order, no integral gains for "vcm"
+    base = sim1.default_gains()
+    s = GainSpace(loop=sim1.closed_loop("vcm"), tune=("sigma", "Delta"))
+    assert s.tune == ("Delta", "sigma")  # canonical order
     g = s.decode(jnp.log(jnp.asarray([2.0, 3.0])), base)
-    assert float(g.Delta) == pytest.approx(2.0) and float(g.sigma) == pytest.approx(3.0)
-    np.testing.assert_array_equal(g.P_G, base.P_G)
+    assert float(g.vcm.Delta) == pytest.approx(2.0) and float(g.vcm.sigma) == pytest.approx(3.0)
+    np.testing.assert_array_equal(g.vcm.P_G, base.vcm.P_G)
     with pytest.raises(ValueError, match="unknown"):
         GainSpace(tune=("P_K",))
-    with pytest.raises(ValueError, match="variant"):
-        GainSpace(variant="ilos")
+    with pytest.raises(ValueError, match=r"unknown gains \['P_int'\]"):  # "vcm": no integral
+        GainSpace(loop=sim1.closed_loop("vcm"), tune=("P_int",))
+    # a baseline's gains are tunable too (every loop exposes its gain groups)
+    ilos = GainSpace(loop=sim1.closed_loop("ilos"))
+    assert "sigma_i" in ilos.labels() and "k_ep" not in ilos.labels()
+    g = ilos.decode(ilos.encode(base) + 0.1, base)
+    assert float(g.baseline.Delta) == pytest.approx(float(base.baseline.Delta) * np.exp(0.1))
 
 
 # ------------------------------------------------------------------ loss and gradients
@@ -100,13 +109,14 @@ def test_checkpointed_loss_gradient_is_the_same(tiny):
 
 def test_symmetry_break_splits_equal_pairs_only():
     space = GainSpace()
-    base = sim1.default_gains().vcm  # P_G[1:] == P_Phi[3:] == 0.5
-    off = space.symmetry_break(base, eps=0.1)
-    g = space.decode(space.encode(base) + off, base)
+    full = sim1.default_gains()
+    base = full.vcm  # P_G[1:] == P_Phi[3:] == 0.5
+    off = space.symmetry_break(full, eps=0.1)
+    g = space.decode(space.encode(full) + off, full).vcm
     np.testing.assert_allclose(np.asarray(g.P_G[1:]) * np.asarray(g.P_Phi[3:]), 0.25, rtol=1e-12)
     assert float(g.P_G[1]) > float(g.P_Phi[3])
     assert float(g.P_G[0]) == pytest.approx(float(base.P_G[0]))  # heading row untouched
-    uneven = base._replace(P_G=jnp.asarray([1.0, 0.3, 0.5]))
+    uneven = full._replace(vcm=base._replace(P_G=jnp.asarray([1.0, 0.3, 0.5])))
     assert np.count_nonzero(space.symmetry_break(uneven)) == 2  # only the e row
 
 
@@ -141,7 +151,7 @@ def test_tiny_tuning_run_lowers_the_loss(tiny):
     assert res.n_bad == 0 and not res.aborted
     assert res.loss < res.history[0]["loss"]
     assert [h["iter"] for h in res.history] == [0, 1, 2, 3]
-    gains = data.base._replace(vcm=TINY.space.decode(jnp.asarray(res.theta), data.base.vcm))
+    gains = TINY.space.decode(jnp.asarray(res.theta), data.base)
     d = json.loads(json.dumps(sim1.gains_to_json(gains)))
     back = sim1.gains_from_json(d)  # the file `vcjax simulate --gains` loads
     for a, b in zip(back.vcm, gains.vcm, strict=True):
@@ -206,7 +216,7 @@ def test_blackbox_drivers_on_a_jax_objective():
         ({"problem": {"horizn": 1.0}}, "problem: unknown keys"),
         ({"problem": {"horizon": -1.0}}, "problem.horizon"),
         ({"problem": {"dt": "0.1"}}, "problem.dt: expected a number"),
-        ({"problem": {"variant": "ilos"}}, "problem.variant"),
+        ({"problem": {"variant": "pid"}}, "problem.variant"),
         ({"problem": {"tune": ["P_K"]}}, "problem.tune: unknown gains"),
         ({"problem": {"alpha": 1.5}}, "problem.alpha"),
         ({"weights": {"eps": -1.0}}, "weights.eps"),

@@ -1,10 +1,10 @@
-"""``vcjax tune CONFIG.toml --out DIR``: tune the VCM gains of Simulation 1 from a TOML file.
+"""``vcjax tune CONFIG.toml --out DIR``: tune the gains of any registered loop from a TOML file.
 
 :func:`run_tune_config` is the entry point (the ``vcjax`` CLI calls it; ``python -m tuning.cli``
 works too). It writes into ``out_dir``:
 
-* ``gains.json``: the tuned gains, in :func:`vcjax.sim1.gains_to_json` format (``vcjax simulate
-  sim1 --gains DIR/gains.json`` loads it);
+* ``gains.json``: the tuned gains, in the loop's gains-JSON format (``loop.gains_to_json``;
+  ``vcjax simulate sim1 --gains DIR/gains.json`` / ``sim2 --gains`` load it);
 * ``history.json``: per iteration the training loss, gradient norm, acceptance, evaluations and
   the gains; plus the validated configuration and how the run ended;
 * ``summary.json``: ``heldout_loss_before`` / ``heldout_loss_after`` (default vs tuned gains on
@@ -27,31 +27,43 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from tuning.config import ConfigError, load_config
+from tuning.config import load_config
 from tuning.loss import TERMS, TuningProblem, objective, problem_data
 from tuning.loss import loss_weights as make_weights
 from tuning.optim import run_gradient_tuner, tuner_options
 from tuning.params import GainSpace
 from tuning.report import ProgressBar, plot_before_after, plot_loss_curve
-from tuning.scenarios import SCENARIO_AXES, sample_scenarios, scenario_at
-from vcjax import sim1
+from tuning.scenarios import SCENARIO_AXES, sample_scenarios
+from vcjax import loops, paths
+from vcjax._config import ConfigError
+from vcjax.loops.config import ScenarioChoice
 
 __all__ = ["build", "run_tune_config", "main"]
+
+
+def _loop(cfg: dict) -> tuple[loops.Loop, ScenarioChoice]:
+    choice = ScenarioChoice.from_dict(cfg["scenario"])
+    cls = loops.loop_class(choice.vehicle)
+    opts = {}
+    if "edd" in {f.name for f in dataclasses.fields(cls)} and "edd" not in dict(choice.options):
+        opts["edd"] = cfg["problem"]["edd"]
+    return choice.loop(cfg["problem"]["variant"], **opts), choice
 
 
 def build(cfg: dict):
     """Objects of a validated config: ``(problem, eval_problem, data, train, heldout)``."""
     p, sc = cfg["problem"], cfg["scenarios"]
+    loop, choice = _loop(cfg)
     if p["initial_gains"]:
         try:
-            base = sim1.gains_from_json(json.loads(Path(p["initial_gains"]).read_text()))
+            base = loop.gains_from_json(json.loads(Path(p["initial_gains"]).read_text()))
         except (OSError, json.JSONDecodeError, ValueError) as err:
             raise ConfigError(
                 f"problem.initial_gains: cannot use {p['initial_gains']}: {err}"
             ) from None
     else:
-        base = sim1.default_gains()
-    space = GainSpace(variant=p["variant"], tune=tuple(p["tune"]))
+        base = loop.default_gains()
+    space = GainSpace(loop=loop, tune=tuple(p["tune"]) or None)
     num_steps = int(round(p["horizon"] / p["dt"]))
     problem = TuningProblem(
         space=space,
@@ -61,23 +73,38 @@ def build(cfg: dict):
         checkpoint=p["checkpoint"],
         checkpoint_every=p["checkpoint_every"],
         smooth=p["smooth"],
-        edd=p["edd"],
         risk=p["risk"],
         alpha=p["alpha"],
     )
     eval_problem = dataclasses.replace(problem, smooth=cfg["heldout"]["smooth"], checkpoint=False)
-    dtype = base.vcm.Delta.dtype
+    dtype = jnp.asarray(jax.tree_util.tree_leaves(base)[0]).dtype
     weights = make_weights(**cfg["weights"], dtype=dtype)
     data = problem_data(problem, base, weights, p["dt"], p["log_box"], p["box_weight"])
     if cfg["train"]["seed"] == cfg["heldout"]["seed"]:
         raise ConfigError("heldout.seed: must differ from train.seed (held-out scenarios)")
+    plant, design = choice.nominal(loop, dtype)
+    extra = {"initial": tuple((k, tuple(v)) for k, v in cfg.get("initial", {}).items())}
+    if cfg["disturbance"]["force"]:
+        extra["disturbance"] = tuple(tuple(r) for r in cfg["disturbance"]["force"])
+    me = cfg["model_error"]
+    if me["relative"] > 0:
+        extra["model_error"] = me["relative"]
+        extra["model_fields"] = tuple(me["fields"]) or None
     kw = dict(
+        loop=loop,
         current_max=sc["current_max"],
         position_offset=sc["position_offset"],
         heading_offset=math.radians(sc["heading_offset_deg"]),
+        extra=extra,
+        plant=plant,
+        design=design,
+        coeffs=choice.coeffs(),
     )
-    train = sample_scenarios(cfg["train"]["seed"], cfg["train"]["size"], **kw)
-    heldout = sample_scenarios(cfg["heldout"]["seed"], cfg["heldout"]["size"], **kw)
+    try:
+        train = sample_scenarios(cfg["train"]["seed"], cfg["train"]["size"], **kw)
+        heldout = sample_scenarios(cfg["heldout"]["seed"], cfg["heldout"]["size"], **kw)
+    except ValueError as err:
+        raise ConfigError(f"scenarios: {err}") from None
     return problem, eval_problem, data, train, heldout
 
 
@@ -93,19 +120,33 @@ def _evaluate(eval_fn, theta, data, batch) -> dict:
 
 
 def _trajectories(problem, gains, batch, dt, n):
-    idx = list(range(n))
-    sub = batch._replace(eta0=batch.eta0[:n], nu0=batch.nu0[:n], V_c=batch.V_c[:n])
+    """Times, positions (S, N, 2) [north, east] and cross-track errors (S, N) of the first
+    ``n`` scenarios of ``batch``."""
+    sub = jax.tree_util.tree_map(
+        lambda ax, a: a if ax is None else jax.tree_util.tree_map(lambda x: x[:n], a),
+        SCENARIO_AXES,
+        batch,
+        is_leaf=lambda x: x is None,
+    )
     cfg = problem.rollout_config()
+    loop = problem.loop
 
     def one(s):
-        tr = sim1.simulate(
-            problem.space.variant, gains, s, cfg, dt, edd=problem.edd, smooth=problem.smooth
-        )
-        return tr.t, tr.x.eta, tr.aux.eps[:, 1]
+        tr = loops.simulate(loop, gains, s, cfg, dt)
+        sig = loop.signals(tr, s)
+        return tr.t, sig.pos[:, :2], sig.eps[:, 1]
 
-    t, eta, e = jax.device_get(jax.jit(jax.vmap(one, in_axes=(SCENARIO_AXES,)))(sub))
-    del idx
-    return np.asarray(t[0]), {"eta": np.asarray(eta), "e": np.asarray(e)}
+    t, xy, e = jax.device_get(jax.jit(jax.vmap(one, in_axes=(SCENARIO_AXES,)))(sub))
+    return np.asarray(t[0]), {"xy": np.asarray(xy), "e": np.asarray(e)}
+
+
+def _path_polyline(loop, batch, xy_before, xy_after):
+    """(P, 2) points of the path over the parameter range the runs covered."""
+    w = np.linspace(float(np.min(batch.varpi0)) - 5.0, float(np.max(batch.varpi0)) + 5.0, 2)
+    reach = max(np.ptp(xy.reshape(-1, 2), axis=0).max() for xy in (xy_before, xy_after))
+    w = np.linspace(w[0], w[1] + 2.0 * reach, 400)
+    pts = jax.vmap(lambda w_: paths.path_point(loop.path, batch.path, w_))(jnp.asarray(w))
+    return np.asarray(pts)[:, :2]
 
 
 def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
@@ -137,7 +178,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     o = cfg["optimizer"]
     B = cfg["train"]["size"]
     say(
-        f"tuning {space.variant}: {space.size} parameters ({', '.join(space.tune)}), "
+        f"tuning {space.loop.describe()}: {space.size} parameters ({', '.join(space.tune)}), "
         f"{B} training / {cfg['heldout']['size']} held-out scenarios, "
         f"horizon {cfg['problem']['horizon']:g} s, {o['name']} x {o['steps']} steps "
         f"({o['grad_mode']} mode)"
@@ -152,10 +193,10 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     bar = ProgressBar(o["steps"], label="tune ", stream=progress) if progress else None
     res = run_gradient_tuner(
         loss_fn,
-        theta0 + space.symmetry_break(data.base.vcm),
+        theta0 + space.symmetry_break(data.base),
         (data, train),
         **tuner_options(o),
-        on_step=lambda k, th, rec: {"gains": space.describe(th, data.base.vcm)},
+        on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
         progress=bar,
     )
     if bar is not None and len(res.history) < o["steps"]:
@@ -164,9 +205,9 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         say(f"warning: {res.n_bad} step(s) rejected for non-finite loss/gradient/update")
     say(f"stopped: {res.reason}; evaluating the tuned gains on the held-out batch ...")
     after = _evaluate(eval_fn, jnp.asarray(res.theta), data, heldout)
-    tuned = data.base._replace(vcm=space.decode(jnp.asarray(res.theta), data.base.vcm))
-    gains_json = sim1.gains_to_json(tuned)
-    sim1.gains_from_json(gains_json)  # what `vcjax simulate --gains` will do: must validate
+    tuned = space.decode(jnp.asarray(res.theta), data.base)
+    gains_json = space.loop.gains_to_json(tuned)
+    space.loop.gains_from_json(gains_json)  # what `vcjax simulate --gains` will do: validate
 
     files = []
     f = out / "gains.json"
@@ -176,7 +217,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     hist = {
         "config": cfg,
         "labels": space.labels(),
-        "initial_gains": sim1.gains_to_json(data.base),
+        "initial_gains": space.loop.gains_to_json(data.base),
         "iterations": res.history,
         "n_bad": res.n_bad,
         "aborted": res.aborted,
@@ -191,8 +232,9 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     if n_plot:
         t, tr_before = _trajectories(eval_problem, data.base, heldout, data.dt, n_plot)
         _, tr_after = _trajectories(eval_problem, tuned, heldout, data.dt, n_plot)
-        V_c = np.stack([np.asarray(scenario_at(heldout, i).V_c) for i in range(n_plot)])
-        files += plot_before_after(t, tr_before, tr_after, V_c, out)
+        currents = np.asarray(heldout.current)[:n_plot]
+        path_xy = _path_polyline(space.loop, heldout, tr_before["xy"], tr_after["xy"])
+        files += plot_before_after(t, tr_before, tr_after, currents, out, path_xy)
 
     lb, la = before["loss"], after["loss"]
     summary = {
@@ -212,8 +254,9 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         "heldout_smooth_saturation": eval_problem.smooth,
         "train_loss_before": res.history[0]["loss"] if res.history else None,
         "train_loss_after": res.loss,
-        "tuned_gains": gains_json["vcm"],
-        "initial_gains": sim1.gains_to_json(data.base)["vcm"],
+        "loop": space.loop.describe(),
+        "tuned_gains": space.describe(res.theta, data.base),
+        "initial_gains": space.values(data.base),
         "iterations": len(res.history),
         "n_bad": res.n_bad,
         "aborted": res.aborted,

@@ -1,12 +1,25 @@
 """TOML configuration of a tuning run (``vcjax tune CONFIG.toml``), validated with clear errors.
 
 Every section and key is optional (defaults below); unknown sections or keys, wrong types and
-out-of-range values raise :class:`ConfigError` naming the offending ``section.key``::
+out-of-range values raise :class:`vcjax._config.ConfigError` (the one error class of every
+command) naming the file and the offending ``section.key``::
+
+    [scenario]                      # what is tuned (vcjax.loops.config; shared with sweeps):
+    vehicle = "infante"             # a registered vehicle; default: Simulation 1
+    controller = "vcm_integral"     # one of its controllers
+    params = "model.json"           # optional parameter overrides (plant and design model)
+    plant_params = "plant.json"     # optional overrides of the plant only
+    [scenario.path]                 # optional; default: the vehicle's default path
+    kind = "circle"
+    radius = 40.0
 
     [problem]                       # what is tuned and how a rollout is simulated
-    variant = "vcm_integral"        # or "vcm", "vcm_ilos"
-    tune = ["P_G", "P_Phi", "Delta", "sigma", "P_int"]
-    initial_gains = ""              # gains JSON (sim1.gains_to_json format); "" = defaults
+    variant = ""                    # the controller ("" = [scenario] controller, else the
+                                    # vehicle's default: vcm_integral for INFANTE-class)
+    tune = []                       # gain groups of that controller ([] = all of them), e.g.
+                                    # ["P_G", "P_Phi", "Delta", "sigma", "P_int"]
+    initial_gains = ""              # the vehicle's gains JSON (what vcjax tune writes; "" =
+                                    # defaults), relative to the config file
     horizon = 80.0                  # [s]
     dt = 0.1                        # [s] RK4 step
     integrator = "rk4"
@@ -32,8 +45,18 @@ out-of-range values raise :class:`ConfigError` naming the offending ``section.ke
 
     [scenarios]                     # distribution of the random scenarios
     current_max = 1.0               # [m/s], uniform speed, uniform direction
-    position_offset = 5.0           # [m], uniform on each of x, y
-    heading_offset_deg = 45.0       # [deg], uniform
+    position_offset = 5.0           # [m], uniform on each of the vehicle's x, y initial keys
+    heading_offset_deg = 45.0       # [deg], uniform (vehicles with a heading_deg key)
+
+    [initial]                       # optional ranges of the vehicle's initial keys (override
+    q1_deg = [20.0, 40.0]           # the offsets above), as in sweep configs
+
+    [disturbance]
+    force = []                      # optional: one range per generalised force component
+
+    [model_error]                   # plant-only multiplicative errors, as in sweep configs
+    relative = 0.0
+    fields = []                     # the vehicle's parameter names ([] = its default set)
 
     [train]
     size = 16
@@ -62,23 +85,20 @@ from __future__ import annotations
 
 import copy
 import math
-import tomllib
 from pathlib import Path
 from typing import Any
 
-from tuning.params import GAIN_NAMES
+from vcjax import loops
+from vcjax._config import ConfigError, as_range, read_toml
+from vcjax.loops.config import parse_scenario
 
 __all__ = ["ConfigError", "DEFAULTS", "load_config", "validate_config"]
 
 
-class ConfigError(ValueError):
-    """A tuning configuration is invalid (the message names ``section.key``)."""
-
-
 DEFAULTS: dict[str, dict[str, Any]] = {
     "problem": {
-        "variant": "vcm_integral",
-        "tune": ["P_G", "P_Phi", "Delta", "sigma", "P_int"],
+        "variant": "",
+        "tune": [],
         "initial_gains": "",
         "horizon": 80.0,
         "dt": 0.1,
@@ -117,10 +137,13 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "grad_tol": 1e-8,
     },
     "report": {"plot_scenarios": 4},
+    "disturbance": {"force": []},
+    "model_error": {"relative": 0.0, "fields": []},
 }
+#: sections parsed on their own: [scenario] (vcjax.loops.config), [initial] (vehicle keys)
+_SPECIAL = ("scenario", "initial")
 
 _CHOICES = {
-    ("problem", "variant"): ("vcm", "vcm_integral", "vcm_ilos"),
     ("problem", "integrator"): ("euler", "heun", "rk4"),
     ("problem", "timing"): ("continuous", "sampled"),
     ("problem", "edd"): ("paper", "implied"),
@@ -171,6 +194,8 @@ def _check_value(sec: str, key: str, v, default):
             raise ConfigError(f"{where}: expected a number > 0, got {v}")
         if (key in _NONNEG or sec == "weights") and not v >= 0:
             raise ConfigError(f"{where}: expected a number >= 0, got {v}")
+        if key == "relative" and not v < 1:
+            raise ConfigError(f"{where}: expected a number in [0, 1), got {v}")
         if key == "alpha" and not 0 < v <= 1:
             raise ConfigError(f"{where}: expected a number in (0, 1], got {v}")
         return v
@@ -181,33 +206,43 @@ def _check_value(sec: str, key: str, v, default):
         if choices and v not in choices:
             raise ConfigError(f"{where}: expected one of {list(choices)}, got {v!r}")
         return v
-    if isinstance(default, list):  # problem.tune
-        if not isinstance(v, list) or not all(isinstance(x, str) for x in v) or not v:
-            raise ConfigError(f"{where}: expected a non-empty list of names, got {v!r}")
-        bad = [x for x in v if x not in GAIN_NAMES]
-        if bad:
-            raise ConfigError(f"{where}: unknown gains {bad}; choose from {list(GAIN_NAMES)}")
+    if isinstance(default, list) and key == "force":  # disturbance.force
+        if not isinstance(v, list):
+            raise ConfigError(f"{where}: expected a list of ranges, got {v!r}")
+        return [list(as_range(where, r)) for r in v]
+    if isinstance(default, list):  # problem.tune, model_error.fields
+        if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+            raise ConfigError(f"{where}: expected a list of names, got {v!r}")
         if len(set(v)) != len(v):
             raise ConfigError(f"{where}: duplicate names in {v}")
         return list(v)
     raise AssertionError(where)  # pragma: no cover
 
 
-def validate_config(raw: dict) -> dict:
-    """Defaults filled in, every value checked; returns a new nested dict.
+def validate_config(raw: dict, config_path=None) -> dict:
+    """Defaults filled in, every value checked; returns a new nested (plain-JSON) dict.
+
+    ``cfg["scenario"]`` is the parsed ``[scenario]`` (:meth:`ScenarioChoice.to_dict`),
+    ``cfg["initial"]`` the ``[initial]`` ranges; ``config_path`` resolves the files a config
+    names (default: the working directory).
 
     Raises:
-        ConfigError: unknown section/key, wrong type, or value out of range.
+        ConfigError: unknown section/key, wrong type, value out of range, a controller or gain
+            the vehicle does not have.
     """
     if not isinstance(raw, dict):
         raise ConfigError("config: expected a table of sections")
-    unknown = sorted(set(raw) - set(DEFAULTS))
+    unknown = sorted(set(raw) - set(DEFAULTS) - set(_SPECIAL))
     if unknown:
-        raise ConfigError(f"config: unknown sections {unknown}; expected {sorted(DEFAULTS)}")
+        raise ConfigError(
+            f"config: unknown sections {unknown}; expected {sorted([*DEFAULTS, *_SPECIAL])}"
+        )
     cfg = copy.deepcopy(DEFAULTS)
     for sec, table in raw.items():
         if not isinstance(table, dict):
             raise ConfigError(f"{sec}: expected a table ([{sec}]), got {_type_name(table)}")
+        if sec in _SPECIAL:
+            continue
         bad = sorted(set(table) - set(DEFAULTS[sec]))
         if bad:
             known = sorted(DEFAULTS[sec])
@@ -217,21 +252,54 @@ def validate_config(raw: dict) -> dict:
     p = cfg["problem"]
     if p["horizon"] / p["dt"] < 1:
         raise ConfigError(f"problem.horizon: must be >= problem.dt, got {p['horizon']}")
-    if p["variant"] == "vcm" and p["tune"] == ["P_int"]:
-        raise ConfigError("problem.tune: the 'vcm' variant has no integral gains to tune")
+    choice = parse_scenario(raw.get("scenario"), "scenario", config_path or Path("config"))
+    cls = loops.loop_class(choice.vehicle)
+    ctrl = p["variant"] or choice.controller or cls.default_controller or cls.controllers[0]
+    if ctrl not in cls.controllers:
+        raise ConfigError(
+            f"problem.variant: vehicle {choice.vehicle!r} supports {list(cls.controllers)}, "
+            f"got {ctrl!r}"
+        )
+    if choice.controller and p["variant"] and p["variant"] != choice.controller:
+        raise ConfigError(
+            f"problem.variant: {p['variant']!r} contradicts [scenario] controller "
+            f"{choice.controller!r}"
+        )
+    p["variant"] = ctrl
+    loop = choice.loop(ctrl)
+    names = [g.name for g in loop.gain_specs()]
+    bad = [t for t in p["tune"] if t not in names]
+    if bad:
+        raise ConfigError(
+            f"problem.tune: unknown gains {bad} for {loop.describe()}; choose from {names}"
+        )
+    valid = loop.param_names()
+    bad = [f for f in cfg["model_error"]["fields"] if f not in valid]
+    if bad:
+        raise ConfigError(
+            f"model_error.fields: unknown {choice.vehicle} parameters {bad}; valid: {list(valid)}"
+        )
+    init = raw.get("initial", {})
+    for k, v in init.items():
+        if k not in loop.initial_keys:
+            raise ConfigError(
+                f"initial.{k}: unknown key for vehicle {choice.vehicle!r}; "
+                f"expected one of {list(loop.initial_keys)}"
+            )
+        init[k] = list(as_range(f"initial.{k}", v))
+    cfg["initial"] = dict(init)
+    cfg["scenario"] = choice.to_dict()
     return cfg
 
 
 def load_config(path) -> dict:
-    """Read and validate a TOML file; ``problem.initial_gains`` is resolved against its folder."""
+    """Read and validate a TOML file; files it names are resolved against its folder."""
     path = Path(path)
+    raw = read_toml(path)
     try:
-        raw = tomllib.loads(path.read_text())
-    except OSError as err:
-        raise ConfigError(f"cannot read {path}: {err}") from None
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(f"{path}: invalid TOML: {err}") from None
-    cfg = validate_config(raw)
+        cfg = validate_config(raw, path)
+    except ConfigError as err:
+        raise ConfigError(f"{path}: {err}") from None
     g = cfg["problem"]["initial_gains"]
     if g:
         gp = Path(g)

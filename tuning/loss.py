@@ -1,12 +1,13 @@
-"""Tuning loss: tracking, saturation and effort costs of closed-loop rollouts (SPEC §6).
+"""Tuning loss: tracking, saturation and effort costs of closed-loop rollouts of any loop
+(SPEC §6), from the loop's :class:`~vcjax.loops.Signals`.
 
 Per rollout of horizon ``T = N dt`` (every integral normalised by ``T``, i.e. a time average):
 
 * ``eps``: ``1/T ∫ (s² + e²) dt`` [m²], path errors (23);
-* ``u_tilde``: ``1/T ∫ ũ² dt`` [(m/s)²], surge-speed error;
-* ``psi_tilde``: ``1/T ∫ ψ̃² dt`` [rad²], heading error (25);
+* ``u_tilde``: ``1/T ∫ ũ² dt`` [(m/s)²], speed error;
+* ``psi_tilde``: ``1/T ∫ ψ̃² dt`` [rad²], heading error (25) (0 for loops without one);
 * ``sat_excess``: ``1/T ∫ Σ_i (x_i)² dt`` with ``x_i = max(|cmd_i| - lim_i, 0) / lim_i``: how far
-  the thrust and rudder *commands* go beyond the actuator limits (920 N, 30°), relative;
+  the actuator *commands* go beyond their limits (INFANTE-class: 920 N, 30°), relative;
 * ``sat_time``: ``1/T ∫ Σ_i x_i² / (x_i² + w²) dt``: a smooth count of the time spent beyond the
   limits (0 inside them, → 1 per channel when ``x_i >> w``; ``w = sat_width``, C¹ at the limit so
   the gradient exists everywhere; a plain indicator has zero gradient almost everywhere);
@@ -32,9 +33,8 @@ import numpy as np
 
 from tuning.params import GainSpace
 from tuning.scenarios import SCENARIO_AXES
-from vcjax import sim1
+from vcjax import loops
 from vcjax.rollout import RolloutConfig
-from vcjax.vehicles.infante import InfanteParams
 
 __all__ = [
     "TERMS",
@@ -95,25 +95,22 @@ def loss_weights(
     return LossWeights(**{k: jnp.asarray(v, dtype=dtype) for k, v in vals.items()})
 
 
-def rollout_terms(traj, vehicle: InfanteParams, sat_width) -> dict:
-    """Loss terms of one VCM rollout (dict of () arrays, keys :data:`TERMS`).
+def rollout_terms(traj, sig: loops.Signals, sat_width) -> dict:
+    """Loss terms of one rollout (dict of () arrays, keys :data:`TERMS`).
 
     Args:
-        traj: :class:`~vcjax.rollout.Trajectory` of ``sim1.simulate`` with a VCM variant
-            (``aux`` is :class:`~vcjax.control.vcm.VCMAux`, ``u`` (N, 2) commands
-            ``[thrust N, rudder rad]``).
-        vehicle: the simulated plant (its actuator limits).
+        traj: the :class:`~vcjax.rollout.Trajectory` (its health flags).
+        sig: the loop's :class:`~vcjax.loops.Signals` of that run (errors, commands / limits).
         sat_width: () smoothing width of the time-over-limit count.
     """
-    eps = traj.aux.eps
-    limits = jnp.stack([vehicle.thrust_max, vehicle.rudder_max])
-    x = traj.u / limits
+    eps = sig.eps
+    x = sig.cmd_ratio
     over = jnp.maximum(jnp.abs(x) - 1.0, jnp.zeros_like(x))
     over2 = over * over
     return {
         "eps": jnp.mean(jnp.sum(eps * eps, axis=-1)),
-        "u_tilde": jnp.mean(traj.aux.u_tilde**2),
-        "psi_tilde": jnp.mean(traj.aux.psi_tilde**2),
+        "u_tilde": jnp.mean(sig.u_err**2),
+        "psi_tilde": jnp.mean(sig.psi_err**2),
         "sat_excess": jnp.mean(jnp.sum(over2, axis=-1)),
         "sat_time": jnp.mean(jnp.sum(over2 / (over2 + sat_width * sat_width), axis=-1)),
         "effort": jnp.mean(jnp.sum(x * x, axis=-1)),
@@ -126,14 +123,13 @@ class TuningProblem:
     """Static description of a tuning objective (hashable; a change recompiles).
 
     Attributes:
-        space: :class:`~tuning.params.GainSpace` (variant and tuned gains).
+        space: :class:`~tuning.params.GainSpace` (the loop and its tuned gains).
         num_steps: rollout length N (horizon ``N dt``).
         integrator: ``"rk4"`` (default), ``"heun"`` or ``"euler"``.
         timing: ``"continuous"`` or ``"sampled"`` controller.
         checkpoint: rematerialise in the backward pass (long horizons under reverse mode).
         checkpoint_every: with ``checkpoint``, the segment length (``RolloutConfig``).
         smooth: tanh actuator saturation in the plant (gradients pass through saturation).
-        edd: ``"paper"`` or ``"implied"`` (see :mod:`vcjax.control.vcm`).
         risk: ``"mean"`` or ``"cvar"`` aggregation over the batch.
         alpha: CVaR level in (0, 1]: the fraction of worst scenarios averaged.
     """
@@ -145,7 +141,6 @@ class TuningProblem:
     checkpoint: bool = False
     checkpoint_every: int = 10
     smooth: bool = True
-    edd: str = "paper"
     risk: str = "mean"
     alpha: float = 0.2
 
@@ -154,9 +149,12 @@ class TuningProblem:
             raise ValueError(f"risk: expected 'mean' or 'cvar', got {self.risk!r}")
         if not (0.0 < float(self.alpha) <= 1.0):
             raise ValueError(f"alpha: expected a value in (0, 1], got {self.alpha!r}")
-        if self.edd not in ("paper", "implied"):
-            raise ValueError(f"edd: expected 'paper' or 'implied', got {self.edd!r}")
         self.rollout_config()  # validates num_steps, integrator, timing
+
+    @property
+    def loop(self) -> loops.Loop:
+        """The loop rolled out (the space's, with this problem's actuator saturation)."""
+        return dataclasses.replace(self.space.loop, smooth=self.smooth)
 
     def rollout_config(self) -> RolloutConfig:
         return RolloutConfig(
@@ -172,7 +170,7 @@ class ProblemData(NamedTuple):
     """Traced data of a tuning objective.
 
     Attributes:
-        base: :class:`~vcjax.sim1.Sim1Gains` (untuned gains come from ``base.vcm``).
+        base: the loop's gains (the untuned ones come from here).
         weights: :class:`LossWeights`.
         dt: () step [s].
         theta_ref: (n,) centre of the box penalty (usually the encoded starting gains).
@@ -189,36 +187,34 @@ class ProblemData(NamedTuple):
 
 def problem_data(
     problem: TuningProblem,
-    base: sim1.Sim1Gains | None = None,
+    base=None,
     weights: LossWeights | None = None,
     dt: float = 0.1,
     log_box: float = 3.0,
     box_weight: float = 10.0,
 ) -> ProblemData:
     """Validated :class:`ProblemData`; ``theta_ref`` is the encoding of ``base``."""
-    base = sim1.default_gains() if base is None else base
+    base = problem.space.loop.default_gains() if base is None else base
     weights = loss_weights() if weights is None else weights
     for name, v in (("dt", dt), ("log_box", log_box), ("box_weight", box_weight)):
         if not (math.isfinite(v) and v > 0):
             raise ValueError(f"{name}: expected a finite value > 0, got {v!r}")
-    dtype = base.vcm.Delta.dtype
+    dtype = jnp.asarray(jax.tree_util.tree_leaves(base)[0]).dtype
     f = lambda x: jnp.asarray(x, dtype=dtype)
-    theta_ref = problem.space.encode(base.vcm)
+    theta_ref = problem.space.encode(base)
     return ProblemData(base, weights, f(dt), theta_ref, f(log_box), f(box_weight))
 
 
 def scenario_losses(theta, data: ProblemData, scenarios, problem: TuningProblem):
     """Per-scenario losses ``(B,)`` and terms ``{name: (B,)}`` of the gains ``theta`` (n,)."""
-    vcm = problem.space.decode(theta, data.base.vcm)
-    gains = data.base._replace(vcm=vcm)
+    gains = problem.space.decode(theta, data.base)
     cfg = problem.rollout_config()
+    loop = problem.loop
     w = data.weights
 
     def one(sc):
-        traj = sim1.simulate(
-            problem.space.variant, gains, sc, cfg, data.dt, edd=problem.edd, smooth=problem.smooth
-        )
-        terms = rollout_terms(traj, sc.vehicle, w.sat_width)
+        traj = loops.simulate(loop, gains, sc, cfg, data.dt)
+        terms = rollout_terms(traj, loop.signals(traj, sc), w.sat_width)
         loss = sum(getattr(w, k) * terms[k] for k in TERMS)
         return loss, terms
 

@@ -52,33 +52,34 @@ def plot_loss_curve(history: list, path, title: str = "gain tuning") -> Path:
     return path
 
 
-def plot_before_after(t, before, after, V_c, out_dir, path_x: float = 10.0) -> list[Path]:
+def plot_before_after(t, before, after, currents, out_dir, path_xy=None) -> list[Path]:
     """Paths and cross-track errors of a few held-out scenarios, default vs tuned gains.
 
     Args:
-        t: (N+1,) times; before, after: dicts with ``eta`` (S, N+1, 3) poses and ``e`` (S, N)
-            cross-track errors; V_c: (S, 2) currents [m/s]; out_dir: folder; path_x: the
-            path's north coordinate (Simulation 1: the line x = 10 m).
+        t: (N+1,) times; before, after: dicts with ``xy`` (S, N, 2) positions [north, east]
+            and ``e`` (S, N) cross-track errors; currents: (S, 2 or 3) NED currents [m/s];
+        out_dir: folder; path_xy: (P, 2) points of the path [north, east] (drawn if given).
     """
     plt = _plt()
     out_dir = Path(out_dir)
-    S = before["eta"].shape[0]
+    S = before["xy"].shape[0]
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     fig, ax = plt.subplots(figsize=(8, 5))
+    if path_xy is not None:
+        ax.plot(path_xy[:, 1], path_xy[:, 0], color="k", lw=3, alpha=0.25, label="path")
     for i in range(S):
         c = colors[i % len(colors)]
-        sp = float(np.hypot(*V_c[i]))
-        ax.plot(before["eta"][i, :, 1], before["eta"][i, :, 0], "--", color=c, lw=1)
+        sp = float(np.hypot(*np.asarray(currents[i])[:2]))
+        ax.plot(before["xy"][i, :, 1], before["xy"][i, :, 0], "--", color=c, lw=1)
         ax.plot(
-            after["eta"][i, :, 1],
-            after["eta"][i, :, 0],
+            after["xy"][i, :, 1],
+            after["xy"][i, :, 0],
             "-",
             color=c,
             lw=1.5,
             label=f"scenario {i}: |V_c| = {sp:.2f} m/s",
         )
-        ax.plot(before["eta"][i, 0, 1], before["eta"][i, 0, 0], "o", color=c)
-    ax.axhline(path_x, color="k", lw=1, label="path")
+        ax.plot(before["xy"][i, 0, 1], before["xy"][i, 0, 0], "o", color=c)
     ax.set(
         xlabel="east y [m]",
         ylabel="north x [m]",

@@ -1,59 +1,51 @@
-"""Batches of Simulation 1 scenarios for robust tuning (random currents and initial offsets).
+"""Batches of scenarios of any loop for robust tuning (random currents, starts, disturbances,
+model errors).
 
-Drawn with the Monte-Carlo sweep API (:func:`vcjax.sweep.sample_scenarios`, so a tuning batch is
-exactly the scenarios a ``vcjax sweep`` with the same distribution and seed would run), around the
-paper's Simulation 1 (path ``x = 10 m`` heading east, ``eta0 = [0, 0, pi/2]``, ``nu0 = [2, 0, 0]``):
+Drawn with the Monte-Carlo sweep API (:func:`vcjax.sweep.sample_scenarios` and
+:func:`vcjax.sweep.to_scenario`), so a tuning batch is exactly the scenarios a ``vcjax sweep``
+with the same distribution and seed would run. The default distribution, around the loop's
+nominal start (Simulation 1: ``eta0 = [0, 0, pi/2]``, ``nu0 = [2, 0, 0]``, path ``x = 10 m``):
 
-* current speed ``|V_c| ~ U(0, current_max)`` in a direction ``~ U(0, 360 deg)`` (NED);
-* initial position offset ``~ U(-position_offset, position_offset)`` on each of x and y [m];
-* initial heading offset ``~ U(-heading_offset, heading_offset)`` [rad].
+* current speed ``~ U(0, current_max)`` in a direction ``~ U(0, 360 deg)`` (NED);
+* initial position offset ``~ U(-position_offset, position_offset)`` on each of the loop's
+  ``x`` and ``y`` initial keys [m] (where it has them);
+* initial heading offset ``~ U(-heading_offset, heading_offset)`` [rad] (``heading_deg`` key);
+* anything else a :class:`~vcjax.sweep.ScenarioSpec` describes (``initial`` ranges that
+  override the offsets, ``disturbance`` ranges, ``model_error``) via ``extra``.
 
-The batch is a :class:`~vcjax.sim1.Sim1Scenario` whose ``eta0``, ``nu0``, ``V_c`` carry a leading
-batch axis; vmap it with :data:`SCENARIO_AXES`.
+The batch is a :class:`~vcjax.loops.Scenario` whose fields carry a leading batch axis except
+``path`` and ``design`` (shared); vmap it with :data:`SCENARIO_AXES`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
+import jax
 import numpy as np
 
-from vcjax import sim1, sweep
+from tuning.params import default_loop
+from vcjax import loops, sweep
 
-__all__ = ["SCENARIO_AXES", "sample_scenarios", "scenario_at", "batch_size"]
+__all__ = ["SCENARIO_AXES", "scenario_spec", "sample_scenarios", "scenario_at", "batch_size"]
 
 #: ``in_axes`` of a sampled batch for ``jax.vmap``
-SCENARIO_AXES = sim1.Sim1Scenario(
-    eta0=0, nu0=0, V_c=0, u_d=None, vehicle=None, path=None, design_vehicle=None
+SCENARIO_AXES = loops.Scenario(
+    eta0=0, nu0=0, current=0, u_d=0, varpi0=0, path=None, plant=0, design=None, disturbance=0
 )
 
 
-def sample_scenarios(
-    seed: int,
-    n: int,
+def scenario_spec(
+    loop: loops.Loop,
     *,
     current_max: float = 1.0,
     position_offset: float = 5.0,
     heading_offset: float = np.pi / 4,
-    base: sim1.Sim1Scenario | None = None,
-) -> sim1.Sim1Scenario:
-    """``n`` random scenarios around ``base`` (default: the paper's Simulation 1).
-
-    Args:
-        seed: PRNG seed (different seeds give independent batches: use one for training and
-            another for the held-out batch).
-        n: batch size.
-        current_max: largest current speed [m/s] (speeds are uniform on ``[0, current_max]``).
-        position_offset: half-width of the uniform initial x and y offsets [m].
-        heading_offset: half-width of the uniform initial heading offset [rad].
-        base: the nominal scenario.
-
-    Returns:
-        batched :class:`~vcjax.sim1.Sim1Scenario` (``eta0`` (n, 3), ``nu0`` (n, 3), ``V_c``
-        (n, 2)).
-    """
-    if not (isinstance(n, int | np.integer) and n >= 1):
-        raise ValueError(f"n: expected a positive int, got {n!r}")
+    extra: dict | None = None,
+) -> sweep.ScenarioSpec:
+    """The :class:`~vcjax.sweep.ScenarioSpec` of a tuning batch (module docstring); ``extra``:
+    further ScenarioSpec fields (its ``initial`` entries override the offsets)."""
     for name, v in (
         ("current_max", current_max),
         ("position_offset", position_offset),
@@ -61,28 +53,87 @@ def sample_scenarios(
     ):
         if not (np.isfinite(v) and v >= 0):
             raise ValueError(f"{name}: expected a finite value >= 0, got {v!r}")
-    base = sim1.sim1_scenario() if base is None else base
-    x0, y0, psi0 = (float(v) for v in np.asarray(base.eta0))
     h = math.degrees(float(heading_offset))
-    spec = sweep.ScenarioSpec(
+    init = {}
+    for k, v0 in loop.initial_keys.items():
+        if k in ("x", "y"):
+            init[k] = (v0 - position_offset, v0 + position_offset)
+        elif k == "heading_deg":
+            init[k] = (v0 - h, v0 + h)
+    extra = dict(extra or {})
+    init |= dict(extra.pop("initial", ()))
+    return sweep.ScenarioSpec(
         current_speed=(0.0, float(current_max)),
         current_direction_deg=(0.0, 360.0),
-        x0=(x0 - position_offset, x0 + position_offset),
-        y0=(y0 - position_offset, y0 + position_offset),
-        heading0_deg=(math.degrees(psi0) - h, math.degrees(psi0) + h),
-        speed0=(float(base.nu0[0]),) * 2,
-        u_d=(float(base.u_d),) * 2,
+        initial=tuple(init.items()),
+        **extra,
     )
-    mc = sweep.sample_scenarios(spec, int(seed), np.arange(n), dtype=base.eta0.dtype)
-    eta0, nu0, V_c = mc.eta0, mc.nu0, mc.V_c
-    return base._replace(eta0=eta0, nu0=nu0, V_c=V_c)
 
 
-def batch_size(batch: sim1.Sim1Scenario) -> int:
+def sample_scenarios(
+    seed: int,
+    n: int,
+    *,
+    loop: loops.Loop | None = None,
+    current_max: float = 1.0,
+    position_offset: float = 5.0,
+    heading_offset: float = np.pi / 4,
+    extra: dict | None = None,
+    plant=None,
+    design=None,
+    coeffs=None,
+    dtype=None,
+) -> loops.Scenario:
+    """``n`` random scenarios of ``loop`` (default: Simulation 1's).
+
+    Args:
+        seed: PRNG seed (different seeds give independent batches: use one for training and
+            another for the held-out batch).
+        n: batch size.
+        loop: the loop (its vehicle's initial keys and parameters).
+        current_max, position_offset, heading_offset, extra: the distribution
+            (:func:`scenario_spec`).
+        plant, design: nominal parameters (default: the vehicle's); coeffs: path coefficients
+            (default: the vehicle's default path's).
+        dtype: float dtype (default: the parameters').
+
+    Returns:
+        batched :class:`~vcjax.loops.Scenario` (see :data:`SCENARIO_AXES`).
+    """
+    if not (isinstance(n, int | np.integer) and n >= 1):
+        raise ValueError(f"n: expected a positive int, got {n!r}")
+    loop = default_loop() if loop is None else loop
+    spec = scenario_spec(
+        loop,
+        current_max=current_max,
+        position_offset=position_offset,
+        heading_offset=heading_offset,
+        extra=extra,
+    )
+    design = loop.default_params(dtype) if design is None else design
+    plant = design if plant is None else plant
+    coeffs = type(loop).default_path()[1] if coeffs is None else coeffs
+    dt = jax.numpy.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
+    coeffs = jax.tree_util.tree_map(lambda a: jax.numpy.asarray(a, dt), coeffs)
+    mc = sweep.sample_scenarios(spec, int(seed), np.arange(n), dtype=dt, loop=loop)
+    cfg = sweep.MCConfig(num_steps=1, model_fields=spec.fields_for(loop))
+    if spec.model_error == 0:
+        cfg = dataclasses.replace(cfg, model_fields=())
+        mc = mc._replace(model_factors=mc.model_factors[:, :0])
+    to = lambda sc: sweep.to_scenario(loop, sc, plant, design, coeffs, cfg)
+    return jax.vmap(to, out_axes=SCENARIO_AXES)(mc)
+
+
+def batch_size(batch: loops.Scenario) -> int:
     """Number of scenarios in a batch."""
     return int(batch.eta0.shape[0])
 
 
-def scenario_at(batch: sim1.Sim1Scenario, i: int) -> sim1.Sim1Scenario:
+def scenario_at(batch: loops.Scenario, i: int) -> loops.Scenario:
     """Scenario ``i`` of a batch (unbatched)."""
-    return batch._replace(eta0=batch.eta0[i], nu0=batch.nu0[i], V_c=batch.V_c[i])
+    return jax.tree_util.tree_map(
+        lambda ax, a: a if ax is None else jax.tree_util.tree_map(lambda x: x[i], a),
+        SCENARIO_AXES,
+        batch,
+        is_leaf=lambda x: x is None,
+    )

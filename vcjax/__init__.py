@@ -12,6 +12,7 @@ The public API, by stage of the data flow (each module's docstring has the detai
 * :mod:`vcjax.integrators`, :mod:`vcjax.rollout` — ``euler``/``heun``/``rk4``; the scan rollout.
 * :mod:`vcjax.sim1`, :mod:`vcjax.sim2` — the paper's two experiments; :mod:`vcjax.sweep` —
   Monte-Carlo batches; :mod:`vcjax.currents` — current models.
+* :mod:`vcjax.identify` — ``vcjax fit``: plant parameters from logged runs by multiple shooting.
 
 The library never enables float64 and never jits for you.
 """

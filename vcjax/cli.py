@@ -64,7 +64,7 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
         except (OSError, json.JSONDecodeError, ValueError) as err:
             return _fail(f"simulate: cannot use gains file {args.gains}: {err}")
     try:
-        scenario = sim1.sim1_scenario(V_c=args.current or (0.0, 0.5))
+        scenario = sim1.sim1_scenario(current=args.current or (0.0, 0.5))
     except ValueError as err:
         return _fail(f"simulate: {err}")
     result = sim1.run_sim1(
@@ -111,7 +111,20 @@ def _is_number(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool)
 
 
+def _use_cores(args, command: str) -> int | None:
+    """Split the host CPU into devices (before JAX initialises); a bad count is one line."""
+    from vcjax.devices import use_cpu_cores
+
+    try:
+        use_cpu_cores(args.cpu_devices)
+    except ValueError as err:
+        return _fail(f"{command}: {err}")
+    return None
+
+
 def _cmd_sweep(args) -> int:
+    if (rc := _use_cores(args, "sweep")) is not None:
+        return rc
     _enable_x64(args.x64)
     from vcjax.sweep import run_sweep_config
 
@@ -122,6 +135,14 @@ def _cmd_sweep(args) -> int:
     summary = result["summary"]
     if summary is not None:  # None on the non-zero processes of a multi-host run
         for variant, s in summary.get("variants", {}).items():
+            t = s.get("timing")
+            if t and t.get("traj_steps_per_s"):
+                print(
+                    f"{variant}: compile {t['compile_s']:.2f} s, run {t['run_s']:.2f} s, "
+                    f"{t['traj_steps_per_s'] / 1e6:.3g} M trajectory-steps/s "
+                    f"({t['scenarios']} x {t['steps']} steps, {t['devices']} device(s))",
+                    file=sys.stderr,
+                )
             e = s.get("metrics", {}).get("ss_abs_e", {})
             if e:
                 print(
@@ -134,6 +155,8 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_tune(args) -> int:
+    if (rc := _use_cores(args, "tune")) is not None:
+        return rc
     _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
     from tuning.cli import run_tune_config
 
@@ -154,6 +177,29 @@ def _cmd_tune(args) -> int:
     return 0
 
 
+def _cmd_fit(args) -> int:
+    _enable_x64(args.x64)
+    from vcjax.identify import run_fit_config
+
+    print(f"fit: {args.config} (compiling the multiple-shooting Jacobian first)")
+    try:
+        result = run_fit_config(args.config, args.out, progress=not args.quiet)
+    except (OSError, ValueError) as err:
+        return _fail(f"fit: {err}")
+    fit = result["fit"]
+    print(f"{'parameter':<22}{'initial':>14}{'estimate':>14}{'std':>12}")
+    sections = [fit] + ([fit["current"]] if "current" in fit else [])
+    for sec in sections:
+        for name, value in sec["estimates"].items():
+            print(f"{name:<22}{sec['initial'][name]:>14.6g}{value:>14.6g}{sec['std'][name]:>12.3g}")
+    print(f"{fit['iterations']} iterations, {fit['wall_time_s']:.1f} s ({fit['reason']})")
+    for w in fit["warnings"]:
+        print(f"vcjax: fit: warning: {w}", file=sys.stderr)
+    for f in result["files"]:
+        print(f"wrote {f}")
+    return 0
+
+
 def _print_metrics(metrics: dict) -> None:
     """A table: one row per variant, one column per numeric metric."""
     keys = [k for k, v in next(iter(metrics.values())).items() if _is_number(v)]
@@ -162,6 +208,16 @@ def _print_metrics(metrics: dict) -> None:
     for name, m in metrics.items():
         cells = (f"{m[k]:{w}.4g}" for k, w in zip(keys, widths, strict=True))
         print(name.ljust(14) + "".join(cells))
+
+
+def _add_cpu_devices(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--cpu-devices",
+        metavar="N",
+        default=None,
+        help="split the host CPU into N JAX devices and shard the scenarios over them "
+        "(default: $VCJAX_CPU_DEVICES, else one per core; 1: no sharding)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -219,6 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("config", help="TOML config (see examples/sweeps/)")
     w.add_argument("--out", default="out/sweep", help="output directory (default: out/sweep)")
     w.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    _add_cpu_devices(w)
     w.set_defaults(func=_cmd_sweep)
 
     t = sub.add_parser(
@@ -227,7 +284,18 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("config", help="TOML config (see examples/tuning/)")
     t.add_argument("--out", default="out/tune", help="output directory (default: out/tune)")
     t.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    _add_cpu_devices(t)
     t.set_defaults(func=_cmd_tune)
+
+    f = sub.add_parser(
+        "fit",
+        help="identify plant parameters from logged runs by multiple shooting (TOML)",
+    )
+    f.add_argument("config", help="TOML config (see examples/fit/)")
+    f.add_argument("--out", default="out/fit", help="output directory (default: out/fit)")
+    f.add_argument("--quiet", action="store_true", help="no per-iteration progress lines")
+    f.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    f.set_defaults(func=_cmd_fit)
 
     d = sub.add_parser(
         "demo",

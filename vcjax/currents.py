@@ -37,6 +37,7 @@ import jax.numpy as jnp
 from vcjax._checks import check_array, check_positive
 
 __all__ = [
+    "current_ned",
     "current_vector",
     "GaussMarkovCurrent",
     "gauss_markov_current",
@@ -47,8 +48,23 @@ __all__ = [
 ]
 
 
+def current_ned(speed, direction):
+    """(3,) the water's velocity in NED [m/s]: ``speed`` [m/s] flowing towards ``direction``
+    [rad, clockwise from north], horizontal (``[V cos(beta), V sin(beta), 0]``).
+
+    The one current convention of vcjax: every loop's :class:`~vcjax.loops.Scenario` takes this
+    vector (planar craft use its first two components). Pure ``jax.numpy``; broadcasts over
+    leading axes.
+    """
+    speed = jnp.asarray(speed)
+    direction = jnp.asarray(direction)
+    v = current_vector(speed, direction)
+    return jnp.concatenate([v, jnp.zeros_like(v[..., :1])], axis=-1)
+
+
 def current_vector(speed, direction):
-    """(2,) NED current [m/s] of ``speed`` [m/s] flowing towards ``direction`` [rad from north].
+    """(2,) horizontal part of :func:`current_ned`: north and east [m/s] of ``speed`` [m/s]
+    flowing towards ``direction`` [rad from north] (what the Gauss–Markov process works on).
 
     Pure ``jax.numpy``; broadcasts over leading axes of ``speed`` and ``direction``.
     """

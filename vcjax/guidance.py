@@ -5,7 +5,8 @@ vehicle's horizontal pose and body velocity, :func:`path_kinematics` returns the
 errors ``eps = [s, e]`` (23) (along-track, cross-track, in the projected path frame {p'}), their
 first derivative (28), the particle's rate (22) with ``ubar_p = u_d + sigma s``, and every term of
 ``eps_ddot`` that does not depend on the body accelerations — what the VCM law and the LOS
-baselines need. :func:`los_angle` gives the approach angle (24) and its derivatives (36).
+baselines need. :func:`los_angle` gives the approach angle (24) and its derivatives (36);
+:func:`alos_angle` Fossen's adaptive LOS angle (ALOS, 2023) with its crab-angle estimate.
 
 Conventions: NED, ``eta = [x, y, psi]``, ``nu = [u, v, r]``; ``e > 0`` means the vehicle is to the
 right (starboard side) of the path, so the approach angle ``psi_r = atan(-e / Delta)`` steers
@@ -20,7 +21,14 @@ import jax.numpy as jnp
 
 from vcjax.linalg import rot2
 
-__all__ = ["PathKinematics", "path_kinematics", "LOSAngle", "los_angle"]
+__all__ = [
+    "PathKinematics",
+    "path_kinematics",
+    "LOSAngle",
+    "los_angle",
+    "ALOSAngle",
+    "alos_angle",
+]
 
 
 class PathKinematics(NamedTuple):
@@ -112,4 +120,43 @@ def los_angle(e, e_dot, e_ddot, Delta) -> LOSAngle:
         psi_r=jnp.arctan(-e / Delta),
         psi_r_dot=-kappa * e_dot,
         psi_r_ddot=-kappa * e_ddot + 2 * kappa**2 * e_dot**2 * e / Delta,
+    )
+
+
+class ALOSAngle(NamedTuple):
+    """Adaptive LOS approach angle and the crab-angle estimate's rate (all scalars).
+
+    Attributes:
+        psi_r: ``-beta_hat - atan(e / Delta)`` [rad]: the heading relative to the path azimuth,
+            so ``psi_d = pi_h + psi_r``.
+        psi_r_dot: its time derivative [rad/s].
+        beta_hat_dot: rate of the crab-angle estimate [rad/s].
+    """
+
+    psi_r: Any
+    psi_r_dot: Any
+    beta_hat_dot: Any
+
+
+def alos_angle(e, e_dot, beta_hat, Delta, gamma) -> ALOSAngle:
+    """Fossen's adaptive LOS (T. I. Fossen, IEEE TCST 31(6), 2023):
+    ``psi_d = pi_h - beta_hat - atan(e / Delta)`` with the crab-angle estimate
+    ``beta_hat_dot = gamma Delta e / sqrt(Delta^2 + e^2)``.
+
+    Near the path ``beta_hat_dot ~ gamma e``; far from it the rate saturates at ``gamma Delta``
+    (the adaptation is bounded, unlike a plain integral of ``e``). At equilibrium (``e = 0``,
+    ``e_dot = 0``) ``beta_hat`` is the crab angle ``beta = pi_h - psi``: the angle between the
+    heading and the course over ground that keeps the craft on the line.
+
+    Args:
+        e: () cross-track error [m] (``> 0`` starboard of the path); e_dot: () its rate [m/s].
+        beta_hat: () crab-angle estimate [rad].
+        Delta: () look-ahead distance [m] (> 0); gamma: () adaptation gain [rad/(m s)] (>= 0).
+    """
+    root = jnp.sqrt(Delta**2 + e**2)  # >= Delta > 0: no singular point
+    beta_hat_dot = gamma * Delta * e / root
+    return ALOSAngle(
+        psi_r=-beta_hat - jnp.arctan(e / Delta),
+        psi_r_dot=-beta_hat_dot - Delta * e_dot / (Delta**2 + e**2),
+        beta_hat_dot=beta_hat_dot,
     )

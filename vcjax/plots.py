@@ -16,6 +16,7 @@ STYLE = {
     "ilos": dict(color="C2", ls="-.", label="ILOS (40)"),
     "los_pid": dict(color="C1", ls=":", label="LOS + PID yaw (39)"),
     "vcm_ilos": dict(color="C4", ls=(0, (5, 1, 1, 1)), label="VCM + (41) + ILOS angle (ext.)"),
+    "alos": dict(color="C5", ls=(0, (3, 1, 1, 1, 1, 1)), label="ALOS (Fossen 2023)"),
 }
 
 
@@ -51,7 +52,7 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
         ax.plot(eta[:, 1], eta[:, 0], **STYLE[v])
     eta0 = np.asarray(scenario.eta0)
     ax.plot(eta0[1], eta0[0], "ko", label="start")
-    V_c = np.asarray(scenario.V_c)
+    V_c = np.asarray(scenario.current)[:2]
     heading = np.degrees(np.arctan2(V_c[1], V_c[0])) % 360
     ax.set_title(
         f"Simulation 1: paths travelled (current {np.hypot(*V_c):.2f} m/s toward {heading:.0f}°)"
@@ -79,7 +80,7 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
         ax[0].legend(fontsize=8)
         return _save(fig, out / name)
 
-    vehicle = scenario.vehicle
+    vehicle = scenario.plant
     thrust_max = float(vehicle.thrust_max)
     rudder_max = np.degrees(float(vehicle.rudder_max))
     head = slice(None, -1)

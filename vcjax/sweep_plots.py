@@ -68,9 +68,10 @@ def _error_vs_current(result, out: Path) -> Path:
         ax.set_yscale("log")
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("steady-state mean |e| [m] (last %.0f %%)" % (100 * result.spec.tail))
-    fails = ", ".join(f"{v}: {int((~_ok(result, v)).sum())}" for v in _variants(result))
+    counts = [f"{v}: {int((~_ok(result, v)).sum())}" for v in _variants(result)]
+    fails = "\n".join(", ".join(counts[i : i + 3]) for i in range(0, len(counts), 3))
     axes[0].set_title(f"{n} scenarios; lines: binned medians")
-    axes[1].set_title(f"diverged runs (left out): {fails}")
+    axes[1].set_title(f"diverged runs (left out):\n{fails}", fontsize=10)
     axes[0].legend(fontsize=8)
     return _save(fig, out / "sweep_error_vs_current.png")
 

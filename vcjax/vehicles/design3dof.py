@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 import jax.numpy as jnp
 
 from vcjax._checks import check_array, check_spd
-from vcjax.linalg import rot2, solve_surge_decoupled
+from vcjax.linalg import matvec, solve_surge_decoupled
 from vcjax.mechanics import MechanicalSystem, from_body_frame
 
 __all__ = [
@@ -35,6 +35,7 @@ __all__ = [
     "damping",
     "body_bias",
     "kinematics",
+    "pose_rate",
     "current_in_body",
     "vector_field",
     "DESIGN3DOF_SYSTEM",
@@ -106,14 +107,24 @@ def coriolis(p: Design3DOF, nu):
 
 def body_bias(p: Design3DOF, nu):
     """(3,) ``n_b(nu) = C_b(nu) nu + D_b nu``."""
-    return coriolis(p, nu) @ nu + damping(p) @ nu
+    return matvec(coriolis(p, nu), nu) + matvec(damping(p), nu)
 
 
 def kinematics(psi):
     """(3, 3) ``J(psi) = diag(R(psi), 1)``."""
-    R = rot2(psi)
-    J = jnp.zeros((3, 3), dtype=R.dtype)
-    return J.at[:2, :2].set(R).at[2, 2].set(jnp.ones_like(psi))
+    c, s = jnp.cos(psi), jnp.sin(psi)
+    z, o = jnp.zeros_like(psi), jnp.ones_like(psi)
+    return jnp.stack([jnp.stack([c, -s, z]), jnp.stack([s, c, z]), jnp.stack([z, z, o])])
+
+
+def pose_rate(psi, nu):
+    """(3,) ``eta_dot = J(psi) nu = [u cos psi - v sin psi, u sin psi + v cos psi, r]``.
+
+    The product written out: no 3x3 matrix is built (inside a batched rollout the matrix would
+    be materialised per trajectory and stage).
+    """
+    c, s = jnp.cos(psi), jnp.sin(psi)
+    return jnp.stack([c * nu[0] - s * nu[1], s * nu[0] + c * nu[1], nu[2]])
 
 
 def current_in_body(psi, r, V_c, V_c_dot=None):
@@ -126,11 +137,15 @@ def current_in_body(psi, r, V_c, V_c_dot=None):
     Returns:
         ``(nu_c, nu_c_dot)``, each (3,). ``d/dt R^T V_c = -S(r) R^T V_c + R^T V_c_dot``.
     """
-    Rt = rot2(psi).T
-    vc = Rt @ V_c
+    c, s = jnp.cos(psi), jnp.sin(psi)
+
+    def body(w):  # R(psi)^T w
+        return jnp.stack([c * w[0] + s * w[1], c * w[1] - s * w[0]])
+
+    vc = body(V_c)
     vc_dot = jnp.stack([r * vc[1], -r * vc[0]])
     if V_c_dot is not None:
-        vc_dot = vc_dot + Rt @ V_c_dot
+        vc_dot = vc_dot + body(V_c_dot)
     z = jnp.zeros_like(psi)
     return jnp.concatenate([vc, z[None]]), jnp.concatenate([vc_dot, z[None]])
 
@@ -142,7 +157,7 @@ def vector_field(p: Design3DOF, eta, nu, tau, V_c=None, V_c_dot=None):
         p: parameters; eta: (3,) pose; nu: (3,) body velocity; tau: (3,) body force
             ``[tau_u, tau_v, tau_r]`` [N, N, N m]; V_c, V_c_dot: (2,) inertial current and rate.
     """
-    eta_dot = kinematics(eta[2]) @ nu
+    eta_dot = pose_rate(eta[2], nu)
     if V_c is None:
         nu_r, nu_c_dot = nu, jnp.zeros_like(nu)
     else:

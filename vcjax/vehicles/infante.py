@@ -49,6 +49,9 @@ Horizontal-plane model (w = p = q = 0, z = 0, phi = theta = 0), state
       Y_cf = -rho/2 Cdy H dx sum_i h_i |h_i|,   N_cf = -rho/2 Cdy H dx sum_i x_i h_i |h_i|,
       h_i = v + x_i r.
 
+  ``h_i`` is linear along the hull, so it changes sign at most once: the sums are evaluated in
+  closed form (:func:`crossflow_forces`), equal to the strip sum within round-off.
+
 * Surge: NPS's propeller/drag model is replaced by a thrust *force* actuator and an axial
   quadratic drag ``X_u|u|`` calibrated so that ``thrust_max`` gives exactly
   ``speed_at_max_thrust`` in straight-line calm-water steady state (paper: 920 N -> 5 m/s).
@@ -95,8 +98,13 @@ from vcjax._checks import (
     float_dtype,
     is_concrete,
 )
-from vcjax.linalg import saturate, smooth_saturate, solve_surge_decoupled
-from vcjax.vehicles.design3dof import Design3DOF, current_in_body, design3dof, kinematics
+from vcjax.linalg import (
+    saturate,
+    signed_square_sums,
+    smooth_saturate,
+    solve_surge_decoupled,
+)
+from vcjax.vehicles.design3dof import Design3DOF, current_in_body, design3dof, pose_rate
 
 __all__ = [
     "NPS_LENGTH",
@@ -113,6 +121,7 @@ __all__ = [
     "mass_matrix",
     "kinetic_energy",
     "body_forces",
+    "crossflow_forces",
     "infante_plant",
     "infante_plant_smooth",
     "design_model",
@@ -186,7 +195,8 @@ class InfanteParams(NamedTuple):
         X_urdr, X_uvdr, X_uudrdr: rudder-induced surge terms in u r d, u v d, u^2 d^2.
         Y_uudr, N_uudr: rudder sway force / yaw moment per u^2 delta [kg/m, kg].
         cf_coeff: () rho/2 Cdy H, cross-flow drag per unit strip length [kg/m^3].
-        cf_x: (n,) strip stations along the hull [m]; cf_dx: () strip weight [m].
+        cf_x: (n+1,) strip stations along the hull, uniformly spaced by ``cf_dx`` from the stern
+            ``cf_x[0]`` [m] (its length fixes n); cf_dx: () strip weight and spacing [m].
         thrust_max: () [N]; rudder_max: () [rad]; T_thrust, T_rudder: () time constants [s].
         rudder_speed_min: () speed floor used by :func:`actuator_commands` [m/s].
     """
@@ -430,11 +440,25 @@ def kinetic_energy(p: InfanteParams, nu_r):
     return 0.5 * nu_r @ mass_matrix(p) @ nu_r
 
 
-def _crossflow(p: InfanteParams, v, r):
-    h = v + p.cf_x * r
-    hh = h * jnp.abs(h)  # d(h|h|)/dh = 2|h|: finite (zero) at h = 0
+def crossflow_forces(p: InfanteParams, v, r):
+    """``(Y_cf, N_cf)``: cross-flow drag of the strips [N, N m] at sway ``v`` and yaw rate ``r``.
+
+    The strip sums of the model (``Y_cf = -k sum_i h_i |h_i|``, ``N_cf = -k sum_i x_i h_i |h_i|``,
+    ``k = cf_coeff cf_dx``, ``h_i = v + x_i r``) over the uniformly spaced stations
+    ``x_i = cf_x[0] + i cf_dx``, ``i = 0..n``, evaluated in closed form
+    (:func:`vcjax.linalg.signed_square_sums`: ``h_i`` is linear in ``i`` and changes sign at most
+    once along the hull). Equal to the 11-station sum within round-off, with the same finite
+    gradient ``2 |h_i|`` per strip (zero at ``h_i = 0``).
+
+    Args:
+        p: parameters (``cf_x`` (n+1,) fixes ``n`` statically; its first entry is the stern
+            station); v: () relative sway velocity [m/s]; r: () yaw rate [rad/s].
+    """
+    n = p.cf_x.shape[-1] - 1
+    x0 = p.cf_x[0]
+    s0, s1 = signed_square_sums(v + x0 * r, p.cf_dx * r, n)
     k = p.cf_coeff * p.cf_dx
-    return -k * jnp.sum(hh), -k * jnp.sum(p.cf_x * hh)
+    return -k * s0, -k * (x0 * s0 + p.cf_dx * s1)
 
 
 def body_forces(p: InfanteParams, nu_r, act):
@@ -450,7 +474,7 @@ def body_forces(p: InfanteParams, nu_r, act):
     u, v, r = nu_r[0], nu_r[1], nu_r[2]
     thrust, d = act[0], act[1]
     m, mxg = p.mass, p.mass * p.x_g
-    Y_cf, N_cf = _crossflow(p, v, r)
+    Y_cf, N_cf = crossflow_forces(p, v, r)
     X = (
         (m * v * r + mxg * r * r)  # -C_RB(nu_r) nu_r, surge row
         + p.X_uu * u * jnp.abs(u)
@@ -476,7 +500,7 @@ def _plant(t, x: InfanteState, u_cmd, args: PlantArgs, smooth: bool) -> InfanteS
     nu_c, nu_c_dot = current_in_body(eta[2], nu[2], args.V_c, args.V_c_dot)
     nu_r = nu - nu_c
     nu_r_dot = solve_surge_decoupled(mass_matrix(p), body_forces(p, nu_r, act))
-    eta_dot = kinematics(eta[2]) @ nu
+    eta_dot = pose_rate(eta[2], nu)
     return InfanteState(eta=eta_dot, nu=nu_r_dot + nu_c_dot, act=act_dot)
 
 

@@ -40,6 +40,7 @@ from vcjax._checks import (
     float_dtype,
     is_concrete,
 )
+from vcjax.currents import current_ned  # noqa: F401 (re-exported)
 
 __all__ = [
     "Smtrx",
@@ -216,15 +217,6 @@ def rigid_body_mass_matrix(m, inertia_cg, r_bg):
     M_cg = jnp.block([[m * jnp.eye(3, dtype=inertia_cg.dtype), zero], [zero, inertia_cg]])
     H = Hmtrx(r_bg)
     return H.T @ M_cg @ H
-
-
-def current_ned(V_c, beta_c):
-    """(3,) horizontal current in NED from speed ``V_c`` [m/s] and direction ``beta_c`` [rad].
-
-    ``[V_c cos(beta_c), V_c sin(beta_c), 0]``: ``beta_c`` is the direction the water flows *to*,
-    measured from north towards east (PythonVehicleSimulator's convention).
-    """
-    return jnp.stack([V_c * jnp.cos(beta_c), V_c * jnp.sin(beta_c), jnp.zeros_like(V_c * beta_c)])
 
 
 def current_in_body(eta, nu, v_c, v_c_dot=None):

@@ -1,0 +1,200 @@
+"""The ``[scenario]`` section shared by ``vcjax sweep`` and ``vcjax tune`` configs::
+
+    [scenario]
+    vehicle = "infante"          # a registered vehicle (vcjax.loops.vehicles())
+    controller = "vcm_integral"  # one of that vehicle's controllers (errors list them)
+    params = "model.json"        # optional: parameter overrides of plant AND design model
+    plant_params = "plant.json"  # optional: overrides of the plant only (after params)
+    edd = "paper"                # optional static loop options (VCM loops: "paper" | "implied")
+    [scenario.path]
+    kind = "circle"              # "line" | "circle" | "helix" | "waypoints"
+    center = [0.0, 0.0]          # kind-specific keys (vcjax.paths constructors):
+    radius = 40.0                #   line: origin, direction; circle: center, radius, clockwise,
+                                 #   phase; helix: center, a, b, T, climb, phase;
+                                 #   waypoints: points, extend
+
+Without ``[scenario]`` a config means Simulation 1 (INFANTE-class on the line ``[10, w]``).
+Parameter files (paths relative to the config file) are JSON: a flat ``{name: value}`` map, or a
+``vcjax fit`` output whose ``"estimates"`` map is used; names are the vehicle's parameter names
+(``loop.param_names()``), unknown ones are rejected with the valid ones listed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+from vcjax import loops, paths
+from vcjax._config import ConfigError, as_choice, as_str, resolve_file
+
+__all__ = ["PATH_KINDS", "PathSpec", "ScenarioChoice", "parse_scenario", "SCENARIO_KEYS"]
+
+#: kind -> (constructor, its keyword arguments)
+PATH_KINDS = {
+    "line": (paths.line, ("origin", "direction")),
+    "circle": (paths.circle, ("center", "radius", "clockwise", "phase")),
+    "helix": (paths.helix, ("center", "a", "b", "T", "climb", "phase")),
+    "waypoints": (paths.waypoints, ("points", "extend")),
+}
+#: keys of [scenario] (besides the [scenario.path] table)
+SCENARIO_KEYS = ("vehicle", "controller", "params", "plant_params", "edd")
+
+
+def _freeze(v):
+    return tuple(_freeze(a) for a in v) if isinstance(v, list | tuple) else v
+
+
+def _thaw(v):
+    return [_thaw(a) for a in v] if isinstance(v, tuple) else v
+
+
+@dataclasses.dataclass(frozen=True)
+class PathSpec:
+    """A path named in a config: ``kind`` and the constructor's keyword arguments (hashable)."""
+
+    kind: str
+    args: tuple[tuple[str, Any], ...] = ()
+
+    def build(self):
+        """``(Path, coeffs)`` from :mod:`vcjax.paths` (raises ``ValueError`` naming the key)."""
+        fn, _ = PATH_KINDS[self.kind]
+        return fn(**{k: _thaw(v) for k, v in self.args})
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, **{k: _thaw(v) for k, v in self.args}}
+
+
+def path_spec(d: dict, where: str) -> PathSpec:
+    """Validated :class:`PathSpec` of a ``[scenario.path]`` table (built once to check it)."""
+    if not isinstance(d, dict):
+        raise ConfigError(f"{where}: [scenario.path] must be a table, got {d!r}")
+    if "kind" not in d:
+        raise ConfigError(f"{where}: [scenario.path] kind is required; one of {list(PATH_KINDS)}")
+    kind = as_choice(f"{where}: [scenario.path] kind", d["kind"], PATH_KINDS)
+    allowed = PATH_KINDS[kind][1]
+    for k in d:
+        if k != "kind" and k not in allowed:
+            raise ConfigError(
+                f"{where}: unknown key [scenario.path] {k!r} for kind {kind!r}; "
+                f"expected one of {list(allowed)}"
+            )
+    spec = PathSpec(kind, tuple((k, _freeze(d[k])) for k in allowed if k in d))
+    try:
+        spec.build()
+    except (ValueError, TypeError) as err:
+        raise ConfigError(f"{where}: [scenario.path] {err}") from None
+    return spec
+
+
+@dataclasses.dataclass(frozen=True)
+class ScenarioChoice:
+    """What a config simulates (hashable): vehicle, controller (``None``: not given), path
+    (``None``: the vehicle's default), parameter overrides (name, value) of plant and design
+    (``params``) and of the plant only (``plant_params``), static loop options."""
+
+    vehicle: str = "infante"
+    controller: str | None = None
+    path: PathSpec | None = None
+    params: tuple[tuple[str, Any], ...] = ()
+    plant_params: tuple[tuple[str, Any], ...] = ()
+    options: tuple[tuple[str, Any], ...] = ()
+
+    def loop(self, controller: str | None = None, **options) -> loops.Loop:
+        """The loop of ``controller`` (default :attr:`controller`) with this path and options."""
+        ctrl = controller or self.controller
+        cls = loops.loop_class(self.vehicle)
+        path = cls.default_path()[0] if self.path is None else self.path.build()[0]
+        return loops.make_loop(self.vehicle, ctrl, path, **(dict(self.options) | options))
+
+    def coeffs(self):
+        """The path's coefficients."""
+        cls = loops.loop_class(self.vehicle)
+        return cls.default_path()[1] if self.path is None else self.path.build()[1]
+
+    def nominal(self, loop: loops.Loop, dtype=None):
+        """``(plant, design)`` parameters: defaults, ``params`` on both, ``plant_params`` on
+        the plant."""
+        design = loops.apply_params(loop.default_params(dtype), dict(self.params), "params")
+        plant = loops.apply_params(design, dict(self.plant_params), "plant_params")
+        return plant, design
+
+    def to_dict(self) -> dict:
+        return {
+            "vehicle": self.vehicle,
+            "controller": self.controller,
+            "path": None if self.path is None else self.path.to_dict(),
+            "params": {k: _thaw(v) for k, v in self.params},
+            "plant_params": {k: _thaw(v) for k, v in self.plant_params},
+            "options": dict(self.options),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ScenarioChoice:
+        p = d.get("path")
+        path = None
+        if p is not None:
+            p = dict(p)
+            kind = p.pop("kind")
+            allowed = PATH_KINDS[kind][1]
+            path = PathSpec(kind, tuple((k, _freeze(p[k])) for k in allowed if k in p))
+        return cls(
+            vehicle=d["vehicle"],
+            controller=d.get("controller"),
+            path=path,
+            params=tuple((k, _freeze(v)) for k, v in d.get("params", {}).items()),
+            plant_params=tuple((k, _freeze(v)) for k, v in d.get("plant_params", {}).items()),
+            options=tuple(d.get("options", {}).items()),
+        )
+
+
+def parse_scenario(raw: dict | None, where: str, config_path) -> ScenarioChoice:
+    """Validated :class:`ScenarioChoice` of a ``[scenario]`` table (``None``: Simulation 1).
+
+    Raises:
+        ConfigError: naming the file, ``[scenario]`` and the key; parameter files by path.
+    """
+    if raw is None:
+        return ScenarioChoice()
+    for k in raw:
+        if k not in SCENARIO_KEYS and k != "path":
+            raise ConfigError(
+                f"{where}: unknown key [scenario] {k!r}; expected one of {list(SCENARIO_KEYS)}"
+            )
+    vehicle = raw.get("vehicle", "infante")
+    try:
+        cls = loops.loop_class(as_str("vehicle", vehicle))
+    except ValueError as err:
+        raise ConfigError(f"{where}: [scenario] {err}") from None
+    controller = raw.get("controller")
+    if controller is not None and controller not in cls.controllers:
+        raise ConfigError(
+            f"{where}: [scenario] controller: vehicle {vehicle!r} supports "
+            f"{list(cls.controllers)}, got {controller!r}"
+        )
+    options = ()
+    if "edd" in raw:
+        fields = {f.name for f in dataclasses.fields(cls)}
+        if "edd" not in fields:
+            raise ConfigError(f"{where}: [scenario] edd: not an option of the {vehicle} loop")
+        options = (
+            ("edd", as_choice(f"{where}: [scenario] edd", raw["edd"], ("paper", "implied"))),
+        )
+    path = None if "path" not in raw else path_spec(raw["path"], where)
+    choice = ScenarioChoice(vehicle=vehicle, controller=controller, path=path, options=options)
+    probe = choice.loop(controller or cls.controllers[0])
+    over = {}
+    for key in ("params", "plant_params"):
+        if key in raw:
+            f = resolve_file(f"{where}: [scenario] {key}", raw[key], Path(config_path))
+            try:
+                vals = loops.read_param_file(f, probe, where=f"[scenario] {key}")
+            except ValueError as err:
+                raise ConfigError(f"{where}: {err}") from None
+            over[key] = tuple((k, _freeze(v)) for k, v in vals.items())
+    choice = dataclasses.replace(choice, **over)
+    try:
+        choice.nominal(probe)
+    except ValueError as err:
+        raise ConfigError(f"{where}: [scenario] {err}") from None
+    return choice

@@ -1,0 +1,205 @@
+"""``vcjax sweep CONFIG.toml``: the TOML schema (see :mod:`vcjax.sweep`), :func:`load_config`
+and :func:`run_sweep_config`."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import jax
+
+from vcjax import loops
+from vcjax._config import (
+    ConfigError,
+    as_bool,
+    as_number,
+    as_range,
+    as_str_list,
+    check_schema,
+    read_toml,
+    resolve_file,
+)
+from vcjax.loops.config import SCENARIO_KEYS, parse_scenario
+from vcjax.sweep.results import load_results, merge_results, save_results, summarize
+from vcjax.sweep.run import run_sweep
+from vcjax.sweep.spec import ScenarioSpec, SweepSpec
+
+__all__ = ["SCHEMA", "load_config", "run_sweep_config"]
+
+#: section -> keys ([initial] and [sensor_noise] keys depend on the vehicle)
+SCHEMA: dict[str, tuple[str, ...] | None] = {
+    "scenario": SCENARIO_KEYS,
+    "scenario.path": (),
+    "sweep": ("num_scenarios", "seed", "variants", "chunk_size"),
+    "simulation": ("horizon", "dt", "integrator", "timing", "edd", "u_d", "gains"),
+    "current": ("model", "speed", "direction_deg", "sigma", "tau", "max_speed"),
+    "initial": None,
+    "model_error": ("relative", "fields"),
+    "sensor_noise": None,
+    "disturbance": ("force",),
+    "metrics": ("tail", "diverge_e"),
+    "output": ("record_points", "figures"),
+}
+# (section, key) -> SweepSpec / ScenarioSpec field
+_SPEC_KEYS = {
+    ("sweep", "num_scenarios"): "num_scenarios",
+    ("sweep", "seed"): "seed",
+    ("sweep", "variants"): "variants",
+    ("sweep", "chunk_size"): "chunk_size",
+    ("simulation", "horizon"): "horizon",
+    ("simulation", "dt"): "dt",
+    ("simulation", "integrator"): "integrator",
+    ("simulation", "timing"): "timing",
+    ("simulation", "edd"): "edd",
+    ("metrics", "tail"): "tail",
+    ("metrics", "diverge_e"): "diverge_e",
+    ("output", "record_points"): "record_points",
+}
+_SCENARIO_KEYS = {
+    ("simulation", "u_d"): "u_d",
+    ("current", "model"): "current_model",
+    ("current", "speed"): "current_speed",
+    ("current", "direction_deg"): "current_direction_deg",
+    ("current", "sigma"): "current_sigma",
+    ("current", "tau"): "current_tau",
+    ("current", "max_speed"): "current_max_speed",
+    ("model_error", "relative"): "model_error",
+    ("model_error", "fields"): "model_fields",
+}
+
+
+def _toml_name(msg: str) -> str:
+    """Rewrite a spec field name at the start of ``msg`` into its ``[section] key``."""
+    head, sep, rest = msg.partition(":")
+    for (sec, key), field in (*_SPEC_KEYS.items(), *_SCENARIO_KEYS.items()):
+        if head == field:
+            return f"[{sec}] {key}{sep}{rest}"
+    if head in ("initial", "noise", "disturbance"):
+        sec = {"noise": "sensor_noise"}.get(head, head)
+        return f"[{sec}]{sep}{rest}"
+    return msg
+
+
+def load_config(config_path) -> tuple[SweepSpec, dict]:
+    """Read and validate a sweep TOML file (schema: :mod:`vcjax.sweep`).
+
+    Returns:
+        ``(spec, extras)``: the :class:`~vcjax.sweep.spec.SweepSpec` and ``extras = {"gains":
+        path or None, "figures": bool}``.
+
+    Raises:
+        ConfigError: naming the file, section and key (unknown section or key, wrong type,
+            out-of-range value, missing ``[sweep] num_scenarios``, a missing or invalid
+            referenced file by its path).
+    """
+    config_path = Path(config_path)
+    raw = read_toml(config_path)
+    where = str(config_path)
+    check_schema(raw, SCHEMA, where)
+    choice = parse_scenario(raw.get("scenario"), where, config_path)
+    cls = loops.loop_class(choice.vehicle)
+    for sec, valid in (("initial", tuple(cls.initial_keys)), ("sensor_noise", cls.noise_channels)):
+        for key in raw.get(sec, {}):
+            if key not in valid:
+                raise ConfigError(
+                    f"{where}: unknown key [{sec}] {key!r} for vehicle {choice.vehicle!r}; "
+                    f"expected one of {list(valid)}"
+                )
+    if "num_scenarios" not in raw.get("sweep", {}):
+        raise ConfigError(f"{where}: [sweep] num_scenarios is required")
+
+    spec_kw, sc_kw = {}, {}
+    try:
+        for (sec, key), field in _SPEC_KEYS.items():
+            if key in raw.get(sec, {}):
+                v = raw[sec][key]
+                if field == "variants":
+                    v = as_str_list(f"[{sec}] {key}", v)
+                spec_kw[field] = v
+        if "variants" not in spec_kw:
+            spec_kw["variants"] = (choice.controller,) if choice.controller else SweepSpec.variants
+            if not choice.controller and choice.vehicle != "infante":
+                spec_kw["variants"] = cls.controllers
+        for (sec, key), field in _SCENARIO_KEYS.items():
+            if key in raw.get(sec, {}):
+                v = raw[sec][key]
+                if field == "model_fields":
+                    v = as_str_list(f"[{sec}] {key}", v)
+                sc_kw[field] = v
+        sc_kw["initial"] = tuple(
+            (k, as_range(f"[initial] {k}", v)) for k, v in raw.get("initial", {}).items()
+        )
+        sc_kw["noise"] = tuple(
+            (k, as_number(f"[sensor_noise] {k}", v, lo=0.0))
+            for k, v in raw.get("sensor_noise", {}).items()
+        )
+        if "force" in raw.get("disturbance", {}):
+            f = raw["disturbance"]["force"]
+            if not isinstance(f, list):
+                raise ConfigError(f"[disturbance] force: expected a list, got {f!r}")
+            sc_kw["disturbance"] = tuple(as_range("[disturbance] force", r) for r in f)
+        gains = raw.get("simulation", {}).get("gains")
+        figures = as_bool("[output] figures", raw.get("output", {}).get("figures", True))
+        spec = SweepSpec(scenario=ScenarioSpec(**sc_kw), choice=choice, **spec_kw)
+    except ConfigError as err:
+        raise ConfigError(f"{where}: {_toml_name(str(err))}") from None
+    gains_path = None
+    if gains is not None:
+        gains_path = resolve_file(f"{where}: [simulation] gains", gains, config_path)
+    return spec, {"gains": gains_path, "figures": figures}
+
+
+def run_sweep_config(config_path, out_dir, progress: bool | Callable[[str], Any] = True) -> dict:
+    """Run the sweep described by a TOML file and write its results (the ``vcjax sweep`` CLI).
+
+    Writes into ``out_dir``: ``summary.json`` (:func:`~vcjax.sweep.results.summarize`),
+    ``results.npz`` (:func:`~vcjax.sweep.results.save_results`) and, unless ``[output] figures
+    = false``, the figures of :func:`vcjax.sweep_plots.sweep_figures`. In a multi-process run
+    (after ``jax.distributed.initialize``) every process runs its share of chunks and writes
+    ``results.part<p>-of-<P>.npz`` into the (shared) ``out_dir``; process 0 waits for the others,
+    merges the parts and writes the outputs.
+
+    Args:
+        config_path: the TOML file; out_dir: output folder (created).
+        progress: True: a bar on stderr; a callable: one line per chunk; False: silent.
+
+    Returns:
+        ``{"summary": dict, "files": [Path, ...]}`` (on processes other than 0: the part file
+        only, and ``summary`` None).
+    """
+    spec, extras = load_config(config_path)
+    gains = None
+    if extras["gains"] is not None:
+        loop = spec.loop(spec.variants[0])
+        try:
+            gains = loop.gains_from_json(json.loads(Path(extras["gains"]).read_text()))
+        except (OSError, json.JSONDecodeError, ValueError) as err:
+            raise ConfigError(
+                f"{config_path}: [simulation] gains: {extras['gains']}: {err}"
+            ) from None
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    result = run_sweep(spec, gains, progress=progress)
+
+    p_cnt, p_idx = jax.process_count(), jax.process_index()
+    if p_cnt > 1:
+        from jax.experimental import multihost_utils
+
+        part = save_results(result, out / f"results.part{p_idx}-of-{p_cnt}.npz")
+        multihost_utils.sync_global_devices("vcjax.sweep: parts written")
+        if p_idx != 0:
+            return {"summary": None, "files": [part]}
+        result = merge_results(
+            [load_results(out / f"results.part{i}-of-{p_cnt}.npz") for i in range(p_cnt)]
+        )
+    summary = summarize(result)
+    files = [save_results(result, out / "results.npz")]
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    files.append(out / "summary.json")
+    if extras["figures"]:
+        from vcjax import sweep_plots
+
+        files += sweep_plots.sweep_figures(result, out)
+    return {"summary": summary, "files": files}

@@ -1,0 +1,234 @@
+"""Sweep results: :class:`SweepResult`, statistics (:func:`summarize`), ``.npz`` files
+(:func:`save_results`, :func:`load_results`) and the merge of per-process parts."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+from vcjax.loops.config import ScenarioChoice
+from vcjax.metrics import FLAGS
+from vcjax.sweep.spec import ScenarioSpec, SweepSpec
+
+__all__ = [
+    "SweepResult",
+    "run_timing",
+    "summarize",
+    "save_results",
+    "load_results",
+    "merge_results",
+    "spec_to_dict",
+    "spec_from_dict",
+]
+
+
+@dataclasses.dataclass
+class SweepResult:
+    """Per-scenario results of a sweep (host numpy arrays, aligned with ``index``).
+
+    Attributes:
+        spec: the :class:`~vcjax.sweep.spec.SweepSpec`.
+        index: (n,) scenario numbers (sorted; all of them unless this is one process's share).
+        scenarios: sampled parameters, e.g. ``"eta0"`` (n, n_eta), ``"current_speed"`` (n,),
+            ``"model_factors"`` (n, F) (columns: the spec's model fields).
+        metrics: ``metrics[variant][name]`` (n,): :func:`vcjax.metrics.metric_names` and
+            :data:`vcjax.metrics.FLAGS`.
+        traces: ``traces[variant]["e"]`` (n, P) cross-track error [m], ``["xy"]`` (n, P, 2)
+            position [m] at times ``trace_t`` (P,) [s] (float32).
+        trace_t: (P,) [s].
+        wall_s: wall time of the sweep [s]; devices: number of devices used (per process).
+        timing: ``timing[variant]``: :func:`run_timing` (compile and run seconds, throughput).
+    """
+
+    spec: SweepSpec
+    index: np.ndarray
+    scenarios: dict
+    metrics: dict
+    traces: dict
+    trace_t: np.ndarray
+    wall_s: float = 0.0
+    devices: int = 1
+    timing: dict = dataclasses.field(default_factory=dict)
+
+
+def run_timing(compile_s: float, run_s: float, scenarios: int, steps: int, devices: int) -> dict:
+    """One variant's timing: ``compile_s`` (trace + lower + XLA compile) [s], ``run_s``
+    (every chunk run and fetched, compilation excluded) [s], ``traj_steps_per_s`` =
+    ``scenarios x steps / run_s`` (None when nothing ran), and the counts."""
+    rate = scenarios * steps / run_s if run_s > 0 and scenarios else None
+    return {
+        "compile_s": float(compile_s),
+        "run_s": float(run_s),
+        "traj_steps_per_s": rate,
+        "scenarios": int(scenarios),
+        "steps": int(steps),
+        "devices": int(devices),
+    }
+
+
+def _merge_timing(parts: list[SweepResult]) -> dict:
+    """Processes run in parallel: the slowest sets compile and run time; scenarios add up."""
+    out = {}
+    for v in parts[0].timing:
+        ts = [p.timing[v] for p in parts if v in p.timing]
+        out[v] = run_timing(
+            max(t["compile_s"] for t in ts),
+            max(t["run_s"] for t in ts),
+            sum(t["scenarios"] for t in ts),
+            ts[0]["steps"],
+            sum(t["devices"] for t in ts),
+        )
+    return out
+
+
+def merge_results(parts: list[SweepResult]) -> SweepResult:
+    """Combine the per-process parts of one sweep (sorted by scenario index)."""
+    if not parts:
+        raise ValueError("parts: nothing to merge")
+    spec = parts[0].spec
+    if any(p.spec != spec for p in parts):
+        raise ValueError("parts: results of different sweeps")
+    devices = sum(p.devices for p in parts)
+    timing = _merge_timing(parts)
+    parts = [p for p in parts if p.index.size] or parts[:1]  # a process may have had no chunk
+    index = np.concatenate([p.index for p in parts])
+    order = np.argsort(index, kind="stable")
+    if len(np.unique(index)) != len(index):
+        raise ValueError("parts: overlapping scenario indices")
+
+    def cat(get):
+        return np.concatenate([get(p) for p in parts])[order]
+
+    return SweepResult(
+        spec=spec,
+        index=index[order],
+        scenarios={k: cat(lambda p, k=k: p.scenarios[k]) for k in parts[0].scenarios},
+        metrics={
+            v: {k: cat(lambda p, v=v, k=k: p.metrics[v][k]) for k in parts[0].metrics[v]}
+            for v in parts[0].metrics
+        },
+        traces={
+            v: {k: cat(lambda p, v=v, k=k: p.traces[v][k]) for k in parts[0].traces[v]}
+            for v in parts[0].traces
+        },
+        trace_t=parts[0].trace_t,
+        wall_s=max(p.wall_s for p in parts),
+        devices=devices,
+        timing=timing,
+    )
+
+
+def _stats(x: np.ndarray) -> dict:
+    if x.size == 0:
+        return {k: None for k in ("mean", "std", "p5", "p50", "p95", "min", "max")}
+    p5, p50, p95 = np.percentile(x, [5, 50, 95])
+    vals = dict(mean=x.mean(), std=x.std(), p5=p5, p50=p50, p95=p95, min=x.min(), max=x.max())
+    return {k: (float(v) if np.isfinite(v) else None) for k, v in vals.items()}
+
+
+def summarize(result: SweepResult) -> dict:
+    """JSON-ready summary: per variant, failure counts and per-metric statistics.
+
+    ``summary["variants"][v]``: ``n``, ``n_diverged``, ``n_nonfinite`` and, for every metric,
+    ``mean``, ``std``, ``p5``, ``p50``, ``p95``, ``min``, ``max`` over the runs that did not
+    diverge (``None`` where there are none); ``timing`` (:func:`run_timing`: ``compile_s``,
+    ``run_s``, ``traj_steps_per_s``, ...).
+    """
+    out = {}
+    for v, m in result.metrics.items():
+        ok = ~m["diverged"].astype(bool)
+        entry = {
+            "n": int(ok.size),
+            "n_diverged": int((~ok).sum()),
+            "n_nonfinite": int(m["nonfinite"].astype(bool).sum()),
+        }
+        entry["metrics"] = {
+            k: _stats(np.asarray(a, dtype=np.float64)[ok]) for k, a in m.items() if k not in FLAGS
+        }
+        if v in result.timing:
+            entry["timing"] = result.timing[v]
+        out[v] = entry
+    return {
+        "num_scenarios": int(result.index.size),
+        "wall_s": round(result.wall_s, 3),
+        "devices": result.devices,
+        "spec": spec_to_dict(result.spec),
+        "variants": out,
+    }
+
+
+def spec_to_dict(spec: SweepSpec) -> dict:
+    """Plain-JSON form of a :class:`~vcjax.sweep.spec.SweepSpec`."""
+    d = {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec)}
+    sc = spec.scenario
+    d["scenario"] = {f.name: getattr(sc, f.name) for f in dataclasses.fields(sc)}
+    d["scenario"]["initial"] = {k: list(v) for k, v in sc.initial}
+    d["scenario"]["noise"] = dict(sc.noise)
+    d["choice"] = spec.choice.to_dict()
+    return json.loads(json.dumps(d, default=list))
+
+
+def spec_from_dict(d: dict) -> SweepSpec:
+    """Inverse of :func:`spec_to_dict`."""
+    d = dict(d)
+    sc = dict(d.pop("scenario"))
+    sc["initial"] = tuple((k, tuple(v)) for k, v in sc["initial"].items())
+    sc["noise"] = tuple(sc["noise"].items())
+    sc["disturbance"] = tuple(tuple(r) for r in sc["disturbance"])
+    for k, v in sc.items():
+        if isinstance(v, list):
+            sc[k] = tuple(v)
+    d["variants"] = tuple(d["variants"])
+    d["choice"] = ScenarioChoice.from_dict(d["choice"])
+    return SweepSpec(scenario=ScenarioSpec(**sc), **d)
+
+
+def save_results(result: SweepResult, path: Path) -> Path:
+    """Write ``result`` to an ``.npz`` file (no pickles).
+
+    Keys: ``index``; ``scenario.<field>`` (see :class:`~vcjax.sweep.spec.MCScenario`;
+    ``model_factors`` columns are ``model_fields``); ``<variant>.<metric>``;
+    ``<variant>.trace_e`` (n, P), ``<variant>.trace_xy`` (n, P, 2); ``trace_t``; ``spec_json``.
+    """
+    path = Path(path)
+    arrays = {"index": result.index, "trace_t": result.trace_t}
+    arrays["model_fields"] = np.array(result.spec.mc_config().model_fields, dtype=str)
+    arrays["spec_json"] = np.array(json.dumps(spec_to_dict(result.spec)))
+    meta = {"wall_s": result.wall_s, "devices": result.devices, "timing": result.timing}
+    arrays["meta_json"] = np.array(json.dumps(meta))
+    for k, a in result.scenarios.items():
+        arrays[f"scenario.{k}"] = a
+    for v in result.metrics:
+        for k, a in result.metrics[v].items():
+            arrays[f"{v}.{k}"] = a
+        for k, a in result.traces[v].items():
+            arrays[f"{v}.trace_{k}"] = a
+    np.savez_compressed(path, **arrays)
+    return path
+
+
+def load_results(path: Path) -> SweepResult:
+    """Inverse of :func:`save_results`."""
+    with np.load(Path(path), allow_pickle=False) as z:
+        spec = spec_from_dict(json.loads(str(z["spec_json"])))
+        meta = json.loads(str(z["meta_json"]))
+        scen = {k[9:]: z[k] for k in z.files if k.startswith("scenario.")}
+        metrics, traces = {}, {}
+        for v in spec.variants:
+            keys = [k for k in z.files if k.startswith(f"{v}.")]
+            metrics[v] = {k[len(v) + 1 :]: z[k] for k in keys if ".trace_" not in k}
+            traces[v] = {k: z[f"{v}.trace_{k}"] for k in ("e", "xy")}
+        return SweepResult(
+            spec,
+            z["index"],
+            scen,
+            metrics,
+            traces,
+            z["trace_t"],
+            meta["wall_s"],
+            meta["devices"],
+            meta.get("timing", {}),
+        )

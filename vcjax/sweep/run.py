@@ -1,0 +1,280 @@
+"""Running a sweep: one scenario (:func:`simulate_scenario`, :func:`scenario_metrics`), a
+jitted batch (:func:`run_batch`), a whole study in chunks sharded over devices and processes
+(:func:`run_sweep`)."""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+from vcjax import loops
+from vcjax._config import ConfigError
+from vcjax.loops.base import DisturbanceParams, Disturbances, gauss_markov_params
+from vcjax.metrics import run_metrics
+from vcjax.progress import ProgressBar
+from vcjax.rollout import RolloutConfig, Trajectory
+from vcjax.sweep.results import SweepResult, run_timing
+from vcjax.sweep.spec import MCConfig, MCScenario, SweepSpec, sample_scenarios
+
+__all__ = [
+    "nominal",
+    "perturb_params",
+    "to_scenario",
+    "simulate_scenario",
+    "scenario_metrics",
+    "run_batch",
+    "run_sweep",
+    "SCENARIO_FIELDS",
+]
+
+#: The sampled fields a :class:`~vcjax.sweep.results.SweepResult` keeps per scenario.
+SCENARIO_FIELDS = tuple(f for f in MCScenario._fields if f not in ("index", "key"))
+
+
+def nominal(spec: SweepSpec, dtype=None):
+    """``(plant, design, coeffs)`` of a sweep: the vehicle's defaults with the config's
+    parameter overrides (``params`` on both, ``plant_params`` on the plant), the path's
+    coefficients (as arrays of the parameters' dtype)."""
+    loop = spec.loop(spec.variants[0])
+    plant, design = spec.choice.nominal(loop, dtype)
+    dt = jnp.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
+    coeffs = jax.tree_util.tree_map(
+        lambda a: jnp.asarray(a, dt) if jnp.issubdtype(jnp.asarray(a).dtype, jnp.floating) else a,
+        spec.choice.coeffs(),
+    )
+    return plant, design, coeffs
+
+
+def perturb_params(nominal_params, fields: tuple[str, ...], factors):
+    """Parameters with ``nominal.<fields[j]> * factors[j]`` (pure, traced ``factors``; dotted
+    names reach into nested parameter NamedTuples)."""
+    return loops.replace_params(
+        nominal_params,
+        {f: loops.get_param(nominal_params, f) * factors[j] for j, f in enumerate(fields)},
+    )
+
+
+def to_scenario(loop, sc: MCScenario, plant, design, coeffs, config: MCConfig) -> loops.Scenario:
+    """The loop's :class:`~vcjax.loops.Scenario` of a sampled scenario (pure): the plant
+    perturbed by the model factors, the design model nominal, the particle starting at the path
+    point nearest to the start."""
+    return loops.Scenario(
+        eta0=sc.eta0,
+        nu0=sc.nu0,
+        current=sc.current,
+        u_d=sc.u_d,
+        varpi0=loops.start_parameter(loop.path, coeffs, loop.position(sc.eta0, design)),
+        path=coeffs,
+        plant=perturb_params(plant, config.model_fields, sc.model_factors),
+        design=design,
+        disturbance=sc.disturbance,
+    )
+
+
+def simulate_scenario(
+    loop, gains, nominal_params, sc: MCScenario, config: MCConfig, dt
+) -> tuple[Trajectory, loops.Scenario]:
+    """Closed-loop rollout of one loop on one sampled scenario (pure, not jitted).
+
+    ``loop`` and ``config`` are static; ``gains``, ``nominal_params`` (``(plant, design,
+    coeffs)``, see :func:`nominal`), ``sc`` and ``dt`` [s] are traced. With a constant current
+    and no sensor noise this *is* :func:`vcjax.loops.simulate`; otherwise the same loop gets a
+    Gauss–Markov current and/or measurement noise (:class:`~vcjax.loops.Disturbances`).
+
+    Returns:
+        ``(traj, scenario)``.
+    """
+    plant, design, coeffs = nominal_params
+    s = to_scenario(loop, sc, plant, design, coeffs, config)
+    rcfg = RolloutConfig(
+        num_steps=config.num_steps, integrator=config.integrator, timing=config.timing
+    )
+    dist = Disturbances(
+        gauss_markov=config.current_model == "gauss_markov", sensor_noise=config.sensor_noise
+    )
+    dp = DisturbanceParams(
+        current=gauss_markov_params(s, sc.current_sigma, sc.current_tau, sc.current_max_speed),
+        noise_std=sc.noise_std,
+        key=sc.key,
+    )
+    return loops.simulate(loop, gains, s, rcfg, dt, dist, dp), s
+
+
+def scenario_metrics(loop, traj: Trajectory, sc: loops.Scenario, config: MCConfig, diverge_e):
+    """Metrics and health flags of one run (:func:`vcjax.metrics.run_metrics` over the last
+    ``config.tail`` of the run), and the recorded traces.
+
+    Returns:
+        ``(metrics, traces)``: ``metrics`` maps names to () arrays; ``traces`` maps ``"e"``
+        (P,) and ``"xy"`` (P, 2) to float32 samples at ``config.trace_steps``.
+    """
+    sig = loop.signals(traj, sc)
+    m = run_metrics(sig, traj.finite, traj.t[1] - traj.t[0], 1.0 - config.tail, diverge_e)
+    idx = config.trace_steps
+    traces = {
+        "e": sig.eps[idx, 1].astype(jnp.float32),
+        "xy": sig.pos[idx, :2].astype(jnp.float32),
+    }
+    return m, traces
+
+
+@functools.partial(jax.jit, static_argnames=("loop", "config"))
+def _run_batch(loop, gains, nominal_params, scenarios, config, dt, diverge_e):
+    def one(sc):
+        traj, s = simulate_scenario(loop, gains, nominal_params, sc, config, dt)
+        return scenario_metrics(loop, traj, s, config, diverge_e)
+
+    return jax.vmap(one)(scenarios)
+
+
+def run_batch(loop, gains, nominal_params, scenarios: MCScenario, config: MCConfig, dt, diverge_e):
+    """Jitted ``vmap`` of :func:`simulate_scenario` + :func:`scenario_metrics` over a batch.
+
+    ``loop`` and ``config`` are static (one compile each); a batch of the same size with new
+    values reuses the compiled program (``dt`` [s] and ``diverge_e`` [m] are converted to
+    arrays of the parameters' dtype first). If ``scenarios`` is sharded along its batch axis,
+    the computation runs sharded and so are the outputs. Returns ``(metrics, traces)`` with a
+    leading batch axis.
+    """
+    dtype = jnp.asarray(jax.tree_util.tree_leaves(nominal_params)[0]).dtype
+    dt = jnp.asarray(dt, dtype) if not isinstance(dt, jax.Array) else dt
+    diverge_e = jnp.asarray(diverge_e, dtype) if not isinstance(diverge_e, jax.Array) else diverge_e
+    return _run_batch(loop, gains, nominal_params, scenarios, config, dt, diverge_e)
+
+
+def _mesh(devices) -> Mesh:
+    return Mesh(np.asarray(devices), ("scenarios",))
+
+
+def _progress_bar(total: int, progress) -> ProgressBar | None:
+    """``progress``: True (bar on stderr), a callable (one line per update) or False."""
+    if not progress:
+        return None
+    sink = progress if callable(progress) else None
+    return ProgressBar(total, "sweep ", sink=sink)
+
+
+def run_sweep(
+    spec: SweepSpec,
+    gains=None,
+    *,
+    progress: bool | Callable[[str], Any] = True,
+    devices=None,
+    process_index: int | None = None,
+    process_count: int | None = None,
+) -> SweepResult:
+    """Run every variant of ``spec`` on its scenarios, chunk by chunk.
+
+    Chunks hold ``chunk_size`` scenarios rounded up to a multiple of the device count (the last
+    chunk is padded with copies of its last scenario, and the copies dropped), so each variant
+    compiles once. Each chunk is sharded along the scenario axis over ``devices`` (default: this
+    process's local devices; one device: no sharding). With several processes (default:
+    ``jax.process_index()`` / ``jax.process_count()``), process ``p`` runs chunks
+    ``p, p + P, p + 2P, ...`` on its own devices and returns only those scenarios; combine the
+    parts with :func:`~vcjax.sweep.results.merge_results`.
+
+    Args:
+        spec: the study; gains: the vehicle's gains NamedTuple (default: the loop's defaults).
+        progress: True: a bar on stderr; a callable: receives a line per chunk; False: silent.
+        devices: devices to shard over (default ``jax.local_devices()``).
+        process_index, process_count: this process's share (default from JAX).
+
+    Each variant's program is traced and compiled once, timed apart from running it:
+    :attr:`~vcjax.sweep.results.SweepResult.timing` holds per variant ``compile_s``, ``run_s``
+    (executing every chunk and fetching its results, compilation excluded) and
+    ``traj_steps_per_s`` (this process's scenarios x steps / ``run_s``).
+    """
+    t_start = time.perf_counter()
+    loops_ = {v: spec.loop(v) for v in spec.variants}
+    gains = loops_[spec.variants[0]].default_gains() if gains is None else gains
+    devices = list(jax.local_devices() if devices is None else devices)
+    p_idx = jax.process_index() if process_index is None else int(process_index)
+    p_cnt = jax.process_count() if process_count is None else int(process_count)
+    if not 0 <= p_idx < p_cnt:
+        raise ConfigError(f"process_index: expected 0 <= index < {p_cnt}, got {p_idx}")
+    n_dev = len(devices)
+    chunk = -(-spec.chunk_size // n_dev) * n_dev
+    chunk = min(chunk, -(-spec.num_scenarios // n_dev) * n_dev)
+    n_chunks = -(-spec.num_scenarios // chunk)
+    mine = list(range(p_idx, n_chunks, p_cnt))
+
+    nom = nominal(spec)
+    dtype = jnp.asarray(jax.tree_util.tree_leaves(nom[1])[0]).dtype
+    config = spec.mc_config()
+    dt = jnp.asarray(spec.dt, dtype)
+    diverge_e = jnp.asarray(spec.diverge_e, dtype)
+    if n_dev == 1 and devices[0] == jax.devices()[0]:
+        put_batch = put_repl = lambda tree: tree  # no sharding: same program as run_batch
+    else:
+        mesh = _mesh(devices)
+        batch_sh = NamedSharding(mesh, PartitionSpec("scenarios"))
+        repl = NamedSharding(mesh, PartitionSpec())
+        put_batch = lambda tree: jax.device_put(tree, batch_sh)
+        put_repl = lambda tree: jax.device_put(tree, repl)
+    gains_d, nom_d, dt_d, div_d = put_repl((gains, nom, dt, diverge_e))
+
+    bar = _progress_bar(len(mine) * len(spec.variants), progress)
+    compiled, compile_s = {}, dict.fromkeys(spec.variants, 0.0)
+    run_s = dict.fromkeys(spec.variants, 0.0)
+    parts_idx, parts_sc = [], []
+    parts_m = {v: [] for v in spec.variants}
+    parts_tr = {v: [] for v in spec.variants}
+    loop0 = loops_[spec.variants[0]]
+    for c in mine:
+        lo = c * chunk
+        n_valid = min(chunk, spec.num_scenarios - lo)
+        idx = np.arange(lo, lo + chunk)
+        idx[n_valid:] = lo + n_valid - 1  # pad with copies of the last scenario
+        sc = sample_scenarios(spec.scenario, spec.seed, idx, dtype, loop=loop0)
+        sc_d = put_batch(sc)
+        parts_idx.append(idx[:n_valid])
+        host_sc = jax.device_get(sc)
+        parts_sc.append({f: np.asarray(getattr(host_sc, f))[:n_valid] for f in SCENARIO_FIELDS})
+        for v in spec.variants:
+            dyn = (gains_d, nom_d, sc_d, dt_d, div_d)
+            if v not in compiled:  # trace, lower and compile once per variant, timed apart
+                t0 = time.perf_counter()
+                lowered = _run_batch.lower(loops_[v], gains_d, nom_d, sc_d, config, dt_d, div_d)
+                compiled[v] = lowered.compile()
+                compile_s[v] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            m, tr = jax.device_get(compiled[v](*dyn))
+            run_s[v] += time.perf_counter() - t0
+            parts_m[v].append({k: np.asarray(a)[:n_valid] for k, a in m.items()})
+            parts_tr[v].append({k: np.asarray(a)[:n_valid] for k, a in tr.items()})
+            if bar is not None:
+                bar.update(f"chunk {c + 1}/{n_chunks} {v}")
+
+    def cat(parts, key):
+        arrs = [p[key] for p in parts]
+        return np.concatenate(arrs) if arrs else np.zeros((0,))
+
+    index = np.concatenate(parts_idx) if parts_idx else np.zeros(0, dtype=np.int64)
+    scenarios = {f: cat(parts_sc, f) for f in SCENARIO_FIELDS}
+    names = {v: list(parts_m[v][0]) if parts_m[v] else [] for v in spec.variants}
+    metrics = {v: {k: cat(parts_m[v], k) for k in names[v]} for v in spec.variants}
+    traces = {v: {k: cat(parts_tr[v], k) for k in ("e", "xy")} for v in spec.variants}
+    trace_t = config.trace_steps * spec.dt
+    n_mine = int(index.size)
+    timing = {
+        v: run_timing(compile_s[v], run_s[v], n_mine, config.num_steps, n_dev)
+        for v in spec.variants
+    }
+    return SweepResult(
+        spec=spec,
+        index=index,
+        scenarios=scenarios,
+        metrics=metrics,
+        traces=traces,
+        trace_t=trace_t,
+        wall_s=time.perf_counter() - t_start,
+        devices=n_dev,
+        timing=timing,
+    )

@@ -1,0 +1,353 @@
+"""What a sweep simulates (:class:`SweepSpec`), the distribution its scenarios are drawn from
+(:class:`ScenarioSpec`), and the sampling (:func:`sample_scenarios` -> :class:`MCScenario`).
+
+Everything a scenario draws comes from ``jax.random.fold_in(PRNGKey(seed), index)``, so
+scenario ``i`` is the same whatever the chunk size, the number of devices or of hosts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from vcjax import loops
+from vcjax._config import ConfigError, as_choice, as_int, as_number, as_range
+from vcjax.currents import current_ned
+from vcjax.loops.config import ScenarioChoice
+
+__all__ = ["ScenarioSpec", "SweepSpec", "MCScenario", "MCConfig", "sample_scenarios"]
+
+_CURRENT_MODELS = ("constant", "gauss_markov")
+
+
+@dataclasses.dataclass(frozen=True)
+class ScenarioSpec:
+    """The distribution scenarios are drawn from (validated on construction).
+
+    Every ``(lo, hi)`` pair is sampled uniformly (``lo == hi``: fixed). Units: speeds [m/s],
+    angles [deg] (``current_direction_deg``: towards which the water flows, clockwise from
+    north), the vehicle's ``[initial]`` keys in their units (``*_deg``: degrees).
+    The defaults are the paper's Simulation 1 (current 0.5 m/s towards east, the vehicle's
+    default start, no model error, no noise).
+
+    Attributes:
+        initial: ``((key, (lo, hi)), ...)`` over the loop's ``initial_keys`` (missing keys:
+            the loop's defaults).
+        model_fields: plant parameters scaled by ``1 + model_error U(-1, 1)`` (``None``: the
+            loop's ``default_model_fields()``).
+        noise: ``((channel, std), ...)`` sensor-noise standard deviations over the loop's
+            ``noise_channels`` (``*_deg``: degrees, deg/s).
+        disturbance: per component of the generalised disturbance force, a range [N, N m]
+            (empty: none).
+    """
+
+    current_speed: tuple[float, float] = (0.5, 0.5)
+    current_direction_deg: tuple[float, float] = (90.0, 90.0)
+    current_model: str = "constant"
+    current_sigma: float = 0.05
+    current_tau: float = 300.0
+    current_max_speed: float = 2.0
+    initial: tuple[tuple[str, tuple[float, float]], ...] = ()
+    u_d: tuple[float, float] | None = None
+    model_error: float = 0.0
+    model_fields: tuple[str, ...] | None = None
+    noise: tuple[tuple[str, float], ...] = ()
+    disturbance: tuple[tuple[float, float], ...] = ()
+
+    def __post_init__(self):
+        s = object.__setattr__
+        s(self, "current_speed", as_range("current_speed", self.current_speed, lo_min=0.0))
+        s(
+            self,
+            "current_direction_deg",
+            as_range("current_direction_deg", self.current_direction_deg),
+        )
+        as_choice("current_model", self.current_model, _CURRENT_MODELS)
+        as_number("current_sigma", self.current_sigma, lo=0.0)
+        as_number("current_tau", self.current_tau, lo=0.0, lo_open=True)
+        as_number("current_max_speed", self.current_max_speed, lo=0.0, lo_open=True)
+        s(self, "initial", tuple((k, as_range(k, v)) for k, v in dict(self.initial).items()))
+        if self.u_d is not None:
+            s(self, "u_d", as_range("u_d", self.u_d, positive=True))
+        as_number("model_error", self.model_error, lo=0.0, hi=1.0, hi_open=True)
+        if self.model_fields is not None:
+            fields = tuple(self.model_fields)
+            if len(set(fields)) != len(fields):
+                raise ConfigError(f"model_fields: repeated fields in {list(fields)}")
+            s(self, "model_fields", fields)
+        noise = tuple((k, as_number(k, v, lo=0.0)) for k, v in dict(self.noise).items())
+        s(self, "noise", noise)
+        s(self, "disturbance", tuple(as_range("disturbance", r) for r in self.disturbance))
+
+    def check_for(self, loop: loops.Loop) -> None:
+        """The vehicle-specific keys are the loop's (raises naming the key and listing the
+        valid ones)."""
+        for k, _ in self.initial:
+            if k not in loop.initial_keys:
+                raise ConfigError(
+                    f"initial: unknown key {k!r} for vehicle {loop.vehicle!r}; "
+                    f"expected {list(loop.initial_keys)}"
+                )
+        valid = loop.param_names()
+        bad = [f for f in self.model_fields or () if f not in valid]
+        if bad:
+            raise ConfigError(
+                f"model_fields: unknown {loop.vehicle} parameters {bad}; choose among {list(valid)}"
+            )
+        for k, _ in self.noise:
+            if k not in loop.noise_channels:
+                raise ConfigError(
+                    f"noise: unknown channel {k!r} for vehicle {loop.vehicle!r}; "
+                    f"expected {list(loop.noise_channels)}"
+                )
+        if self.disturbance:
+            if not loop.takes_disturbance:
+                raise ConfigError(f"disturbance: the {loop.vehicle} plant takes no disturbance")
+            n_nu = int(np.shape(loop.initial_from(_zeros(loop))[1])[0])
+            if len(self.disturbance) != n_nu:
+                raise ConfigError(
+                    f"disturbance: expected {n_nu} components, got {len(self.disturbance)}"
+                )
+
+    def fields_for(self, loop: loops.Loop) -> tuple[str, ...]:
+        return loop.default_model_fields() if self.model_fields is None else self.model_fields
+
+    def noise_std(self, loop: loops.Loop) -> np.ndarray:
+        """Per-entry sensor-noise standard deviations (SI: ``*_deg`` channels in radians)."""
+        d = {k: math.radians(v) if k.endswith("_deg") else v for k, v in self.noise}
+        return loop.noise_std(d)
+
+    @property
+    def sensor_noise(self) -> bool:
+        return any(v > 0 for _, v in self.noise)
+
+
+def _zeros(loop):
+    return {k: jnp.zeros(()) for k in loop.initial_keys}
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepSpec:
+    """A whole study (validated on construction); see :mod:`vcjax.sweep` for the fields.
+
+    ``choice`` says what is simulated (vehicle, path, parameter overrides, loop options; the
+    default is Simulation 1's INFANTE-class craft on the line ``[10, w]``); ``variants`` are
+    that vehicle's controllers, all run on the same scenarios (paired comparison).
+    """
+
+    num_scenarios: int
+    scenario: ScenarioSpec = ScenarioSpec()
+    variants: tuple[str, ...] = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos")
+    seed: int = 0
+    horizon: float = 60.0
+    dt: float = 0.05
+    integrator: str = "rk4"
+    timing: str = "continuous"
+    edd: str = "paper"
+    chunk_size: int = 256
+    tail: float = 0.2
+    diverge_e: float = 50.0
+    record_points: int = 200
+    choice: ScenarioChoice = ScenarioChoice()
+
+    def __post_init__(self):
+        as_int("num_scenarios", self.num_scenarios, 1)
+        as_int("seed", self.seed, 0)
+        as_int("chunk_size", self.chunk_size, 1)
+        as_int("record_points", self.record_points, 0)
+        variants = tuple(self.variants)
+        if not variants or len(set(variants)) != len(variants):
+            raise ConfigError(f"variants: expected distinct variants, got {list(variants)}")
+        ctrls = loops.controllers(self.choice.vehicle)
+        for v in variants:
+            as_choice("variants", v, ctrls)
+        object.__setattr__(self, "variants", variants)
+        as_number("horizon", self.horizon, lo=0.0, lo_open=True)
+        as_number("dt", self.dt, lo=0.0, lo_open=True, hi=self.horizon)
+        as_choice("integrator", self.integrator, ("euler", "heun", "rk4"))
+        as_choice("timing", self.timing, ("continuous", "sampled"))
+        as_choice("edd", self.edd, ("paper", "implied"))
+        as_number("tail", self.tail, lo=0.0, lo_open=True, hi=1.0)
+        as_number("diverge_e", self.diverge_e, lo=0.0, lo_open=True)
+        if not isinstance(self.scenario, ScenarioSpec):
+            raise ConfigError("scenario: expected a ScenarioSpec")
+        self.scenario.check_for(self.loop(variants[0]))
+
+    def loop(self, variant: str) -> loops.Loop:
+        """The loop of ``variant`` (``edd`` applies to loops that have that option)."""
+        cls = loops.loop_class(self.choice.vehicle)
+        opts = {}
+        if "edd" in {f.name for f in dataclasses.fields(cls)} and "edd" not in dict(
+            self.choice.options
+        ):
+            opts["edd"] = self.edd
+        return self.choice.loop(variant, **opts)
+
+    @property
+    def num_steps(self) -> int:
+        return max(1, int(round(self.horizon / self.dt)))
+
+    def mc_config(self) -> MCConfig:
+        """The static part of the batched rollout."""
+        n = self.num_steps
+        stride = 0 if self.record_points == 0 else max(1, -(-n // self.record_points))
+        return MCConfig(
+            num_steps=n,
+            integrator=self.integrator,
+            timing=self.timing,
+            current_model=self.scenario.current_model,
+            sensor_noise=self.scenario.sensor_noise,
+            model_fields=self.scenario.fields_for(self.loop(self.variants[0])),
+            tail=self.tail,
+            record_stride=stride,
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class MCConfig:
+    """Static settings of a batched Monte-Carlo rollout.
+
+    Attributes:
+        num_steps: rollout steps N; integrator, timing: as :class:`~vcjax.rollout.RolloutConfig`.
+        current_model: ``"constant"`` or ``"gauss_markov"``.
+        sensor_noise: add measurement noise (``MCScenario.noise_std``) to what the controller
+            sees; False skips the noise code entirely.
+        model_fields: plant fields scaled by ``MCScenario.model_factors`` (same order).
+        tail: steady-state window (last fraction of the run).
+        record_stride: keep every ``record_stride``-th sample of ``e`` and the path (0: none).
+    """
+
+    num_steps: int
+    integrator: str = "rk4"
+    timing: str = "continuous"
+    current_model: str = "constant"
+    sensor_noise: bool = False
+    model_fields: tuple[str, ...] = ()
+    tail: float = 0.2
+    record_stride: int = 0
+
+    @property
+    def trace_steps(self) -> np.ndarray:
+        """Step indices whose ``e`` and position are recorded."""
+        if self.record_stride == 0:
+            return np.zeros(0, dtype=np.int64)
+        return np.arange(0, self.num_steps, self.record_stride)
+
+
+class MCScenario(NamedTuple):
+    """One sampled scenario (traced; a batch stacks every field along a leading axis).
+
+    Attributes:
+        index: () int32 scenario number (its draws come from ``fold_in(PRNGKey(seed), index)``).
+        eta0: (n_eta,) initial pose; nu0: (n_nu,) initial velocity (the loop's
+            ``initial_from`` of the sampled ``[initial]`` values).
+        u_d: () desired speed [m/s].
+        current_speed: () mean current speed [m/s]; current_direction: () [rad, towards,
+            clockwise from north]; current: (3,) mean water velocity in NED [m/s].
+        current_sigma, current_tau, current_max_speed: () Gauss–Markov parameters
+            [m/s, s, m/s] (unused by a constant current).
+        model_factors: (F,) multiplicative factors of the plant fields ``MCConfig.model_fields``.
+        noise_std: (S,) sensor-noise standard deviations (SI).
+        disturbance: (n_nu,) constant generalised disturbance force.
+        key: (2,) uint32 PRNG key of the scenario's random processes (current, noise).
+    """
+
+    index: Any
+    eta0: Any
+    nu0: Any
+    u_d: Any
+    current_speed: Any
+    current_direction: Any
+    current: Any
+    current_sigma: Any
+    current_tau: Any
+    current_max_speed: Any
+    model_factors: Any
+    noise_std: Any
+    disturbance: Any
+    key: Any
+
+
+def _spec_arrays(spec: ScenarioSpec, loop: loops.Loop, dtype):
+    """The continuous part of ``spec`` as arrays (traced: new values do not recompile)."""
+    deg = math.pi / 180.0
+    init = dict(spec.initial)
+    ranges = [spec.current_speed, tuple(a * deg for a in spec.current_direction_deg)]
+    for k, default in loop.initial_keys.items():
+        r = init.get(k, (default, default))
+        ranges.append(tuple(a * deg for a in r) if k.endswith("_deg") else r)
+    ranges.append(spec.u_d or (loop.default_speed,) * 2)
+    f = lambda x: jnp.asarray(np.asarray(x, dtype=np.float64), dtype)
+    gm = (spec.current_sigma, spec.current_tau, spec.current_max_speed)
+    n_nu = int(np.shape(loop.initial_from(_zeros(loop))[1])[0])
+    dist = spec.disturbance or ((0.0, 0.0),) * n_nu
+    return (
+        f(ranges),
+        f(spec.model_error),
+        f(gm),
+        f(spec.noise_std(loop)),
+        f(np.asarray(dist).reshape(-1, 2)),
+    )
+
+
+def _sample_one(loop, arrays, seed, index, nf: int) -> MCScenario:
+    ranges, model_error, gm, noise_std, dist = arrays
+    dtype = ranges.dtype
+    key = jax.random.fold_in(jax.random.PRNGKey(seed), index)
+    ks = jax.random.split(key, 9)
+    u = jax.random.uniform(ks[0], (ranges.shape[0],), dtype)
+    vals = ranges[:, 0] + (ranges[:, 1] - ranges[:, 0]) * u  # lo == hi: exactly lo
+    speed, direction = vals[0], vals[1]
+    init = {k: vals[2 + i] for i, k in enumerate(loop.initial_keys)}
+    u_d = vals[-1]
+    eta0, nu0 = loop.initial_from(init)
+    factors = 1.0 + model_error * jax.random.uniform(ks[1], (nf,), dtype, -1.0, 1.0)
+    ud = jax.random.uniform(ks[3], (dist.shape[0],), dtype)
+    return MCScenario(
+        index=jnp.asarray(index, jnp.int32),
+        eta0=eta0,
+        nu0=nu0,
+        u_d=u_d,
+        current_speed=speed,
+        current_direction=direction,
+        current=current_ned(speed, direction),
+        current_sigma=gm[0],
+        current_tau=gm[1],
+        current_max_speed=gm[2],
+        model_factors=factors,
+        noise_std=noise_std,
+        disturbance=dist[:, 0] + (dist[:, 1] - dist[:, 0]) * ud,
+        key=ks[2],
+    )
+
+
+@functools.partial(jax.jit, static_argnames=("loop", "nf"))
+def _sample(loop, arrays, seed, indices, nf):
+    return jax.vmap(lambda i: _sample_one(loop, arrays, seed, i, nf))(indices)
+
+
+def sample_scenarios(
+    spec: ScenarioSpec, seed: int, indices, dtype=None, loop: loops.Loop | None = None
+) -> MCScenario:
+    """Draw scenarios ``indices`` (int array (B,)) of the study ``(spec, seed)`` for ``loop``
+    (default: Simulation 1's INFANTE-class loop; any loop of the same vehicle gives the same
+    draws).
+
+    Scenario ``i`` depends only on ``(spec, seed, i)``. ``dtype``: float dtype (default: JAX's
+    default float). Returns an :class:`MCScenario` with a leading batch axis B.
+    """
+    if not isinstance(spec, ScenarioSpec):
+        raise ConfigError(f"spec: expected ScenarioSpec, got {type(spec).__name__}")
+    loop = loops.make_loop("infante", "vcm") if loop is None else loop
+    spec.check_for(loop)
+    dtype = jnp.asarray(0.0).dtype if dtype is None else jnp.dtype(dtype)
+    indices = jnp.asarray(indices, dtype=jnp.int32)
+    arrays = _spec_arrays(spec, loop, dtype)
+    nf = len(spec.fields_for(loop))
+    return _sample(loop, arrays, jnp.asarray(seed, jnp.uint32), indices, nf)
