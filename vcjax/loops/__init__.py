@@ -87,6 +87,7 @@ from vcjax.loops.base import (
     start_parameter,
 )
 from vcjax.loops.infante import InfanteGains, InfanteLoop, infante_gains
+from vcjax.loops.remus100 import Remus100Loop
 
 __all__ = [
     "Disturbances",
@@ -286,3 +287,4 @@ def apply_params(params, values: dict, where: str = "params"):
 
 
 register(InfanteLoop)
+register(Remus100Loop)

@@ -36,6 +36,7 @@ PATH_KINDS = {
     "circle": (paths.circle, ("center", "radius", "clockwise", "phase")),
     "helix": (paths.helix, ("center", "a", "b", "T", "climb", "phase")),
     "waypoints": (paths.waypoints, ("points", "extend")),
+    "lawnmower": (paths.lawnmower, ("start", "leg", "radius", "n_legs", "depth", "descent")),
 }
 #: keys of [scenario] (besides the [scenario.path] table)
 SCENARIO_KEYS = ("vehicle", "controller", "params", "plant_params", "edd")
