@@ -93,3 +93,23 @@ def test_survey_mission_ilos_holds_the_path_under_cross_current(tmp_path):
     # the paper's angle with the exactly enforced heading row needs e = Delta tan(crab)
     assert m["vcm3d"]["ss_cross_track"] > 5 * m["vcm3d_ilos"]["ss_cross_track"]
     assert (tmp_path / "metrics.json").exists()
+
+
+def test_registered_in_the_scenario_layer_and_example_configs_parse():
+    from pathlib import Path
+
+    import tuning.config as tune_config
+    import vcjax.sweep.config as sweep_config
+    from vcjax import loops
+
+    assert "remus100" in loops.vehicles()
+    assert loops.controllers("remus100") == sr.VARIANTS
+    root = Path(__file__).resolve().parents[1] / "examples"
+    sweep_config.load_config(root / "sweeps" / "remus100.toml")
+    cfg = tune_config.load_config(root / "tuning" / "remus100.toml")
+    assert cfg["problem"]["variant"] == "vcm3d_ilos"
+    loop = loops.make_loop("remus100", "vcm3d_ilos")
+    names = [s.name for s in loop.gain_specs()]
+    assert names == ["P_G", "P_Phi", "Delta", "sigma", "k_int", "sigma_i"]
+    with pytest.raises(ValueError, match="controller"):
+        loops.make_loop("remus100", "vcm")
