@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import Any, ClassVar, NamedTuple
+from typing import Any, ClassVar, Literal, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -77,8 +77,8 @@ def remus_gains() -> RemusGains:
     """The hand-set gains of the survey mission (order-one dynamics slower than the fins)."""
     return RemusGains(
         vcm3d=vcm3d_gains(
-            P_G=(0.5, 0.5, 0.2, 0.2, 0.2),
-            P_Phi=(0.5, 0.3, 0.3, 1.0, 1.0, 0.4, 0.4, 0.4),
+            P_G=(1.0, 0.8, 0.2, 0.2, 0.2),
+            P_Phi=(0.5, 0.3, 0.3, 2.0, 1.5, 0.4, 0.4, 0.4),
             Delta=(8.0, 8.0),
             sigma=0.3,
             k_int=(0.03, 0.03, 0.03),
@@ -127,7 +127,14 @@ def _inertia_drag(dm, u_d):
 
 @dataclasses.dataclass(frozen=True)
 class Remus100Loop(Loop):
-    """The PVS REMUS 100 (6-DOF, fins + propeller) under one 3-D path-following controller."""
+    """The PVS REMUS 100 (6-DOF, fins + propeller) under one 3-D path-following controller.
+
+    Attributes (besides :class:`~vcjax.loops.base.Loop`'s):
+        edd: which ``e_ddot`` enters the heading row of ``decoupled``'s 2-D VCM law
+            (``"paper"`` or ``"implied"``, :class:`~vcjax.control.vcm.VCMConfig`).
+    """
+
+    edd: Literal["paper", "implied"] = "paper"
 
     vehicle: ClassVar[str] = "remus100"
     controllers: ClassVar[tuple[str, ...]] = REMUS_CONTROLLERS
@@ -141,6 +148,11 @@ class Remus100Loop(Loop):
         "speed": 1.5,
     }
     default_speed: ClassVar[float] = 1.5
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.edd not in ("paper", "implied"):
+            raise ValueError(f"edd: expected 'paper' or 'implied', got {self.edd!r}")
 
     # ---------------------------------------------------------------- parameters and gains
     @classmethod
@@ -199,7 +211,7 @@ class Remus100Loop(Loop):
 
             return law
         if c == "decoupled":
-            hcfg = VCMConfig(path=self.path, actuation="underactuated", integral=True)
+            hcfg = VCMConfig(path=self.path, actuation="underactuated", edd=self.edd, integral=True)
             dcfg = DecoupledConfig(dataclasses.replace(hcfg, guidance="ilos"))
 
             def law(t, q, qd, nu5, z, params):
