@@ -113,3 +113,11 @@ def test_registered_in_the_scenario_layer_and_example_configs_parse():
     assert names == ["P_G", "P_Phi", "Delta", "sigma", "k_int", "sigma_i"]
     with pytest.raises(ValueError, match="controller"):
         loops.make_loop("remus100", "vcm")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("controller", ["decoupled", "alos3d", "pvs_pid", "vcm3d"])
+def test_every_controller_runs_through_the_loop_layer(controller):
+    traj, _ = sr.simulate(controller, horizon=SHORT, initial={"z": 2.0, "pitch_deg": 5.0})
+    assert bool(np.all(traj.finite))
+    assert np.all(np.abs(np.asarray(traj.aux.eps)) < 10.0)
