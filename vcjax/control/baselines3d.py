@@ -181,7 +181,7 @@ class AutopilotState(NamedTuple):
 
 def autopilot_state(varpi0=0.0) -> AutopilotState:
     z = jnp.asarray(0.0)
-    return AutopilotState(jnp.asarray(float(varpi0)), z, z, z, z, z)
+    return AutopilotState(jnp.asarray(varpi0, dtype=float), z, z, z, z, z)
 
 
 def _particle(path, coeffs, varpi, p, u_d, sigma):

@@ -91,6 +91,7 @@ from vcjax.loops.base import (
 from vcjax.loops.engine import EngineAux, EngineGains, EngineLoop, engine_gains
 from vcjax.loops.infante import InfanteGains, InfanteLoop, infante_gains
 from vcjax.loops.odin import OdinGains, OdinLoop, default_odin_gains, odin_gains
+from vcjax.loops.remus100 import Remus100Loop
 
 __all__ = [
     "Disturbances",
@@ -304,3 +305,4 @@ def apply_params(params, values: dict, where: str = "params"):
 register(InfanteLoop)
 register(OdinLoop)
 register(ArmLoop)
+register(Remus100Loop)
