@@ -10,8 +10,10 @@ The public API, by stage of the data flow (each module's docstring has the detai
 * :mod:`vcjax.control` — ``vcm`` (path maneuvering (31)/(38)/(41)), ``baselines`` (LOS-PID, ILOS).
 * :mod:`vcjax.allocation` — thruster allocation with limits.
 * :mod:`vcjax.integrators`, :mod:`vcjax.rollout` — ``euler``/``heun``/``rk4``; the scan rollout.
-* :mod:`vcjax.sim1`, :mod:`vcjax.sim2` — the paper's two experiments; :mod:`vcjax.sweep` —
-  Monte-Carlo batches; :mod:`vcjax.currents` — current models.
+* :mod:`vcjax.loops` — closed loops by name (vehicle x controller x path), one ``Scenario``
+  type, disturbances wrapping any loop; :mod:`vcjax.metrics` — one metrics function for all.
+* :mod:`vcjax.sweep` — Monte-Carlo batches of any loop; :mod:`vcjax.currents` — current models.
+* :mod:`vcjax.sim1`, :mod:`vcjax.sim2` — the paper's two experiments, on top of the loops.
 * :mod:`vcjax.identify` — ``vcjax fit``: plant parameters from logged runs by multiple shooting.
 
 The library never enables float64 and never jits for you.

@@ -25,7 +25,30 @@ _FLOOR = 1e-6  # log-scale floor for errors [m]
 
 
 def _variants(result):
-    return [v for v in STYLE if v in result.metrics]
+    return [v for v in STYLE if v in result.metrics] + [v for v in result.metrics if v not in STYLE]
+
+
+def _style(v) -> dict:
+    """The variant's line style (the paper's colours; others from the colour cycle)."""
+    if v in STYLE:
+        return STYLE[v]
+    cycle = ("tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
+    return {"color": cycle[sum(map(ord, v)) % len(cycle)], "label": v}
+
+
+def _path_xy(result):
+    """(P, 2) [north, east] points of the sweep's path (None if it cannot be drawn)."""
+    from vcjax import loops
+
+    try:
+        choice = result.spec.choice
+        cls = loops.loop_class(choice.vehicle)
+        path, coeffs = cls.default_path() if choice.path is None else choice.path.build()
+        xy = np.asarray(result.traces[next(iter(result.traces))]["xy"], np.float64)
+        pts = loops.path_polyline(path, coeffs, xy.reshape(-1, 2) if xy.size else None)
+        return np.asarray(pts)[:, :2]
+    except (ValueError, AttributeError, StopIteration):
+        return None
 
 
 def _ok(result, v):
@@ -58,7 +81,7 @@ def _error_vs_current(result, out: Path) -> Path:
         for v in _variants(result):
             ok = _ok(result, v)
             y = np.maximum(np.asarray(result.metrics[v]["ss_abs_e"], np.float64)[ok], _FLOOR)
-            st = STYLE[v]
+            st = _style(v)
             ax.scatter(x[ok], y, s=6, color=st["color"], alpha=alpha, lw=0)
             if np.ptp(x) > 0:
                 mx, my = _binned_median(x[ok], y, edges)
@@ -86,7 +109,7 @@ def _metric_boxes(result, out: Path) -> Path:
         ("ss_abs_u_err", "steady-state |u - u_d| [m/s]", True),
         ("iae_e", "IAE of e [m s]", True),
         ("max_abs_e", "max |e| [m]", True),
-        ("max_abs_rudder_deg", "max |rudder| [deg]", False),
+        (_actuator_key(result), _actuator_key(result).replace("max_abs_", "max |") + "|", False),
         ("sat_fraction", "fraction of steps saturated", False),
     ]
     fig, axes = plt.subplots(2, 3, figsize=(13, 7))
@@ -98,7 +121,7 @@ def _metric_boxes(result, out: Path) -> Path:
             data.append(np.maximum(y, _FLOOR) if log else y)
         bp = ax.boxplot(data, whis=(5, 95), showfliers=False, patch_artist=True)
         for patch, v in zip(bp["boxes"], vs, strict=True):
-            patch.set_facecolor(STYLE[v]["color"])
+            patch.set_facecolor(_style(v)["color"])
             patch.set_alpha(0.5)
         ax.set_xticks(range(1, len(vs) + 1), vs, fontsize=8)
         ax.set_title(title, fontsize=10)
@@ -107,6 +130,13 @@ def _metric_boxes(result, out: Path) -> Path:
         ax.grid(True, axis="y", alpha=0.3)
     fig.suptitle("Sweep metrics per variant (boxes: quartiles; whiskers: 5-95 %)")
     return _save(fig, out / "sweep_metrics.png")
+
+
+def _actuator_key(result) -> str:
+    """The first ``max_abs_<actuator>`` metric (the rudder for INFANTE-class)."""
+    keys = next(iter(result.metrics.values())).keys()
+    act = [k for k in keys if k.startswith("max_abs_") and k != "max_abs_e"]
+    return "max_abs_rudder_deg" if "max_abs_rudder_deg" in act else (act or ["max_abs_e"])[0]
 
 
 def _grid(plt, n, sharey=False):
@@ -125,7 +155,7 @@ def _envelopes(result, out: Path) -> Path:
     t = np.asarray(result.trace_t)
     for ax, v in zip(axes, vs, strict=False):
         e = np.asarray(result.traces[v]["e"], np.float64)[_ok(result, v)]
-        st = STYLE[v]
+        st = _style(v)
         if e.shape[0]:
             q = np.percentile(e, [5, 25, 50, 75, 95], axis=0)
             ax.fill_between(t, q[0], q[4], color=st["color"], alpha=0.15, label="5-95 %")
@@ -148,19 +178,19 @@ def _envelopes(result, out: Path) -> Path:
 def _paths(result, out: Path, max_paths: int = 60) -> Path:
     plt = _plt()
     vs = _variants(result)
+    path_xy = _path_xy(result)
     fig, axes = _grid(plt, len(vs))
     for ax, v in zip(axes, vs, strict=False):
         xy = np.asarray(result.traces[v]["xy"], np.float64)
         ok = np.flatnonzero(_ok(result, v))[:max_paths]
         bad = np.flatnonzero(~_ok(result, v))[:max_paths]
-        st = STYLE[v]
+        st = _style(v)
         for i in ok:
             ax.plot(xy[i, :, 1], xy[i, :, 0], color=st["color"], lw=0.6, alpha=0.5)
         for i in bad:
             ax.plot(xy[i, :, 1], xy[i, :, 0], color="k", lw=0.6, alpha=0.5)
-        if xy.size:
-            y_lo, y_hi = np.nanmin(xy[..., 1]), np.nanmax(xy[..., 1])
-            ax.plot([y_lo, y_hi], [10, 10], "k-", lw=3, alpha=0.25, label="path x = 10 m")
+        if path_xy is not None:
+            ax.plot(path_xy[:, 1], path_xy[:, 0], "k--", lw=1.2, alpha=0.8, label="path", zorder=3)
         ax.set_title(f"{st['label']}: {len(ok)} paths (black: diverged)", fontsize=10)
         ax.set_xlabel("y (east) [m]")
         ax.set_ylabel("x (north) [m]")

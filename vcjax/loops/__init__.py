@@ -70,6 +70,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import paths
+from vcjax.loops.arm import ArmLoop, ArmLoopParams, arm_loop_params
 from vcjax.loops.base import (
     DisturbanceParams,
     Disturbances,
@@ -82,11 +83,15 @@ from vcjax.loops.base import (
     gauss_markov_params,
     get_param,
     param_names,
+    path_polyline,
     replace_params,
     simulate,
     start_parameter,
 )
+from vcjax.loops.engine import EngineAux, EngineGains, EngineLoop, engine_gains
 from vcjax.loops.infante import InfanteGains, InfanteLoop, infante_gains
+from vcjax.loops.odin import OdinGains, OdinLoop, default_odin_gains, odin_gains
+from vcjax.loops.remus100 import Remus100Loop
 
 __all__ = [
     "Disturbances",
@@ -98,6 +103,17 @@ __all__ = [
     "InfanteGains",
     "InfanteLoop",
     "infante_gains",
+    "ArmLoop",
+    "ArmLoopParams",
+    "arm_loop_params",
+    "EngineAux",
+    "EngineGains",
+    "EngineLoop",
+    "engine_gains",
+    "OdinGains",
+    "OdinLoop",
+    "odin_gains",
+    "default_odin_gains",
     "gains_from_json",
     "gains_to_json",
     "gauss_markov_params",
@@ -106,6 +122,7 @@ __all__ = [
     "replace_params",
     "simulate",
     "start_parameter",
+    "path_polyline",
     "register",
     "vehicles",
     "loop_class",
@@ -286,3 +303,6 @@ def apply_params(params, values: dict, where: str = "params"):
 
 
 register(InfanteLoop)
+register(OdinLoop)
+register(ArmLoop)
+register(Remus100Loop)

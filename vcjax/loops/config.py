@@ -1,17 +1,20 @@
 """The ``[scenario]`` section shared by ``vcjax sweep`` and ``vcjax tune`` configs::
 
     [scenario]
+    module = "my_loops.py"       # optional: a Python file that registers your own loops
+                                 # (vcjax.loops.register), imported first
     vehicle = "infante"          # a registered vehicle (vcjax.loops.vehicles())
     controller = "vcm_integral"  # one of that vehicle's controllers (errors list them)
     params = "model.json"        # optional: parameter overrides of plant AND design model
     plant_params = "plant.json"  # optional: overrides of the plant only (after params)
     edd = "paper"                # optional static loop options (VCM loops: "paper" | "implied")
     [scenario.path]
-    kind = "circle"              # "line" | "circle" | "helix" | "waypoints"
+    kind = "circle"              # "line" | "circle" | "helix" | "waypoints" | "lawnmower"
     center = [0.0, 0.0]          # kind-specific keys (vcjax.paths constructors):
     radius = 40.0                #   line: origin, direction; circle: center, radius, clockwise,
                                  #   phase; helix: center, a, b, T, climb, phase;
-                                 #   waypoints: points, extend
+                                 #   waypoints: points, extend; lawnmower: start, leg,
+                                 #   radius, n_legs, depth, descent
 
 Without ``[scenario]`` a config means Simulation 1 (INFANTE-class on the line ``[10, w]``).
 Parameter files (paths relative to the config file) are JSON: a flat ``{name: value}`` map, or a
@@ -22,6 +25,8 @@ Parameter files (paths relative to the config file) are JSON: a flat ``{name: va
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -36,9 +41,28 @@ PATH_KINDS = {
     "circle": (paths.circle, ("center", "radius", "clockwise", "phase")),
     "helix": (paths.helix, ("center", "a", "b", "T", "climb", "phase")),
     "waypoints": (paths.waypoints, ("points", "extend")),
+    "lawnmower": (paths.lawnmower, ("start", "leg", "radius", "n_legs", "depth", "descent")),
 }
 #: keys of [scenario] (besides the [scenario.path] table)
-SCENARIO_KEYS = ("vehicle", "controller", "params", "plant_params", "edd")
+SCENARIO_KEYS = ("module", "vehicle", "controller", "params", "plant_params", "edd")
+
+
+def import_module_file(path) -> None:
+    """Import a Python file once (by its resolved path), e.g. one that registers loops."""
+    path = Path(path).resolve()
+    if str(path) in _IMPORTED:
+        return
+    name = f"vcjax_user_{len(_IMPORTED)}_{path.stem}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise ValueError(f"module: cannot import {path}")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    _IMPORTED[str(path)] = mod
+
+
+_IMPORTED: dict[str, Any] = {}
 
 
 def _freeze(v):
@@ -95,6 +119,7 @@ class ScenarioChoice:
 
     vehicle: str = "infante"
     controller: str | None = None
+    module: str | None = None
     path: PathSpec | None = None
     params: tuple[tuple[str, Any], ...] = ()
     plant_params: tuple[tuple[str, Any], ...] = ()
@@ -123,6 +148,7 @@ class ScenarioChoice:
         return {
             "vehicle": self.vehicle,
             "controller": self.controller,
+            "module": self.module,
             "path": None if self.path is None else self.path.to_dict(),
             "params": {k: _thaw(v) for k, v in self.params},
             "plant_params": {k: _thaw(v) for k, v in self.plant_params},
@@ -131,6 +157,8 @@ class ScenarioChoice:
 
     @classmethod
     def from_dict(cls, d: dict) -> ScenarioChoice:
+        if d.get("module"):
+            import_module_file(d["module"])
         p = d.get("path")
         path = None
         if p is not None:
@@ -141,6 +169,7 @@ class ScenarioChoice:
         return cls(
             vehicle=d["vehicle"],
             controller=d.get("controller"),
+            module=d.get("module"),
             path=path,
             params=tuple((k, _freeze(v)) for k, v in d.get("params", {}).items()),
             plant_params=tuple((k, _freeze(v)) for k, v in d.get("plant_params", {}).items()),
@@ -161,6 +190,13 @@ def parse_scenario(raw: dict | None, where: str, config_path) -> ScenarioChoice:
             raise ConfigError(
                 f"{where}: unknown key [scenario] {k!r}; expected one of {list(SCENARIO_KEYS)}"
             )
+    module = None
+    if "module" in raw:
+        module = str(resolve_file(f"{where}: [scenario] module", raw["module"], Path(config_path)))
+        try:
+            import_module_file(module)
+        except Exception as err:  # the user's file: report whatever it raised, in one line
+            raise ConfigError(f"{where}: [scenario] module: {module}: {err!r}") from None
     vehicle = raw.get("vehicle", "infante")
     try:
         cls = loops.loop_class(as_str("vehicle", vehicle))
@@ -181,7 +217,9 @@ def parse_scenario(raw: dict | None, where: str, config_path) -> ScenarioChoice:
             ("edd", as_choice(f"{where}: [scenario] edd", raw["edd"], ("paper", "implied"))),
         )
     path = None if "path" not in raw else path_spec(raw["path"], where)
-    choice = ScenarioChoice(vehicle=vehicle, controller=controller, path=path, options=options)
+    choice = ScenarioChoice(
+        vehicle=vehicle, controller=controller, module=module, path=path, options=options
+    )
     probe = choice.loop(controller or cls.controllers[0])
     over = {}
     for key in ("params", "plant_params"):

@@ -208,23 +208,20 @@ def horizontal_design(dm: Remus100Design):
     at straight motion ``nu = [U_design, 0, 0]``: ``m11, m22, m23, m33`` from ``M``; ``d11`` the
     secant ``X(U) / U`` (the steady drag is fed forward exactly); ``d22, d23, d32, d33`` such that
     ``C_b(nu) nu + D_b nu`` of (20) has the 5-DOF model's slopes in ``(v, r)`` there (as
-    :func:`vcjax.vehicles.infante.design_model` with ``match_coriolis``). Eager (not jittable).
+    :func:`vcjax.vehicles.infante.design_model` with ``match_coriolis``). Jit-safe.
     """
-
-    M = np.asarray(mass_matrix5(dm))
-    U = float(dm.U_design)
-    q0 = jnp.zeros(5, dtype=jnp.asarray(dm.U_design).dtype)
+    M = mass_matrix5(dm)
+    U = dm.U_design
+    q0 = jnp.zeros(5, dtype=jnp.asarray(U).dtype)
+    z = 0.0 * U
 
     def n3(nu3):
         nu5 = jnp.stack([nu3[0], nu3[1], 0.0 * nu3[0], 0.0 * nu3[0], nu3[2]])
         return body_bias5(dm, q0, nu5)[np.asarray([0, 1, 4])]
 
-    nu0 = jnp.asarray([U, 0.0, 0.0], dtype=q0.dtype)
+    nu0 = jnp.stack([U, z, z])
     m11, m22, m23, m33 = M[0, 0], M[1, 1], M[1, 4], M[4, 4]
-    base = d3.design3dof(m11, m22, m23, m33, 1.0, 1.0, 0.0, 0.0, 1.0)
-    zero_d = base._replace(d11=0.0 * base.d11, d22=0.0 * base.d22, d33=0.0 * base.d33)
-    Jn = np.asarray(jax.jacfwd(n3)(nu0))
-    Jc = np.asarray(jax.jacfwd(lambda v: d3.body_bias(zero_d, v))(nu0))
-    D = Jn - Jc
-    d11 = float(n3(nu0)[0]) / U
+    bare = d3.Design3DOF(m11, m22, m23, m33, z, z, z, z, z)
+    D = jax.jacfwd(n3)(nu0) - jax.jacfwd(lambda v: d3.body_bias(bare, v))(nu0)
+    d11 = n3(nu0)[0] / U
     return d3.design3dof(m11, m22, m23, m33, d11, D[1, 1], D[1, 2], D[2, 1], D[2, 2])

@@ -1,0 +1,310 @@
+"""REMUS 100 loops: the PVS REMUS 100 plant under the 3-D VCM law or a 3-D baseline.
+
+Controllers (see :mod:`vcjax.sim_remus100` for the experiment built on the same laws):
+
+* ``vcm3d_ilos``: 3-D VCM (:mod:`vcjax.control.vcm3d`), underactuated in sway and heave (fin
+  forces tied to their moments), integral action and integral-LOS angles in both planes;
+* ``vcm3d``: the same with the paper's approach angles (24) (integral action kept);
+* ``decoupled``: horizontal VCM (31)/(38) + depth through pitch (the paper's decoupled design);
+* ``alos3d``: ALOS3D guidance + PID heading/pitch autopilots + surge PI;
+* ``pvs_pid``: the same autopilots with plain LOS angles.
+
+Every law's body force goes through :func:`vcjax.vehicles.remus100_design.actuator_map` of the
+*design* vehicle at the measured velocity over ground. The design model is
+:func:`~vcjax.vehicles.remus100_design.design_model` of ``sc.design`` at ``u_d``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Any, ClassVar, Literal, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from vcjax import paths
+from vcjax.control.baselines3d import (
+    AutopilotConfig,
+    DecoupledConfig,
+    autopilot_gains,
+    autopilot_law,
+    autopilot_state,
+    baseline3d_params,
+    decoupled_law,
+    decoupled_state,
+)
+from vcjax.control.vcm import VCMConfig, pm_gains, vcm_params, vcm_state
+from vcjax.control.vcm3d import (
+    VCM3DConfig,
+    path_errors_3d,
+    vcm3d_gains,
+    vcm3d_law,
+    vcm3d_params,
+    vcm3d_state,
+)
+from vcjax.linalg import wrap_angle
+from vcjax.loops.base import GainSpec, Loop, Scenario, Signals
+from vcjax.vehicles import remus100 as r100
+from vcjax.vehicles import remus100_design as rd
+from vcjax.vehicles.sixdof import kinematics
+
+__all__ = ["RemusGains", "remus_gains", "Remus100Loop", "REMUS_CONTROLLERS"]
+
+REMUS_CONTROLLERS = ("vcm3d_ilos", "vcm3d", "decoupled", "alos3d", "pvs_pid")
+_IDX = np.asarray(rd.IDX5)
+
+
+class RemusGains(NamedTuple):
+    """Gains of every REMUS 100 controller (traced).
+
+    Attributes:
+        vcm3d: :class:`~vcjax.control.vcm3d.VCM3DGains` (``vcm3d``, ``vcm3d_ilos``).
+        horizontal: :class:`~vcjax.control.vcm.PMGains` of ``decoupled``'s 2-D law.
+        autopilot: :class:`~vcjax.control.baselines3d.AutopilotGains` (baselines; ``decoupled``
+            uses its pitch autopilot, ``Delta[1]`` and ``gamma[1]`` as the vertical ILOS gain).
+        decoupled_autopilot: the autopilot gains of ``decoupled``.
+    """
+
+    vcm3d: Any
+    horizontal: Any
+    autopilot: Any
+    decoupled_autopilot: Any
+
+
+def remus_gains() -> RemusGains:
+    """The hand-set gains of the survey mission (order-one dynamics slower than the fins)."""
+    return RemusGains(
+        vcm3d=vcm3d_gains(
+            P_G=(1.0, 0.8, 0.2, 0.2, 0.2),
+            P_Phi=(0.5, 0.3, 0.3, 2.0, 1.5, 0.4, 0.4, 0.4),
+            Delta=(8.0, 8.0),
+            sigma=0.3,
+            k_int=(0.03, 0.03, 0.03),
+            sigma_i=(0.5, 0.5),
+        ),
+        horizontal=pm_gains(
+            P_G=(0.5, 0.2, 0.2),
+            P_Phi=(0.5, 0.3, 1.0, 0.4, 0.4),
+            Delta=8.0,
+            sigma=0.3,
+            P_int=(0.001, 0.001),
+            sigma_i=0.5,
+        ),
+        autopilot=autopilot_gains(),
+        decoupled_autopilot=autopilot_gains(Delta=(8.0, 20.0), gamma=(0.5, 0.2)),
+    )
+
+
+class RemusAux(NamedTuple):
+    """Per-step signals of every controller: eps (3,), psi_d, theta_d, tau (5,), raw (3,)."""
+
+    eps: Any
+    psi_d: Any
+    theta_d: Any
+    tau: Any
+    raw: Any
+
+
+def _spec(field: str, name: str, size: int):
+    def get(g):
+        return jnp.atleast_1d(getattr(getattr(g, field), name))
+
+    def put(g, v):
+        sub = getattr(g, field)
+        return g._replace(**{field: sub._replace(**{name: v if size > 1 else v[0]})})
+
+    return GainSpec(name, size, get, put)
+
+
+def _inertia_drag(dm, u_d):
+    M = rd.mass_matrix5(dm)
+    nu = jnp.stack([u_d, 0.0 * u_d, 0.0 * u_d, 0.0 * u_d, 0.0 * u_d])
+    drag = rd.body_bias5(dm, jnp.zeros_like(nu), nu)[0]
+    return jnp.stack([M[0, 0], M[3, 3], M[4, 4]]), drag
+
+
+@dataclasses.dataclass(frozen=True)
+class Remus100Loop(Loop):
+    """The PVS REMUS 100 (6-DOF, fins + propeller) under one 3-D path-following controller.
+
+    Attributes (besides :class:`~vcjax.loops.base.Loop`'s):
+        edd: which ``e_ddot`` enters the heading row of ``decoupled``'s 2-D VCM law
+            (``"paper"`` or ``"implied"``, :class:`~vcjax.control.vcm.VCMConfig`).
+    """
+
+    edd: Literal["paper", "implied"] = "paper"
+
+    vehicle: ClassVar[str] = "remus100"
+    controllers: ClassVar[tuple[str, ...]] = REMUS_CONTROLLERS
+    default_controller: ClassVar[str] = "vcm3d_ilos"
+    initial_keys: ClassVar[dict[str, float]] = {
+        "x": 0.0,
+        "y": 3.0,
+        "z": 1.0,
+        "pitch_deg": 0.0,
+        "heading_deg": 0.0,
+        "speed": 1.5,
+    }
+    default_speed: ClassVar[float] = 1.5
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.edd not in ("paper", "implied"):
+            raise ValueError(f"edd: expected 'paper' or 'implied', got {self.edd!r}")
+
+    # ---------------------------------------------------------------- parameters and gains
+    @classmethod
+    def default_path(cls):
+        """The survey lawnmower of :func:`vcjax.sim_remus100.mission_path`'s defaults."""
+        return paths.lawnmower((0.0, 0.0, 1.0), 250.0, 30.0, 4, 15.0, 150.0)
+
+    def position(self, eta, params):
+        return eta[:3]
+
+    def default_params(self, dtype=None):
+        return r100.remus100_params(dtype=dtype)
+
+    def param_names(self):
+        return ("body.M_A", "body.D", "CL_delta_r", "CL_delta_s", "KT_0", "KT_max", "CD_0")
+
+    def default_model_fields(self):
+        return ("body.M_A", "body.D", "CL_delta_r", "CL_delta_s")
+
+    def default_gains(self) -> RemusGains:
+        return remus_gains()
+
+    def gain_specs(self):
+        c = self.controller
+        if c.startswith("vcm3d"):
+            names = [("P_G", 5), ("P_Phi", 8), ("Delta", 2), ("sigma", 1), ("k_int", 3)]
+            names += [("sigma_i", 2)] if c == "vcm3d_ilos" else []
+            return tuple(_spec("vcm3d", n, s) for n, s in names)
+        if c == "decoupled":
+            names = [("P_G", 3), ("P_Phi", 5), ("Delta", 1), ("sigma", 1), ("sigma_i", 1)]
+            return tuple(_spec("horizontal", n, s) for n, s in names) + (
+                _spec("decoupled_autopilot", "w_theta", 1),
+            )
+        names = [("w_psi", 1), ("w_theta", 1), ("Delta", 2), ("k_u", 1)]
+        names += [("gamma", 2)] if c == "alos3d" else []
+        return tuple(_spec("autopilot", n, s) for n, s in names)
+
+    # ---------------------------------------------------------------- the loop
+    @functools.cached_property
+    def _law(self):
+        c = self.controller
+        if c.startswith("vcm3d"):
+            cfg = VCM3DConfig(
+                path=self.path,
+                system=rd.design_system(),
+                kinematics=rd.kinematics5,
+                tied_rows=rd.unactuated_rows,
+                actuation="underactuated",
+                integral=True,
+                guidance="ilos" if c == "vcm3d_ilos" else "los",
+            )
+
+            def law(t, q, qd, nu5, z, params):
+                tau, z_dot, aux = vcm3d_law(cfg, params, t, q, qd, z)
+                return tau, z_dot, aux.eps, aux.psi_d, aux.theta_d
+
+            return law
+        if c == "decoupled":
+            hcfg = VCMConfig(path=self.path, actuation="underactuated", edd=self.edd, integral=True)
+            dcfg = DecoupledConfig(dataclasses.replace(hcfg, guidance="ilos"))
+
+            def law(t, q, qd, nu5, z, params):
+                tau, z_dot, aux = decoupled_law(dcfg, params, t, q, qd, nu5, z)
+                return tau, z_dot, aux.eps, aux.psi_d, aux.theta_d
+
+            return law
+        acfg = AutopilotConfig(path=self.path, guidance="alos" if c == "alos3d" else "los")
+
+        def law(t, q, qd, nu5, z, params):
+            tau, z_dot, aux = autopilot_law(acfg, params, t, q, qd, nu5, z)
+            return tau, z_dot, aux.eps, aux.psi_d, aux.theta_d
+
+        return law
+
+    def plant(self, t, x, u, args):
+        if self.smooth:
+            return r100.remus100_plant_smooth(t, x, u, args)
+        return r100.remus100_plant(t, x, u, args)
+
+    def control(self, t, x, z, ctrl):
+        law_params, dm = ctrl
+        qd = kinematics(x.eta) @ x.nu
+        q, qd5, nu5 = x.eta[_IDX], qd[_IDX], x.nu[_IDX]
+        tau, z_dot, eps, psi_d, theta_d = self._law(t, q, qd5, nu5, z, law_params)
+        act = rd.actuator_map(dm, tau, x.nu)
+        return act.cmd, z_dot, RemusAux(eps, psi_d, theta_d, tau, act.raw)
+
+    def plant_args(self, sc: Scenario, current, current_dot):
+        return r100.Remus100Args(vehicle=sc.plant, v_c=current[:2], v_c_dot=current_dot[:2])
+
+    def with_current(self, args, current, current_dot):
+        return args._replace(v_c=current[:2], v_c_dot=current_dot[:2])
+
+    def ctrl_params(self, gains: RemusGains, sc: Scenario):
+        dm = rd.Remus100Design(sc.design, sc.u_d, jnp.asarray(0.5, sc.u_d.dtype))
+        c = self.controller
+        if c.startswith("vcm3d"):
+            return vcm3d_params(gains.vcm3d, dm, sc.path, u_d=sc.u_d), dm
+        inertia, drag = _inertia_drag(dm, sc.u_d)
+        if c == "decoupled":
+            horiz = vcm_params(
+                gains.horizontal, rd.horizontal_design(dm), sc.path, u_d=sc.u_d,
+                k_rudder=1.0 / sc.design.x_r,
+            )  # fmt: skip
+            ap = gains.decoupled_autopilot
+            return baseline3d_params(ap, inertia, drag, sc.path, sc.u_d, horiz), dm
+        return baseline3d_params(gains.autopilot, inertia, drag, sc.path, sc.u_d), dm
+
+    def initial_state(self, sc: Scenario):
+        x0 = r100.Remus100State(
+            eta=sc.eta0, nu=sc.nu0, act=jnp.asarray([0.0, 0.0, 1000.0], sc.eta0.dtype)
+        )
+        c = self.controller
+        if c.startswith("vcm3d"):
+            z0 = vcm3d_state(varpi0=sc.varpi0)
+        elif c == "decoupled":
+            z0 = decoupled_state(vcm_state(varpi0=sc.varpi0))
+        else:
+            z0 = autopilot_state(sc.varpi0)
+        return x0, jax.tree_util.tree_map(lambda a: jnp.asarray(a, sc.eta0.dtype), z0)
+
+    def initial_from(self, v: dict):
+        zero = jnp.zeros_like(v["x"])
+        eta0 = jnp.stack([v["x"], v["y"], v["z"], zero, v["pitch_deg"], v["heading_deg"]])
+        nu0 = jnp.stack([v["speed"], zero, zero, zero, zero, zero])
+        return eta0, nu0
+
+    def _varpi(self, z):
+        return z.horizontal.varpi if self.controller == "decoupled" else z.varpi
+
+    def signals(self, traj, sc: Scenario) -> Signals:
+        n = traj.u.shape[0]
+        eta = traj.x.eta[:n]
+        w = self._varpi(traj.z)[:n]
+        frames, eps = jax.vmap(lambda w1, p: path_errors_3d(self.path, sc.path, w1, p))(
+            w, eta[:, :3]
+        )
+        lim = sc.plant.act_max
+        ratio = traj.aux.raw / lim
+        act = traj.x.act[:n]
+        return Signals(
+            eps=eps[:, :2],
+            pos=eta[:, :3],
+            p_err=eta[:, :3] - frames.p,
+            u_err=traj.x.nu[:n, 0] - sc.u_d,
+            psi_err=wrap_angle(eta[:, 5] - traj.aux.psi_d),
+            depth_err=eps[:, 2],
+            cmd_ratio=ratio,
+            sat=jnp.any(jnp.abs(ratio) > 1.0, axis=1),
+            act={
+                "rudder_deg": jnp.degrees(jnp.abs(act[:, 0])),
+                "stern_deg": jnp.degrees(jnp.abs(act[:, 1])),
+                "rpm": jnp.abs(act[:, 2]),
+            },
+        )
