@@ -26,8 +26,8 @@ def test_python_examples_run_and_their_claims_hold():
     """Every Python block runs, and what its comments claim is checked against something
     independent of the code that produced it."""
     blocks = _python_blocks()
-    assert len(blocks) == 3, "a README block was added or removed: check its claim here"
-    engine, path, remus = _run_blocks()
+    assert len(blocks) == 5, "a README block was added or removed: check its claim here"
+    engine, sweep, puck, path, remus = _run_blocks()
 
     # 1. the engine: "Φ decays as exp(−P_Φ t)" -- against the analytic solution of (14),
     #    and "rank 2" (W = [[∂K/∂q̇], [∂Ġ/∂q̇]] of two independent constraints)
@@ -39,6 +39,29 @@ def test_python_examples_run_and_their_claims_hold():
     np.testing.assert_allclose(Phi, expected, atol=1e-7 * np.max(np.abs(Phi[0])))
     assert np.max(np.abs(Phi[-1])) < 1e-3
     assert np.all(np.asarray(traj.aux.rank) == 2) and bool(traj.healthy)
+
+    # sweep results as xarray: "iae_e per current-speed bin" -- the binned medians equal the
+    # medians of the runs whose current speed falls in each bin, computed here with numpy
+    ds, by_speed = sweep["ds"], sweep["by_speed"].sel(variant="alos").values
+    cs = ds["current_speed"]
+    cs = cs.sel(variant="alos") if "variant" in cs.dims else cs
+    speed = np.asarray(cs).reshape(-1)
+    iae = np.asarray(ds["iae_e"].sel(variant="alos")).reshape(-1)
+    expected = [np.median(iae[(speed > lo) & (speed <= hi)]) for lo, hi in ((0, 0.5), (0.5, 1))]
+    present = [
+        i for i, (lo, hi) in enumerate(((0, 0.5), (0.5, 1))) if np.any((speed > lo) & (speed <= hi))
+    ]
+    np.testing.assert_allclose(np.asarray(by_speed)[: len(present)], [expected[i] for i in present])
+    assert ds["iae_e"].attrs["units"] and np.all(iae > 0)
+
+    # a loop defined in a README block: "one new class plus a registry line"
+    from vcjax import loops
+
+    assert loops.loop_class("puck") is puck["PuckLoop"]
+    cls = puck["PuckLoop"]
+    loop = loops.make_loop("puck", cls.controllers[0], cls.default_path()[0])
+    sc = loops.make_scenario(loop)
+    np.testing.assert_allclose(np.asarray(sc.eta0), [0.6, 0.0])  # its [initial] defaults
 
     # 2. paths: a spline "through waypoints, parametrised by cumulative chord length" -- the
     #    frame at each knot is the waypoint, and psi_p is the direction of a finite difference
