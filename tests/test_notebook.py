@@ -9,6 +9,7 @@ import json
 from pathlib import Path
 
 import matplotlib
+import pytest
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -34,4 +35,21 @@ def test_tuning_notebook_executes(monkeypatch, tmp_path):
     result = ns["result"]
     assert result.n_bad == 0 and result.loss < result.history[0]["loss"]
     assert plt.get_fignums()  # the plotting cell drew something
+    plt.close("all")
+
+
+REMUS_NOTEBOOK = NOTEBOOK.parent / "remus100_3d.ipynb"
+
+
+@pytest.mark.slow
+def test_remus100_notebook_executes_at_small_size(monkeypatch, tmp_path):
+    cells = _code_cells(REMUS_NOTEBOOK)
+    monkeypatch.setenv("VCJAX_NOTEBOOK_SMALL", "1")
+    monkeypatch.chdir(tmp_path)
+    ns = {"__name__": "__main__"}
+    for i, src in enumerate(cells):
+        exec(compile(src, f"{REMUS_NOTEBOOK.name}[cell {i}]", "exec"), ns)  # noqa: S102
+    for rms, ok in ns["sweeps"].values():
+        assert bool(ok.all()) and rms.shape == (4,)
+    assert plt.get_fignums()
     plt.close("all")

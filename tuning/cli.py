@@ -33,7 +33,7 @@ from tuning.loss import loss_weights as make_weights
 from tuning.optim import run_gradient_tuner, tuner_options
 from tuning.params import GainSpace
 from tuning.report import ProgressBar, plot_before_after, plot_loss_curve
-from tuning.scenarios import SCENARIO_AXES, sample_scenarios
+from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from vcjax import distributed, loops, paths
 from vcjax._config import ConfigError
 from vcjax.loops.config import ScenarioChoice
@@ -195,6 +195,10 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
     problem, eval_problem, data, train, heldout = build(cfg)
+    # the held-out batch is evaluated by every process on its own devices; the training batch is
+    # sharded over every device of the run below (:func:`distribute`)
+    heldout, _ = shard_scenarios(heldout)
+    n_dev = jax.device_count() if int(train.eta0.shape[0]) % jax.device_count() == 0 else 1
     space = problem.space
     o = cfg["optimizer"]
     B = cfg["train"]["size"]
@@ -202,7 +206,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         f"tuning {space.loop.describe()}: {space.size} parameters ({', '.join(space.tune)}), "
         f"{B} training / {cfg['heldout']['size']} held-out scenarios, "
         f"horizon {cfg['problem']['horizon']:g} s, {o['name']} x {o['steps']} steps "
-        f"({o['grad_mode']} mode)"
+        f"({o['grad_mode']} mode); training batch on {n_dev} device(s)"
     )
     eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
     loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
@@ -292,6 +296,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         "evals": res.evals,
         "rollouts": res.evals * B,
         "rollout_convention": "one batch value_and_grad = train.size rollouts (forward+backward)",
+        "devices": n_dev,
         "tuning_wall_s": res.history[-1]["wall_s"] if res.history else 0.0,
         "total_wall_s": time.perf_counter() - t_start,
     }

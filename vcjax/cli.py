@@ -49,7 +49,7 @@ def _fail(msg: str) -> int:
 
 
 #: Per-experiment defaults of ``vcjax simulate`` (horizon [s], RK4 step [s]).
-_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05), "remus100": (920.0, 0.05)}
+_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05), "remus100": (880.0, 0.05)}
 
 
 def _cmd_simulate(args) -> int:
@@ -95,12 +95,19 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
 
 
 def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
+    import json
+
     from vcjax import sim2
 
-    for flag, value in (("--gains", args.gains), ("--current", args.current)):
-        if value:
-            return _fail(f"simulate sim2: {flag} is not supported for Simulation 2")
-    result = sim2.run_sim2(out, horizon=horizon, dt=dt, actuation=args.actuation)
+    if args.current:
+        return _fail("simulate sim2: --current is not supported for Simulation 2")
+    gains = None
+    if args.gains:
+        try:
+            gains = sim2.gains_from_json(json.loads(Path(args.gains).read_text()), args.actuation)
+        except (OSError, json.JSONDecodeError, ValueError) as err:
+            return _fail(f"simulate sim2: cannot use gains file {args.gains}: {err}")
+    result = sim2.run_sim2(out, gains, horizon=horizon, dt=dt, actuation=args.actuation)
     by_mode = result["metrics"]["by_actuation"]
     _print_metrics(
         {mode: {k: v for k, v in m.items() if _is_number(v)} for mode, m in by_mode.items()}
@@ -313,9 +320,11 @@ def build_parser() -> argparse.ArgumentParser:
         "remus100: 3-D survey mission of the PVS REMUS 100 under a cross current",
     )
     s.add_argument("--out", help="output directory (default: out/EXPERIMENT)")
-    s.add_argument("--gains", help="sim1: JSON file of gains (e.g. written by `vcjax tune`)")
     s.add_argument(
-        "--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300, remus100: 920)"
+        "--gains", help="sim1/sim2: JSON file of gains (e.g. the gains.json `vcjax tune` writes)"
+    )
+    s.add_argument(
+        "--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300, remus100: 880)"
     )
     s.add_argument("--dt", type=float, help="RK4 step [s] (default 0.05)")
     s.add_argument(
@@ -347,7 +356,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
     s.set_defaults(func=_cmd_simulate)
 
-    w = sub.add_parser("sweep", help="Monte-Carlo sweep of Simulation 1 scenarios (TOML)")
+    w = sub.add_parser(
+        "sweep", help="Monte-Carlo sweep of any registered closed loop (TOML; default Sim. 1)"
+    )
     w.add_argument("config", help="TOML config (see examples/sweeps/)")
     w.add_argument("--out", default="out/sweep", help="output directory (default: out/sweep)")
     w.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
@@ -360,7 +371,7 @@ def build_parser() -> argparse.ArgumentParser:
     w.set_defaults(func=_cmd_sweep)
 
     t = sub.add_parser(
-        "tune", help="tune the VCM gains by gradient descent through the closed loop (TOML)"
+        "tune", help="tune a loop's gains by gradient descent through the closed loop (TOML)"
     )
     t.add_argument("config", help="TOML config (see examples/tuning/)")
     t.add_argument("--out", default="out/tune", help="output directory (default: out/tune)")

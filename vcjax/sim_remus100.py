@@ -186,7 +186,7 @@ def default_gains(variant: str):
         return (
             pm_gains(P_G=(0.5, 0.2, 0.2), P_Phi=(0.5, 0.3, 1.0, 0.4, 0.4), Delta=8.0, sigma=0.3,
                      P_int=(0.001, 0.001), sigma_i=0.5),
-            autopilot_gains(gamma=(0.5, 0.5)),
+            autopilot_gains(Delta=(8.0, 20.0), gamma=(0.5, 0.2)),
         )  # fmt: skip
     return autopilot_gains()
 
@@ -228,7 +228,7 @@ _run = jax.jit(rollout, static_argnames=("plant", "controller", "config"))
 
 
 def simulate(
-    variant, horizon=920.0, dt=0.05, current=(0.0, 0.3), path=None, x0=None, gains=None, u_d=1.5
+    variant, horizon=880.0, dt=0.05, current=(0.0, 0.3), path=None, x0=None, gains=None, u_d=1.5
 ):  # fmt: skip
     """One closed-loop run; returns ``(trajectory, (path, coeffs))``.
 
@@ -282,7 +282,7 @@ def _nearest_on_path(pos, path, coeffs, w_range, dw=0.25):
     return dist, w_near, e, off[:, 2]
 
 
-def mission_metrics(traj, path, coeffs, settle=60.0) -> dict:
+def mission_metrics(traj, path, coeffs, settle=150.0) -> dict:
     """The mission's metrics from a trajectory (numpy; module docstring).
 
     * ``rms_dist_3d``, ``max_dist_3d`` [m]: distance to the path once the first leg is done;
@@ -297,7 +297,7 @@ def mission_metrics(traj, path, coeffs, settle=60.0) -> dict:
     period = L + np.pi * R
     total = n * L + (n - 1) * np.pi * R
     pos = np.asarray(traj.x.eta[:, :3])
-    dist, w, e, h = _nearest_on_path(pos, path, coeffs, (-20.0, total + 20.0))
+    dist, w, e, h = _nearest_on_path(pos, path, coeffs, (-20.0, total + 600.0))
     after_first = w > L
     k = np.clip(np.floor(w / period), 0, n - 1)
     om = w - k * period
@@ -324,7 +324,7 @@ def mission_metrics(traj, path, coeffs, settle=60.0) -> dict:
     }
 
 
-def run_remus100(out, horizon=920.0, dt=0.05, current=(0.0, 0.3), variants=VARIANTS) -> dict:
+def run_remus100(out, horizon=880.0, dt=0.05, current=(0.0, 0.3), variants=VARIANTS) -> dict:
     """Run every variant of the survey mission; write ``metrics.json`` and figures to ``out``."""
     from vcjax.plots_remus100 import remus100_figures
 

@@ -86,18 +86,24 @@ class AutopilotGains(NamedTuple):
 
 
 def autopilot_gains(
-    w_psi=0.5,
+    w_psi=1.2,
     zeta_psi=1.0,
-    w_theta=0.5,
+    w_theta=1.5,
     zeta_theta=1.0,
     k_u=0.5,
     k_ui=0.02,
     Delta=(8.0, 8.0),
-    gamma=(0.0005, 0.0005),
-    M_theta=0.5,
+    gamma=(0.004, 0.004),
+    M_theta=0.35,
     sigma=0.3,
 ) -> AutopilotGains:
-    """Validated :class:`AutopilotGains` (frequencies, damping, look-ahead, bound > 0)."""
+    """Validated :class:`AutopilotGains` (frequencies, damping, look-ahead, bound > 0).
+
+    Defaults: at 1.5 m/s the heading stiffness ``m66 w_psi^2`` ≈ 11 N m/rad and the pitch
+    stiffness ``m55 w_theta^2`` ≈ 17 N m/rad (about 3x the REMUS restoring moment
+    ``W z_g``), the order of MSS's ``SIMremus100ALOS`` autopilots once its fin-angle gains are
+    converted to moments; ALOS gains with the mission's 8 m look-ahead.
+    """
     for name, v in dict(w_psi=w_psi, zeta_psi=zeta_psi, w_theta=w_theta, k_u=k_u).items():
         check_positive(name, v, ())
     check_positive("zeta_theta", zeta_theta, ())
