@@ -290,7 +290,7 @@ def main(argv=None):
     rows.append(_row("numpy batch (vectorised)", B, nb, "float64", 1, t))
 
     single = jax.jit(rm.pvs_rollout).lower(x0, cmds, rm_args, DT).compile()
-    t = C.best_of(lambda: single(x0, cmds, rm_args, DT).eta, args.repeats)
+    t = C.best_of(lambda: single(x0, cmds, rm_args, DT).x.eta, args.repeats)
     rows.append(_row("vcjax single (jit scan)", 1, cmds.shape[0], args.dtype, 1, t))
 
     Bj = args.jax_batch

@@ -90,7 +90,9 @@ def test_numpy_remus100_step_reproduces_pvs_and_vcjax():
     np.testing.assert_allclose(eta[:, :3], nrm.columns(ref, nrm.POSE)[:, :3], rtol=0, atol=1e-7)
     np.testing.assert_allclose(nu, nrm.columns(ref, nrm.VEL), rtol=0, atol=1e-8)
     np.testing.assert_allclose(act, nrm.columns(ref, nrm.ACT), rtol=0, atol=1e-6)
-    xs = jax.jit(rm.pvs_rollout)(x0, cmds, args, nrm.DT)
+    rep = jax.jit(rm.pvs_rollout)(x0, cmds, args, nrm.DT)
+    assert bool(np.all(np.asarray(rep.ok)))
+    xs = rep.x
     np.testing.assert_allclose(eta, xs.eta, rtol=0, atol=1e-11)
     np.testing.assert_allclose(nu, xs.nu, rtol=0, atol=1e-12)
     np.testing.assert_allclose(act, xs.act, rtol=0, atol=1e-9)

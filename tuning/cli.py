@@ -10,7 +10,9 @@ works too). It writes into ``out_dir``:
 * ``summary.json``: ``heldout_loss_before`` / ``heldout_loss_after`` (default vs tuned gains on
   the held-out batch, evaluated with the hard-clipped plant unless configured otherwise), the
   loss terms of each, the training losses, run statistics;
-* ``loss_curve.png``, ``before_after_paths.png``, ``before_after_cross_track.png``.
+* ``loss_curve.png``, ``before_after_paths.png``, ``before_after_cross_track.png``,
+  ``before_after_loss_terms.png`` (what the loss measures: path, speed and heading errors,
+  actuator commands against their limits, and the weighted loss terms, default vs tuned).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from tuning.loss import TERMS, TuningProblem, objective, problem_data
 from tuning.loss import loss_weights as make_weights
 from tuning.optim import run_gradient_tuner, tuner_options
 from tuning.params import GainSpace
-from tuning.report import ProgressBar, plot_before_after, plot_loss_curve
+from tuning.report import ProgressBar, plot_before_after, plot_loss_curve, plot_loss_terms
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from vcjax import distributed, loops, paths
 from vcjax._config import ConfigError
@@ -134,10 +136,19 @@ def _trajectories(problem, gains, batch, dt, n):
     def one(s):
         tr = loops.simulate(loop, gains, s, cfg, dt)
         sig = loop.signals(tr, s)
-        return tr.t, sig.pos[:, :2], sig.eps[:, 1]
+        return tr.t, sig.pos[:, :2], sig.eps, sig.u_err, sig.psi_err, sig.cmd_ratio
 
-    t, xy, e = jax.device_get(jax.jit(jax.vmap(one, in_axes=(SCENARIO_AXES,)))(sub))
-    return np.asarray(t[0]), {"xy": np.asarray(xy), "e": np.asarray(e)}
+    t, xy, eps, u_err, psi_err, ratio = jax.device_get(
+        jax.jit(jax.vmap(one, in_axes=(SCENARIO_AXES,)))(sub)
+    )
+    return np.asarray(t[0]), {
+        "xy": np.asarray(xy),
+        "e": np.asarray(eps)[..., 1],
+        "eps": np.asarray(eps),
+        "u_err": np.asarray(u_err),
+        "psi_err": np.asarray(psi_err),
+        "cmd_ratio": np.asarray(ratio),
+    }
 
 
 def _path_polyline(loop, batch, xy_before, xy_after):
@@ -211,11 +222,20 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
     loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
     theta0 = data.theta_ref  # the default gains: what 'before' means
-    say("evaluating the initial gains on the held-out batch (compiling) ...")
+    N = problem.num_steps
+    say(
+        f"compiling the held-out evaluation ({cfg['heldout']['size']} rollouts x {N} steps) "
+        "and evaluating the initial gains ..."
+    )
+    t0 = time.perf_counter()
     before = _evaluate(eval_fn, theta0, data, heldout)
-    say(f"held-out loss before: {before['loss']:.6g}; compiling the training step ...")
+    say(
+        f"held-out loss before: {before['loss']:.6g} ({time.perf_counter() - t0:.1f} s incl. "
+        f"compiling); compiling the training step ({o['name']}: loss and {o['grad_mode']}-mode "
+        f"gradient through {B} rollouts x {N} steps) - the first step includes it ..."
+    )
 
-    bar = ProgressBar(o["steps"], label="tune ", stream=progress) if progress else None
+    bar = ProgressBar(o["steps"], label="tune ", stream=progress, warmup=1) if progress else None
     start = theta0 + space.symmetry_break(data.base)
     train_d, data_d, start = distribute(train, data, start)
     if train_d is not train:
@@ -230,6 +250,15 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     )
     if bar is not None and len(res.history) < o["steps"]:
         bar.close()
+    walls = [h["wall_s"] for h in res.history]
+    if walls:
+        later = np.diff(walls)
+        per = float(np.median(later)) if later.size else float("nan")
+        say(
+            f"training step compiled and run once in {walls[0]:.1f} s "
+            f"(compiling ~{max(walls[0] - per, 0.0) if later.size else walls[0]:.1f} s); "
+            + (f"then {per:.3g} s per step" if later.size else "one step only")
+        )
     if res.n_bad:
         say(f"warning: {res.n_bad} step(s) rejected for non-finite loss/gradient/update")
     say(f"stopped: {res.reason}; evaluating the tuned gains on the held-out batch ...")
@@ -267,6 +296,18 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         currents = np.asarray(heldout.current)[:n_plot]
         path_xy = _path_polyline(space.loop, heldout, tr_before["xy"], tr_after["xy"])
         files += plot_before_after(t, tr_before, tr_after, currents, out, path_xy)
+        weights = {k: float(getattr(data.weights, k)) for k in TERMS}
+        files.append(
+            plot_loss_terms(
+                t,
+                tr_before,
+                tr_after,
+                (before["terms"], after["terms"]),
+                weights,
+                getattr(space.loop, "actuator_names", None),
+                out / "before_after_loss_terms.png",
+            )
+        )
 
     lb, la = before["loss"], after["loss"]
     summary = {

@@ -9,7 +9,7 @@ import numpy as np
 from vcjax.plots import _plt
 from vcjax.progress import ProgressBar as _Bar
 
-__all__ = ["ProgressBar", "plot_loss_curve", "plot_before_after"]
+__all__ = ["ProgressBar", "plot_loss_curve", "plot_before_after", "plot_loss_terms"]
 
 
 class ProgressBar(_Bar):
@@ -111,3 +111,79 @@ def plot_before_after(t, before, after, currents, out_dir, path_xy=None) -> list
     fig.savefig(p2, dpi=110)
     plt.close(fig)
     return [p1, p2]
+
+
+def plot_loss_terms(t, before, after, terms, weights, actuators, path) -> Path:
+    """What the tuning loss measures, default gains (dashed) vs tuned (solid), on a few
+    held-out scenarios, and the held-out mean of each weighted loss term.
+
+    Panels: path error ``sqrt(s² + e²)``, speed error ``ũ``, heading error ``ψ̃``, and every
+    actuator command divided by its limit (the dotted line at 1 is the limit: beyond it the
+    ``sat_excess`` / ``sat_time`` terms grow); last, ``w_k term_k`` before vs after.
+
+    Args:
+        t: (N+1,) times; before, after: dicts with ``eps`` (S, N, 2), ``u_err`` (S, N),
+            ``psi_err`` (S, N), ``cmd_ratio`` (S, N, A); terms: ``(terms_before,
+            terms_after)``, dicts name -> held-out mean; weights: dict name -> weight;
+        actuators: A names of the actuators (or ``None``); path: the PNG to write.
+    """
+    plt = _plt()
+    tt = np.asarray(t)[:-1]
+    S = before["eps"].shape[0]
+    A = before["cmd_ratio"].shape[-1]
+    names = (
+        list(actuators)
+        if actuators and len(actuators) == A
+        else [f"actuator {j}" for j in range(A)]
+    )
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    n_panels = 3 + A + 1
+    cols = 3
+    rows = int(np.ceil(n_panels / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(15, 3.6 * rows), squeeze=False)
+    axes = axes.ravel()
+    series = [
+        ("path error √(s² + e²) [m]", lambda d: np.hypot(d["eps"][..., 0], d["eps"][..., 1])),
+        ("speed error ũ [m/s]", lambda d: d["u_err"]),
+        ("heading error ψ̃ [deg]", lambda d: np.degrees(d["psi_err"])),
+    ]
+    series += [
+        (f"{names[j]} command / limit", lambda d, j=j: d["cmd_ratio"][..., j]) for j in range(A)
+    ]
+    for ax, (title, f) in zip(axes, series, strict=False):
+        for i in range(S):
+            c = colors[i % len(colors)]
+            ax.plot(tt, f(before)[i], "--", color=c, lw=1)
+            ax.plot(tt, f(after)[i], "-", color=c, lw=1.3, label=f"scenario {i}")
+        if "limit" in title:
+            for y in (-1.0, 1.0):
+                ax.axhline(y, color="k", ls=":", lw=1.2, label="limit" if y > 0 else None)
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel("t [s]")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=7)
+    axes[3].legend(fontsize=7)
+    ax = axes[len(series)]
+    tb, ta = terms
+    keys = [k for k in weights if weights[k] > 0]
+    vb = np.array([weights[k] * tb[k] for k in keys])
+    va = np.array([weights[k] * ta[k] for k in keys])
+    x = np.arange(len(keys))
+    ax.bar(x - 0.2, vb, 0.4, label=f"default (sum {vb.sum():.3g})", color="0.6")
+    ax.bar(x + 0.2, va, 0.4, label=f"tuned (sum {va.sum():.3g})", color="C0")
+    ax.set_xticks(x, keys, rotation=30, fontsize=8)
+    ax.set_yscale("symlog", linthresh=1e-3)
+    ax.set_ylim(
+        0.0, 5.0 * max(float(np.max(vb, initial=0.0)), float(np.max(va, initial=0.0)), 1e-3)
+    )
+    ax.set_title("held-out weighted loss terms w_k term_k", fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(True, axis="y", alpha=0.3)
+    for ax in axes[len(series) + 1 :]:
+        ax.set_visible(False)
+    fig.suptitle("What the loss measures: default gains (dashed) vs tuned (solid)", fontsize=11)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -20,6 +20,7 @@ __all__ = [
     "check_spd",
     "float_dtype",
     "as_float_array",
+    "check_params",
 ]
 
 
@@ -45,7 +46,8 @@ def check_array(name: str, x, shape: Sequence[int | None] | None = None) -> np.n
             s is None or s == d for s, d in zip(shape, a.shape, strict=True)
         )
         if not ok:
-            want = "(" + ", ".join("?" if s is None else str(s) for s in shape) + ")"
+            want = "(" + ", ".join("?" if s is None else str(s) for s in shape)
+            want += ",)" if len(shape) == 1 else ")"
             raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
     if not np.issubdtype(a.dtype, np.number) and a.dtype != np.bool_:
         raise ValueError(f"{name}: expected a numeric array, got dtype {a.dtype}")
@@ -70,21 +72,28 @@ def check_positive(name: str, x, shape: Sequence[int | None] | None = None, stri
         raise ValueError(f"{name}: every entry must be {rel}, got {a}")
 
 
-def check_spd(name: str, M, n: int | None = None, rtol: float = 1e-8) -> None:
-    """``M`` must be a square, symmetric, positive-definite matrix (of size ``n`` if given)."""
+def check_spd(
+    name: str, M, n: int | None = None, rtol: float = 1e-8, symmetric: bool = True
+) -> None:
+    """``M`` must be a square, symmetric, positive-definite matrix (of size ``n`` if given).
+
+    With ``symmetric=False`` only its symmetric part must be positive definite (then ``M`` is
+    invertible and ``x^T M x > 0``), e.g. a mass matrix whose added-mass cross terms were
+    perturbed independently in a model-error study."""
     a = check_array(name, M, (n, n))
     if a is None:
         return
     if a.shape[0] != a.shape[1]:
         raise ValueError(f"{name}: expected a square matrix, got shape {a.shape}")
     scale = max(float(np.max(np.abs(a))), 1e-300)
-    if not np.allclose(a, a.T, rtol=0.0, atol=rtol * scale):
+    if symmetric and not np.allclose(a, a.T, rtol=0.0, atol=rtol * scale):
         asym = float(np.max(np.abs(a - a.T)))
         raise ValueError(f"{name}: matrix is not symmetric (max |M - M^T| = {asym:.3g})")
     eig = np.linalg.eigvalsh(0.5 * (a + a.T))
     if eig[0] <= 0:
+        what = "matrix" if symmetric else "symmetric part of the matrix"
         raise ValueError(
-            f"{name}: matrix is not positive definite (smallest eigenvalue {eig[0]:.3g})"
+            f"{name}: {what} is not positive definite (smallest eigenvalue {eig[0]:.3g})"
         )
 
 
@@ -101,3 +110,36 @@ def as_float_array(name: str, x, shape: Sequence[int | None], dtype=None):
     if dtype is not None:
         return a.astype(dtype)
     return a if jnp.issubdtype(a.dtype, jnp.floating) else a.astype(float_dtype())
+
+
+def check_params(
+    kind: type,
+    params,
+    positive: Sequence[str] = (),
+    nonnegative: Sequence[str] = (),
+    spd: dict | None = None,
+    name: str = "params",
+    symmetric: bool = True,
+) -> None:
+    """Eager check of a parameter ``NamedTuple`` built or edited by hand (``_replace``).
+
+    ``params`` must be a ``kind``; every leaf finite; the fields in ``positive`` > 0, in
+    ``nonnegative`` >= 0; each entry ``label: fn`` of ``spd`` maps ``params`` to a matrix that
+    must be symmetric positive definite (``symmetric=False``: only its symmetric part must be
+    positive definite). Tracers are skipped (checks happen outside ``jit``).
+
+    Raises:
+        ValueError: naming ``name.field`` (or the ``spd`` label).
+    """
+    if not isinstance(params, kind):
+        raise ValueError(f"{name}: expected {kind.__name__}, got {type(params).__name__}")
+    for field, value in params._asdict().items():
+        if hasattr(value, "_asdict"):
+            continue  # nested parameter tuples are checked by their own validator
+        check_array(f"{name}.{field}", value)
+    for field in positive:
+        check_positive(f"{name}.{field}", getattr(params, field))
+    for field in nonnegative:
+        check_positive(f"{name}.{field}", getattr(params, field), strict=False)
+    for label, fn in (spd or {}).items():
+        check_spd(f"{name}: {label}", fn(params), symmetric=symmetric)

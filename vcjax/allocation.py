@@ -62,10 +62,14 @@ Everything is pure ``jax.numpy``, dtype-preserving, jit/vmap/grad-able, generic 
 
 from __future__ import annotations
 
+import math
 from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
+
+from vcjax._checks import check_array
 
 __all__ = ["Allocation", "allocate", "clip_allocate", "pinv_allocate"]
 
@@ -77,7 +81,9 @@ class Allocation(NamedTuple):
         f: (n,) thruster forces, ``|f_i| <= f_max_i``.
         tau: (m,) the generalised force they produce, ``T f``.
         residual: () ``||T f - tau_cmd||`` (0 when the command is met).
-        feasible: () bool, ``residual`` within round-off (relative ``1e3 eps``).
+        feasible: () bool, ``residual`` within round-off (relative ``sqrt(eps)``) and the
+            limits valid. Limits <= 0 or non-finite raise a ``ValueError`` when concrete; inside
+            ``jit`` they give ``f = 0`` and ``feasible = False``.
         saturated: (n,) bool, thruster at its limit (``|f_i| >= f_max_i (1 - 1e-9)``).
     """
 
@@ -88,8 +94,19 @@ class Allocation(NamedTuple):
     saturated: Any
 
 
+def _limits(T, f_max, n):
+    """``f_max`` broadcast to (n,), checked eagerly when concrete; inside ``jit`` invalid
+    limits (<= 0 or non-finite) are replaced by 0 (no thrust) and reported by ``valid``."""
+    a = check_array("f_max", f_max)
+    if a is not None and np.any(a <= 0):
+        raise ValueError(f"f_max: every thrust limit must be > 0, got {a}")
+    f_max = jnp.broadcast_to(jnp.asarray(f_max, T.dtype), (n,))
+    valid = jnp.all(jnp.isfinite(f_max) & (f_max > 0))
+    return jnp.where(valid, f_max, jnp.zeros_like(f_max)), valid
+
+
 def _lam(T):
-    eps = jnp.finfo(T.dtype).eps
+    eps = float(jnp.finfo(T.dtype).eps)  # a Python float: weakly typed, keeps T.dtype
     return 100 * eps * (jnp.sum(T * T) + jnp.ones((), T.dtype))
 
 
@@ -100,12 +117,12 @@ def _masked_lstsq(T, mask, r, lam):
     return mask * (T.T @ jnp.linalg.solve(A, r))
 
 
-def _finish(T, tau, f, f_max) -> Allocation:
+def _finish(T, tau, f, f_max, valid=True) -> Allocation:
     achieved = T @ f
     res = jnp.sqrt(jnp.sum((achieved - tau) ** 2))
-    eps = jnp.finfo(T.dtype).eps
+    eps = float(jnp.finfo(T.dtype).eps)  # a Python float: weakly typed, keeps T.dtype
     scale = jnp.sqrt(jnp.sum(tau * tau)) + jnp.sqrt(jnp.sum((T @ f_max) ** 2)) + 1
-    feasible = res <= jnp.sqrt(eps) * scale
+    feasible = (res <= math.sqrt(eps) * scale) & valid
     sat = jnp.abs(f) >= f_max * (1 - 1e-9)
     return Allocation(f=f, tau=achieved, residual=res, feasible=feasible, saturated=sat)
 
@@ -121,9 +138,9 @@ def clip_allocate(T, tau, f_max) -> Allocation:
     """Baseline: ``clip(pinv(T) tau, -f_max, f_max)`` (no redistribution)."""
     T = jnp.asarray(T)
     tau = jnp.asarray(tau, T.dtype)
-    f_max = jnp.broadcast_to(jnp.asarray(f_max, T.dtype), (T.shape[1],))
+    f_max, valid = _limits(T, f_max, T.shape[1])
     f = jnp.clip(pinv_allocate(T, tau), -f_max, f_max)
-    return _finish(T, tau, f, f_max)
+    return _finish(T, tau, f, f_max, valid)
 
 
 def allocate(T, tau, f_max, polish: int = 50) -> Allocation:
@@ -142,7 +159,7 @@ def allocate(T, tau, f_max, polish: int = 50) -> Allocation:
     dtype = T.dtype
     n = T.shape[1]
     tau = jnp.asarray(tau, dtype)
-    f_max = jnp.broadcast_to(jnp.asarray(f_max, dtype), (n,))
+    f_max, valid = _limits(T, f_max, n)
     lam = _lam(T)
 
     def solve(free, f_fix):
@@ -173,4 +190,4 @@ def allocate(T, tau, f_max, polish: int = 50) -> Allocation:
             return jnp.clip(f - step * (T.T @ (T @ f - tau)), -f_max, f_max), None
 
         f, _ = jax.lax.scan(pg, f, None, length=polish)
-    return _finish(T, tau, f, f_max)
+    return _finish(T, tau, f, f_max, valid)

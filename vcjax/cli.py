@@ -30,12 +30,62 @@ def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
         print(f"wrote {path}")
 
 
+class _CLIError(Exception):
+    """A bad input of the command line: printed as one line, exit code 2."""
+
+
+def _out_dir(path) -> Path:
+    """Create the output directory ``path`` (and parents) or raise :class:`_CLIError`."""
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise _CLIError(f"--out {path}: exists and is not a directory") from None
+    except OSError as err:
+        raise _CLIError(f"--out {path}: cannot create the directory: {err.strerror}") from None
+    if not out.is_dir():
+        raise _CLIError(f"--out {path}: exists and is not a directory")
+    return out
+
+
+def _check_out(path) -> None:
+    """Raise :class:`_CLIError` if ``path`` cannot become a directory (checked, not created):
+    it, or its first existing ancestor, is not a directory."""
+    p = Path(path)
+    if p.exists():
+        if not p.is_dir():
+            raise _CLIError(f"--out {path}: exists and is not a directory")
+        return
+    for parent in p.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise _CLIError(f"--out {path}: cannot create the directory: {parent} is a file")
+            return
+
+
+def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
+    """Number of steps of ``horizon`` in steps of ``dt``; both finite, ``0 < dt <= horizon``."""
+    if not (math.isfinite(horizon) and math.isfinite(dt)):
+        raise _CLIError(f"need finite --dt and --horizon, got dt={dt}, horizon={horizon}")
+    if not (horizon > 0 and dt > 0 and horizon >= dt):
+        raise _CLIError(f"need 0 < dt <= horizon, got dt={dt}, horizon={horizon}")
+    n = int(round(horizon / dt))
+    if n > max_steps:
+        raise _CLIError(
+            f"--horizon {horizon:g} / --dt {dt:g} = {n} steps: more than {max_steps} "
+            "(the trajectory is kept in memory); use a larger --dt or a shorter --horizon"
+        )
+    return n
+
+
 def _cmd_demo(args) -> int:
+    from vcjax.demos import ARM_DT
+
+    _time_grid(args.horizon, ARM_DT)
+    out = _out_dir(args.out)
     _enable_x64(args.x64)
     from vcjax.demos import arm_demo
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     files = arm_demo(out, horizon=args.horizon)
     for f in files:
         print(f"wrote {f}")
@@ -57,9 +107,8 @@ def _cmd_simulate(args) -> int:
     horizon, dt = _SIM_DEFAULTS[args.experiment]
     horizon = horizon if args.horizon is None else args.horizon
     dt = dt if args.dt is None else args.dt
-    if not (horizon > 0 and dt > 0 and horizon >= dt):
-        return _fail(f"simulate: need 0 < dt <= horizon, got dt={dt}, horizon={horizon}")
-    out = Path(args.out or f"out/{args.experiment}")
+    _time_grid(horizon, dt)
+    out = _out_dir(args.out or f"out/{args.experiment}")
     if args.experiment == "sim2":
         return _simulate_sim2(args, out, horizon, dt)
     if args.experiment == "remus100":
@@ -91,7 +140,19 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
     config = {**vars(args), "horizon": horizon, "dt": dt, "scenario": scenario, "gains": gains}
     config.pop("func")
     _record(out, "simulate sim1", args, config=config)
-    return 0
+    return _report_unhealthy(result["unhealthy"], dt)
+
+
+def _report_unhealthy(unhealthy: dict, dt: float) -> int:
+    """Print one line per unhealthy run (stderr); exit code 1 if there is any, else 0."""
+    for variant, (k, t) in unhealthy.items():
+        print(
+            f"vcjax: UNHEALTHY RUN: {variant} diverged at step {k} (t = {t:g} s, dt {dt:g} s): "
+            "its state became non-finite or left the divergence bound and was frozen there; "
+            "its metrics and figures after that time are not meaningful",
+            file=sys.stderr,
+        )
+    return 1 if unhealthy else 0
 
 
 def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
@@ -115,7 +176,10 @@ def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
     for f in result["files"]:
         print(f"wrote {f}")
     _record(out, "simulate sim2", args, config={**vars(args), "horizon": horizon, "dt": dt})
-    return 0
+    unhealthy = {f"sim2 {mode}": m for mode, m in by_mode.items() if not m.get("healthy", True)}
+    for name in unhealthy:
+        print(f"vcjax: UNHEALTHY RUN: {name} diverged (see metrics.json)", file=sys.stderr)
+    return 1 if unhealthy else 0
 
 
 def _simulate_remus100(args, out: Path, horizon: float, dt: float) -> int:
@@ -132,7 +196,14 @@ def _simulate_remus100(args, out: Path, horizon: float, dt: float) -> int:
         print(f"wrote {f}")
     config = {**vars(args), "horizon": horizon, "dt": dt, "current": current}
     _record(out, "simulate remus100", args, config=config)
-    return 0
+    unhealthy = [name for name, m in result["metrics"].items() if not m.get("healthy", True)]
+    for name in unhealthy:
+        print(
+            f"vcjax: UNHEALTHY RUN: remus100 {name}: a non-finite or runaway state, or more "
+            "than 25 m off the path (see metrics.json)",
+            file=sys.stderr,
+        )
+    return 1 if unhealthy else 0
 
 
 def _is_number(v) -> bool:
@@ -153,6 +224,7 @@ def _use_cores(args, command: str) -> int | None:
 
 
 def _cmd_sweep(args) -> int:
+    _check_out(args.out)
     if (rc := _use_cores(args, "sweep")) is not None:
         return rc
     _enable_x64(args.x64)
@@ -174,11 +246,20 @@ def _cmd_sweep(args) -> int:
                     f"({t['scenarios']} x {t['steps']} steps, {t['devices']} device(s))",
                     file=sys.stderr,
                 )
+            n, n_div = s.get("n", 0), s.get("n_diverged", 0)
             e = s.get("metrics", {}).get("ss_abs_e", {})
-            if e:
+            if e and e.get("p50") is not None:
                 print(
                     f"{variant:<14} ss_abs_e median {e['p50']:.3g} m, p95 {e['p95']:.3g} m; "
-                    f"diverged {s.get('n_diverged', 0)} of {s.get('n', '?')}"
+                    f"diverged {n_div} of {n}"
+                )
+            else:
+                print(f"{variant:<14} no metrics: diverged {n_div} of {n}")
+            if n_div:
+                print(
+                    f"vcjax: warning: sweep: {variant}: {n_div} of {n} runs diverged "
+                    "(left out of the metrics and figures; flagged in results.npz)",
+                    file=sys.stderr,
                 )
     for f in result["files"]:
         print(f"wrote {f}")
@@ -188,6 +269,7 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_tune(args) -> int:
+    _check_out(args.out)
     if (rc := _use_cores(args, "tune")) is not None:
         return rc
     _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
@@ -217,6 +299,7 @@ def _cmd_tune(args) -> int:
 
 
 def _cmd_fit(args) -> int:
+    _check_out(args.out)
     _enable_x64(args.x64)
     from vcjax.identify import run_fit_config
 
@@ -289,7 +372,10 @@ def _print_metrics(metrics: dict) -> None:
     widths = [max(len(k), 10) + 2 for k in keys]
     print("variant".ljust(14) + "".join(k.rjust(w) for k, w in zip(keys, widths, strict=True)))
     for name, m in metrics.items():
-        cells = (f"{m[k]:{w}.4g}" for k, w in zip(keys, widths, strict=True))
+        cells = (
+            f"{m[k]:{w}.4g}" if _is_number(m.get(k)) else "-".rjust(w)
+            for k, w in zip(keys, widths, strict=True)
+        )
         print(name.ljust(14) + "".join(cells))
 
 
@@ -436,7 +522,10 @@ def main(argv: list[str] | None = None) -> int:
             distributed.initialize_from_env()
         except (RuntimeError, ValueError) as err:
             return _fail(f"{args.command}: {err}")
-    return int(args.func(args) or 0)
+    try:
+        return int(args.func(args) or 0)
+    except _CLIError as err:
+        return _fail(f"{args.command}: {err}")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import jax.scipy.linalg as jsl
 import numpy as np
 
-from vcjax._checks import check_array, is_concrete
+from vcjax._checks import check_array, check_spd, is_concrete
 from vcjax.linalg import safe_norm
 
 __all__ = [
@@ -50,6 +50,7 @@ __all__ = [
     "constraint_terms",
     "reaction_force",
     "constrained_acceleration",
+    "check_shapes",
     "from_body_frame",
     "Method",
     "Underactuation",
@@ -127,10 +128,22 @@ def _check_gain(name: str, P) -> None:
         raise ValueError(f"{name}: expected shape (p,) or (p, p), got {a.shape}")
 
 
+def _as_gain(name: str, P):
+    if not is_concrete(P):
+        return P
+    try:
+        a = np.asarray(P)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name}: expected a (p,) vector or a (p, p) matrix: {err}") from None
+    if a.dtype == object or not (np.issubdtype(a.dtype, np.number) or a.dtype == np.bool_):
+        raise ValueError(f"{name}: expected numbers, got {P!r}")
+    return jnp.asarray(P)
+
+
 def vcm_gains(P_G, P_Phi) -> VCMGains:
     """Build validated :class:`VCMGains` (eager: raises ``ValueError`` before any compilation)."""
-    P_G = jnp.asarray(P_G)
-    P_Phi = jnp.asarray(P_Phi)
+    P_G = _as_gain("P_G", P_G)
+    P_Phi = _as_gain("P_Phi", P_Phi)
     _check_gain("P_G", P_G)
     _check_gain("P_Phi", P_Phi)
     return VCMGains(P_G=P_G, P_Phi=P_Phi)
@@ -211,6 +224,11 @@ class Diagnostics(NamedTuple):
         full_rank: () bool, ``rank == min(p, n)``.
         residual: () ``‖W q̈ + h‖``: 0 in the full-row-rank case, the least-squares residual
             in the over-determined case (17).
+        mass_spd: () bool, ``M(q)`` is symmetric (to ``sqrt(eps)`` relative) and its Cholesky
+            factorisation succeeded (positive definite). When False, ``tau_c`` and ``q̈`` are
+            meaningless whatever ``rank`` and ``cond`` say about W.
+        ok: () bool, the solve is usable: ``mass_spd``, ``full_rank`` and finite ``tau_c``,
+            ``q̈`` and ``residual``.
     """
 
     Phi: Any
@@ -220,13 +238,15 @@ class Diagnostics(NamedTuple):
     cond: Any
     full_rank: Any
     residual: Any
+    mass_spd: Any
+    ok: Any
 
 
 def _rank_cond(W):
     W = jax.lax.stop_gradient(W)
     s = jnp.linalg.svd(W, compute_uv=False)
     p, n = W.shape
-    tol = max(p, n) * jnp.finfo(W.dtype).eps * s[0]
+    tol = max(p, n) * float(jnp.finfo(W.dtype).eps) * s[0]
     rank = jnp.sum(s > tol)
     s_min = s[-1]
     cond = jnp.where(s_min > tol, s[0] / jnp.where(s_min > tol, s_min, 1.0), jnp.inf)
@@ -261,6 +281,20 @@ def constrained_acceleration(M, n_vec, tau, W, h, method: Method = "auto"):
         ``(tau_c, qdd)``: (n,) reaction (control) force and (n,) resulting acceleration
         ``q̈ = M⁻¹(τ + τ_c − n)``.
     """
+    tau_c, qdd, _ = _constrained_acceleration(M, n_vec, tau, W, h, method)
+    return tau_c, qdd
+
+
+def _mass_spd(M, cM_lower):
+    """() bool: M symmetric to ``sqrt(eps)`` relative and its Cholesky factor finite."""
+    M = jax.lax.stop_gradient(M)
+    scale = jnp.max(jnp.abs(M))
+    sym = jnp.max(jnp.abs(M - M.T)) <= float(np.sqrt(jnp.finfo(M.dtype).eps)) * scale
+    return sym & jnp.all(jnp.isfinite(jax.lax.stop_gradient(cM_lower))) & (scale > 0)
+
+
+def _constrained_acceleration(M, n_vec, tau, W, h, method):
+    """:func:`constrained_acceleration` plus the () bool ``mass_spd`` of :class:`Diagnostics`."""
     p, n = W.shape
     method = _resolve_method(method, p, n)
     f = tau - n_vec
@@ -273,12 +307,14 @@ def constrained_acceleration(M, n_vec, tau, W, h, method: Method = "auto"):
         lam = jsl.cho_solve(jsl.cho_factor(S, lower=True), W @ Minv_f + h)
         tau_c = -W.T @ lam
         qdd = Minv_f - Minv_WT @ lam
+        spd = _mass_spd(M, cM[0])
     else:
         # (17): τ_c = n − τ − M W† h, W† h computed by a reduced QR (least squares).
         Q, R = jnp.linalg.qr(W, mode="reduced")
         qdd = -jsl.solve_triangular(R, Q.T @ h, lower=False)
         tau_c = M @ qdd - f
-    return tau_c, qdd
+        spd = _mass_spd(M, jnp.linalg.cholesky(jax.lax.stop_gradient(M)))
+    return tau_c, qdd, spd
 
 
 def reaction_force(
@@ -311,14 +347,19 @@ def reaction_force(
         ``(tau_c, qdd, diagnostics)``: (n,) control force, (n,) acceleration it produces on the
         design model, and :class:`Diagnostics`.
     """
+    check_shapes(system, cons, gains, q, qd, t, args, z, tau)
     if tau is None:
         tau = jnp.zeros_like(q)
     terms = constraint_terms(cons, gains, q, qd, t, args, z)
     M = system.mass_matrix(q, args)
+    if is_concrete(M):  # called outside jit: check M(q) eagerly
+        check_spd("mass_matrix(q)", M)
     n_vec = system.bias_force(q, qd, args)
-    tau_c, qdd = constrained_acceleration(M, n_vec, tau, terms.W, terms.h, method)
+    tau_c, qdd, spd = _constrained_acceleration(M, n_vec, tau, terms.W, terms.h, method)
     rank, cond, full = _rank_cond(terms.W)
     residual = jnp.linalg.norm(terms.W @ qdd + terms.h)
+    finite = jnp.all(jnp.isfinite(tau_c)) & jnp.all(jnp.isfinite(qdd)) & jnp.isfinite(residual)
+    ok = spd & full & finite
     diag = Diagnostics(
         Phi=terms.Phi,
         G=terms.G,
@@ -327,8 +368,88 @@ def reaction_force(
         cond=cond,
         full_rank=full,
         residual=residual,
+        mass_spd=spd,
+        ok=ok,
     )
     return tau_c, qdd, diag
+
+
+def _eval_shape(what: str, fn, *args):
+    try:
+        return jax.eval_shape(fn, *args)
+    except Exception as err:  # noqa: BLE001 - re-raised with the function's name
+        raise ValueError(f"{what} failed on the given shapes: {type(err).__name__}: {err}") from err
+
+
+def _shape_of(x):
+    return tuple(np.shape(x)) if not hasattr(x, "shape") else tuple(x.shape)
+
+
+def check_shapes(
+    system: MechanicalSystem,
+    cons: VirtualConstraints,
+    gains: VCMGains,
+    q,
+    qd,
+    t=0.0,
+    args=None,
+    z=None,
+    tau=None,
+) -> tuple[int, int, int]:
+    """Check every shape of a VCM solve once, abstractly (``jax.eval_shape``: nothing is
+    computed or compiled), and raise a ``ValueError`` naming the constraint or gain at fault.
+
+    :func:`reaction_force` calls it at trace time, so a mismatch is reported before XLA
+    compiles anything, not as an incompatible-shapes error deep inside JAX.
+
+    Returns:
+        ``(n, m, k)``: degrees of freedom, velocity rows, holonomic rows.
+    """
+    q_shape, qd_shape = _shape_of(q), _shape_of(qd)
+    if len(q_shape) != 1:
+        raise ValueError(f"q: expected a vector (n,), got shape {q_shape}")
+    (n,) = q_shape
+    if qd_shape != q_shape:
+        raise ValueError(f"qd: expected shape {q_shape} like q, got {qd_shape}")
+    if tau is not None and _shape_of(tau) != q_shape:
+        raise ValueError(f"tau: expected shape {q_shape} like q, got {_shape_of(tau)}")
+    M = _eval_shape("mass_matrix(q, args)", system.mass_matrix, q, args)
+    if M.shape != (n, n):
+        raise ValueError(
+            f"q: shape {q_shape} does not match the model: mass_matrix(q, args) has shape "
+            f"{M.shape}, expected ({n}, {n})"
+        )
+    nv = _eval_shape("bias_force(q, qd, args)", system.bias_force, q, qd, args)
+    if nv.shape != (n,):
+        raise ValueError(f"bias_force(q, qd, args): expected shape ({n},), got {nv.shape}")
+    extra = () if cons.state_rate is None else (z,)
+    if cons.state_rate is not None and z is None:
+        raise ValueError("z: these constraints have a `state_rate` and need the auxiliary state")
+    rows = {}
+    for name, fn, a in (
+        ("velocity", cons.velocity, (q, qd, t, args, *extra)),
+        ("holonomic", cons.holonomic, (q, t, args, *extra)),
+    ):
+        if fn is None:
+            rows[name] = 0
+            continue
+        out = _eval_shape(f"constraint `{name}`", fn, *a)
+        if not hasattr(out, "shape") or len(out.shape) > 1:
+            shape = getattr(out, "shape", type(out).__name__)
+            raise ValueError(
+                f"constraint `{name}`: expected a scalar or a vector of rows, got shape {shape}"
+            )
+        rows[name] = int(np.prod(out.shape))
+    m, k = rows["velocity"], rows["holonomic"]
+    p = m + k
+    layout = f"Φ = [K ({m} rows from `velocity`); Ġ + P_G G ({k} rows from `holonomic`)]"
+    for name, size in (("P_G", k), ("P_Phi", p)):
+        shape = _shape_of(getattr(gains, name))
+        if shape not in ((size,), (size, size)):
+            raise ValueError(
+                f"{name}: expected shape ({size},) or ({size}, {size}) for {layout}, got {shape}"
+            )
+    return n, m, k
 
 
 def from_body_frame(
@@ -448,11 +569,14 @@ def underactuated_reaction_force(
         raise ValueError(f"z: expected a flat (n_z,) array, got shape {np.shape(z)}")
     if is_concrete(z) and max(under.free) >= np.shape(z)[0]:
         raise ValueError(f"free: index {max(under.free)} out of range for z of size {len(z)}")
+    check_shapes(system, cons, gains, q, qd, t, args, z, tau)
     if tau is None:
         tau = jnp.zeros_like(q)
     idx = np.asarray(under.free)
     r = idx.size
     M = system.mass_matrix(q, args)
+    if is_concrete(M):  # called outside jit: check M(q) eagerly
+        check_spd("mass_matrix(q)", M)
     n_vec = system.bias_force(q, qd, args)
 
     def solve(mu):
@@ -474,6 +598,9 @@ def underactuated_reaction_force(
         lambda a, s: a + jnp.tensordot(mu, s, axes=1), out0, slopes
     )
     rank, cond, full = _rank_cond(terms.W)
+    residual = safe_norm(terms.W @ qdd + terms.h)
+    spd = _mass_spd(M, jnp.linalg.cholesky(jax.lax.stop_gradient(M)))
+    finite = jnp.all(jnp.isfinite(tau_c)) & jnp.all(jnp.isfinite(qdd)) & jnp.isfinite(residual)
     diag = Diagnostics(
         Phi=terms.Phi,
         G=terms.G,
@@ -481,6 +608,8 @@ def underactuated_reaction_force(
         rank=rank,
         cond=cond,
         full_rank=full,
-        residual=safe_norm(terms.W @ qdd + terms.h),
+        residual=residual,
+        mass_spd=spd,
+        ok=spd & full & finite & jnp.all(jnp.isfinite(mu)),
     )
     return tau_c, qdd, mu, diag

@@ -43,28 +43,38 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
     files = []
     order = [v for v in STYLE if v in trajs]
 
-    # Fig. 4: paths (north up, east right)
-    fig, ax = plt.subplots(figsize=(7, 6))
+    # Fig. 4: paths (north up, east right), equal scales: the whole run and the approach
+    fig, axes = plt.subplots(2, 1, figsize=(9, 7.5), height_ratios=(1, 1.6))
     y_all = np.concatenate([np.asarray(trajs[v].x.eta[:, 1]) for v in order])
-    ax.plot([y_all.min() - 5, y_all.max() + 5], [10, 10], "k-", lw=3, alpha=0.25, label="path")
-    for v in order:
-        eta = np.asarray(trajs[v].x.eta)
-        ax.plot(eta[:, 1], eta[:, 0], **STYLE[v])
+    x_all = np.concatenate([np.asarray(trajs[v].x.eta[:, 0]) for v in order])
     eta0 = np.asarray(scenario.eta0)
-    ax.plot(eta0[1], eta0[0], "ko", label="start")
     V_c = np.asarray(scenario.current)[:2]
     heading = np.degrees(np.arctan2(V_c[1], V_c[0])) % 360
-    ax.set_title(
+    for ax in axes:
+        ax.plot([y_all.min() - 5, y_all.max() + 5], [10, 10], "k-", lw=3, alpha=0.25, label="path")
+        for v in order:
+            eta = np.asarray(trajs[v].x.eta)
+            ax.plot(eta[:, 1], eta[:, 0], **STYLE[v])
+        ax.plot(eta0[1], eta0[0], "ko", label="start")
+        ax.set_xlabel("y (east) [m]")
+        ax.set_ylabel("x (north) [m]")
+        ax.set_aspect("equal", adjustable="datalim")  # one metre is one metre both ways
+        ax.grid(alpha=0.3)
+    axes[0].set_title(
         f"Simulation 1: paths travelled (current {np.hypot(*V_c):.2f} m/s toward {heading:.0f}°)"
     )
-    ax.set_xlabel("y (east) [m]")
-    ax.set_ylabel("x (north) [m]")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+    # the approach: where the paths differ (the vehicles cross x = 10 m and settle)
+    span = max(float(np.ptp(x_all)), 10.0)
+    axes[1].set_xlim(float(eta0[1]) - 0.5 * span, float(eta0[1]) + 3.0 * span)
+    axes[1].set_ylim(float(x_all.min()) - 0.3 * span, float(x_all.max()) + 0.3 * span)
+    axes[1].set_aspect("equal", adjustable="box")
+    axes[1].set_title("the approach (same scale on both axes)", fontsize=10)
+    axes[1].legend(fontsize=8, loc="lower right")
     files.append(_save(fig, out / "sim1_paths.png"))
 
     def two_panel(name, series, ylabels, t_slice, hlines=((), ())):
-        """Two stacked time plots; ``series[i](traj)`` gives panel i's samples."""
+        """Two stacked time plots; ``series[i](traj)`` gives panel i's samples; ``hlines[i]``
+        is a sequence of ``(values, label)`` reference lines drawn and labelled in panel i."""
         fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
         for v in order:
             tr = trajs[v]
@@ -72,12 +82,20 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
             for i in range(2):
                 ax[i].plot(t, series[i](tr), **STYLE[v])
         for i in range(2):
-            for y in hlines[i]:
-                ax[i].axhline(y, color="k", lw=0.8, ls="--", alpha=0.5)
+            refs = []
+            for values, label in hlines[i]:
+                for j, y in enumerate(values):
+                    line = ax[i].axhline(y, color="k", lw=1.0, ls="--", alpha=0.6)
+                    if j == 0:
+                        line.set_label(label)
+                        refs.append(line)
             ax[i].set_ylabel(ylabels[i])
             ax[i].grid(alpha=0.3)
+            if i == 0:
+                ax[i].legend(fontsize=8)
+            elif refs:
+                ax[i].legend(handles=refs, fontsize=8, loc="upper right")
         ax[1].set_xlabel("t [s]")
-        ax[0].legend(fontsize=8)
         return _save(fig, out / name)
 
     vehicle = scenario.plant
@@ -91,7 +109,7 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
             (lambda tr: np.asarray(tr.x.nu[:-1, 0]), lambda tr: np.degrees(tr.aux.psi_tilde)),
             ("u [m/s]", "heading error ψ̃ [deg]"),
             head,
-            ((float(scenario.u_d),), ()),
+            ((((float(scenario.u_d),), f"desired speed u_d = {float(scenario.u_d):g} m/s"),), ()),
         )
     )
     # Fig. 5 (right): control signals (actual actuator states)
@@ -101,7 +119,10 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
             (lambda tr: np.asarray(tr.x.act[:, 0]), lambda tr: np.degrees(tr.x.act[:, 1])),
             ("thrust τ_u [N]", "rudder δ [deg]"),
             slice(None),
-            ((-thrust_max, thrust_max), (-rudder_max, rudder_max)),
+            (
+                (((-thrust_max, thrust_max), f"thrust limit ±{thrust_max:g} N"),),
+                (((-rudder_max, rudder_max), f"rudder limit ±{rudder_max:g}°"),),
+            ),
         )
     )
     # path-following errors

@@ -24,6 +24,8 @@ class ProgressBar:
         width: characters of the bar.
         sink: optional ``f(line)`` that receives one plain line per update instead of a redrawn
             bar.
+        warmup: number of first units whose time includes one-off work (compiling): the ETA
+            is based on the units after them only (before that it reads ``ETA after warm-up``).
     """
 
     def __init__(
@@ -33,6 +35,7 @@ class ProgressBar:
         stream=None,
         width: int = 24,
         sink: Callable[[str], object] | None = None,
+        warmup: int = 0,
     ):
         self.total, self.label, self.width = max(1, int(total)), label, width
         self.stream = sys.stderr if stream is None else stream
@@ -40,6 +43,8 @@ class ProgressBar:
         self.done = 0
         self.t0 = time.perf_counter()
         self._closed = False
+        self.warmup = max(0, int(warmup))
+        self.warmup_s: float | None = None  # elapsed time when the warm-up units were done
 
     def update(self, note: str = "") -> None:
         """Advance by one unit."""
@@ -49,9 +54,18 @@ class ProgressBar:
         """Draw the bar at ``k`` of ``total`` units (with the ETA from the elapsed time)."""
         self.done = min(int(k), self.total)
         elapsed = time.perf_counter() - self.t0
-        left = elapsed / max(self.done, 1) * (self.total - self.done)
+        if self.warmup and self.warmup_s is None and self.done >= self.warmup:
+            self.warmup_s = elapsed
         frac = self.done / self.total
-        timing = f"{elapsed:.1f} s, ~{left:.0f} s left"
+        if not self.warmup:
+            left = elapsed / max(self.done, 1) * (self.total - self.done)
+            timing = f"{elapsed:.1f} s, ~{left:.0f} s left"
+        elif self.done <= self.warmup or self.warmup_s is None:
+            timing = f"{elapsed:.1f} s (incl. compiling), ETA after warm-up"
+        else:
+            per = (elapsed - self.warmup_s) / (self.done - self.warmup)
+            left = per * (self.total - self.done)
+            timing = f"{elapsed:.1f} s, ~{left:.0f} s left ({per:.2g} s/step)"
         if self.sink is not None:
             self.sink(f"{self.label.strip()}: {self.done}/{self.total} {note} {timing}".rstrip())
             return

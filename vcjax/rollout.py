@@ -31,6 +31,10 @@ slowly varying ocean current (a Gauss–Markov state in ``s``), per-step sensor 
 
 Health is data: ``Trajectory.finite[k]`` is False when step k produced a non-finite state; the
 state is then frozen at its last finite value so that a vmapped sweep never propagates NaNs.
+``Trajectory.diverged[k]`` is True when step k's state is non-finite *or* has an entry larger
+in magnitude than ``bound`` (a caller-set divergence bound, default 1e9: a state that runs away
+while staying finite is not healthy either). :func:`first_unhealthy_step` finds the first such
+step. ``dt`` is checked eagerly when it is a concrete value (finite and > 0).
 """
 
 from __future__ import annotations
@@ -42,9 +46,20 @@ from typing import Any, Literal, NamedTuple
 import jax
 import jax.numpy as jnp
 
+from vcjax._checks import is_concrete
 from vcjax.integrators import get_integrator
 
-__all__ = ["RolloutConfig", "Trajectory", "rollout", "all_finite"]
+__all__ = [
+    "RolloutConfig",
+    "Trajectory",
+    "rollout",
+    "all_finite",
+    "first_unhealthy_step",
+    "DEFAULT_BOUND",
+]
+
+#: Default divergence bound of :func:`rollout`: any state entry beyond it flags divergence.
+DEFAULT_BOUND = 1e9
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,6 +109,8 @@ class Trajectory(NamedTuple):
         u: command at the start of each step, leaves (N, ...).
         aux: controller outputs at the start of each step, leaves (N, ...).
         finite: (N,) bool, False where the step produced a non-finite state (then frozen).
+        diverged: (N,) bool, True where the step's state is non-finite or has an entry beyond
+            the rollout's ``bound`` in magnitude.
     """
 
     t: Any
@@ -102,12 +119,47 @@ class Trajectory(NamedTuple):
     u: Any
     aux: Any
     finite: Any
+    diverged: Any
+
+    @property
+    def healthy(self):
+        """() bool: no step diverged (every state finite and within the bound)."""
+        return ~jnp.any(self.diverged)
 
 
 def all_finite(tree) -> jax.Array:
     """() bool: every leaf of ``tree`` is finite."""
     leaves = [jnp.all(jnp.isfinite(leaf)) for leaf in jax.tree_util.tree_leaves(tree)]
     return jnp.all(jnp.stack(leaves)) if leaves else jnp.array(True)
+
+
+def first_unhealthy_step(traj: Trajectory) -> int | None:
+    """Index k of the first step whose state diverged (non-finite or beyond the bound), or
+    ``None`` for a healthy run. Eager (call it on a concrete trajectory)."""
+    import numpy as np
+
+    bad = np.asarray(traj.diverged).reshape(-1)
+    return int(np.argmax(bad)) if bad.any() else None
+
+
+def _max_abs(tree):
+    leaves = [
+        jnp.max(jnp.abs(leaf))
+        for leaf in jax.tree_util.tree_leaves(tree)
+        if leaf.size and jnp.issubdtype(leaf.dtype, jnp.inexact)
+    ]
+    return jnp.max(jnp.stack(leaves)) if leaves else jnp.zeros(())
+
+
+def _check_dt(dt) -> None:
+    if is_concrete(dt):
+        import numpy as np
+
+        a = np.asarray(dt)
+        if a.shape != () or not np.issubdtype(a.dtype, np.number):
+            raise ValueError(f"dt: expected a scalar step size [s], got {dt!r}")
+        if not (np.isfinite(a) and a > 0):
+            raise ValueError(f"dt: expected a finite step size > 0 [s], got {float(a)}")
 
 
 def _stack0(first, rest):
@@ -127,6 +179,7 @@ def rollout(
     *,
     exogenous: Callable | None = None,
     s0=None,
+    bound=DEFAULT_BOUND,
 ) -> Trajectory:
     """Roll the closed loop out for ``config.num_steps`` steps of size ``dt``.
 
@@ -142,13 +195,22 @@ def rollout(
             ctrl_params_k)`` (static), evaluated at the start of each step (see module
             docstring); the parameters it returns are held over the step.
         s0: initial state of ``exogenous`` (pytree of arrays; ``None`` when it has none).
+        bound: () divergence bound (traced): a step whose plant or controller state has an
+            entry with ``|.| > bound`` is flagged in ``Trajectory.diverged``.
 
     Returns:
         :class:`Trajectory`.
+
+    Raises:
+        ValueError: ``dt`` or ``bound`` concrete and not finite and > 0.
     """
+    _check_dt(dt)
+    if is_concrete(bound) and not float(bound) > 0:
+        raise ValueError(f"bound: expected a divergence bound > 0, got {bound}")
     step_fn = get_integrator(config.integrator)
     dtype = jnp.result_type(*jax.tree_util.tree_leaves(x0))
     dt = jnp.asarray(dt, dtype=dtype)
+    bound = jnp.asarray(bound, dtype=dtype)
     t0 = jnp.asarray(t0, dtype=dtype)
 
     def advance(t, y, pp, cp):
@@ -180,8 +242,9 @@ def rollout(
             s, pp, cp = exogenous(k, t, s, plant_params, ctrl_params)
         y_next, (u, aux) = advance(t, y, pp, cp)
         ok = all_finite(y_next)
+        diverged = ~ok | (_max_abs(y_next) > bound)
         y_next = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), y_next, y)
-        return (y_next, s), (y_next, u, aux, ok)
+        return (y_next, s), (y_next, u, aux, (ok, diverged))
 
     ks = jnp.arange(config.num_steps, dtype=jnp.int32)
     K = min(config.checkpoint_every, config.num_steps)
@@ -204,5 +267,14 @@ def rollout(
             out = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), out, out_rest)
         ys, us, auxs, oks = out
     xs, zs = ys
+    oks, diverged = oks
     t = t0 + jnp.arange(config.num_steps + 1, dtype=dtype) * dt
-    return Trajectory(t=t, x=_stack0(x0, xs), z=_stack0(z0, zs), u=us, aux=auxs, finite=oks)
+    return Trajectory(
+        t=t,
+        x=_stack0(x0, xs),
+        z=_stack0(z0, zs),
+        u=us,
+        aux=auxs,
+        finite=oks,
+        diverged=diverged,
+    )

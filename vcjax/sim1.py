@@ -33,7 +33,7 @@ from vcjax import loops, paths
 from vcjax._checks import check_array, check_positive
 from vcjax.loops.infante import InfanteGains, InfanteLoop, infante_gains
 from vcjax.metrics import run_metrics
-from vcjax.rollout import RolloutConfig
+from vcjax.rollout import RolloutConfig, first_unhealthy_step
 from vcjax.vehicles import infante
 
 __all__ = [
@@ -51,6 +51,7 @@ __all__ = [
     "run_sim1",
     "tracking_metrics",
     "METRIC_KEYS",
+    "unhealthy_runs",
 ]
 
 VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos", "alos")
@@ -112,8 +113,7 @@ def sim1_scenario(
     vehicle = infante.infante_params() if vehicle is None else vehicle
     design_vehicle = vehicle if design_vehicle is None else design_vehicle
     for name, v in (("vehicle", vehicle), ("design_vehicle", design_vehicle)):
-        if not isinstance(v, infante.InfanteParams):
-            raise ValueError(f"{name}: expected InfanteParams, got {type(v).__name__}")
+        infante.validate(v, name)
     dt = jnp.asarray(vehicle.mass).dtype
     f = lambda x: jnp.asarray(x, dtype=dt)
     current = f(current)
@@ -206,13 +206,15 @@ def run_variant(
 
 def tracking_metrics(variant: str, traj, scenario: loops.Scenario, tail: float = 0.2) -> dict:
     """Simulation 1's metrics of one run (:func:`vcjax.metrics.run_metrics`, steady-state
-    window the last ``tail`` of the run), as Python floats, plus ``healthy`` (every step
-    finite)."""
+    window the last ``tail`` of the run), as Python floats, plus ``healthy`` (no step diverged:
+    every state finite and within the rollout's bound, :attr:`vcjax.rollout.Trajectory.diverged`)
+    and ``unhealthy_step`` (the first diverged step, or ``None``)."""
     loop = closed_loop(variant)
     sig = loop.signals(traj, scenario)
     m = run_metrics(sig, traj.finite, traj.t[1] - traj.t[0], start=1.0 - tail)
     out = {k: float(m[k]) for k in METRIC_KEYS}
-    out["healthy"] = bool(np.all(np.asarray(traj.finite)))
+    out["healthy"] = not bool(np.any(np.asarray(traj.diverged)))
+    out["unhealthy_step"] = first_unhealthy_step(traj)
     return out
 
 
@@ -243,4 +245,19 @@ def run_sim1(
         metrics[v] = tracking_metrics(v, trajs[v], sc)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     files = plots.sim1_figures(trajs, sc, out)
-    return {"metrics": metrics, "files": [out / "metrics.json", *files]}
+    return {
+        "metrics": metrics,
+        "files": [out / "metrics.json", *files],
+        "unhealthy": unhealthy_runs(trajs),
+    }
+
+
+def unhealthy_runs(trajs: dict) -> dict:
+    """``{variant: (k, t_k)}`` for every run with a diverged step (first such step k and its
+    end time [s]); empty when every run is healthy."""
+    bad = {}
+    for v, traj in trajs.items():
+        k = first_unhealthy_step(traj)
+        if k is not None:
+            bad[v] = (k, float(np.asarray(traj.t)[k + 1]))
+    return bad

@@ -80,7 +80,7 @@ def sim2_scenario(
     check_array("psi0", psi0, ())
     check_positive("u_d", u_d, ())
     check_array("varpi0", varpi0, ())
-    vehicle = odin.odin_params() if vehicle is None else vehicle
+    vehicle = odin.odin_params() if vehicle is None else odin.validate(vehicle)
     args = odin.odin_args(vehicle, tau_dist, current)
     dt = args.tau_dist.dtype
     f = lambda x: jnp.asarray(x, dtype=dt)
@@ -215,7 +215,7 @@ def sim2_metrics(
         "final_varpi": float(np.asarray(traj.z.vcm.varpi)[-1]),
         "settled_from_s": float(t[k0]),
         "horizon_s": float(t[-1] + (t[1] - t[0])),
-        "healthy": bool(np.all(np.asarray(traj.finite))),
+        "healthy": not bool(np.any(np.asarray(traj.diverged))),
     }
     return out
 

@@ -146,7 +146,7 @@ def mission_metrics(traj, path, coeffs, settle=150.0) -> dict:
     raw = np.asarray(traj.aux.raw)
     lim = np.asarray(r100.remus100_params().act_max)
     sat = np.any(np.abs(raw) > lim, axis=1)
-    finite = bool(np.all(np.asarray(traj.finite)))
+    finite = bool(np.asarray(traj.healthy))  # every state finite and within the bound
 
     def mx(a, m):
         return float(np.max(np.abs(a[m]))) if np.any(m) else float("nan")

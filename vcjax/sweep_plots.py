@@ -4,14 +4,15 @@
   and against the current direction, one colour per variant, with binned medians;
 * ``sweep_metrics.png``: box plots of the main metrics per variant;
 * ``sweep_envelopes.png``: cross-track error against time, median and 25–75 % / 5–95 % bands
-  per variant;
-* ``sweep_paths.png``: a sample of the paths travelled, per variant.
+  per variant, all panels on one y scale;
+* ``sweep_paths.png``: a sample of the paths travelled, per variant (equal axis scales).
 
 Runs flagged ``diverged`` are left out of every panel (their count is in the titles).
 """
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -88,13 +89,15 @@ def _error_vs_current(result, out: Path) -> Path:
             else:
                 ax.plot([], [], color=st["color"], ls=st["ls"], lw=2, label=st["label"])
         ax.set_xlabel(label)
-        ax.set_yscale("log")
+        if any(_ok(result, v).any() for v in _variants(result)):  # no data: no log scale
+            ax.set_yscale("log")
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("steady-state mean |e| [m] (last %.0f %%)" % (100 * result.spec.tail))
-    counts = [f"{v}: {int((~_ok(result, v)).sum())}" for v in _variants(result)]
-    fails = "\n".join(", ".join(counts[i : i + 3]) for i in range(0, len(counts), 3))
-    axes[0].set_title(f"{n} scenarios; lines: binned medians")
-    axes[1].set_title(f"diverged runs (left out):\n{fails}", fontsize=10)
+    fails = ", ".join(f"{v}: {int((~_ok(result, v)).sum())}" for v in _variants(result))
+    title = f"{n} scenarios; lines: binned medians; diverged runs (left out): {fails}"
+    fig.suptitle("\n".join(textwrap.wrap(title, 110)), fontsize=10)
+    axes[0].set_title("against the current's speed", fontsize=10)
+    axes[1].set_title("against the current's direction", fontsize=10)
     axes[0].legend(fontsize=8)
     return _save(fig, out / "sweep_error_vs_current.png")
 
@@ -122,7 +125,7 @@ def _metric_boxes(result, out: Path) -> Path:
             patch.set_alpha(0.5)
         ax.set_xticks(range(1, len(vs) + 1), vs, fontsize=8)
         ax.set_title(title, fontsize=10)
-        if log:
+        if log and any(d.size for d in data):
             ax.set_yscale("log")
         ax.grid(True, axis="y", alpha=0.3)
     fig.suptitle("Sweep metrics per variant (boxes: quartiles; whiskers: 5-95 %)")
@@ -136,17 +139,19 @@ def _actuator_key(result) -> str:
     return "max_abs_rudder_deg" if "max_abs_rudder_deg" in act else (act or ["max_abs_e"])[0]
 
 
-def _grid(plt, n):
+def _grid(plt, n, sharey=False):
     rows = 1 if n <= 2 else 2
     cols = int(np.ceil(n / rows))
-    fig, axes = plt.subplots(rows, cols, figsize=(5.5 * cols, 4.2 * rows), squeeze=False)
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(5.5 * cols, 4.2 * rows), squeeze=False, sharey=sharey
+    )
     return fig, axes.ravel()
 
 
 def _envelopes(result, out: Path) -> Path:
     plt = _plt()
     vs = _variants(result)
-    fig, axes = _grid(plt, len(vs))
+    fig, axes = _grid(plt, len(vs), sharey=True)  # one y scale: the variants compare by eye
     t = np.asarray(result.trace_t)
     for ax, v in zip(axes, vs, strict=False):
         e = np.asarray(result.traces[v]["e"], np.float64)[_ok(result, v)]
@@ -160,10 +165,13 @@ def _envelopes(result, out: Path) -> Path:
         ax.set_title(f"{st['label']} ({e.shape[0]} runs)", fontsize=10)
         ax.set_xlabel("t [s]")
         ax.set_ylabel("cross-track error e [m]")
+        ax.yaxis.set_tick_params(labelleft=True)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
+        if e.shape[0]:
+            ax.legend(fontsize=8)
     for ax in axes[len(vs) :]:
         ax.set_visible(False)
+    fig.suptitle("Cross-track error envelopes (shared y-axis)", fontsize=11)
     return _save(fig, out / "sweep_envelopes.png")
 
 

@@ -210,8 +210,8 @@ def make_scenario(
         disturbance: constant generalised disturbance (default zeros).
         varpi0: initial particle (default: the path point nearest to the start).
     """
-    plant = loop.default_params(dtype) if plant is None else plant
-    design = plant if design is None else design
+    plant = loop.default_params(dtype) if plant is None else loop.validate_params(plant, "plant")
+    design = plant if design is None else loop.validate_params(design, "design")
     dt = jnp.asarray(jax.tree_util.tree_leaves(plant)[0]).dtype
     coeffs = type(loop).default_path()[1] if coeffs is None else coeffs
     coeffs = _cast(coeffs, dt)

@@ -258,6 +258,15 @@ class Loop:
         """The vehicle's nominal parameters (a NamedTuple of arrays)."""
         raise NotImplementedError
 
+    def validate_params(self, params, name: str = "plant"):
+        """Eagerly check vehicle parameters however they were built (e.g. ``_replace``d);
+        raise ``ValueError`` naming ``name.field``. Default: the parameters must be of the type
+        :meth:`default_params` returns; a vehicle overrides it with its module's ``validate``."""
+        kind = type(self.default_params())
+        if not isinstance(params, kind):
+            raise ValueError(f"{name}: expected {kind.__name__}, got {type(params).__name__}")
+        return params
+
     def default_gains(self):
         """The controller's default gains (a NamedTuple pytree)."""
         raise NotImplementedError

@@ -132,6 +132,8 @@ class InfanteLoop(Loop):
     edd: Literal["paper", "implied"] = "paper"
 
     vehicle: ClassVar[str] = "infante"
+    #: the columns of ``Signals.cmd_ratio``
+    actuator_names: ClassVar[tuple[str, ...]] = ("thrust", "rudder")
     controllers: ClassVar[tuple[str, ...]] = VCM_CONTROLLERS + BASELINE_CONTROLLERS
     default_controller: ClassVar[str] = "vcm_integral"
     initial_keys: ClassVar[dict[str, float]] = {
@@ -165,6 +167,9 @@ class InfanteLoop(Loop):
 
     def default_params(self, dtype=None):
         return infante.infante_params(dtype=dtype)
+
+    def validate_params(self, params, name: str = "plant"):
+        return infante.validate(params, name)
 
     def param_names(self):
         return _SCALAR_FIELDS
@@ -214,6 +219,12 @@ class InfanteLoop(Loop):
         unknown = set(d) - {"vcm", "baseline"}
         if unknown:
             raise ValueError(f"gains file: unknown sections {sorted(unknown)}")
+        for section in ("vcm", "baseline"):
+            if not isinstance(d.get(section, {}), dict):
+                raise ValueError(
+                    f"gains file: section '{section}' must be an object of gains, "
+                    f"got {type(d[section]).__name__}"
+                )
         cur = {k: np.asarray(v).tolist() for k, v in base.vcm._asdict().items()}
         cur_b = {k: np.asarray(v).tolist() for k, v in base.baseline._asdict().items()}
         try:

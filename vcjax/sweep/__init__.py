@@ -93,7 +93,8 @@ TOML schema (every key optional unless marked; a value written ``range`` is eith
 
     [metrics]
     tail = 0.2                  # in (0, 1]: steady-state window, last fraction of the run
-    diverge_e = 50.0            # m, > 0: a run with max |e| above it counts as diverged
+    diverge_e = 50.0            # m, > 0: a run with max |e| above it (or a non-finite state, or one
+                                # beyond the rollout's bound, 1e9) counts as diverged
 
     [output]
     record_points = 200         # int >= 0: cross-track error / path samples kept per run

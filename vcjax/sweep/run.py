@@ -117,6 +117,8 @@ def scenario_metrics(loop, traj: Trajectory, sc: loops.Scenario, config: MCConfi
     """
     sig = loop.signals(traj, sc)
     m = run_metrics(sig, traj.finite, traj.t[1] - traj.t[0], 1.0 - config.tail, diverge_e)
+    # a state that ran away while staying finite (beyond the rollout's bound) diverged too
+    m["diverged"] = m["diverged"] | ~traj.healthy
     idx = config.trace_steps
     traces = {
         "e": sig.eps[idx, 1].astype(jnp.float32),

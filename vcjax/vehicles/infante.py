@@ -93,6 +93,7 @@ import numpy as np
 from vcjax._checks import (
     as_float_array,
     check_array,
+    check_params,
     check_positive,
     check_spd,
     float_dtype,
@@ -113,6 +114,7 @@ __all__ = [
     "HYDRODYNAMIC_FIELDS",
     "INERTIA_FIELDS",
     "infante_params",
+    "validate",
     "ideal_fluid",
     "InfanteState",
     "infante_state",
@@ -375,6 +377,37 @@ def infante_params(
     return p._replace(X_uu=jnp.asarray(X_uu, dtype=dt))
 
 
+def validate(params: InfanteParams, name: str = "vehicle") -> InfanteParams:
+    """Eagerly check :class:`InfanteParams` however they were built (also after ``_replace``):
+    every field finite; lengths, density, mass, inertia, limits, time constants > 0; the mass
+    matrix ``M`` (mass, ``Iz``, ``x_g``, added mass) with a positive-definite symmetric part
+    (``infante_params`` builds it symmetric; a model-error study may perturb ``Y_rdot`` and
+    ``N_vdot`` apart).
+
+    Returns ``params``. Raises ``ValueError`` naming ``name.field``. Skipped under ``jit``.
+    """
+    check_params(
+        InfanteParams,
+        params,
+        positive=(
+            "length",
+            "rho",
+            "mass",
+            "Iz",
+            "cf_dx",
+            "thrust_max",
+            "rudder_max",
+            "T_thrust",
+            "T_rudder",
+            "rudder_speed_min",
+        ),
+        spd={"M (mass, Iz, x_g and added mass)": mass_matrix},
+        name=name,
+        symmetric=False,  # model-error studies perturb Y_rdot and N_vdot independently
+    )
+    return params
+
+
 def ideal_fluid(params: InfanteParams) -> InfanteParams:
     """Same vehicle with every damping, lift, cross-flow and rudder term set to zero.
 
@@ -407,8 +440,7 @@ def plant_args(vehicle: InfanteParams, V_c=None, V_c_dot=None) -> PlantArgs:
 
     The arrays take the dtype of ``vehicle.mass``.
     """
-    if not isinstance(vehicle, InfanteParams):
-        raise ValueError(f"vehicle: expected InfanteParams, got {type(vehicle).__name__}")
+    validate(vehicle)
     dt = jnp.asarray(vehicle.mass).dtype
     V_c = jnp.zeros(2, dtype=dt) if V_c is None else as_float_array("V_c", V_c, (2,), dt)
     V_c_dot = (

@@ -77,7 +77,14 @@ from typing import Any, NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax._checks import as_float_array, check_array, check_positive, float_dtype, is_concrete
+from vcjax._checks import (
+    as_float_array,
+    check_array,
+    check_params,
+    check_positive,
+    float_dtype,
+    is_concrete,
+)
 from vcjax.linalg import safe_norm, saturate, smooth_saturate
 from vcjax.vehicles import sixdof as sd
 from vcjax.vehicles.design3dof import Design3DOF, design3dof
@@ -85,6 +92,7 @@ from vcjax.vehicles.design3dof import Design3DOF, design3dof
 __all__ = [
     "OdinParams",
     "odin_params",
+    "validate",
     "thruster_matrix",
     "OdinState",
     "odin_state",
@@ -248,6 +256,25 @@ def odin_params(
     )
 
 
+def validate(params: OdinParams, name: str = "vehicle") -> OdinParams:
+    """Eagerly check :class:`OdinParams` however they were built (also after ``_replace``):
+    every field finite; radius, density, thrust limits and time constant > 0, drag >= 0; the body
+    (:func:`vcjax.vehicles.sixdof.validate`); thruster matrix (6, 8).
+
+    Returns ``params``. Raises ``ValueError`` naming ``name.field``. Skipped under ``jit``.
+    """
+    check_params(
+        OdinParams,
+        params,
+        positive=("radius", "rho", "thrust_max", "T_thrust"),
+        nonnegative=("drag_coeff",),
+        name=name,
+    )
+    sd.validate(params.body, f"{name}.body")
+    check_array(f"{name}.thrusters", params.thrusters, (6, 8))
+    return params
+
+
 def odin_state(eta, nu=None, thrust=None, dtype=None) -> OdinState:
     """Validated :class:`OdinState`; ``nu`` (6,) and ``thrust`` (8,) default to zeros.
 
@@ -274,8 +301,7 @@ def odin_args(vehicle: OdinParams, tau_dist=None, v_c=None) -> OdinArgs:
             ``[0, 5, 0]`` N; moments zero). Default zeros.
         v_c: (3,) ocean current in NED [m/s]. Default zeros.
     """
-    if not isinstance(vehicle, OdinParams):
-        raise ValueError(f"vehicle: expected OdinParams, got {type(vehicle).__name__}")
+    validate(vehicle)
     dt = jnp.asarray(vehicle.radius).dtype
     if tau_dist is None:
         tau_dist = jnp.zeros(6, dt)

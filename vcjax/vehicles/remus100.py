@@ -84,7 +84,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax._checks import as_float_array, check_array, check_positive, float_dtype
+from vcjax._checks import (
+    as_float_array,
+    check_array,
+    check_params,
+    check_positive,
+    float_dtype,
+    is_concrete,
+)
 from vcjax.linalg import safe_norm, saturate, smooth_saturate
 from vcjax.vehicles.sixdof import (
     SixDofParams,
@@ -94,6 +101,7 @@ from vcjax.vehicles.sixdof import (
     m2c,
     sixdof_params,
 )
+from vcjax.vehicles.sixdof import validate as _validate_body
 
 __all__ = [
     "CA_ZEROED",
@@ -101,6 +109,7 @@ __all__ = [
     "hoerner",
     "Remus100Params",
     "remus100_params",
+    "validate",
     "Remus100State",
     "remus100_state",
     "Remus100Args",
@@ -118,6 +127,7 @@ __all__ = [
     "remus100_plant_smooth",
     "pvs_step",
     "pvs_rollout",
+    "PVSReplay",
 ]
 
 #: Hoerner's 2-D cross-flow drag coefficient vs. ``B / (2 T)`` as digitised in PVS ``gnc.py``.
@@ -370,6 +380,23 @@ def remus100_params(
     )
 
 
+def validate(params: Remus100Params, name: str = "vehicle") -> Remus100Params:
+    """Eagerly check :class:`Remus100Params` however they were built (also after
+    ``_replace``): every field finite; density, length, diameter, areas, propeller diameter,
+    actuator limits and time constants > 0; the body (:func:`vcjax.vehicles.sixdof.validate`).
+
+    Returns ``params``. Raises ``ValueError`` naming ``name.field``. Skipped under ``jit``.
+    """
+    check_params(
+        Remus100Params,
+        params,
+        positive=("rho", "length", "diam", "S", "A_r", "A_s", "D_prop", "act_max", "T_act"),
+        name=name,
+    )
+    _validate_body(params.body, f"{name}.body")
+    return params
+
+
 def remus100_state(eta=None, nu=None, act=None, dtype=None) -> Remus100State:
     """Validated :class:`Remus100State`; every field defaults to zeros.
 
@@ -402,8 +429,7 @@ def remus100_args(
         v_c: (2,) NED current ``[north, east]`` [m/s] (overrides ``V_c``, ``beta_c``).
         v_c_dot: (2,) its time derivative [m/s^2] (default 0, as in PVS).
     """
-    if not isinstance(vehicle, Remus100Params):
-        raise ValueError(f"vehicle: expected Remus100Params, got {type(vehicle).__name__}")
+    validate(vehicle)
     dt = jnp.asarray(vehicle.rho).dtype
     if v_c is None:
         check_array("V_c", V_c, ())
@@ -649,18 +675,46 @@ def pvs_step(x: Remus100State, u_cmd, args: Remus100Args, dt) -> Remus100State:
     return Remus100State(eta=eta_next, nu=nu_next, act=act_next)
 
 
-def pvs_rollout(x0: Remus100State, u_cmds, args: Remus100Args, dt) -> Remus100State:
+class PVSReplay(NamedTuple):
+    """Result of :func:`pvs_rollout`.
+
+    Attributes:
+        x: :class:`Remus100State` with leaves stacked to (N + 1, ...), starting with ``x0``.
+        ok: (N,) bool, step k was valid: its command finite, ``dt`` finite and > 0, and the
+            state it produced finite (False from the first bad step on, as a NaN never heals).
+    """
+
+    x: Remus100State
+    ok: Any
+
+
+def pvs_rollout(x0: Remus100State, u_cmds, args: Remus100Args, dt) -> PVSReplay:
     """Replay commands ``u_cmds`` (N, 3) through :func:`pvs_step` as one ``lax.scan``.
 
+    ``dt`` and ``u_cmds`` are checked eagerly when concrete (``ValueError`` naming them); inside
+    ``jit`` a bad command or step is reported as data in :attr:`PVSReplay.ok`.
+
     Returns:
-        :class:`Remus100State` with leaves stacked to (N + 1, ...), starting with ``x0``.
-        Not jitted: jit at your entry point (``jax.jit(pvs_rollout)``).
+        :class:`PVSReplay`. Not jitted: jit at your entry point (``jax.jit(pvs_rollout)``).
     """
+    if is_concrete(dt):
+        a = np.asarray(dt)
+        if a.shape != () or not (np.isfinite(a) and a > 0):
+            raise ValueError(f"dt: expected a finite step size > 0 [s], got {dt!r}")
+    check_array("u_cmds", u_cmds, (None, 3))
     dt = jnp.asarray(dt, dtype=x0.nu.dtype)
+    dt_ok = jnp.isfinite(dt) & (dt > 0)
 
-    def step(x, u):
+    def step(carry, u):
+        x, ok = carry
         x_next = pvs_step(x, u, args, dt)
-        return x_next, x_next
+        ok = ok & dt_ok & jnp.all(jnp.isfinite(u)) & _finite_state(x_next)
+        return (x_next, ok), (x_next, ok)
 
-    _, xs = jax.lax.scan(step, x0, u_cmds)
-    return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), x0, xs)
+    _, (xs, oks) = jax.lax.scan(step, (x0, jnp.array(True)), u_cmds)
+    x = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), x0, xs)
+    return PVSReplay(x=x, ok=oks)
+
+
+def _finite_state(x) -> jax.Array:
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in jax.tree_util.tree_leaves(x)]))

@@ -35,6 +35,7 @@ import numpy as np
 from vcjax._checks import (
     as_float_array,
     check_array,
+    check_params,
     check_positive,
     check_spd,
     float_dtype,
@@ -55,6 +56,7 @@ __all__ = [
     "current_in_body",
     "SixDofParams",
     "sixdof_params",
+    "validate",
     "SixDofState",
     "sixdof_state",
     "SixDofArgs",
@@ -343,6 +345,22 @@ def sixdof_params(M_RB, M_A=None, D=None, W=0.0, B=None, r_bg=None, r_bb=None, d
         r_bg=as_float_array("r_bg", r_bg, (3,), dt),
         r_bb=as_float_array("r_bb", r_bb, (3,), dt),
     )
+
+
+def validate(params: SixDofParams, name: str = "vehicle") -> SixDofParams:
+    """Eagerly check :class:`SixDofParams` however they were built (also after ``_replace``):
+    every field finite, ``W, B >= 0``, ``M_RB + M_A`` symmetric positive definite.
+
+    Returns ``params``. Raises ``ValueError`` naming ``name.field``. Skipped under ``jit``.
+    """
+    check_params(
+        SixDofParams,
+        params,
+        nonnegative=("W", "B"),
+        spd={"M_RB + M_A": lambda p: p.M_RB + p.M_A},
+        name=name,
+    )
+    return params
 
 
 def sixdof_state(eta=None, nu=None, dtype=None) -> SixDofState:
