@@ -54,6 +54,8 @@ def main(argv=None) -> Path:
         timing = vmap[0].get("timing", "continuous")
         cores = max(r.get("cores_used", 1) for r in vmap)
         tag = f"{dtype}, {timing}, {cores} core{'s' if cores > 1 else ''}"
+        if "round1" in Path(f).stem:
+            tag += ", round 1 (before)"
         b = np.array([r["batch"] for r in vmap])
         (line,) = ax.loglog(b, [rate(r) for r in vmap], "o-", label=f"vmap, {tag}")
         if single:

@@ -148,3 +148,21 @@ def test_tune_sharded_over_two_cpu_devices_matches_one_device(tmp_path):
     # the batch mean is summed across devices in another order: equal to round-off
     for k in ("heldout_loss_before", "heldout_loss_after", "train_loss_after"):
         assert out[2][k] == pytest.approx(out[1][k], rel=1e-9), k
+
+
+def test_default_keeps_running_jax_explicit_conflict_is_an_error(monkeypatch):
+    import jax
+
+    from vcjax.devices import use_cpu_cores
+
+    jax.numpy.zeros(1).block_until_ready()  # JAX is running in this process
+    have = len(jax.devices("cpu"))
+    monkeypatch.delenv(ENV_VAR, raising=False)
+    monkeypatch.delenv("XLA_FLAGS", raising=False)
+    assert use_cpu_cores() in (have, usable_cores())  # no error: the CLI called from Python
+    assert use_cpu_cores(have) == have
+    with pytest.raises(ValueError, match="already running"):
+        use_cpu_cores(have + 1)
+    monkeypatch.setenv(ENV_VAR, str(have + 1))
+    with pytest.raises(ValueError, match="already running"):
+        use_cpu_cores()

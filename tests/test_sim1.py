@@ -36,7 +36,7 @@ def test_cli_writes_figures_and_metrics(sim1_out):
     run = json.loads((sim1_out / "run.json").read_text())
     assert run["command"] == "simulate sim1"
     assert run["config"]["horizon"] == 150.0 and run["config"]["dt"] == 0.05
-    assert run["config"]["scenario"]["V_c"] == [0.0, 0.5]
+    assert run["config"]["scenario"]["current"][:2] == [0.0, 0.5]
     for m in metrics.values():
         assert KEYS <= set(m)
         assert m["healthy"]

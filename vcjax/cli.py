@@ -17,6 +17,19 @@ def _enable_x64(flag: bool) -> None:
     jax.config.update("jax_enable_x64", bool(flag))
 
 
+def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
+    """Write ``out/run.json`` (:mod:`vcjax.runinfo`) and say so; ``config`` defaults to the
+    parsed command-line options."""
+    from vcjax.runinfo import write_run_json
+
+    config = {k: v for k, v in vars(args).items() if k != "func"} if config is None else config
+    config.pop("func", None)
+    wall = {"total": time.perf_counter() - args.t_start, **wall}
+    path = write_run_json(out, command, config=config, seeds=seeds, wall_s=wall)
+    if path is not None:
+        print(f"wrote {path}")
+
+
 class _CLIError(Exception):
     """A bad input of the command line: printed as one line, exit code 2."""
 
@@ -63,19 +76,6 @@ def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
             "(the trajectory is kept in memory); use a larger --dt or a shorter --horizon"
         )
     return n
-
-
-def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
-    """Write ``out/run.json`` (:mod:`vcjax.runinfo`) and say so; ``config`` defaults to the
-    parsed command-line options."""
-    from vcjax.runinfo import write_run_json
-
-    config = {k: v for k, v in vars(args).items() if k != "func"} if config is None else config
-    config.pop("func", None)
-    wall = {"total": time.perf_counter() - args.t_start, **wall}
-    path = write_run_json(out, command, config=config, seeds=seeds, wall_s=wall)
-    if path is not None:
-        print(f"wrote {path}")
 
 
 def _cmd_demo(args) -> int:

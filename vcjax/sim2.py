@@ -80,7 +80,7 @@ def sim2_scenario(
     check_array("psi0", psi0, ())
     check_positive("u_d", u_d, ())
     check_array("varpi0", varpi0, ())
-    vehicle = odin.odin_params() if vehicle is None else vehicle
+    vehicle = odin.odin_params() if vehicle is None else odin.validate(vehicle)
     args = odin.odin_args(vehicle, tau_dist, current)
     dt = args.tau_dist.dtype
     f = lambda x: jnp.asarray(x, dtype=dt)
