@@ -416,9 +416,9 @@ def test_cli_simulate_bad_current_and_sim2_options(capsys, tmp_path):
     rc, _, err = _cli(capsys, "simulate", "sim1", "--current", "nan", "0", "--out", str(tmp_path))
     assert rc == 2
     _one_line_error(err, "current: contains NaN")
-    rc, _, err = _cli(capsys, "simulate", "sim2", "--gains", "g.json", "--out", str(tmp_path))
+    rc, _, err = _cli(capsys, "simulate", "sim2", "--current", "0", "0", "--out", str(tmp_path))
     assert rc == 2
-    _one_line_error(err, "--gains is not supported")
+    _one_line_error(err, "--current is not supported")
 
 
 def test_cli_unhealthy_simulation_exits_nonzero_and_still_writes(capsys, tmp_path):
