@@ -137,18 +137,30 @@ def base_inputs():
     return sim1.default_gains(), sim1.sim1_scenario()
 
 
+def current_field(sc) -> str:
+    """The scenario's current field: ``current`` (3,) NED since the scenario layer (issue 9),
+    ``V_c`` (2,) before it (``benchmarks.before_after`` runs older revisions too)."""
+    return "current" if "current" in sc._fields else "V_c"
+
+
+def _batched_fields(sc) -> tuple[str, ...]:
+    extra = ("varpi0",) if "varpi0" in sc._fields else ()
+    return ("eta0", current_field(sc), *extra)
+
+
 def scenario_axes(sc):
-    """``in_axes`` for a scenario batched along ``eta0`` and ``V_c`` only."""
-    return sc._replace(
-        eta0=0, V_c=0, nu0=None, u_d=None, vehicle=None, path=None, design_vehicle=None
-    )
+    """``in_axes`` for a scenario batched along ``eta0`` and the current only (and the particle
+    start ``varpi0`` where the scenario carries it)."""
+    batched = _batched_fields(sc)
+    return type(sc)(**{f: (0 if f in batched else None) for f in sc._fields})
 
 
 def batched_scenario(sc, batch: int, seed: int = 0):
-    """``sc`` with ``eta0`` (B, 3) and ``V_c`` (B, 2): random initial offsets and currents.
+    """``sc`` with ``eta0`` (B, 3) and the current batched: random initial offsets and currents.
 
     Offsets: x, y ~ N(0, 5 m), psi ~ N(0, 0.5 rad) around Simulation 1's start; current: random
-    direction, magnitude ~ U(0, 0.5) m/s.
+    direction, magnitude ~ U(0, 0.5) m/s. The particle starts abreast of the vehicle (``w0 = y0``
+    on Simulation 1's line ``[10, w]``), as ``sim1`` did before ``varpi0`` became a field.
     """
     import jax.numpy as jnp
 
@@ -157,14 +169,19 @@ def batched_scenario(sc, batch: int, seed: int = 0):
     d_eta = rng.normal(size=(batch, 3)) * np.array([5.0, 5.0, 0.5])
     ang = rng.uniform(-np.pi, np.pi, size=batch)
     mag = rng.uniform(0.0, 0.5, size=batch)
-    V_c = np.stack([mag * np.cos(ang), mag * np.sin(ang)], axis=1)
+    cur = np.stack([mag * np.cos(ang), mag * np.sin(ang), np.zeros(batch)], axis=1)
     eta0 = np.asarray(sc.eta0)[None, :] + d_eta
-    return sc._replace(eta0=jnp.asarray(eta0, dtype=dt), V_c=jnp.asarray(V_c, dtype=dt))
+    name = current_field(sc)
+    cur = cur[:, : np.asarray(getattr(sc, name)).shape[-1]]
+    out = {"eta0": jnp.asarray(eta0, dtype=dt), name: jnp.asarray(cur, dtype=dt)}
+    if "varpi0" in sc._fields:
+        out["varpi0"] = jnp.asarray(eta0[:, 1], dtype=dt)
+    return sc._replace(**out)
 
 
 def shard_batch(scb, devices: int):
-    """``scb`` with its batched fields (``eta0``, ``V_c``) sharded over the first ``devices``
-    JAX devices along the scenario axis (unchanged for one device)."""
+    """``scb`` with its batched fields sharded over the first ``devices`` JAX devices along the
+    scenario axis (unchanged for one device)."""
     if devices <= 1:
         return scb
     import jax
@@ -172,7 +189,7 @@ def shard_batch(scb, devices: int):
 
     mesh = Mesh(np.asarray(jax.devices()[:devices]), ("scenarios",))
     sh = NamedSharding(mesh, PartitionSpec("scenarios"))
-    return scb._replace(eta0=jax.device_put(scb.eta0, sh), V_c=jax.device_put(scb.V_c, sh))
+    return scb._replace(**{f: jax.device_put(getattr(scb, f), sh) for f in _batched_fields(scb)})
 
 
 def devices_used(x) -> int:

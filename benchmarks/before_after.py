@@ -5,8 +5,8 @@ The machine may be shared, so absolute rates drift between runs; ratios measured
 not. This script extracts the ``vcjax`` package of ``--before`` (a git revision; default: the
 state before throughput round 2, issue 12) into a temporary directory and measures, in fresh
 worker processes that alternate (before, after, before, after, ... ``--rounds`` times, best of
-each), Simulation 1's ``vcm_integral`` closed loop (INFANTE-class plant, RK4, dt = 0.05 s,
-float32 by default) for every case:
+each by wall time), Simulation 1's ``vcm_integral`` closed loop (INFANTE-class plant, RK4,
+dt = 0.05 s, float32 by default) for every case:
 
 * ``single``: one trajectory, ``jit(simulate)``, no vmap;
 * ``vmap B``: ``jax.vmap`` over B scenarios on one CPU device (one core does the work);
@@ -15,8 +15,10 @@ float32 by default) for every case:
 
 each with the continuous-time controller (evaluated at every RK4 stage) and the sampled one
 (once per step, held). The worker returns the best wall time of ``--repeats`` calls after a
-warm-up, and the compile time; the timed function returns only the (B,) mean |e| (computed in
-jit), as in :mod:`benchmarks.throughput`.
+warm-up, the process CPU time of that call (``steps_per_cpu_s``: on a machine shared with other
+jobs, per-core efficiency is steadier than wall time; with N devices the CPU time is that of
+all N cores), and the compile time; the timed function returns only the (B,) mean |e|
+(computed in jit), as in :mod:`benchmarks.throughput`.
 
     python -m benchmarks.before_after --json benchmarks/results/before_after_float32.json
 """
@@ -83,7 +85,6 @@ def measure(case: dict) -> dict:
     C.setup(case["dtype"])
     import jax.numpy as jnp
     import numpy as np
-    from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
     from vcjax.rollout import RolloutConfig
 
@@ -102,11 +103,7 @@ def measure(case: dict) -> dict:
         batch = case["batch"]
         scb = C.batched_scenario(sc, batch)
         axes = C.scenario_axes(scb)
-        if n_dev > 1:
-            mesh = Mesh(np.asarray(jax.devices()[:n_dev]), ("scenarios",))
-            shard = NamedSharding(mesh, PartitionSpec("scenarios"))
-            scb = scb._replace(eta0=jax.device_put(scb.eta0, shard))
-            scb = scb._replace(V_c=jax.device_put(scb.V_c, shard))
+        scb = C.shard_batch(scb, n_dev)
         f = jax.jit(lambda g, s, dt: jax.vmap(one, in_axes=(None, axes, None))(g, s, dt))
         inputs = (gains, scb, C.DT)
     lower_s, compile_s, comp = C.compile_timed(f, *inputs)
@@ -150,6 +147,11 @@ def run_worker(case: dict, lib_path: Path | None) -> dict:
     if res.returncode != 0:
         raise RuntimeError(f"worker failed for {case}:\n{res.stderr[-3000:]}")
     return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def case_steps(case: dict) -> int:
+    """Trajectory-steps of one timed call."""
+    return case.get("batch", 1) * case["steps"] if case["kind"] != "single" else case["steps"]
 
 
 def cases(args) -> list[dict]:
@@ -196,6 +198,8 @@ def main(argv=None):
                 "speedup": a["steps_per_s"] / b["steps_per_s"],
                 "before_compile_s": b["compile_s"],
                 "after_compile_s": a["compile_s"],
+                "before_steps_per_cpu_s": case_steps(case) / b["cpu_s"],
+                "after_steps_per_cpu_s": case_steps(case) / a["cpu_s"],
                 "after_cpu_s_per_wall": a["cpu_s"] / a["run_s"],
                 "rel_diff_mean_abs_e": abs(a["mean_abs_e"] - b["mean_abs_e"])
                 / max(abs(b["mean_abs_e"]), 1e-30),
@@ -218,6 +222,8 @@ def main(argv=None):
             "before_steps_per_s",
             "after_steps_per_s",
             "speedup",
+            "before_steps_per_cpu_s",
+            "after_steps_per_cpu_s",
             "before_compile_s",
             "after_compile_s",
             "after_cpu_s_per_wall",

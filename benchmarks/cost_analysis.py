@@ -106,12 +106,13 @@ def components(batch: int, iters: int, repeats: int) -> list[dict]:
 
     gains, sc = C.base_inputs()
     scb = C.batched_scenario(sc, batch)
-    veh = sc.vehicle
+    veh = sc.plant
     dt = sc.eta0.dtype
     eps_ = jnp.asarray(1e-6, dt)
     nu = jnp.broadcast_to(sc.nu0, (batch, 3))
     x = infante.InfanteState(eta=scb.eta0, nu=nu, act=jnp.zeros((batch, 2), dt))
-    args = infante.PlantArgs(vehicle=veh, V_c=scb.V_c, V_c_dot=jnp.zeros((batch, 2), dt))
+    V_c = scb.current[:, :2]
+    args = infante.PlantArgs(vehicle=veh, V_c=V_c, V_c_dot=jnp.zeros((batch, 2), dt))
     u_cmd = jnp.broadcast_to(jnp.asarray([500.0, 0.1], dt), (batch, 2))
     Y, N = infante.rudder_gains(veh, jnp.array([1.0, 0.0, 0.0], dt))
     cp = vcm_params(gains.vcm, infante.design_model(veh), sc.path, u_d=sc.u_d, k_rudder=Y / N)

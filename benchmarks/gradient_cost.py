@@ -151,8 +151,13 @@ def _abstract_inputs(batch):
 
     gains, sc = C.base_inputs()
     dt = sc.eta0.dtype
+    batched = C.batched_scenario(sc, 2)
     scb = sc._replace(
-        eta0=jax.ShapeDtypeStruct((batch, 3), dt), V_c=jax.ShapeDtypeStruct((batch, 2), dt)
+        **{
+            f: jax.ShapeDtypeStruct((batch, *getattr(batched, f).shape[1:]), dt)
+            for f in C.scenario_axes(sc)._asdict()
+            if getattr(C.scenario_axes(sc), f) == 0
+        }
     )
     return gains.vcm, scb
 

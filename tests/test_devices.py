@@ -109,3 +109,42 @@ def test_bad_cpu_devices_is_one_line_exit_2(tmp_path):
     assert r.returncode == 2
     assert "Traceback" not in r.stderr and "--cpu-devices" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+TUNE_TOML = """
+[problem]
+variant = "vcm_integral"
+horizon = 6.0
+dt = 0.1
+
+[train]
+size = 4
+seed = 0
+
+[heldout]
+size = 4
+seed = 1001
+
+[optimizer]
+name = "adam"
+steps = 2
+
+[report]
+plot_scenarios = 0
+"""
+
+
+@pytest.mark.slow
+def test_tune_sharded_over_two_cpu_devices_matches_one_device(tmp_path):
+    cfg = tmp_path / "tune.toml"
+    cfg.write_text(TUNE_TOML)
+    out = {}
+    for n in (1, 2):
+        r = _cli("tune", str(cfg), "--out", str(tmp_path / f"t{n}"), "--cpu-devices", str(n))
+        assert r.returncode == 0, r.stderr[-3000:]
+        assert f"training batch on {n} device(s)" in r.stderr
+        out[n] = json.loads((tmp_path / f"t{n}" / "summary.json").read_text())
+        assert out[n]["devices"] == n
+    # the batch mean is summed across devices in another order: equal to round-off
+    for k in ("heldout_loss_before", "heldout_loss_after", "train_loss_after"):
+        assert out[2][k] == pytest.approx(out[1][k], rel=1e-9), k

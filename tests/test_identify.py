@@ -248,6 +248,8 @@ def test_product_pair_reported_not_identifiable_cli(tmp_path, capsys):
                 "wall_time_s", "warnings", "cost_history"):  # fmt: skip
         assert key in fit, key
     assert fit["correlation"]["names"] == ["A_r", "CL_delta_r"]
+    run = json.loads((out / "run.json").read_text())  # how to reproduce it
+    assert run["command"] == "fit" and run["config"]["fit"]["segment_steps"] == 25
     assert fit["correlation"]["matrix"][0][1] < -0.99
     assert set(fit["residual_rms"]["before"]) == set(REMUS.state_columns)
     assert any("not separately identifiable" in w for w in fit["warnings"])
@@ -355,7 +357,7 @@ def test_unknown_parameter_named(tmp_path, capsys):
 @pytest.mark.parametrize(
     "extra, expect",
     [
-        ("segment_step = 10\n", "[fit] unknown key 'segment_step'"),
+        ("segment_step = 10\n", "unknown key [fit] 'segment_step'"),
         ("max_iters = 0\n", "[fit] max_iters"),
         ("initial_scale = -1.0\n", "[fit] initial_scale"),
         ("fit_current = 1\n", "[fit] fit_current: expected true or false"),

@@ -33,6 +33,10 @@ def test_cli_writes_figures_and_metrics(sim1_out):
         assert f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     metrics = json.loads((sim1_out / "metrics.json").read_text())
     assert set(metrics) == set(sim1.VARIANTS)
+    run = json.loads((sim1_out / "run.json").read_text())
+    assert run["command"] == "simulate sim1"
+    assert run["config"]["horizon"] == 150.0 and run["config"]["dt"] == 0.05
+    assert run["config"]["scenario"]["V_c"] == [0.0, 0.5]
     for m in metrics.values():
         assert KEYS <= set(m)
         assert m["healthy"]
@@ -102,6 +106,8 @@ def test_cli_sim2_and_argument_errors(tmp_path, capsys):
     m = json.loads((out / "metrics.json").read_text())
     assert {"rms_dist_3d", "max_dist_3d", "rms_depth_err", "thruster_sat_fraction"} <= set(m)
     assert set(m["by_actuation"]) == {"underactuated", "full"}
+    run = json.loads((out / "run.json").read_text())
+    assert run["command"] == "simulate sim2" and run["config"]["horizon"] == 4.0
     assert (out / "sim2_path_3d.png").exists()
     assert cli.main(["simulate", "sim2", "--out", str(out), "--current", "0", "1"]) == 2
     assert "not supported" in capsys.readouterr().err

@@ -53,7 +53,7 @@ def test_straight_line_sideslip_offset_under_sway_disturbance():
     u, v = float(tr.x.nu[-1, 0]), float(tr.x.nu[-1, 1])
     e = float(tr.aux.vcm.eps[-1, 1])
     psi_t = float(tr.aux.vcm.psi_tilde[-1])
-    veh = sc.vehicle
+    veh = sc.plant
     U = math.hypot(u, v)
     assert v == pytest.approx(5.0 / (float(veh.body.D[1, 1]) + float(veh.drag_coeff) * U), rel=0.01)
     g = sim2.default_gains().vcm
@@ -111,8 +111,8 @@ def test_validation_names_the_field():
 
 def test_design_model_is_derived_from_the_plant():
     sc = sim2.sim2_scenario()
-    dm = odin.design_model(sc.vehicle, sc.u_d)
-    assert float(dm.m11) == pytest.approx(float(odin.mass_matrix(sc.vehicle)[0, 0]))
+    dm = odin.design_model(sc.plant, sc.u_d)
+    assert float(dm.m11) == pytest.approx(float(odin.mass_matrix(sc.plant)[0, 0]))
 
 
 @pytest.mark.slow
@@ -121,7 +121,7 @@ def test_fully_actuated_helix_converges_to_the_path():
     is rejected and the craft converges to the helix (measured: 2.6 mm at 300 s)."""
     cfg = sim2.Sim2Config(actuation="full")
     tr = jax.device_get(sim2.run_variant(cfg, horizon=300.0, dt=DT))
-    m = sim2.sim2_metrics(tr)
+    m = sim2.sim2_metrics(tr, config=cfg)
     d = np.linalg.norm(tr.aux.p_err, axis=1)
     assert d[-1] < 0.01
     assert m["rms_dist_3d"] < 0.2

@@ -35,6 +35,13 @@ from vcjax.sweep import (
 )
 from vcjax.vehicles import infante
 
+try:  # the xarray extra (installed by the test extra; the rest of this file runs without it)
+    import xarray  # noqa: F401
+
+    HAVE_XARRAY = True
+except ImportError:  # pragma: no cover
+    HAVE_XARRAY = False
+
 HORIZON, DT = 20.0, 0.1
 SCEN = ScenarioSpec(
     current_speed=(0.0, 1.0),
@@ -325,7 +332,7 @@ def test_config_end_to_end_writes_results_summary_and_figures(tmp_path):
     spec, _ = load_config(path)
     assert spec == make_spec()
     lines = []
-    out = run_sweep_config(path, tmp_path / "out", progress=lines.append)
+    out = run_sweep_config(path, tmp_path / "out", progress=lines.append, netcdf=HAVE_XARRAY)
     assert len(lines) == 1 and "1/1" in lines[0]
     names = {p.name for p in out["files"]}
     assert {"results.npz", "summary.json", "sweep_envelopes.png", "sweep_paths.png"} <= names
@@ -344,6 +351,52 @@ def test_config_end_to_end_writes_results_summary_and_figures(tmp_path):
     again = load_results(save_results(res, tmp_path / "again.npz"))
     assert_metrics_equal(again.metrics["ilos"], res.metrics["ilos"], rtol=0)
     np.testing.assert_array_equal(again.scenarios["model_factors"], res.scenarios["model_factors"])
+    if HAVE_XARRAY:
+        _check_xarray(res, tmp_path / "out" / "results.nc")
+
+
+def _check_xarray(res, nc_path):
+    """to_xarray labels every number with its variant, scenario and units; results.nc holds the
+    same dataset. A second variant (the first one's metrics doubled) makes the variant axis
+    real: each value must come back under its own label."""
+    import xarray as xr
+
+    two = dataclasses.replace(
+        res,
+        metrics={**res.metrics, "twice": {k: 2 * v for k, v in res.metrics["ilos"].items()}},
+        traces={**res.traces, "twice": res.traces["ilos"]},
+    )
+    ds = two.to_xarray()
+    assert ds.sizes["variant"] == 2 and ds.sizes["scenario"] == 3
+    assert list(ds["scenario"].values) == res.index.tolist()
+    for pos, i in enumerate(res.index):
+        for v, factor in (("ilos", 1.0), ("twice", 2.0)):
+            got = float(ds["iae_e"].sel(variant=v, scenario=i))
+            assert got == factor * res.metrics["ilos"]["iae_e"][pos]
+        assert float(ds["current_speed"].sel(scenario=i)) == res.scenarios["current_speed"][pos]
+        # (the sampled current's components are labelled north/east/down)
+        north = float(ds["current"].sel(scenario=i, current_component="north"))
+        assert north == res.scenarios["current"][pos][0]
+    fields = list(ds["model_field"].values)
+    assert fields == list(res.spec.scenario.fields_for(res.spec.loop("ilos")))
+    k = fields.index("mass")
+    np.testing.assert_array_equal(
+        ds["model_factors"].sel(model_field="mass").values, res.scenarios["model_factors"][:, k]
+    )
+    assert ds["iae_e"].attrs["units"] == "m s" and ds["ss_abs_u_err"].attrs["units"] == "m/s"
+    assert ds["max_abs_rudder_deg"].attrs["units"] == "deg" and ds["diverged"].dtype == bool
+    np.testing.assert_array_equal(ds["time"].values, res.trace_t)
+    np.testing.assert_array_equal(ds["trace_e"].sel(variant="ilos").values, res.traces["ilos"]["e"])
+    assert json.loads(ds.attrs["spec_json"])["seed"] == 7
+    # results.nc, written by `vcjax sweep --netcdf`
+    with xr.open_dataset(nc_path, engine="scipy") as nc:
+        nc = nc.load()
+    assert list(nc["variant"].values) == ["ilos"]
+    np.testing.assert_array_equal(
+        nc["iae_e"].sel(variant="ilos").values, res.metrics["ilos"]["iae_e"]
+    )
+    np.testing.assert_array_equal(nc["diverged"].values[0], res.metrics["ilos"]["diverged"])
+    assert nc["ss_abs_e"].attrs["units"] == "m"
 
 
 # -------------------------------------------------------------------------- 4 CPU devices

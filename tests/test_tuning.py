@@ -13,9 +13,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tuning.blackbox import batch_objective, run_cmaes, run_random_search
+from tuning.blackbox import batch_objective, cmaes_popsize, run_cmaes, run_random_search
 from tuning.cli import run_tune_config
-from tuning.cmaes import CMAES, cmaes_minimize
 from tuning.config import ConfigError, validate_config
 from tuning.loss import TuningProblem, aggregate, objective, problem_data
 from tuning.optim import forward_mode, run_gradient_tuner
@@ -94,6 +93,32 @@ def test_loss_gradient_matches_central_differences(tiny):
     )
     np.testing.assert_allclose(grad, fd, rtol=1e-4, atol=1e-6 * np.max(np.abs(fd)))
     assert np.max(np.abs(grad)) > 0
+
+
+def test_alos_gains_are_tunable_with_exact_gradients():
+    """Fossen's ALOS baseline: its look-ahead, adaptation gain and heading-loop gains are tuned
+    like any loop's, and the loss gradient (through beta_hat's dynamics) matches central
+    differences."""
+    space = GainSpace(loop=sim1.closed_loop("alos"))
+    assert {"Delta", "gamma", "k_psi_p", "k_psi_d"} <= set(space.labels())
+    assert "sigma_i" not in space.labels() and "k_ei" not in space.labels()
+    problem = TuningProblem(space=space, num_steps=40, integrator="euler", timing="sampled")
+    data = problem_data(problem, dt=0.1)
+    scen = sample_scenarios(0, 2, loop=space.loop, current_max=1.0)
+    f = jax.jit(lambda th: objective(th, data, scen, problem)[0])
+    grad = np.asarray(
+        jax.jit(jax.grad(lambda th: objective(th, data, scen, problem)[0]))(data.theta_ref)
+    )
+    h = 1e-5
+    fd = np.array(
+        [
+            (float(f(data.theta_ref.at[i].add(h))) - float(f(data.theta_ref.at[i].add(-h))))
+            / (2 * h)
+            for i in range(space.size)
+        ]
+    )
+    np.testing.assert_allclose(grad, fd, rtol=1e-4, atol=1e-6 * np.max(np.abs(fd)))
+    assert grad[space.labels().index("gamma")] != 0.0  # the adaptation is in the loop
 
 
 def test_checkpointed_loss_gradient_is_the_same(tiny):
@@ -187,14 +212,32 @@ def test_nan_guard_skips_reports_and_aborts():
 # ------------------------------------------------------------------ black-box baselines
 
 
-def test_cmaes_minimises_rosenbrock_and_sphere():
-    rosen = lambda X: np.sum(100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2, axis=1)
-    es = cmaes_minimize(rosen, np.zeros(4), 0.5, 6000, seed=1, tol_f=1e-10)
-    assert es.best_f < 1e-8
-    np.testing.assert_allclose(es.best_x, 1.0, atol=1e-3)
-    es = cmaes_minimize(lambda X: np.sum((X - 3) ** 2, 1), np.zeros(6), 1.0, 3000, tol_f=1e-12)
-    assert es.best_f < 1e-10
-    assert CMAES.create(np.zeros(12), 0.5).lam == 4 + int(3 * np.log(12))
+def test_pycma_driver_minimises_rosenbrock_one_batch_per_generation():
+    """pycma through run_cmaes: every generation is one (lambda, n) batch call; NaN candidates
+    rank last; the run is reproducible from its seed and leaves np.random's global state alone."""
+    calls = []
+
+    def rosen(X):
+        calls.append(X.shape)
+        v = np.sum(100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2, axis=1)
+        return np.where(X[:, 0] > 2.5, np.nan, v)  # an infeasible region
+
+    lam = cmaes_popsize(4)
+    assert lam == 4 + int(3 * np.log(4))  # Hansen's default
+    state = np.random.get_state()[1].copy()  # noqa: NPY002 - checking the legacy global state
+    res = run_cmaes(rosen, np.zeros(4), sigma0=0.5, max_evals=8000, seed=1)
+    np.testing.assert_array_equal(np.random.get_state()[1], state)  # noqa: NPY002
+    assert res.loss < 1e-8
+    np.testing.assert_allclose(res.theta, 1.0, atol=1e-3)
+    assert set(calls) == {(lam, 4)} and len(calls) == len(res.history) == res.evals // lam
+    again = run_cmaes(rosen, np.zeros(4), sigma0=0.5, max_evals=8 * lam, seed=1)
+    np.testing.assert_array_equal(
+        again.theta, run_cmaes(rosen, np.zeros(4), sigma0=0.5, max_evals=8 * lam, seed=1).theta
+    )
+    other = run_cmaes(rosen, np.zeros(4), sigma0=0.5, max_evals=8 * lam, seed=2)
+    assert not np.array_equal(again.theta, other.theta)
+    with pytest.raises(ValueError, match="sigma0"):
+        run_cmaes(rosen, np.zeros(4), sigma0=-1.0)
 
 
 def test_blackbox_drivers_on_a_jax_objective():
@@ -281,6 +324,9 @@ def test_vcjax_tune_end_to_end(tmp_path, capsys):
     result = {"summary": json.loads((out / "summary.json").read_text())}
     for name in ("gains.json", "history.json", "summary.json", "loss_curve.png"):
         assert (out / name).exists()
+    run = json.loads((out / "run.json").read_text())
+    assert run["command"] == "tune" and run["seeds"] == {"train": 0, "heldout": 1001}
+    assert run["config"]["optimizer"]["steps"] == 3
     assert (out / "before_after_paths.png").read_bytes()[:4] == b"\x89PNG"
     s = json.loads((out / "summary.json").read_text())
     assert s == json.loads(json.dumps(result["summary"]))

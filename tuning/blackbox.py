@@ -1,10 +1,14 @@
-"""Black-box baselines in the same harness: CMA-ES and random search.
+"""Black-box baselines in the same harness: CMA-ES (Hansen's pycma, ``cma`` on PyPI, installed
+by ``pip install "vcjax[tuning]"``) and random search.
 
 Both evaluate a whole generation of candidate gain vectors at once: the objective is vmapped
 over candidates (and, inside, over the scenario batch) and jitted, so one generation of
 ``lambda`` candidates on ``B`` scenarios is one call costing ``lambda * B`` rollouts.
 
 The incumbent (lowest training loss seen) is what each tuner returns, and what ``on_gen`` sees.
+pycma is driven through its ask/tell interface with its default parameters; its random numbers
+come from a NumPy ``Generator`` seeded by ``seed`` (pycma's global-``np.random`` seeding is not
+used), so a run is reproducible and leaves the global random state alone.
 """
 
 from __future__ import annotations
@@ -17,9 +21,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from tuning.cmaes import CMAES
+__all__ = [
+    "batch_objective",
+    "BlackBoxResult",
+    "cma_strategy",
+    "cmaes_popsize",
+    "run_cmaes",
+    "run_random_search",
+]
 
-__all__ = ["batch_objective", "BlackBoxResult", "run_cmaes", "run_random_search"]
+#: what a non-finite objective value is told to pycma as (ranks last; finite arithmetic)
+_WORST = 1e300
 
 
 def batch_objective(loss_fn: Callable, args: tuple = ()) -> Callable:
@@ -51,11 +63,11 @@ class BlackBoxResult(NamedTuple):
     history: list
 
 
-def _loop(ask, tell, f, lam, theta0, max_evals, on_gen, progress):
+def _loop(ask, tell, f, lam, theta0, max_evals, on_gen, progress, stop=lambda: False):
     best_x, best_f = np.asarray(theta0, dtype=float), np.inf
     history, evals, wall, gen = [], 0, 0.0, 0
     total = max(1, max_evals // lam)
-    while evals + lam <= max_evals:
+    while evals + lam <= max_evals and not stop():
         t0 = time.perf_counter()
         X = ask()
         vals = f(X)
@@ -77,6 +89,39 @@ def _loop(ask, tell, f, lam, theta0, max_evals, on_gen, progress):
     return BlackBoxResult(theta=best_x, loss=best_f, evals=evals, history=history)
 
 
+def _cma():
+    try:
+        import cma
+    except ImportError:  # pragma: no cover - cma is declared by the "tuning" and "test" extras
+        raise ImportError(
+            'CMA-ES needs pycma: pip install "vcjax[tuning]" (or pip install cma)'
+        ) from None
+    return cma
+
+
+def cma_strategy(theta0, sigma0: float, popsize: int | None = None, seed: int = 0):
+    """A pycma ``CMAEvolutionStrategy`` at ``theta0`` (n,) with step ``sigma0`` > 0, pycma's
+    default parameters (``popsize`` ``4 + floor(3 ln n)`` unless given), silent (no output
+    files), its normal samples drawn from ``numpy.random.default_rng(seed)``."""
+    x0 = np.asarray(theta0, dtype=float).ravel()
+    if x0.size < 1 or not np.all(np.isfinite(x0)):
+        raise ValueError("theta0: expected a non-empty finite vector")
+    if not (np.isfinite(sigma0) and sigma0 > 0):
+        raise ValueError(f"sigma0: expected a finite value > 0, got {sigma0!r}")
+    if popsize is not None and int(popsize) < 2:
+        raise ValueError(f"popsize: expected >= 2, got {popsize!r}")
+    rng = np.random.default_rng(seed)
+    opts = {"verbose": -9, "seed": np.nan, "randn": lambda *shape: rng.standard_normal(shape)}
+    if popsize is not None:
+        opts["popsize"] = int(popsize)
+    return _cma().CMAEvolutionStrategy(x0, float(sigma0), opts)
+
+
+def cmaes_popsize(n: int) -> int:
+    """pycma's default population size ``lambda`` in dimension ``n``."""
+    return int(cma_strategy(np.zeros(n), 1.0).popsize)
+
+
 def run_cmaes(
     f: Callable,
     theta0,
@@ -88,18 +133,31 @@ def run_cmaes(
     on_gen: Callable | None = None,
     progress: Callable | None = None,
 ) -> BlackBoxResult:
-    """CMA-ES from ``theta0`` with step ``sigma0`` (in ``theta`` units: log-gains) on the batch
-    objective ``f`` (from :func:`batch_objective`), for at most ``max_evals`` candidates."""
-    es = CMAES.create(theta0, sigma0, popsize, seed)
+    """pycma CMA-ES from ``theta0`` with step ``sigma0`` (in ``theta`` units: log-gains) on the
+    batch objective ``f`` (from :func:`batch_objective`), for at most ``max_evals`` candidates
+    (whole generations; fewer if pycma's own termination criteria fire first). Each generation
+    is one call ``f(X)`` with ``X`` (lambda, n): one vmapped, jitted batch."""
+    es = cma_strategy(theta0, sigma0, popsize, seed)
+    asked = []
+
+    def ask():
+        asked[:] = es.ask()
+        return np.stack(asked)
+
+    def tell(X, v):
+        v = np.where(np.isfinite(v), np.asarray(v, dtype=float), _WORST)
+        es.tell(asked, v.tolist())
+
     return _loop(
-        lambda: es.ask(),
-        lambda X, v: es.tell(v),
+        ask,
+        tell,
         f,
-        es.lam,
+        int(es.popsize),
         theta0,
         max_evals,
         on_gen,
         progress,
+        stop=lambda: bool(es.stop()),
     )
 
 

@@ -33,8 +33,8 @@ from tuning.loss import loss_weights as make_weights
 from tuning.optim import run_gradient_tuner, tuner_options
 from tuning.params import GainSpace
 from tuning.report import ProgressBar, plot_before_after, plot_loss_curve
-from tuning.scenarios import SCENARIO_AXES, sample_scenarios
-from vcjax import loops, paths
+from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
+from vcjax import distributed, loops, paths
 from vcjax._config import ConfigError
 from vcjax.loops.config import ScenarioChoice
 
@@ -149,6 +149,23 @@ def _path_polyline(loop, batch, xy_before, xy_after):
     return np.asarray(pts)[:, :2]
 
 
+def distribute(train, data, theta0):
+    """With more than one device in the run (several processes, or several local devices), the
+    training batch is sharded along a global 1-D mesh of every device (:mod:`vcjax.distributed`)
+    and ``data``, ``theta0`` are replicated on it: each loss and gradient is then one SPMD
+    computation whose batch mean reduces across devices and processes, equal to the
+    single-device value. With one device, or a batch size that is not a multiple of the device
+    count (padding would change the mean loss), returns the inputs unchanged: every process then
+    computes the whole batch itself, with the same result.
+    """
+    n = jax.device_count()
+    if n == 1 or int(train.eta0.shape[0]) % n:
+        return train, data, theta0
+    mesh = distributed.global_mesh("scenarios")
+    data, theta0 = distributed.replicate((data, theta0), mesh)
+    return distributed.shard_batch(train, mesh, SCENARIO_AXES), data, theta0
+
+
 def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     """Run the tuning described by the TOML file ``config_path``; write results into ``out_dir``.
 
@@ -166,14 +183,22 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
 
     The caller chooses the floating-point precision (``vcjax`` enables float64 by default).
     A run that stops after repeated non-finite steps still writes its outputs, with
-    ``summary["aborted"] = True``.
+    ``summary["aborted"] = True``. In a multi-process run (``vcjax launch -n N -- tune ...``)
+    every process runs the same steps on its shard of the training batch (:func:`distribute`)
+    and process 0 writes the outputs (the others return no files).
     """
+    writer = jax.process_index() == 0
+    progress = progress if writer else None
     say = (lambda msg: print(msg, file=progress, flush=True)) if progress else (lambda m: None)
     cfg = load_config(config_path)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
     problem, eval_problem, data, train, heldout = build(cfg)
+    # the held-out batch is evaluated by every process on its own devices; the training batch is
+    # sharded over every device of the run below (:func:`distribute`)
+    heldout, _ = shard_scenarios(heldout)
+    n_dev = jax.device_count() if int(train.eta0.shape[0]) % jax.device_count() == 0 else 1
     space = problem.space
     o = cfg["optimizer"]
     B = cfg["train"]["size"]
@@ -181,7 +206,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         f"tuning {space.loop.describe()}: {space.size} parameters ({', '.join(space.tune)}), "
         f"{B} training / {cfg['heldout']['size']} held-out scenarios, "
         f"horizon {cfg['problem']['horizon']:g} s, {o['name']} x {o['steps']} steps "
-        f"({o['grad_mode']} mode)"
+        f"({o['grad_mode']} mode); training batch on {n_dev} device(s)"
     )
     eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
     loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
@@ -191,10 +216,14 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     say(f"held-out loss before: {before['loss']:.6g}; compiling the training step ...")
 
     bar = ProgressBar(o["steps"], label="tune ", stream=progress) if progress else None
+    start = theta0 + space.symmetry_break(data.base)
+    train_d, data_d, start = distribute(train, data, start)
+    if train_d is not train:
+        say(f"training batch sharded over {jax.device_count()} devices")
     res = run_gradient_tuner(
         loss_fn,
-        theta0 + space.symmetry_break(data.base),
-        (data, train),
+        start,
+        (data_d, train_d),
         **tuner_options(o),
         on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
         progress=bar,
@@ -204,12 +233,15 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     if res.n_bad:
         say(f"warning: {res.n_bad} step(s) rejected for non-finite loss/gradient/update")
     say(f"stopped: {res.reason}; evaluating the tuned gains on the held-out batch ...")
-    after = _evaluate(eval_fn, jnp.asarray(res.theta), data, heldout)
-    tuned = space.decode(jnp.asarray(res.theta), data.base)
+    theta = jnp.asarray(np.asarray(res.theta))  # a local copy (replicated in multi-process runs)
+    after = _evaluate(eval_fn, theta, data, heldout)
+    tuned = space.decode(theta, data.base)
     gains_json = space.loop.gains_to_json(tuned)
     space.loop.gains_from_json(gains_json)  # what `vcjax simulate --gains` will do: validate
 
     files = []
+    if not writer:
+        return {"summary": None, "files": files}
     f = out / "gains.json"
     f.write_text(json.dumps(gains_json, indent=2) + "\n")
     files.append(f)
@@ -264,6 +296,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         "evals": res.evals,
         "rollouts": res.evals * B,
         "rollout_convention": "one batch value_and_grad = train.size rollouts (forward+backward)",
+        "devices": n_dev,
         "tuning_wall_s": res.history[-1]["wall_s"] if res.history else 0.0,
         "total_wall_s": time.perf_counter() - t_start,
     }

@@ -28,7 +28,14 @@ import numpy as np
 from tuning.params import default_loop
 from vcjax import loops, sweep
 
-__all__ = ["SCENARIO_AXES", "scenario_spec", "sample_scenarios", "scenario_at", "batch_size"]
+__all__ = [
+    "SCENARIO_AXES",
+    "scenario_spec",
+    "sample_scenarios",
+    "scenario_at",
+    "batch_size",
+    "shard_scenarios",
+]
 
 #: ``in_axes`` of a sampled batch for ``jax.vmap``
 SCENARIO_AXES = loops.Scenario(
@@ -137,3 +144,23 @@ def scenario_at(batch: loops.Scenario, i: int) -> loops.Scenario:
         batch,
         is_leaf=lambda x: x is None,
     )
+
+
+def shard_scenarios(batch: loops.Scenario, devices=None) -> tuple[loops.Scenario, int]:
+    """``(batch, n)``: the batched fields sharded along the scenario axis over ``devices``
+    (default ``jax.local_devices()``), and the number of devices used.
+
+    Jitted losses and gradients on a sharded batch run on every device (with host CPU devices,
+    :func:`vcjax.devices.use_cpu_cores`: every core), the batch mean becoming a cross-device
+    sum. The batch is left on one device (``n = 1``) when there is one, or when its size is not
+    a multiple of the device count (padding would change the mean loss).
+    """
+    devices = list(jax.local_devices() if devices is None else devices)
+    n = len(devices)
+    if n < 2 or batch_size(batch) % n:
+        return batch, 1
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+    sh = NamedSharding(Mesh(np.asarray(devices), ("scenarios",)), PartitionSpec("scenarios"))
+    put = lambda ax, a: a if ax is None else jax.device_put(a, sh)
+    return jax.tree_util.tree_map(put, SCENARIO_AXES, batch, is_leaf=lambda x: x is None), n

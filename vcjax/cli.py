@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import time
 from pathlib import Path
 
 __all__ = ["main"]
@@ -16,6 +17,19 @@ def _enable_x64(flag: bool) -> None:
     jax.config.update("jax_enable_x64", bool(flag))
 
 
+def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
+    """Write ``out/run.json`` (:mod:`vcjax.runinfo`) and say so; ``config`` defaults to the
+    parsed command-line options."""
+    from vcjax.runinfo import write_run_json
+
+    config = {k: v for k, v in vars(args).items() if k != "func"} if config is None else config
+    config.pop("func", None)
+    wall = {"total": time.perf_counter() - args.t_start, **wall}
+    path = write_run_json(out, command, config=config, seeds=seeds, wall_s=wall)
+    if path is not None:
+        print(f"wrote {path}")
+
+
 def _cmd_demo(args) -> int:
     _enable_x64(args.x64)
     from vcjax.demos import arm_demo
@@ -25,6 +39,7 @@ def _cmd_demo(args) -> int:
     files = arm_demo(out, horizon=args.horizon)
     for f in files:
         print(f"wrote {f}")
+    _record(out, "demo", args)
     return 0
 
 
@@ -73,22 +88,33 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
     _print_metrics(result["metrics"])
     for f in result["files"]:
         print(f"wrote {f}")
+    config = {**vars(args), "horizon": horizon, "dt": dt, "scenario": scenario, "gains": gains}
+    config.pop("func")
+    _record(out, "simulate sim1", args, config=config)
     return 0
 
 
 def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
+    import json
+
     from vcjax import sim2
 
-    for flag, value in (("--gains", args.gains), ("--current", args.current)):
-        if value:
-            return _fail(f"simulate sim2: {flag} is not supported for Simulation 2")
-    result = sim2.run_sim2(out, horizon=horizon, dt=dt, actuation=args.actuation)
+    if args.current:
+        return _fail("simulate sim2: --current is not supported for Simulation 2")
+    gains = None
+    if args.gains:
+        try:
+            gains = sim2.gains_from_json(json.loads(Path(args.gains).read_text()), args.actuation)
+        except (OSError, json.JSONDecodeError, ValueError) as err:
+            return _fail(f"simulate sim2: cannot use gains file {args.gains}: {err}")
+    result = sim2.run_sim2(out, gains, horizon=horizon, dt=dt, actuation=args.actuation)
     by_mode = result["metrics"]["by_actuation"]
     _print_metrics(
         {mode: {k: v for k, v in m.items() if _is_number(v)} for mode, m in by_mode.items()}
     )
     for f in result["files"]:
         print(f"wrote {f}")
+    _record(out, "simulate sim2", args, config={**vars(args), "horizon": horizon, "dt": dt})
     return 0
 
 
@@ -104,6 +130,8 @@ def _simulate_remus100(args, out: Path, horizon: float, dt: float) -> int:
     _print_metrics(result["metrics"])
     for f in result["files"]:
         print(f"wrote {f}")
+    config = {**vars(args), "horizon": horizon, "dt": dt, "current": current}
+    _record(out, "simulate remus100", args, config=config)
     return 0
 
 
@@ -113,12 +141,14 @@ def _is_number(v) -> bool:
 
 def _use_cores(args, command: str) -> int | None:
     """Split the host CPU into devices (before JAX initialises); a bad count is one line."""
+    from vcjax import distributed
     from vcjax.devices import use_cpu_cores
 
     try:
         use_cpu_cores(args.cpu_devices)
     except ValueError as err:
         return _fail(f"{command}: {err}")
+    distributed.warm_up()  # a multi-process run: collectives ready before anyone compiles
     return None
 
 
@@ -126,11 +156,12 @@ def _cmd_sweep(args) -> int:
     if (rc := _use_cores(args, "sweep")) is not None:
         return rc
     _enable_x64(args.x64)
-    from vcjax.sweep import run_sweep_config
+    from vcjax.sweep import load_config, run_sweep_config
 
     try:
-        result = run_sweep_config(args.config, args.out, progress=True)
-    except (OSError, ValueError) as err:
+        spec, extras = load_config(args.config)
+        result = run_sweep_config(args.config, args.out, progress=True, netcdf=args.netcdf)
+    except (OSError, ValueError, ImportError) as err:
         return _fail(f"sweep: {err}")
     summary = result["summary"]
     if summary is not None:  # None on the non-zero processes of a multi-host run
@@ -151,6 +182,8 @@ def _cmd_sweep(args) -> int:
                 )
     for f in result["files"]:
         print(f"wrote {f}")
+    config = {"file": args.config, "spec": spec, **extras}
+    _record(args.out, "sweep", args, config=config, seeds={"sweep": spec.seed})
     return 0
 
 
@@ -159,14 +192,20 @@ def _cmd_tune(args) -> int:
         return rc
     _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
     from tuning.cli import run_tune_config
+    from tuning.config import load_config
 
     try:
+        cfg = load_config(args.config)
         result = run_tune_config(args.config, args.out)
     except (OSError, ValueError) as err:
         return _fail(f"tune: {err}")
     for f in result["files"]:
         print(f"wrote {f}")
+    seeds = {"train": cfg["train"]["seed"], "heldout": cfg["heldout"]["seed"]}
+    _record(args.out, "tune", args, config={"file": args.config, **cfg}, seeds=seeds)
     summary = result["summary"]
+    if summary is None:  # processes other than 0 of a multi-process run
+        return 0
     before, after = summary.get("heldout_loss_before"), summary.get("heldout_loss_after")
     if before is not None and after is not None:
         print(
@@ -197,6 +236,50 @@ def _cmd_fit(args) -> int:
         print(f"vcjax: fit: warning: {w}", file=sys.stderr)
     for f in result["files"]:
         print(f"wrote {f}")
+    from vcjax.identify.config import load_fit_config
+
+    _record(args.out, "fit", args, config={"file": args.config, **load_fit_config(args.config)})
+    return 0
+
+
+def _cmd_launch(args) -> int:
+    """``vcjax launch -n N -- COMMAND ...``: N local processes of one distributed run (or, inside
+    a multi-task SLURM step, this process joins the step's run and runs COMMAND itself)."""
+    from vcjax import distributed
+
+    rest = list(args.rest)
+    if rest[:1] == ["--"]:
+        rest = rest[1:]
+    commands = list(_DISTRIBUTED)
+    if not rest or rest[0] not in commands:
+        got = rest[0] if rest else "nothing"
+        return _fail(
+            f"launch: expected a command that runs across processes after --, one of {commands};"
+            f" got {got}"
+        )
+    if distributed.in_slurm_step():
+        try:
+            distributed.initialize_from_env()
+        except (RuntimeError, ValueError) as err:
+            return _fail(f"launch: cannot join the SLURM step's run: {err}")
+        return main(rest)
+    if args.n is None or args.n < 1:
+        return _fail("launch: -n N (number of processes, >= 1) is required outside SLURM")
+    if args.cpu_devices is not None and args.cpu_devices < 1:
+        return _fail(f"launch: --cpu-devices must be >= 1, got {args.cpu_devices}")
+    from vcjax.devices import usable_cores
+
+    # the local processes share the cores: by default each splits off its share of them
+    cpu = max(1, usable_cores() // args.n) if args.cpu_devices is None else args.cpu_devices
+    codes = distributed.spawn(
+        args.n,
+        [sys.executable, "-m", "vcjax.cli", *rest],
+        port=args.port,
+        cpu_devices=cpu,
+        timeout_s=args.timeout,
+    )
+    if any(codes):
+        return _fail(f"launch: exit codes of the {args.n} processes: {codes}")
     return 0
 
 
@@ -237,7 +320,9 @@ def build_parser() -> argparse.ArgumentParser:
         "remus100: 3-D survey mission of the PVS REMUS 100 under a cross current",
     )
     s.add_argument("--out", help="output directory (default: out/EXPERIMENT)")
-    s.add_argument("--gains", help="sim1: JSON file of gains (e.g. written by `vcjax tune`)")
+    s.add_argument(
+        "--gains", help="sim1/sim2: JSON file of gains (e.g. the gains.json `vcjax tune` writes)"
+    )
     s.add_argument(
         "--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300, remus100: 880)"
     )
@@ -271,15 +356,22 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
     s.set_defaults(func=_cmd_simulate)
 
-    w = sub.add_parser("sweep", help="Monte-Carlo sweep of Simulation 1 scenarios (TOML)")
+    w = sub.add_parser(
+        "sweep", help="Monte-Carlo sweep of any registered closed loop (TOML; default Sim. 1)"
+    )
     w.add_argument("config", help="TOML config (see examples/sweeps/)")
     w.add_argument("--out", default="out/sweep", help="output directory (default: out/sweep)")
     w.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    w.add_argument(
+        "--netcdf",
+        action="store_true",
+        help='also write results.nc (labelled xarray dataset; pip install "vcjax[xarray]")',
+    )
     _add_cpu_devices(w)
     w.set_defaults(func=_cmd_sweep)
 
     t = sub.add_parser(
-        "tune", help="tune the VCM gains by gradient descent through the closed loop (TOML)"
+        "tune", help="tune a loop's gains by gradient descent through the closed loop (TOML)"
     )
     t.add_argument("config", help="TOML config (see examples/tuning/)")
     t.add_argument("--out", default="out/tune", help="output directory (default: out/tune)")
@@ -305,7 +397,29 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--horizon", type=float, default=6.0, help="simulated time [s]")
     d.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
     d.set_defaults(func=_cmd_demo)
+
+    n = sub.add_parser(
+        "launch",
+        help="run `sweep` or `tune` as N local processes of one distributed JAX run",
+        description="Start N local processes running `vcjax sweep|tune ...`, joined by "
+        "jax.distributed (coordinator on localhost). Inside an `srun` step of SLURM it spawns "
+        "nothing: each task joins the step's run through JAX's cluster auto-detection.",
+    )
+    n.add_argument("-n", type=int, help="number of processes (ignored under srun)")
+    n.add_argument(
+        "--cpu-devices",
+        type=int,
+        help="CPU devices per process (default: the cores divided among the processes)",
+    )
+    n.add_argument("--port", type=int, help="coordinator port (default: a free one)")
+    n.add_argument("--timeout", type=float, help="terminate all processes after this many s")
+    n.add_argument("rest", nargs=argparse.REMAINDER, help="-- COMMAND [ARGS...]")
+    n.set_defaults(func=_cmd_launch)
     return p
+
+
+#: The subcommands that split their work across the processes of ``vcjax launch``.
+_DISTRIBUTED = ("sweep", "tune")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -314,6 +428,14 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
+    args.t_start = time.perf_counter()
+    if args.command != "launch":  # a process started by `vcjax launch` joins its run first
+        from vcjax import distributed
+
+        try:
+            distributed.initialize_from_env()
+        except (RuntimeError, ValueError) as err:
+            return _fail(f"{args.command}: {err}")
     return int(args.func(args) or 0)
 
 

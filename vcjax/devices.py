@@ -76,8 +76,11 @@ def use_cpu_cores(n=None) -> int | None:
 
     Raises:
         ValueError: for a bad count (see :func:`cpu_device_count`), or when JAX has already
-            initialised its CPU backend with a different number of devices.
+            initialised its CPU backend with a different number of devices and the count was
+            asked for explicitly (argument or environment variable); the default (one device
+            per core) then quietly keeps the devices JAX already has.
     """
+    explicit = n is not None or bool(os.environ.get(ENV_VAR, "").strip())
     count = cpu_device_count(n)
     if count is None:
         return None
@@ -87,6 +90,8 @@ def use_cpu_cores(n=None) -> int | None:
         jax.config.update("jax_num_cpu_devices", count)
     except RuntimeError:
         have = len(jax.devices("cpu"))
+        if have != count and not explicit:
+            return have  # the default, asked for too late (JAX already running): keep what runs
         if have != count:
             raise ValueError(
                 f"--cpu-devices: JAX is already running with {have} CPU device(s); "

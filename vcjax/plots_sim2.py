@@ -69,7 +69,7 @@ def sim2_figures(trajs: dict, scenario, path, out: Path) -> list[Path]:
         eta = np.asarray(trajs[m].x.eta)
         ax.plot(eta[:, 1], eta[:, 0], **STYLE[m])
     ax.plot(eta0[1], eta0[0], "ko", label="start")
-    td = np.asarray(scenario.tau_dist)
+    td = np.asarray(scenario.disturbance)
     ax.set_title(
         f"horizontal plane (body disturbance τ_dist = [{td[0]:g}, {td[1]:g}, {td[2]:g}] N)"
     )
@@ -122,7 +122,7 @@ def sim2_figures(trajs: dict, scenario, path, out: Path) -> list[Path]:
     tr = trajs[m]
     t = np.asarray(tr.t)
     f = np.asarray(tr.x.thrust)
-    fmax = float(np.max(np.asarray(scenario.vehicle.thrust_max)))
+    fmax = float(np.max(np.asarray(scenario.plant.thrust_max)))
     fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
     for i in range(4):
         ax[0].plot(t, f[:, i], label=f"H{i + 1}")

@@ -6,9 +6,10 @@
    turning circle and speed steps logged from it with sensor noise
    (``examples/fit/make_logs.py infante``);
 2. ``vcjax fit``: the eight coefficients identified from the logs, starting from the nominal model;
-3. ``vcjax tune`` twice, on the same random scenarios (Simulation 1's line, random currents and
-   initial offsets): on the nominal model, and on the identified model (``[scenario] params =
-   fit.json``: plant and controller design model);
+3. ``vcjax tune`` twice, on the same random scenarios (Simulation 1's line, random currents up
+   to 0.5 m/s and initial offsets; trained with the hard-clipped actuators the evaluation uses):
+   on the nominal model, and on the identified model (``[scenario] params = fit.json``: plant
+   and controller design model);
 4. verify on the true plant (``[scenario] plant_params = true_params.json``, the same held-out
    scenarios for every row): ``vcjax tune`` with ``initial_gains`` set to the gains under test
    reports their held-out loss as ``heldout_loss_before`` (its one optimiser step is ignored).
@@ -37,7 +38,11 @@ controller = "vcm_integral"
 [problem]
 horizon = {horizon}
 dt = 0.1
+smooth = false
 {problem}
+[scenarios]
+current_max = {current_max}
+
 [train]
 size = {train}
 seed = 0
@@ -84,13 +89,14 @@ def main() -> None:
     ap.add_argument("--out", default="out/study")
     ap.add_argument("--seed", type=int, default=1, help="signs of the true plant's errors")
     ap.add_argument("--horizon", type=float, default=60.0)
-    ap.add_argument("--train", type=int, default=8)
+    ap.add_argument("--train", type=int, default=16)
+    ap.add_argument("--current-max", type=float, default=0.5, help="[m/s]")
     ap.add_argument("--heldout", type=int, default=32)
-    ap.add_argument("--steps", type=int, default=15)
+    ap.add_argument("--steps", type=int, default=20)
     a = ap.parse_args()
     out = Path(a.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
-    sizes = dict(horizon=a.horizon, train=a.train, heldout=a.heldout)
+    sizes = dict(horizon=a.horizon, train=a.train, heldout=a.heldout, current_max=a.current_max)
 
     # 1. logs from the true plant
     subprocess.run(

@@ -17,42 +17,50 @@ segment_steps = 50
 max_iters = 50
 ```
 
-Every error names the config file, the section and the key; a log's errors name the log file and
-the column. Unknown sections and keys are rejected.
+Every error is a :class:`vcjax._config.ConfigError` (the one error class of every command) naming
+the config file, the section and the key; a log's errors name the log file and the column.
+Unknown sections and keys are rejected.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import tomllib
 from pathlib import Path
 
+from vcjax._config import (
+    ConfigError,
+    as_bool,
+    as_int,
+    as_number,
+    as_str,
+    as_str_list,
+    check_schema,
+    read_toml,
+)
 from vcjax.identify.data import load_log
 from vcjax.identify.models import get_fit_model, scalar_fields
 from vcjax.identify.shooting import FitResult, fit_logs
 
 __all__ = ["FitConfig", "load_fit_config", "run_fit_config", "FIT_SCHEMA"]
 
-#: section -> key -> (expected type(s), default; ``...`` = required)
-FIT_SCHEMA: dict[str, dict[str, tuple]] = {
-    "data": {"files": (list, ...)},
+#: section -> key -> default (``...`` = required)
+FIT_SCHEMA: dict[str, dict[str, object]] = {
+    "data": {"files": ...},
     "model": {
-        "vehicle": (str, ...),
-        "step": (str, "rk4"),
-        "current_speed": ((int, float), 0.0),
-        "current_direction_deg": ((int, float), 0.0),
+        "vehicle": ...,
+        "step": "rk4",
+        "current_speed": 0.0,
+        "current_direction_deg": 0.0,
     },
     "fit": {
-        "params": (list, ...),
-        "fit_current": (bool, False),
-        "initial_scale": ((int, float), 1.0),
-        "segment_steps": (int, 50),
-        "max_iters": (int, 50),
+        "params": ...,
+        "fit_current": False,
+        "initial_scale": 1.0,
+        "segment_steps": 50,
+        "max_iters": 50,
     },
 }
-
-_TYPE_NAMES = {list: "a list", str: "a string", bool: "true or false", int: "an integer"}
 
 
 class FitConfig(dict):
@@ -61,98 +69,73 @@ class FitConfig(dict):
     path: Path
 
 
-def _type_name(t) -> str:
-    return "a number" if t == (int, float) else _TYPE_NAMES.get(t, str(t))
-
-
 def load_fit_config(path) -> FitConfig:
     """Parse and check a ``vcjax fit`` config (nothing is loaded or compiled).
 
     Raises:
-        ValueError: ``"CONFIG: [section] key: ..."`` for the first problem found.
-        OSError: when the file cannot be read.
+        vcjax._config.ConfigError (a ``ValueError``): ``"CONFIG: [section] key: ..."`` for the
+            first problem found (unknown sections and keys included).
     """
     path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise ValueError(f"{path}: not valid TOML: {err}") from None
-    for section in raw:
-        if section not in FIT_SCHEMA:
-            raise ValueError(
-                f"{path}: unknown section [{section}] (allowed: "
-                f"{', '.join(f'[{s}]' for s in FIT_SCHEMA)})"
-            )
+    raw = read_toml(path)
+    check_schema(raw, {sec: tuple(keys) for sec, keys in FIT_SCHEMA.items()}, str(path))
     cfg = FitConfig()
     cfg.path = path
     for section, keys in FIT_SCHEMA.items():
         given = raw.get(section, {})
-        if not isinstance(given, dict):
-            raise ValueError(f"{path}: [{section}] must be a table")
-        for key in given:
-            if key not in keys:
-                raise ValueError(
-                    f"{path}: [{section}] unknown key {key!r} (allowed: {', '.join(keys)})"
-                )
-        out = {}
-        for key, (typ, default) in keys.items():
-            where = f"{path}: [{section}] {key}"
-            if key not in given:
-                if default is ...:
-                    raise ValueError(f"{where}: required key is missing")
-                out[key] = default
-                continue
-            v = given[key]
-            if isinstance(v, bool) and typ is not bool or not isinstance(v, typ):
-                raise ValueError(f"{where}: expected {_type_name(typ)}, got {v!r}")
-            out[key] = v
-        cfg[section] = out
+        cfg[section] = {}
+        for key, default in keys.items():
+            if key not in given and default is ...:
+                raise ConfigError(f"{path}: [{section}] {key}: required key is missing")
+            cfg[section][key] = given.get(key, default)
     _check_values(path, cfg)
     return cfg
 
 
 def _check_values(path: Path, cfg: FitConfig) -> None:
+    """Types and ranges, then the names against the vehicle (``ConfigError`` naming the key)."""
     d, m, f = cfg["data"], cfg["model"], cfg["fit"]
-    if not d["files"] or not all(isinstance(x, str) and x for x in d["files"]):
-        raise ValueError(f"{path}: [data] files: expected a non-empty list of file names")
+    w = lambda sec, key: f"{path}: [{sec}] {key}"
+    d["files"] = list(as_str_list(w("data", "files"), d["files"]))
+    if not d["files"] or not all(d["files"]):
+        raise ConfigError(f"{w('data', 'files')}: expected a non-empty list of file names")
+    m["vehicle"] = as_str(w("model", "vehicle"), m["vehicle"])
     try:
         model = get_fit_model(m["vehicle"])
     except ValueError as err:
-        raise ValueError(f"{path}: [model] {err}") from None
+        raise ConfigError(f"{path}: [model] {err}") from None
+    m["step"] = as_str(w("model", "step"), m["step"])
     if m["step"] not in model.steps:
-        raise ValueError(
-            f"{path}: [model] step: {m['step']!r} is not available for {m['vehicle']!r}; "
+        raise ConfigError(
+            f"{w('model', 'step')}: {m['step']!r} is not available for {m['vehicle']!r}; "
             f"choose one of {list(model.steps)}"
         )
-    for key in ("current_speed", "current_direction_deg"):
-        if not math.isfinite(m[key]):
-            raise ValueError(f"{path}: [model] {key}: expected a finite number, got {m[key]}")
-    if m["current_speed"] < 0:
-        raise ValueError(f"{path}: [model] current_speed: expected >= 0, got {m['current_speed']}")
+    m["current_speed"] = as_number(w("model", "current_speed"), m["current_speed"], lo=0.0)
+    m["current_direction_deg"] = as_number(
+        w("model", "current_direction_deg"), m["current_direction_deg"]
+    )
+    f["fit_current"] = as_bool(w("fit", "fit_current"), f["fit_current"])
     if f["fit_current"] and not m["current_speed"] > 0:
-        raise ValueError(
-            f"{path}: [model] current_speed: fit_current = true needs a positive initial guess"
+        raise ConfigError(
+            f"{w('model', 'current_speed')}: fit_current = true needs a positive initial guess"
         )
-    if not all(isinstance(p, str) for p in f["params"]):
-        raise ValueError(f"{path}: [fit] params: expected a list of parameter names")
+    f["params"] = list(as_str_list(w("fit", "params"), f["params"]))
     if not f["params"] and not f["fit_current"]:
-        raise ValueError(f"{path}: [fit] params: nothing to fit")
-    nominal = model.nominal(None)
-    scalars = scalar_fields(nominal)
+        raise ConfigError(f"{w('fit', 'params')}: nothing to fit")
+    scalars = scalar_fields(model.nominal(None))
     for p in f["params"]:
         if p not in scalars:
-            raise ValueError(
-                f"{path}: [fit] params: {p!r} is not a scalar parameter of {m['vehicle']!r} "
+            raise ConfigError(
+                f"{w('fit', 'params')}: {p!r} is not a scalar parameter of {m['vehicle']!r} "
                 f"(choose from {', '.join(scalars)})"
             )
     if len(set(f["params"])) != len(f["params"]):
-        raise ValueError(f"{path}: [fit] params: names must be unique, got {f['params']}")
-    if not (math.isfinite(f["initial_scale"]) and f["initial_scale"] > 0):
-        raise ValueError(f"{path}: [fit] initial_scale: expected > 0, got {f['initial_scale']}")
-    if f["segment_steps"] < 2:
-        raise ValueError(f"{path}: [fit] segment_steps: expected >= 2, got {f['segment_steps']}")
-    if f["max_iters"] < 1:
-        raise ValueError(f"{path}: [fit] max_iters: expected >= 1, got {f['max_iters']}")
+        raise ConfigError(f"{w('fit', 'params')}: names must be unique, got {f['params']}")
+    f["initial_scale"] = as_number(
+        w("fit", "initial_scale"), f["initial_scale"], lo=0.0, lo_open=True
+    )
+    f["segment_steps"] = as_int(w("fit", "segment_steps"), f["segment_steps"], lo=2)
+    f["max_iters"] = as_int(w("fit", "max_iters"), f["max_iters"], lo=1)
 
 
 def run_fit_config(config_path, out, progress: bool = False) -> dict:

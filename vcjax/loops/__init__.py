@@ -70,6 +70,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import paths
+from vcjax.loops.arm import ArmLoop, ArmLoopParams, arm_loop_params
 from vcjax.loops.base import (
     DisturbanceParams,
     Disturbances,
@@ -86,7 +87,9 @@ from vcjax.loops.base import (
     simulate,
     start_parameter,
 )
+from vcjax.loops.engine import EngineAux, EngineGains, EngineLoop, engine_gains
 from vcjax.loops.infante import InfanteGains, InfanteLoop, infante_gains
+from vcjax.loops.odin import OdinGains, OdinLoop, default_odin_gains, odin_gains
 from vcjax.loops.remus100 import Remus100Loop
 
 __all__ = [
@@ -99,6 +102,17 @@ __all__ = [
     "InfanteGains",
     "InfanteLoop",
     "infante_gains",
+    "ArmLoop",
+    "ArmLoopParams",
+    "arm_loop_params",
+    "EngineAux",
+    "EngineGains",
+    "EngineLoop",
+    "engine_gains",
+    "OdinGains",
+    "OdinLoop",
+    "odin_gains",
+    "default_odin_gains",
     "gains_from_json",
     "gains_to_json",
     "gauss_markov_params",
@@ -287,4 +301,6 @@ def apply_params(params, values: dict, where: str = "params"):
 
 
 register(InfanteLoop)
+register(OdinLoop)
+register(ArmLoop)
 register(Remus100Loop)

@@ -317,9 +317,8 @@ class Loop:
 
     def noise_std(self, stds: dict) -> np.ndarray:
         """Concatenated standard deviations from a ``{channel: std}`` dict (SI units)."""
-        return np.concatenate(
-            [np.full(n, float(stds.get(k, 0.0))) for k, n in self.noise_channels.items()]
-        )
+        parts = [np.full(n, float(stds.get(k, 0.0))) for k, n in self.noise_channels.items()]
+        return np.concatenate(parts) if parts else np.zeros(0)
 
     def with_current(self, args, current, current_dot):
         """``args`` with a new current (3,) and rate (3,) (time-varying currents)."""
@@ -336,29 +335,42 @@ class Loop:
         return f"{self.vehicle} / {self.controller} on a {self.path.name}"
 
 
-def start_parameter(path: paths.Path, coeffs, point, w_range=(-50.0, 50.0), num: int = 256):
+def _search_range(path: paths.Path, coeffs, w_range):
+    """Where to look for the nearest point: one turn of a circle, two of a helix, the
+    waypoints' span; else ``w_range``."""
+    if isinstance(coeffs, paths.CircleCoeffs):
+        return 0.0 * coeffs.radius, 2 * jnp.pi * coeffs.radius
+    if isinstance(coeffs, paths.HelixCoeffs):
+        return -2 * jnp.pi * coeffs.T, 2 * jnp.pi * coeffs.T
+    if isinstance(coeffs, paths.SplineCoeffs):
+        return coeffs.knots[0], coeffs.knots[-1]
+    return w_range
+
+
+def start_parameter(path: paths.Path, coeffs, point, w_range=(-50.0, 50.0), num: int = 512):
     """() path parameter of the point of the path nearest to ``point`` (3,) (jit/vmap-safe).
 
-    Exact for a line (projection onto it). Otherwise: the nearest of ``num`` samples over
-    ``w_range``, refined by three Newton steps on ``(p(w) - point) . p'(w) = 0``.
+    Exact for a line (projection onto it). Otherwise: the nearest of ``num`` samples over one
+    turn of a circle, two turns of a helix, the span of a waypoint spline, or ``w_range`` for
+    other kinds, refined by three Newton steps on ``(p(w) - point) . p'(w) = 0``.
     """
     point = jnp.asarray(point)
-    if path.name == "line" and isinstance(coeffs, paths.LineCoeffs):
+    if isinstance(coeffs, paths.LineCoeffs):
         return jnp.dot(point - coeffs.origin, coeffs.direction)
-    w = jnp.linspace(w_range[0], w_range[1], num, dtype=point.dtype)
+    lo, hi = _search_range(path, coeffs, w_range)
+    w = jnp.linspace(0.0, 1.0, num, dtype=point.dtype)
+    w = lo + (hi - lo) * w
     p = jax.vmap(lambda w_: paths.path_point(path, coeffs, w_))(w)
     w0 = w[jnp.argmin(jnp.sum((p - point) ** 2, axis=1))]
 
     def g(w_):
-        return jnp.dot(
-            paths.path_point(path, coeffs, w_) - point,
-            jax.jacfwd(lambda v: paths.path_point(path, coeffs, v))(w_),
-        )
+        p_, dp = jax.jvp(lambda v: paths.path_point(path, coeffs, v), (w_,), (jnp.ones_like(w_),))
+        return jnp.dot(p_ - point, dp)
 
     def newton(w_, _):
         val, slope = jax.jvp(g, (w_,), (jnp.ones_like(w_),))
         step = jnp.where(slope > 0, val / jnp.where(slope > 0, slope, 1.0), 0.0)
-        return jnp.clip(w_ - step, w_range[0], w_range[1]), None
+        return jnp.clip(w_ - step, lo, hi), None
 
     return jax.lax.scan(newton, w0, None, length=3)[0]
 

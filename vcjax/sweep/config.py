@@ -151,7 +151,12 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
     return spec, {"gains": gains_path, "figures": figures}
 
 
-def run_sweep_config(config_path, out_dir, progress: bool | Callable[[str], Any] = True) -> dict:
+def run_sweep_config(
+    config_path,
+    out_dir,
+    progress: bool | Callable[[str], Any] = True,
+    netcdf: bool = False,
+) -> dict:
     """Run the sweep described by a TOML file and write its results (the ``vcjax sweep`` CLI).
 
     Writes into ``out_dir``: ``summary.json`` (:func:`~vcjax.sweep.results.summarize`),
@@ -159,17 +164,23 @@ def run_sweep_config(config_path, out_dir, progress: bool | Callable[[str], Any]
     = false``, the figures of :func:`vcjax.sweep_plots.sweep_figures`. In a multi-process run
     (after ``jax.distributed.initialize``) every process runs its share of chunks and writes
     ``results.part<p>-of-<P>.npz`` into the (shared) ``out_dir``; process 0 waits for the others,
-    merges the parts and writes the outputs.
+    merges the parts and writes the outputs. With ``netcdf``, also ``results.nc``
+    (:meth:`~vcjax.sweep.results.SweepResult.to_xarray`; needs the ``xarray`` extra).
 
     Args:
         config_path: the TOML file; out_dir: output folder (created).
         progress: True: a bar on stderr; a callable: one line per chunk; False: silent.
+        netcdf: also write ``results.nc``.
 
     Returns:
         ``{"summary": dict, "files": [Path, ...]}`` (on processes other than 0: the part file
         only, and ``summary`` None).
     """
     spec, extras = load_config(config_path)
+    if netcdf:
+        from vcjax.sweep.labelled import _xr
+
+        _xr()  # fail before the sweep, not after it, when xarray is missing
     gains = None
     if extras["gains"] is not None:
         loop = spec.loop(spec.variants[0])
@@ -198,6 +209,10 @@ def run_sweep_config(config_path, out_dir, progress: bool | Callable[[str], Any]
     files = [save_results(result, out / "results.npz")]
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     files.append(out / "summary.json")
+    if netcdf:
+        from vcjax.sweep.labelled import write_netcdf
+
+        files.append(write_netcdf(result, out / "results.nc"))
     if extras["figures"]:
         from vcjax import sweep_plots
 

@@ -53,6 +53,14 @@ class SweepResult:
     devices: int = 1
     timing: dict = dataclasses.field(default_factory=dict)
 
+    def to_xarray(self):
+        """An ``xarray.Dataset``: dimensions ``variant`` x ``scenario``, sampled inputs and
+        metrics as labelled variables, units as attributes (:mod:`vcjax.sweep.labelled`;
+        needs ``pip install "vcjax[xarray]"``)."""
+        from vcjax.sweep.labelled import to_xarray
+
+        return to_xarray(self)
+
 
 def run_timing(compile_s: float, run_s: float, scenarios: int, steps: int, devices: int) -> dict:
     """One variant's timing: ``compile_s`` (trace + lower + XLA compile) [s], ``run_s``

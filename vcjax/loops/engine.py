@@ -1,0 +1,222 @@
+"""The generic engine as a controller: any mechanical system whose point ``p(q)`` must follow a
+path becomes a loop (:class:`EngineLoop`), rolled out, swept and tuned like the marine ones.
+
+Virtual constraints (paper Sections 2–3, :mod:`vcjax.mechanics`): a path particle ``varpi``
+(controller state) moves as in (22), ``varpi_dot = (u_d + sigma s) / |p_bar'(varpi)|``, and the
+holonomic constraints are the path errors of the point in the particle's frame (23),
+``G(q, varpi) = [s, e] = R(psi_p)^T (p(q) - p_bar(varpi))`` — horizontal (north, east) for a
+craft, the plane of motion for a manipulator. ``Phi = G_dot + P_G G`` and ``Phi_dot + P_Phi Phi =
+0`` give, on the design model, ``G_ddot + (P_G + P_Phi) G_dot + P_G P_Phi G = 0`` for each row:
+the engine's reaction force (16) is the control torque. The plant applies it through actuators
+with limits ``tau_max`` (hard clip, or ``tanh`` when the loop is ``smooth``) plus a constant
+generalised disturbance; its parameters may differ from the design's (model error).
+
+A subclass supplies the mechanics and the point that follows the path::
+
+    @dataclasses.dataclass(frozen=True)
+    class MyLoop(EngineLoop):
+        vehicle: ClassVar[str] = "my_system"
+        def mass_matrix(self, q, p): ...        # (n, n)
+        def bias_force(self, q, qd, p): ...     # (n,)
+        def point(self, q, p): ...              # (2,) or (3,) position that follows the path
+        def default_params(self, dtype=None): ...   # NamedTuple with a field tau_max (n,)
+        @classmethod
+        def default_path(cls): ...
+        def default_gains(self): ...            # EngineGains
+
+(plus ``initial_keys`` / ``initial_from``); ``tests/test_loops.py`` does exactly this for a point
+mass, and :mod:`vcjax.loops.arm` for the two-link arm.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Any, ClassVar, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from vcjax import paths
+from vcjax._checks import check_positive
+from vcjax.linalg import rot2, saturate, smooth_saturate
+from vcjax.loops.base import GainSpec, Loop, Scenario, Signals
+from vcjax.mechanics import MechanicalSystem, VCMGains, VirtualConstraints, reaction_force
+
+__all__ = ["EngineGains", "engine_gains", "EngineAux", "EngineLoop"]
+
+
+class EngineGains(NamedTuple):
+    """Gains of an engine loop (traced).
+
+    Attributes:
+        P_G: (2,) holonomic-row gains of ``[s, e]`` [1/s]; P_Phi: (2,) gains of (14) [1/s];
+        sigma: () particle-speed gain of ``u_d + sigma s`` [1/s].
+    """
+
+    P_G: Any
+    P_Phi: Any
+    sigma: Any
+
+
+def engine_gains(P_G=(2.0, 2.0), P_Phi=(3.0, 3.0), sigma=1.0) -> EngineGains:
+    """Validated :class:`EngineGains` (every gain > 0)."""
+    check_positive("P_G", P_G, (2,))
+    check_positive("P_Phi", P_Phi, (2,))
+    check_positive("sigma", sigma, ())
+    f = lambda x: jnp.asarray(x, dtype=float)
+    return EngineGains(f(P_G), f(P_Phi), f(sigma))
+
+
+class EngineAux(NamedTuple):
+    """Signals recorded per step.
+
+    Attributes:
+        eps: (2,) ``[s, e]`` (23) [m]; speed_err: () along-path speed of the point minus
+        ``u_d`` [m/s]; Phi: (2,) unified constraint; residual: () of (14); rank: () of W;
+        tau: (n,) reaction (control) force.
+    """
+
+    eps: Any
+    speed_err: Any
+    Phi: Any
+    residual: Any
+    rank: Any
+    tau: Any
+
+
+class _Args(NamedTuple):
+    params: Any  # design parameters
+    path: Any  # path coefficients
+    u_d: Any
+    sigma: Any
+
+
+@dataclasses.dataclass(frozen=True)
+class EngineLoop(Loop):
+    """A mechanical system held on a path by the generic engine (module docstring)."""
+
+    controllers: ClassVar[tuple[str, ...]] = ("vcm",)
+    default_controller: ClassVar[str] = "vcm"
+    takes_disturbance: ClassVar[bool] = True
+
+    # ---------------------------------------------------------------- what a subclass gives
+    def mass_matrix(self, q, p):
+        raise NotImplementedError
+
+    def bias_force(self, q, qd, p):
+        raise NotImplementedError
+
+    def point(self, q, p):
+        raise NotImplementedError
+
+    # ---------------------------------------------------------------- engine pieces
+    def position(self, eta, params):
+        x = jnp.asarray(self.point(eta, params))
+        return x if x.shape == (3,) else jnp.concatenate([x, jnp.zeros(1, x.dtype)])
+
+    def _eps(self, q, args: _Args, varpi):
+        frame = paths.path_frame(self.path, args.path, varpi)
+        return rot2(frame.psi_p).T @ (self.position(q, args.params)[:2] - frame.p_bar), frame
+
+    @functools.cached_property
+    def _system(self) -> MechanicalSystem:
+        return MechanicalSystem(
+            mass_matrix=lambda q, a: self.mass_matrix(q, a.params),
+            bias_force=lambda q, qd, a: self.bias_force(q, qd, a.params),
+        )
+
+    @functools.cached_property
+    def _constraints(self) -> VirtualConstraints:
+        def rate(q, t, z, a):
+            eps, frame = self._eps(q, a, z[0])
+            return jnp.atleast_1d((a.u_d + a.sigma * eps[0]) / frame.speed_bar)
+
+        return VirtualConstraints(
+            holonomic=lambda q, t, a, z: self._eps(q, a, z[0])[0], state_rate=rate
+        )
+
+    def default_gains(self) -> EngineGains:
+        return engine_gains()
+
+    def gain_specs(self):
+        def spec(name, size):
+            return GainSpec(
+                name,
+                size,
+                lambda g: jnp.atleast_1d(getattr(g, name)),
+                lambda g, v: g._replace(**{name: v if size > 1 else v[0]}),
+            )
+
+        return (spec("P_G", 2), spec("P_Phi", 2), spec("sigma", 1))
+
+    def symmetric_pairs(self):
+        return (("P_G", 0, "P_Phi", 0), ("P_G", 1, "P_Phi", 1))
+
+    def gains_from_json(self, d: dict, base=None):
+        g = super().gains_from_json(d, base)
+        return engine_gains(*(jnp.asarray(v).tolist() for v in g))
+
+    # ---------------------------------------------------------------- the loop
+    def plant(self, t, x, u, args):
+        p, dist = args
+        q, qd = x
+        sat = smooth_saturate if self.smooth else saturate
+        tau = sat(u, p.tau_max) + dist
+        qdd = jnp.linalg.solve(self.mass_matrix(q, p), tau - self.bias_force(q, qd, p))
+        return qd, qdd
+
+    def control(self, t, x, z, ctrl):
+        gains, args = ctrl
+        q, qd = x
+        vg = VCMGains(P_G=gains.P_G, P_Phi=gains.P_Phi)
+        cons = self._constraints
+        tau, _, diag = reaction_force(self._system, cons, vg, q, qd, t, None, args, z=z)
+        z_dot = self._constraints.state_rate(q, t, z, args)
+        eps, frame = self._eps(q, args, z[0])
+        v = jax.jvp(lambda q_: self.position(q_, args.params)[:2], (q,), (qd,))[1]
+        tangent = jnp.stack([jnp.cos(frame.psi_p), jnp.sin(frame.psi_p)])
+        aux = EngineAux(
+            eps=eps,
+            speed_err=tangent @ v - args.u_d,
+            Phi=diag.Phi,
+            residual=diag.residual,
+            rank=diag.rank,
+            tau=tau,
+        )
+        return tau, z_dot, aux
+
+    def plant_args(self, sc: Scenario, current, current_dot):
+        return (sc.plant, sc.disturbance)
+
+    def ctrl_params(self, gains, sc: Scenario):
+        return gains, _Args(sc.design, sc.path, sc.u_d, gains.sigma)
+
+    def initial_state(self, sc: Scenario):
+        return (sc.eta0, sc.nu0), jnp.atleast_1d(sc.varpi0)
+
+    def signals(self, traj, sc: Scenario) -> Signals:
+        """True errors: the point of the *plant* (its parameters may differ from the design's)."""
+        n = traj.u.shape[0]
+        q, qd = traj.x[0][:n], traj.x[1][:n]
+        args = _Args(sc.plant, sc.path, sc.u_d, jnp.zeros_like(sc.u_d))
+
+        def one(q_, qd_, w):
+            eps, frame = self._eps(q_, args, w)
+            pos, v = jax.jvp(lambda a: self.position(a, sc.plant), (q_,), (qd_,))
+            tangent = jnp.stack([jnp.cos(frame.psi_p), jnp.sin(frame.psi_p)])
+            return eps, pos, pos - frame.p, tangent @ v[:2] - sc.u_d
+
+        eps, pos, p_err, speed_err = jax.vmap(one)(q, qd, traj.z[:n, 0])
+        tau_max = sc.plant.tau_max
+        return Signals(
+            eps=eps,
+            pos=pos,
+            p_err=p_err,
+            u_err=speed_err,
+            psi_err=jnp.zeros(n, q.dtype),
+            depth_err=jnp.zeros(n, q.dtype),
+            cmd_ratio=traj.u / tau_max,
+            sat=jnp.any(jnp.abs(traj.u) > tau_max, axis=1),
+            act={"torque": jnp.max(jnp.abs(traj.u), axis=1)},
+        )
