@@ -68,6 +68,17 @@ def cpu_device_count(n=None, environ=None) -> int | None:
     return usable_cores()
 
 
+def _backends_initialised() -> bool:
+    """Whether JAX has created its backends (then the CPU device count is fixed). Uses JAX's
+    private ``xla_bridge.backends_are_initialized`` where it exists (jax 0.5.1 and later)."""
+    try:
+        from jax._src import xla_bridge
+    except ImportError:  # pragma: no cover - a JAX without that module
+        return False
+    check = getattr(xla_bridge, "backends_are_initialized", None)
+    return bool(check()) if check is not None else False
+
+
 def use_cpu_cores(n=None) -> int | None:
     """Split the host CPU into :func:`cpu_device_count` JAX devices; return that count.
 
@@ -87,6 +98,8 @@ def use_cpu_cores(n=None) -> int | None:
     import jax
 
     try:
+        if _backends_initialised():  # jax < 0.6 accepts the update silently, without effect
+            raise RuntimeError("JAX is already running")
         jax.config.update("jax_num_cpu_devices", count)
     except RuntimeError:
         have = len(jax.devices("cpu"))
