@@ -122,6 +122,15 @@ VCMParams = LawParams
 vcm_params = law_params
 
 
+EDD_MODES = ("paper", "implied")
+
+
+def check_edd(edd) -> None:
+    """Raise ``ValueError`` naming ``edd`` unless it is one of :data:`EDD_MODES`."""
+    if edd not in EDD_MODES:
+        raise ValueError(f"edd: expected 'paper' or 'implied', got {edd!r}")
+
+
 @dataclasses.dataclass(frozen=True)
 class VCMConfig:
     """Static choices of the VCM law.
@@ -154,8 +163,7 @@ class VCMConfig:
             raise ValueError(f"guidance: 'los' or 'ilos', got {self.guidance!r}")
         if self.actuation not in ("full", "underactuated"):
             raise ValueError(f"actuation: 'full' or 'underactuated', got {self.actuation!r}")
-        if self.edd not in ("paper", "implied"):
-            raise ValueError(f"edd: 'paper' or 'implied', got {self.edd!r}")
+        check_edd(self.edd)
 
 
 class VCMState(NamedTuple):

@@ -28,7 +28,7 @@ from vcjax.control.baselines import (
     baseline_params,
     baseline_state,
 )
-from vcjax.control.vcm import VCMConfig, pm_gains, vcm_law, vcm_params, vcm_state
+from vcjax.control.vcm import VCMConfig, check_edd, pm_gains, vcm_law, vcm_params, vcm_state
 from vcjax.linalg import rot2
 from vcjax.loops.base import GainSpec, Loop, Scenario, Signals
 from vcjax.vehicles import infante
@@ -153,8 +153,7 @@ class InfanteLoop(Loop):
 
     def __post_init__(self):
         super().__post_init__()
-        if self.edd not in ("paper", "implied"):
-            raise ValueError(f"edd: expected 'paper' or 'implied', got {self.edd!r}")
+        check_edd(self.edd)
 
     # ---------------------------------------------------------------- parameters and gains
     @classmethod

@@ -28,7 +28,16 @@ from vcjax._checks import check_positive
 from vcjax.allocation import allocate
 from vcjax.control.attitude import roll_pitch_pd
 from vcjax.control.depth import depth_pid, depth_reference
-from vcjax.control.vcm import VCMAux, VCMConfig, VCMState, pm_gains, vcm_law, vcm_params, vcm_state
+from vcjax.control.vcm import (
+    VCMAux,
+    VCMConfig,
+    VCMState,
+    check_edd,
+    pm_gains,
+    vcm_law,
+    vcm_params,
+    vcm_state,
+)
 from vcjax.loops.base import GainSpec, Loop, Scenario, Signals
 from vcjax.loops.infante import path_errors, path_frames, pm_gain_specs
 from vcjax.vehicles import odin
@@ -192,8 +201,7 @@ class OdinLoop(Loop):
 
     def __post_init__(self):
         super().__post_init__()
-        if self.edd not in ("paper", "implied"):
-            raise ValueError(f"edd: expected 'paper' or 'implied', got {self.edd!r}")
+        check_edd(self.edd)
 
     @property
     def actuation(self) -> str:

@@ -35,7 +35,7 @@ from vcjax.control.baselines3d import (
     decoupled_law,
     decoupled_state,
 )
-from vcjax.control.vcm import VCMConfig, pm_gains, vcm_params, vcm_state
+from vcjax.control.vcm import VCMConfig, check_edd, pm_gains, vcm_params, vcm_state
 from vcjax.control.vcm3d import (
     VCM3DConfig,
     path_errors_3d,
@@ -151,8 +151,7 @@ class Remus100Loop(Loop):
 
     def __post_init__(self):
         super().__post_init__()
-        if self.edd not in ("paper", "implied"):
-            raise ValueError(f"edd: expected 'paper' or 'implied', got {self.edd!r}")
+        check_edd(self.edd)
 
     # ---------------------------------------------------------------- parameters and gains
     @classmethod
