@@ -20,7 +20,14 @@ from tuning.scenarios import sample_scenarios as tuning_batch
 from vcjax import loops, paths
 from vcjax._config import ConfigError
 from vcjax.loops.config import ScenarioChoice, parse_scenario
-from vcjax.metrics import metric_names, run_metrics
+from vcjax.metrics import (
+    metric_names,
+    metrics_finalize,
+    metrics_init,
+    metrics_update,
+    run_metrics,
+    window_start,
+)
 from vcjax.rollout import RolloutConfig
 from vcjax.sweep import ScenarioSpec, SweepSpec, nominal, perturb_params, run_sweep
 
@@ -230,6 +237,17 @@ def test_metrics_against_hand_computation():
     assert float(m["sat_fraction"]) == pytest.approx(0.25)
     assert float(m["max_abs_thrust"]) == 7.0
     assert bool(m["diverged"]) and not bool(m["nonfinite"])  # max |e| = 1 > 0.9
+    # streamed in uneven segments (as a sweep folds its rollout), the same numbers
+    sig = sig._replace(act={"thrust": sig.act["thrust"][:n]})  # n samples, as a rollout's
+    m = run_metrics(sig, jnp.ones(n, bool), dt, start=0.5, diverge_e=0.9)
+    k0 = window_start(n, 0.5)
+    acc = metrics_init(("thrust",), sig.eps.dtype)
+    for a, b in [(0, 1), (1, 333), (333, 500), (500, 501), (501, 1000)]:
+        part = jax.tree_util.tree_map(lambda x, a=a, b=b: x[a:b], sig)
+        acc = metrics_update(acc, part, jnp.ones(b - a, bool), jnp.arange(a, b), k0)
+    streamed = metrics_finalize(acc, n, k0, dt, 0.9)
+    for key in m:
+        np.testing.assert_allclose(streamed[key], m[key], rtol=1e-13, err_msg=key)
 
 
 # ------------------------------------------------------------------ our loop: sweep and tune

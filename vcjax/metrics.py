@@ -25,7 +25,16 @@ import math
 
 import jax.numpy as jnp
 
-__all__ = ["METRICS", "FLAGS", "metric_names", "run_metrics"]
+__all__ = [
+    "METRICS",
+    "FLAGS",
+    "metric_names",
+    "run_metrics",
+    "window_start",
+    "metrics_init",
+    "metrics_update",
+    "metrics_finalize",
+]
 
 #: Metrics every loop has (besides its ``max_abs_<actuator>`` ones).
 METRICS = (
@@ -50,6 +59,96 @@ def metric_names(act_names) -> tuple[str, ...]:
     return METRICS[:5] + tuple(f"max_abs_{a}" for a in act_names) + METRICS[5:]
 
 
+def window_start(n: int, start: float) -> int:
+    """First step ``floor(start n)`` of the steady-state window of an ``n``-step run."""
+    return int(math.floor(start * n))
+
+
+def metrics_init(act_names, dtype) -> dict:
+    """Empty accumulator of :func:`metrics_update` for a loop reporting ``act_names``."""
+    z = jnp.zeros((), dtype)
+    acc = dict.fromkeys(_SUMS + _MAXES, z)
+    acc |= {f"max_abs_{a}": z for a in act_names}
+    acc["finite"] = jnp.array(True)
+    return acc
+
+
+_SUMS = (
+    "abs_e_win",
+    "abs_s_win",
+    "abs_u_err_win",
+    "abs_e",
+    "s2_win",
+    "e2_win",
+    "d2_win",
+    "h2_win",
+    "sat",
+)
+_MAXES = ("max_abs_e", "max_dist_3d")
+
+
+def metrics_update(acc: dict, sig, finite, ks, k0: int) -> dict:
+    """Fold the samples ``ks`` (global step indices, (L,)) of a run into ``acc``.
+
+    Args:
+        acc: accumulator (:func:`metrics_init`); sig: :class:`~vcjax.loops.base.Signals` of
+            the L samples; finite: (L,) the rollout's ``finite`` flags of those steps.
+        ks: (L,) int step indices; k0: static first step of the steady-state window.
+    """
+    win = ks >= k0
+    zero = jnp.zeros_like(sig.eps[:, 1])
+
+    def wsum(x):  # sum over the window; where, not a product, so NaN outside stays outside
+        return jnp.sum(jnp.where(win, x, zero))
+
+    abs_e = jnp.abs(sig.eps[:, 1])
+    s = sig.eps[:, 0]
+    dist = jnp.sqrt(jnp.sum(sig.p_err**2, axis=1))
+    out = {
+        "abs_e_win": wsum(abs_e),
+        "abs_s_win": wsum(jnp.abs(s)),
+        "abs_u_err_win": wsum(jnp.abs(sig.u_err)),
+        "abs_e": jnp.sum(abs_e),
+        "s2_win": wsum(s**2),
+        "e2_win": wsum(sig.eps[:, 1] ** 2),
+        "d2_win": wsum(dist**2),
+        "h2_win": wsum(sig.depth_err**2),
+        "sat": jnp.sum(sig.sat.astype(abs_e.dtype)),
+    }
+    new = {k: acc[k] + v for k, v in out.items()}
+    new["max_abs_e"] = jnp.maximum(acc["max_abs_e"], jnp.max(abs_e))
+    new["max_dist_3d"] = jnp.maximum(acc["max_dist_3d"], jnp.max(jnp.where(win, dist, zero)))
+    for name, a in sig.act.items():
+        new[f"max_abs_{name}"] = jnp.maximum(acc[f"max_abs_{name}"], jnp.max(a))
+    new["finite"] = acc["finite"] & jnp.all(finite)
+    return new
+
+
+def metrics_finalize(acc: dict, n: int, k0: int, dt, diverge_e=jnp.inf) -> dict:
+    """The metrics (:func:`metric_names` and :data:`FLAGS`) of an ``n``-step run from its
+    accumulator (every step folded in once); ``k0`` the window's first step, ``dt`` [s]."""
+    nw = n - k0
+    m = {
+        "ss_abs_e": acc["abs_e_win"] / nw,
+        "ss_abs_s": acc["abs_s_win"] / nw,
+        "ss_abs_u_err": acc["abs_u_err_win"] / nw,
+        "iae_e": acc["abs_e"] * dt,
+        "max_abs_e": acc["max_abs_e"],
+    }
+    m |= {k: v for k, v in acc.items() if k.startswith("max_abs_") and k != "max_abs_e"}
+    m |= {
+        "rms_along_track_s": jnp.sqrt(acc["s2_win"] / nw),
+        "rms_cross_track_e": jnp.sqrt(acc["e2_win"] / nw),
+        "rms_dist_3d": jnp.sqrt(acc["d2_win"] / nw),
+        "max_dist_3d": acc["max_dist_3d"],
+        "rms_depth_err": jnp.sqrt(acc["h2_win"] / nw),
+        "sat_fraction": acc["sat"] / n,
+        "nonfinite": ~acc["finite"],
+    }
+    m["diverged"] = m["nonfinite"] | ~(m["max_abs_e"] <= diverge_e)
+    return m
+
+
 def run_metrics(sig, finite, dt, start: float = 0.8, diverge_e=jnp.inf) -> dict:
     """Metrics and health flags of one run.
 
@@ -61,32 +160,11 @@ def run_metrics(sig, finite, dt, start: float = 0.8, diverge_e=jnp.inf) -> dict:
         diverge_e: () cross-track bound [m] of the ``diverged`` flag.
 
     Returns:
-        dict name -> () array: :func:`metric_names` and :data:`FLAGS`.
+        dict name -> () array: :func:`metric_names` and :data:`FLAGS`. The same accumulator
+        as a streamed run (:func:`metrics_update` segment by segment), folded in one go.
     """
     n = sig.eps.shape[0]
-    k0 = int(math.floor(start * n))
-    eps = sig.eps
-    abs_e = jnp.abs(eps[:, 1])
-    dist = jnp.sqrt(jnp.sum(sig.p_err[k0:] ** 2, axis=1))
-    max_abs_e = jnp.max(abs_e)
-    nonfinite = ~jnp.all(finite)
-    m = {
-        "ss_abs_e": jnp.mean(abs_e[k0:]),
-        "ss_abs_s": jnp.mean(jnp.abs(eps[k0:, 0])),
-        "ss_abs_u_err": jnp.mean(jnp.abs(sig.u_err[k0:])),
-        "iae_e": jnp.sum(abs_e) * dt,
-        "max_abs_e": max_abs_e,
-    }
-    for name, a in sig.act.items():
-        m[f"max_abs_{name}"] = jnp.max(a)
-    m |= {
-        "rms_along_track_s": jnp.sqrt(jnp.mean(eps[k0:, 0] ** 2)),
-        "rms_cross_track_e": jnp.sqrt(jnp.mean(eps[k0:, 1] ** 2)),
-        "rms_dist_3d": jnp.sqrt(jnp.mean(dist**2)),
-        "max_dist_3d": jnp.max(dist),
-        "rms_depth_err": jnp.sqrt(jnp.mean(sig.depth_err[k0:] ** 2)),
-        "sat_fraction": jnp.mean(sig.sat.astype(abs_e.dtype)),
-        "nonfinite": nonfinite,
-    }
-    m["diverged"] = nonfinite | ~(max_abs_e <= diverge_e)
-    return m
+    k0 = window_start(n, start)
+    acc = metrics_init(sig.act, sig.eps.dtype)
+    acc = metrics_update(acc, sig, finite, jnp.arange(n), k0)
+    return metrics_finalize(acc, n, k0, dt, diverge_e)

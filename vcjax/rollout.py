@@ -53,6 +53,8 @@ __all__ = [
     "RolloutConfig",
     "Trajectory",
     "rollout",
+    "rollout_reduce",
+    "Reduction",
     "all_finite",
     "first_unhealthy_step",
     "DEFAULT_BOUND",
@@ -166,47 +168,15 @@ def _stack0(first, rest):
     return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b], axis=0), first, rest)
 
 
-def rollout(
-    plant: Callable,
-    controller: Callable,
-    config: RolloutConfig,
-    plant_params,
-    ctrl_params,
-    x0,
-    z0,
-    dt,
-    t0=0.0,
-    *,
-    exogenous: Callable | None = None,
-    s0=None,
-    bound=DEFAULT_BOUND,
-) -> Trajectory:
-    """Roll the closed loop out for ``config.num_steps`` steps of size ``dt``.
-
-    Args:
-        plant: ``f(t, x, u, plant_params) -> x_dot`` (static).
-        controller: ``c(t, x, z, ctrl_params) -> (u, z_dot, aux)`` (static).
-        config: :class:`RolloutConfig` (static).
-        plant_params, ctrl_params: pytrees of arrays (traced).
-        x0, z0: initial plant and controller states (pytrees of arrays).
-        dt: () step size [s] (traced).
-        t0: () initial time [s].
-        exogenous: optional ``g(k, t, s, plant_params, ctrl_params) -> (s_next, plant_params_k,
-            ctrl_params_k)`` (static), evaluated at the start of each step (see module
-            docstring); the parameters it returns are held over the step.
-        s0: initial state of ``exogenous`` (pytree of arrays; ``None`` when it has none).
-        bound: () divergence bound (traced): a step whose plant or controller state has an
-            entry with ``|.| > bound`` is flagged in ``Trajectory.diverged``.
-
-    Returns:
-        :class:`Trajectory`.
-
-    Raises:
-        ValueError: ``dt`` or ``bound`` concrete and not finite and > 0.
-    """
+def _check_args(dt, bound) -> None:
     _check_dt(dt)
     if is_concrete(bound) and not float(bound) > 0:
         raise ValueError(f"bound: expected a divergence bound > 0, got {bound}")
+
+
+def _stepper(plant, controller, config, plant_params, ctrl_params, x0, dt, t0, exogenous, bound):
+    """The scan body of a rollout: ``step(carry, k) -> (carry, (y_next, u, aux, (ok,
+    diverged)))`` with ``carry = ((x, z), s)``, and the dtype-converted ``(t0, dt)``."""
     step_fn = get_integrator(config.integrator)
     dtype = jnp.result_type(*jax.tree_util.tree_leaves(x0))
     dt = jnp.asarray(dt, dtype=dtype)
@@ -246,6 +216,52 @@ def rollout(
         y_next = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), y_next, y)
         return (y_next, s), (y_next, u, aux, (ok, diverged))
 
+    return step, t0, dt
+
+
+def rollout(
+    plant: Callable,
+    controller: Callable,
+    config: RolloutConfig,
+    plant_params,
+    ctrl_params,
+    x0,
+    z0,
+    dt,
+    t0=0.0,
+    *,
+    exogenous: Callable | None = None,
+    s0=None,
+    bound=DEFAULT_BOUND,
+) -> Trajectory:
+    """Roll the closed loop out for ``config.num_steps`` steps of size ``dt``.
+
+    Args:
+        plant: ``f(t, x, u, plant_params) -> x_dot`` (static).
+        controller: ``c(t, x, z, ctrl_params) -> (u, z_dot, aux)`` (static).
+        config: :class:`RolloutConfig` (static).
+        plant_params, ctrl_params: pytrees of arrays (traced).
+        x0, z0: initial plant and controller states (pytrees of arrays).
+        dt: () step size [s] (traced).
+        t0: () initial time [s].
+        exogenous: optional ``g(k, t, s, plant_params, ctrl_params) -> (s_next, plant_params_k,
+            ctrl_params_k)`` (static), evaluated at the start of each step (see module
+            docstring); the parameters it returns are held over the step.
+        s0: initial state of ``exogenous`` (pytree of arrays; ``None`` when it has none).
+        bound: () divergence bound (traced): a step whose plant or controller state has an
+            entry with ``|.| > bound`` is flagged in ``Trajectory.diverged``.
+
+    Returns:
+        :class:`Trajectory`.
+
+    Raises:
+        ValueError: ``dt`` or ``bound`` concrete and not finite and > 0.
+    """
+    _check_args(dt, bound)
+    step, t0, dt = _stepper(
+        plant, controller, config, plant_params, ctrl_params, x0, dt, t0, exogenous, bound
+    )
+    dtype = t0.dtype
     ks = jnp.arange(config.num_steps, dtype=jnp.int32)
     K = min(config.checkpoint_every, config.num_steps)
     if not config.checkpoint:
@@ -278,3 +294,90 @@ def rollout(
         finite=oks,
         diverged=diverged,
     )
+
+
+class Reduction(NamedTuple):
+    """What :func:`rollout_reduce` keeps of a rollout instead of its whole record.
+
+    Attributes:
+        init: initial accumulator (pytree of arrays).
+        update: ``update(acc, seg, ks) -> (acc, out)`` (static): folds one segment into the
+            accumulator. ``seg`` is the segment's :class:`Trajectory` (``L`` steps: ``t``, ``x``
+            and ``z`` have ``L + 1`` samples, the segment's start first, as a rollout of those
+            ``L`` steps would return) and ``ks`` its (L,) int32 global step indices; ``out``
+            (any pytree) is kept per segment, e.g. a trace sample.
+        segment: static segment length ``L >= 1``: memory grows with ``L``, not with the
+            horizon.
+    """
+
+    init: Any
+    update: Callable
+    segment: int
+
+
+def rollout_reduce(
+    plant: Callable,
+    controller: Callable,
+    config: RolloutConfig,
+    plant_params,
+    ctrl_params,
+    x0,
+    z0,
+    dt,
+    reduction: Reduction,
+    t0=0.0,
+    *,
+    exogenous: Callable | None = None,
+    s0=None,
+    bound=DEFAULT_BOUND,
+):
+    """:func:`rollout`, folding the record into an accumulator segment by segment instead of
+    returning it (same arguments, plus ``reduction``): the steps are the same, only ``L``
+    (:attr:`Reduction.segment`) steps of record exist at a time, so a batch of long rollouts
+    needs memory for its states, not for its whole history. ``config.checkpoint``
+    rematerialises each segment in the backward pass (``checkpoint_every`` is not used).
+
+    Returns:
+        ``(acc, outs)``: the final accumulator, and every segment's ``out`` stacked along a
+        leading axis of ``ceil(N / L)`` (the last segment holds the ``N mod L`` remaining
+        steps when ``L`` does not divide ``N``).
+    """
+    _check_args(dt, bound)
+    L = reduction.segment
+    if not isinstance(L, int) or L < 1:
+        raise ValueError(f"segment: expected a positive int, got {L!r}")
+    step, t0, dt = _stepper(
+        plant, controller, config, plant_params, ctrl_params, x0, dt, t0, exogenous, bound
+    )
+    dtype = t0.dtype
+
+    def segment(state, ks_seg):
+        carry, acc = state
+        (xz0, _) = carry
+        carry, (ys, us, auxs, (oks, div)) = jax.lax.scan(step, carry, ks_seg, unroll=config.unroll)
+        ts = t0 + (ks_seg[0] + jnp.arange(ks_seg.shape[0] + 1, dtype=jnp.int32)).astype(dtype) * dt
+        seg = Trajectory(
+            t=ts,
+            x=_stack0(xz0[0], ys[0]),
+            z=_stack0(xz0[1], ys[1]),
+            u=us,
+            aux=auxs,
+            finite=oks,
+            diverged=div,
+        )
+        acc, out = reduction.update(acc, seg, ks_seg)
+        return (carry, acc), out
+
+    if config.checkpoint:
+        segment = jax.checkpoint(segment)
+    N = config.num_steps
+    L = min(L, N)
+    n_seg, rest = divmod(N, L)
+    ks = jnp.arange(N, dtype=jnp.int32)
+    state, outs = jax.lax.scan(
+        segment, (((x0, z0), s0), reduction.init), ks[: n_seg * L].reshape(n_seg, L)
+    )
+    if rest:
+        state, out_rest = segment(state, ks[n_seg * L :])
+        outs = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b[None]]), outs, out_rest)
+    return state[1], outs

@@ -11,6 +11,7 @@ through :func:`vcjax.rollout.rollout`'s exogenous hook.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 from typing import Any, ClassVar, NamedTuple
 
@@ -20,7 +21,7 @@ import numpy as np
 
 from vcjax import paths
 from vcjax.currents import GaussMarkovCurrent, gm_init, gm_step, gm_value
-from vcjax.rollout import RolloutConfig, Trajectory, rollout
+from vcjax.rollout import Reduction, RolloutConfig, Trajectory, rollout, rollout_reduce
 
 __all__ = [
     "Scenario",
@@ -493,20 +494,26 @@ def simulate(
     dt,
     dist: Disturbances = Disturbances(),
     dist_params: DisturbanceParams | None = None,
-) -> Trajectory:
+    reduction: Reduction | None = None,
+):
     """Roll ``loop`` out on scenario ``sc`` (pure, not jitted; vmap/grad it).
 
     ``loop``, ``config`` and ``dist`` are static; ``gains``, ``sc``, ``dt`` and ``dist_params``
     are traced. Without disturbances this is one :func:`vcjax.rollout.rollout` of
     ``loop.plant`` / ``loop.control``; with them the same loop gets a Gauss–Markov current
     and/or measurement noise through the rollout's ``exogenous`` hook.
+
+    Returns the :class:`~vcjax.rollout.Trajectory`; with a ``reduction``
+    (:class:`~vcjax.rollout.Reduction`) the record is folded segment by segment instead
+    (:func:`~vcjax.rollout.rollout_reduce`) and ``(acc, outs)`` is returned.
     """
+    run = rollout if reduction is None else functools.partial(rollout_reduce, reduction=reduction)
     x0, z0 = loop.initial_state(sc)
     ctrl = loop.ctrl_params(gains, sc)
     dtype = sc.eta0.dtype
     if not dist.active:
         args = loop.plant_args(sc, sc.current, jnp.zeros(3, dtype))
-        return rollout(loop.plant, loop.control, config, args, ctrl, x0, z0, dt)
+        return run(loop.plant, loop.control, config, args, ctrl, x0, z0, dt)
     if dist_params is None:
         raise ValueError("dist_params: required with disturbances")
     dt = jnp.asarray(dt, dtype)
@@ -516,7 +523,7 @@ def simulate(
     s0 = gm_init(gm_p, k_init) if dist.gauss_markov else None
     args = loop.plant_args(sc, sc.current, jnp.zeros(3, dtype))
     plant_params = (args, gm_p, k_steps, dt, sc.current[2:])
-    return rollout(
+    return run(
         w.plant,
         w.control,
         config,

@@ -17,9 +17,15 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from vcjax import loops
 from vcjax._config import ConfigError
 from vcjax.loops.base import DisturbanceParams, Disturbances, gauss_markov_params
-from vcjax.metrics import run_metrics
+from vcjax.metrics import (
+    metrics_finalize,
+    metrics_init,
+    metrics_update,
+    run_metrics,
+    window_start,
+)
 from vcjax.progress import ProgressBar
-from vcjax.rollout import RolloutConfig, Trajectory
+from vcjax.rollout import Reduction, RolloutConfig, Trajectory
 from vcjax.sweep.results import SweepResult, run_timing
 from vcjax.sweep.spec import MCConfig, MCScenario, SweepSpec, sample_scenarios
 
@@ -29,6 +35,8 @@ __all__ = [
     "to_scenario",
     "simulate_scenario",
     "scenario_metrics",
+    "streamed_metrics",
+    "segment_length",
     "run_batch",
     "run_sweep",
     "SCENARIO_FIELDS",
@@ -79,7 +87,7 @@ def to_scenario(loop, sc: MCScenario, plant, design, coeffs, config: MCConfig) -
 
 
 def simulate_scenario(
-    loop, gains, nominal_params, sc: MCScenario, config: MCConfig, dt
+    loop, gains, nominal_params, sc: MCScenario, config: MCConfig, dt, reduction=None
 ) -> tuple[Trajectory, loops.Scenario]:
     """Closed-loop rollout of one loop on one sampled scenario (pure, not jitted).
 
@@ -89,7 +97,8 @@ def simulate_scenario(
     Gauss–Markov current and/or measurement noise (:class:`~vcjax.loops.Disturbances`).
 
     Returns:
-        ``(traj, scenario)``.
+        ``(traj, scenario)``; with a ``reduction`` (:class:`~vcjax.rollout.Reduction`, built
+        from the scenario by ``reduction(scenario)``) ``((acc, outs), scenario)`` instead.
     """
     plant, design, coeffs = nominal_params
     s = to_scenario(loop, sc, plant, design, coeffs, config)
@@ -104,12 +113,20 @@ def simulate_scenario(
         noise_std=sc.noise_std,
         key=sc.key,
     )
-    return loops.simulate(loop, gains, s, rcfg, dt, dist, dp), s
+    red = None if reduction is None else reduction(s)
+    return loops.simulate(loop, gains, s, rcfg, dt, dist, dp, reduction=red), s
+
+
+def _traces(sig, idx) -> dict:
+    return {
+        "e": sig.eps[idx, 1].astype(jnp.float32),
+        "xy": sig.pos[idx, :2].astype(jnp.float32),
+    }
 
 
 def scenario_metrics(loop, traj: Trajectory, sc: loops.Scenario, config: MCConfig, diverge_e):
     """Metrics and health flags of one run (:func:`vcjax.metrics.run_metrics` over the last
-    ``config.tail`` of the run), and the recorded traces.
+    ``config.tail`` of the run), and the recorded traces, from its whole trajectory.
 
     Returns:
         ``(metrics, traces)``: ``metrics`` maps names to () arrays; ``traces`` maps ``"e"``
@@ -119,19 +136,68 @@ def scenario_metrics(loop, traj: Trajectory, sc: loops.Scenario, config: MCConfi
     m = run_metrics(sig, traj.finite, traj.t[1] - traj.t[0], 1.0 - config.tail, diverge_e)
     # a state that ran away while staying finite (beyond the rollout's bound) diverged too
     m["diverged"] = m["diverged"] | ~traj.healthy
-    idx = config.trace_steps
-    traces = {
-        "e": sig.eps[idx, 1].astype(jnp.float32),
-        "xy": sig.pos[idx, :2].astype(jnp.float32),
-    }
-    return m, traces
+    return m, _traces(sig, config.trace_steps)
+
+
+def segment_length(config: MCConfig) -> int:
+    """Steps per streamed segment: the trace stride (one trace sample starts each segment),
+    else 100."""
+    return config.record_stride if config.record_stride > 0 else min(100, config.num_steps)
+
+
+def streamed_metrics(loop, gains, nominal_params, sc: MCScenario, config: MCConfig, dt, diverge_e):
+    """:func:`simulate_scenario` + :func:`scenario_metrics` without the trajectory: the rollout
+    folds its record into the metrics' accumulator every :func:`segment_length` steps
+    (:func:`vcjax.rollout.rollout_reduce`), so memory does not grow with the horizon. Same
+    metrics and traces as the two functions (the sums in another order: equal to round-off).
+    """
+    n = config.num_steps
+    k0 = window_start(n, 1.0 - config.tail)
+    L = segment_length(config)
+    dtype = sc.eta0.dtype
+
+    def reduction(s: loops.Scenario) -> Reduction:
+        def update(acc, seg, ks):
+            sig = loop.signals(seg, s)
+            acc, healthy = acc
+            acc = metrics_update(acc, sig, seg.finite, ks, k0)
+            trace = _traces(sig, 0) if config.record_stride > 0 else None
+            return (acc, healthy & seg.healthy), trace
+
+        names = _act_names(loop, gains, s)
+        return Reduction((metrics_init(names, dtype), jnp.array(True)), update, L)
+
+    (acc, healthy), outs = simulate_scenario(
+        loop, gains, nominal_params, sc, config, dt, reduction
+    )[0]
+    m = metrics_finalize(acc, n, k0, dt, diverge_e)
+    m["diverged"] = m["diverged"] | ~healthy
+    if outs is None:
+        z = jnp.zeros((0,), jnp.float32)
+        outs = {"e": z, "xy": jnp.zeros((0, 2), jnp.float32)}
+    return m, outs
+
+
+def _act_names(loop, gains, s: loops.Scenario) -> tuple[str, ...]:
+    """The actuator names of ``loop.signals`` (traced abstractly on a one-step record)."""
+
+    def signals():
+        x0, z0 = loop.initial_state(s)
+        u0, _, aux0 = loop.control(s.eta0[0] * 0, x0, z0, loop.ctrl_params(gains, s))
+        rep = lambda tree, k: jax.tree_util.tree_map(lambda a: jnp.stack([a] * k), tree)
+        ok = jnp.ones((1,), bool)
+        traj = Trajectory(
+            rep(s.eta0[0], 2), rep(x0, 2), rep(z0, 2), rep(u0, 1), rep(aux0, 1), ok, ~ok
+        )
+        return loop.signals(traj, s).act
+
+    return tuple(jax.eval_shape(signals))
 
 
 @functools.partial(jax.jit, static_argnames=("loop", "config"))
 def _run_batch(loop, gains, nominal_params, scenarios, config, dt, diverge_e):
     def one(sc):
-        traj, s = simulate_scenario(loop, gains, nominal_params, sc, config, dt)
-        return scenario_metrics(loop, traj, s, config, diverge_e)
+        return streamed_metrics(loop, gains, nominal_params, sc, config, dt, diverge_e)
 
     return jax.vmap(one)(scenarios)
 
