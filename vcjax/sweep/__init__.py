@@ -26,8 +26,11 @@ Modules, by job:
 * :mod:`vcjax.sweep.spec`: :class:`SweepSpec`, :class:`ScenarioSpec`, :func:`sample_scenarios`
   -> :class:`MCScenario`;
 * :mod:`vcjax.sweep.run`: :func:`simulate_scenario` (one scenario, pure; ``jax.vmap`` it),
-  :func:`scenario_metrics` (:func:`vcjax.metrics.run_metrics`), :func:`run_batch` (jitted
-  ``vmap``, one compile per loop and static :class:`MCConfig`), :func:`run_sweep` (fixed-size
+  :func:`scenario_metrics` (:func:`vcjax.metrics.run_metrics` of its trajectory),
+  :func:`streamed_metrics` (the same without storing the trajectory: the rollout folds its
+  record into the metrics segment by segment, :func:`vcjax.rollout.rollout_reduce`),
+  :func:`run_batch` (jitted ``vmap`` of the streamed metrics, one compile per loop and static
+  :class:`MCConfig`), :func:`run_sweep` (fixed-size
   chunks, the last one padded, the scenario axis sharded over the local devices, a progress bar;
   in a multi-process run each process takes its share of chunks);
 * :mod:`vcjax.sweep.results`: :func:`summarize`, :func:`save_results`, :func:`load_results`,
@@ -125,6 +128,7 @@ from vcjax.sweep.run import (
     run_sweep,
     scenario_metrics,
     simulate_scenario,
+    streamed_metrics,
     to_scenario,
 )
 from vcjax.sweep.spec import MCConfig, MCScenario, ScenarioSpec, SweepSpec, sample_scenarios
@@ -150,6 +154,7 @@ __all__ = [
     "save_results",
     "scenario_metrics",
     "simulate_scenario",
+    "streamed_metrics",
     "summarize",
     "to_scenario",
 ]
