@@ -6,6 +6,9 @@ PY=${1:-.venv/bin/python}
 R=benchmarks/results
 export PYTHONPATH=${PYTHONPATH:-$PWD}
 $PY -m benchmarks.before_after --json $R/before_after_float32.json
+# the streamed sweep (rollout_reduce) against the last commit that stored whole trajectories
+$PY -m benchmarks.before_after --before b39f07b --kinds sweep --batch 8192 --steps 3000 \
+  --json $R/before_after_sweep_float32.json > $R/before_after_sweep_float32.txt
 for n in 1 2; do
   VCJAX_CPU_DEVICES=$n $PY -m vcjax.cli sweep benchmarks/configs/sweep_8192x3000.toml --no-x64 \
     --out /tmp/vcjax-sweep-bench-$n 2> $R/sweep_8192x3000_devices$n.txt >/dev/null
@@ -25,3 +28,5 @@ $PY -m benchmarks.loops --loops remus100 --batch 256 --steps 100 \
   --json $R/loops_remus100_float32.json > $R/loops_remus100_float32.txt
 $PY -m benchmarks.numpy_remus100 --cpu-devices 2 --json $R/remus100_float32.json > $R/remus100_float32.txt
 $PY -m benchmarks.cost_analysis --quick --json $R/cost_float32.json > $R/cost_float32.txt
+$PY -m benchmarks.gradient_cost --batches 1024 --no-memory --json $R/gradient_b1024_float32.json \
+  > $R/gradient_b1024_float32.txt
