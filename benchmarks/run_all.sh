@@ -30,3 +30,4 @@ $PY -m benchmarks.numpy_remus100 --cpu-devices 2 --json $R/remus100_float32.json
 $PY -m benchmarks.cost_analysis --quick --json $R/cost_float32.json > $R/cost_float32.txt
 $PY -m benchmarks.gradient_cost --batches 1024 --no-memory --json $R/gradient_b1024_float32.json \
   > $R/gradient_b1024_float32.txt
+$PY -m benchmarks.layout --json $R/layout_float32.json > $R/layout_float32.txt
