@@ -84,3 +84,22 @@ def test_design_model_validation():
         rd.design_model(P, U_design=0.0)
     with pytest.raises(ValueError, match="vehicle"):
         rd.design_model(object())
+
+
+def test_horizontal_design_matches_slopes_but_carries_a_munk_moment_the_model_lacks():
+    """(20)'s C_b has the Munk yaw moment (m22 - m11) u v; the design model (PVS) has none, and
+    d32 cancels it at u = U_design only. The residue is exactly (m22 - m11)(u - U) v: what made
+    the decoupled baseline's heading row wrong when crabbing (so it uses body_bias5's rows)."""
+    from vcjax.vehicles import design3dof as d3
+
+    dm = rd.design_model(r100.remus100_params(), U_design=1.5)
+    h = rd.horizontal_design(dm)
+    for u, v, r in [(1.5, 0.0, 0.02), (1.5, 0.3, 0.0), (1.37, 0.2, 0.0), (1.6, -0.3, 0.01)]:
+        n3 = np.asarray(d3.body_bias(h, jnp.asarray([u, v, r])))
+        n5 = np.asarray(rd.body_bias5(dm, jnp.zeros(5), jnp.asarray([u, v, 0.0, 0.0, r])))
+        munk = (float(h.m22) - float(h.m11)) * (u - 1.5) * v
+        np.testing.assert_allclose(n3[2] - n5[4], munk, atol=1e-9)
+    # crabbing into 0.3 m/s with u 0.1 m/s off the design speed: over half the rudder's moment
+    k_r, _ = rd.fin_gains(dm, jnp.asarray([1.5, 0.0, 0.0, 0.0, 0.0, 0.0]))
+    N_max = float(k_r * abs(P.x_r) * P.act_max[0])  # ~1.2 N m
+    assert (float(h.m22) - float(h.m11)) * 0.1 * 0.3 > 0.5 * N_max

@@ -442,3 +442,15 @@ def test_sharded_over_four_cpu_devices_equals_single_device():
     )
     assert r.returncode == 0, r.stderr[-3000:]
     assert "SHARDED_OK" in r.stdout
+
+
+def test_variants_without_a_paper_style_get_a_full_line_style():
+    """Variants of other loops (e.g. remus100's vcm3d_ilos) are not in plots.STYLE: the fallback
+    style carries every key the figures read (the REMUS sweep died on a missing 'ls')."""
+    from vcjax import sweep_plots
+    from vcjax.plots import STYLE
+
+    keys = set().union(*(set(s) for s in STYLE.values()))
+    for v in ("vcm3d_ilos", "alos3d", "decoupled"):
+        assert v not in STYLE
+        assert keys <= set(sweep_plots._style(v))

@@ -33,7 +33,7 @@ def _style(v) -> dict:
     if v in STYLE:
         return STYLE[v]
     cycle = ("tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
-    return {"color": cycle[sum(map(ord, v)) % len(cycle)], "label": v}
+    return {"color": cycle[sum(map(ord, v)) % len(cycle)], "ls": "-", "label": v}
 
 
 def _path_xy(result):

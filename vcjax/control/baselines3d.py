@@ -27,11 +27,24 @@ along-, cross- and vertical-track errors).
   (31)/(38) on a 3-DOF design model (with its ILOS angle and integral action, as configured)
   plus a depth loop through pitch: ``theta_d = theta_p + atan((h + sigma_v h_int) / Delta_v)``
   and the PID pitch autopilot.
+
+  The 3-DOF model's body bias. The structure (20) has a skew-symmetric ``C_b(nu)`` built from
+  ``M_b``, hence the Munk yaw moment ``(m22 - m11) u v``. A vehicle model without it (PVS's
+  REMUS 100 zeroes those ``C_A`` entries) can be matched by (20) only in slope at one speed
+  (``d32`` cancels it at ``u = U_design``); the residue ``(m22 - m11)(u - U_design) v`` is
+  second order at straight motion, but the law measures velocity over ground, and a vehicle
+  crabbing into a cross current has ``v`` of the current's size. On REMUS under 0.3 m/s it is
+  up to ~0.9 N m of phantom yaw moment while a 15 deg rudder gives 1.2 N m at 1.5 m/s: the
+  heading row was enforced on the wrong model and the vehicle oscillated in heading along
+  every leg. :class:`DecoupledConfig` ``body_bias`` therefore lets the horizontal law use the
+  surge, sway and yaw rows of the full design model's bias (``M_b`` stays the 3-DOF one); with
+  ``None`` the 3-DOF model's own (20) bias is used.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from typing import Any, Literal, NamedTuple
 
 import jax.numpy as jnp
@@ -127,6 +140,8 @@ class Baseline3DParams(NamedTuple):
         path: path coefficients.
         horizontal: the 2-D VCM law's :class:`~vcjax.control.params.LawParams`
             (``decoupled_law`` only; ``None`` otherwise).
+        design: the design model's parameters passed to :class:`DecoupledConfig` ``body_bias``
+            (``decoupled_law`` with ``body_bias`` only; ``None`` otherwise).
     """
 
     gains: Any
@@ -135,16 +150,19 @@ class Baseline3DParams(NamedTuple):
     u_d: Any
     path: Any
     horizontal: Any = None
+    design: Any = None
 
 
-def baseline3d_params(gains, inertia, drag, path, u_d=1.5, horizontal=None) -> Baseline3DParams:
+def baseline3d_params(
+    gains, inertia, drag, path, u_d=1.5, horizontal=None, design=None
+) -> Baseline3DParams:
     """Validated :class:`Baseline3DParams`."""
     if not isinstance(gains, AutopilotGains):
         raise ValueError(f"gains: expected AutopilotGains, got {type(gains).__name__}")
     check_positive("inertia", inertia, (3,))
     check_positive("u_d", u_d, ())
     f = lambda x: jnp.asarray(x, dtype=float)
-    return Baseline3DParams(gains, f(inertia), f(drag), f(u_d), path, horizontal)
+    return Baseline3DParams(gains, f(inertia), f(drag), f(u_d), path, horizontal, design)
 
 
 class BaselineAux(NamedTuple):
@@ -255,9 +273,14 @@ def _eps_rate(f, eps, p_dot, varpi_dot):
 @dataclasses.dataclass(frozen=True)
 class DecoupledConfig:
     """Static: the horizontal :class:`~vcjax.control.vcm.VCMConfig` (its path is the 3-D path;
-    the 2-D law uses the projection)."""
+    the 2-D law uses the projection) and ``body_bias``: ``None`` (the 3-DOF model's own bias
+    of (20)) or ``body_bias(design, q5, nu5) -> (5,)``, the full design model's bias
+    ``[X, Y, Z, M, N]`` at ``q5 = [x, y, z, theta, psi]``, ``nu5 = [u, v, w, q, r]``
+    (``design`` is :class:`Baseline3DParams` ``design``), whose ``X, Y, N`` rows the horizontal
+    law then uses (module docstring)."""
 
     horizontal: VCMConfig
+    body_bias: Callable | None = None
 
 
 class DecoupledState(NamedTuple):
@@ -284,7 +307,14 @@ def decoupled_law(cfg: DecoupledConfig, params: Baseline3DParams, t, q, qd, nu5,
     hp = params.horizontal
     eta3 = jnp.stack([q[0], q[1], q[4]])
     nu3 = jnp.stack([nu5[0], nu5[1], nu5[4]])
-    tau3, zh_dot, aux = vcm_law(cfg.horizontal, hp, t, eta3, nu3, z.horizontal)
+    if cfg.body_bias is None:
+        n_b = None
+    else:
+        if params.design is None:
+            raise ValueError("decoupled_law: body_bias needs Baseline3DParams.design")
+        n5 = cfg.body_bias(params.design, q, nu5)
+        n_b = jnp.stack([n5[0], n5[1], n5[4]])
+    tau3, zh_dot, aux = vcm_law(cfg.horizontal, hp, t, eta3, nu3, z.horizontal, n_b=n_b)
     f, eps = path_errors_3d(cfg.horizontal.path, hp.path, z.horizontal.varpi, q[:3])
     h = eps[2]
     Dv = g.Delta[1]

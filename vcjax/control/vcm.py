@@ -209,7 +209,7 @@ class VCMAux(NamedTuple):
     ls_residual: Any  # || W_b nu_dot + h ||: 0 once the rows are consistent
 
 
-def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState):
+def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState, n_b=None):
     """The VCM control law (31)/(38)/(41).
 
     Args:
@@ -219,6 +219,10 @@ def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState):
         eta: (3,) ``[x, y, psi]`` measured pose.
         nu: (3,) ``[u, v, r]`` measured body velocity over ground.
         z: :class:`VCMState`.
+        n_b: optional (3,) body bias ``[X, Y, N]`` [N, N, N m] at ``nu`` replacing the design
+            model's ``C_b(nu) nu + D_b nu`` of (20) (``M_b`` stays the design model's): for a
+            caller whose vehicle model of these three rows is richer than (20)'s structure
+            (the decoupled 3-D baseline, :func:`vcjax.control.baselines3d.decoupled_law`).
 
     Returns:
         ``(tau, z_dot, aux)``: (3,) body force ``[tau_u, tau_v, tau_r]`` [N, N, N m] (when
@@ -267,7 +271,7 @@ def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState):
     psi_tilde = wrap_angle(eta[2] - psi_d)
     psi_tilde_dot = r - (kin.psi_p_dot + los0.psi_r_dot)
     pG1, pPhi3 = g.P_G[0], g.P_Phi[2]
-    n_b = d3.body_bias(m, nu)
+    n_b = d3.body_bias(m, nu) if n_b is None else n_b
     M_b = d3.mass_matrix(m)
 
     def command(v_d_dot):

@@ -5,7 +5,9 @@ Controllers (see :mod:`vcjax.sim_remus100` for the experiment built on the same 
 * ``vcm3d_ilos``: 3-D VCM (:mod:`vcjax.control.vcm3d`), underactuated in sway and heave (fin
   forces tied to their moments), integral action and integral-LOS angles in both planes;
 * ``vcm3d``: the same with the paper's approach angles (24) (integral action kept);
-* ``decoupled``: horizontal VCM (31)/(38) + depth through pitch (the paper's decoupled design);
+* ``decoupled``: horizontal VCM (31)/(38) + depth through pitch (the paper's decoupled design;
+  the 2-D law's mass matrix is the 3-DOF model's, its body bias the design model's ``X, Y, N``
+  rows, see :mod:`vcjax.control.baselines3d`);
 * ``alos3d``: ALOS3D guidance + PID heading/pitch autopilots + surge PI;
 * ``pvs_pid``: the same autopilots with plain LOS angles.
 
@@ -84,9 +86,11 @@ def remus_gains() -> RemusGains:
             k_int=(0.03, 0.03, 0.03),
             sigma_i=(0.5, 0.5),
         ),
+        # the 2-D law's heading and position rows at vcm3d's poles (heading 1 and 2 rad/s,
+        # eps 0.2 and 0.4 rad/s); at half those heading poles the turns overshoot by 4.6 m
         horizontal=pm_gains(
-            P_G=(0.5, 0.2, 0.2),
-            P_Phi=(0.5, 0.3, 1.0, 0.4, 0.4),
+            P_G=(1.0, 0.2, 0.2),
+            P_Phi=(0.5, 0.3, 2.0, 0.4, 0.4),
             Delta=8.0,
             sigma=0.3,
             P_int=(0.001, 0.001),
@@ -211,7 +215,7 @@ class Remus100Loop(Loop):
             return law
         if c == "decoupled":
             hcfg = VCMConfig(path=self.path, actuation="underactuated", edd=self.edd, integral=True)
-            dcfg = DecoupledConfig(dataclasses.replace(hcfg, guidance="ilos"))
+            dcfg = DecoupledConfig(dataclasses.replace(hcfg, guidance="ilos"), rd.body_bias5)
 
             def law(t, q, qd, nu5, z, params):
                 tau, z_dot, aux = decoupled_law(dcfg, params, t, q, qd, nu5, z)
@@ -257,7 +261,7 @@ class Remus100Loop(Loop):
                 k_rudder=1.0 / sc.design.x_r,
             )  # fmt: skip
             ap = gains.decoupled_autopilot
-            return baseline3d_params(ap, inertia, drag, sc.path, sc.u_d, horiz), dm
+            return baseline3d_params(ap, inertia, drag, sc.path, sc.u_d, horiz, dm), dm
         return baseline3d_params(gains.autopilot, inertia, drag, sc.path, sc.u_d), dm
 
     def initial_state(self, sc: Scenario):

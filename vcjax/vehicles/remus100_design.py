@@ -209,6 +209,11 @@ def horizontal_design(dm: Remus100Design):
     secant ``X(U) / U`` (the steady drag is fed forward exactly); ``d22, d23, d32, d33`` such that
     ``C_b(nu) nu + D_b nu`` of (20) has the 5-DOF model's slopes in ``(v, r)`` there (as
     :func:`vcjax.vehicles.infante.design_model` with ``match_coriolis``). Jit-safe.
+
+    Only the slopes match: (20)'s ``C_b`` carries the Munk yaw moment ``(m22 - m11) u v`` that
+    this model lacks (PVS zeroes it), and ``d32`` cancels it at ``u = U_design`` only. The
+    ``remus100`` loop's ``decoupled`` law therefore takes ``M_b`` from here and the bias from
+    :func:`body_bias5` (see :mod:`vcjax.control.baselines3d`).
     """
     M = mass_matrix5(dm)
     U = dm.U_design
