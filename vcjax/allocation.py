@@ -70,6 +70,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax._checks import check_array
+from vcjax.linalg import spd_solve_small
 
 __all__ = ["Allocation", "allocate", "clip_allocate", "pinv_allocate"]
 
@@ -114,7 +115,7 @@ def _masked_lstsq(T, mask, r, lam):
     """Minimum-norm least-squares ``f`` (zero off ``mask``) of ``T diag(mask) f = r``."""
     TM = T * mask[None, :]
     A = TM @ T.T + lam * jnp.eye(T.shape[0], dtype=T.dtype)
-    return mask * (T.T @ jnp.linalg.solve(A, r))
+    return mask * (T.T @ spd_solve_small(A, r))
 
 
 def _finish(T, tau, f, f_max, valid=True) -> Allocation:

@@ -34,11 +34,16 @@ from typing import Any, Literal, NamedTuple
 
 import jax
 import jax.numpy as jnp
-import jax.scipy.linalg as jsl
 import numpy as np
 
 from vcjax._checks import check_array, check_spd, is_concrete
-from vcjax.linalg import safe_norm
+from vcjax.linalg import (
+    cho_solve_small,
+    cholesky_small,
+    lstsq_small,
+    safe_norm,
+    solve_small,
+)
 
 __all__ = [
     "MechanicalSystem",
@@ -300,20 +305,19 @@ def _constrained_acceleration(M, n_vec, tau, W, h, method):
     f = tau - n_vec
     if method == "row":
         # (16): W M⁻¹ Wᵀ λ = W M⁻¹ (τ − n) + h,  τ_c = −Wᵀ λ.
-        cM = jsl.cho_factor(M, lower=True)
-        Minv_WT = jsl.cho_solve(cM, W.T)
-        Minv_f = jsl.cho_solve(cM, f)
+        L_M = cholesky_small(M)
+        Minv_WT = cho_solve_small(L_M, W.T)
+        Minv_f = cho_solve_small(L_M, f)
         S = W @ Minv_WT
-        lam = jsl.cho_solve(jsl.cho_factor(S, lower=True), W @ Minv_f + h)
+        lam = cho_solve_small(cholesky_small(S), W @ Minv_f + h)
         tau_c = -W.T @ lam
         qdd = Minv_f - Minv_WT @ lam
-        spd = _mass_spd(M, cM[0])
+        spd = _mass_spd(M, L_M)
     else:
         # (17): τ_c = n − τ − M W† h, W† h computed by a reduced QR (least squares).
-        Q, R = jnp.linalg.qr(W, mode="reduced")
-        qdd = -jsl.solve_triangular(R, Q.T @ h, lower=False)
+        qdd = -lstsq_small(W, h)
         tau_c = M @ qdd - f
-        spd = _mass_spd(M, jnp.linalg.cholesky(jax.lax.stop_gradient(M)))
+        spd = _mass_spd(M, cholesky_small(jax.lax.stop_gradient(M)))
     return tau_c, qdd, spd
 
 
@@ -470,16 +474,16 @@ def from_body_frame(
 
     def mass_matrix(q, args):
         J = kinematics(q, args)
-        Jinv_T = jnp.linalg.solve(J.T, jnp.eye(J.shape[0], dtype=J.dtype))
+        Jinv_T = solve_small(J.T, jnp.eye(J.shape[0], dtype=J.dtype))
         M = Jinv_T @ body_mass_matrix(q, args) @ Jinv_T.T
         return 0.5 * (M + M.T)
 
     def bias_force(q, qd, args):
         J, J_dot = jax.jvp(lambda q_: kinematics(q_, args), (q,), (qd,))
-        nu = jnp.linalg.solve(J, qd)
+        nu = solve_small(J, qd)
         Mb = body_mass_matrix(q, args)
-        rhs = body_bias_force(q, nu, args) - Mb @ jnp.linalg.solve(J, J_dot @ nu)
-        return jnp.linalg.solve(J.T, rhs)
+        rhs = body_bias_force(q, nu, args) - Mb @ solve_small(J, J_dot @ nu)
+        return solve_small(J.T, rhs)
 
     return MechanicalSystem(mass_matrix=mass_matrix, bias_force=bias_force)
 
@@ -593,13 +597,13 @@ def underactuated_reaction_force(
     A_u, b_u = under.unactuated(q, qd, t, args)
     A_u = jnp.atleast_2d(A_u)
     gap0 = A_u @ out0[0] - b_u
-    mu = -jnp.linalg.solve(A_u @ slopes[0].T, gap0)
+    mu = -solve_small(A_u @ slopes[0].T, gap0)
     tau_c, qdd, terms = jax.tree_util.tree_map(
         lambda a, s: a + jnp.tensordot(mu, s, axes=1), out0, slopes
     )
     rank, cond, full = _rank_cond(terms.W)
     residual = safe_norm(terms.W @ qdd + terms.h)
-    spd = _mass_spd(M, jnp.linalg.cholesky(jax.lax.stop_gradient(M)))
+    spd = _mass_spd(M, cholesky_small(jax.lax.stop_gradient(M)))
     finite = jnp.all(jnp.isfinite(tau_c)) & jnp.all(jnp.isfinite(qdd)) & jnp.isfinite(residual)
     diag = Diagnostics(
         Phi=terms.Phi,

@@ -64,7 +64,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax._checks import check_array, check_positive
-from vcjax.linalg import safe_norm, wrap_angle
+from vcjax.linalg import safe_norm, solve_small, wrap_angle
 from vcjax.mechanics import (
     MechanicalSystem,
     Underactuation,
@@ -342,9 +342,9 @@ def vcm3d_law(cfg: VCM3DConfig, params: VCM3DParams, t, q, qd, z: VCM3DState):
     f, eps = path_errors_3d(cfg.path, params.path, z.varpi, q[:3])
     psi_d, theta_d, _, _ = _angles(cfg, g, f, eps, zf)
     # nu_dot = J^-1 (q̈ - J̇ nu)
-    nu = jnp.linalg.solve(J, qd)
+    nu = solve_small(J, qd)
     J_dot = jax.jvp(lambda q_: cfg.kinematics(q_, m), (q,), (qd,))[1]
-    nu_dot = jnp.linalg.solve(J, qdd - J_dot @ nu)
+    nu_dot = solve_small(J, qdd - J_dot @ nu)
     aux = VCM3DAux(
         eps=eps,
         dist=safe_norm(eps),

@@ -39,7 +39,7 @@ import jax.numpy as jnp
 
 from vcjax import paths
 from vcjax._checks import check_positive
-from vcjax.linalg import rot2, saturate, smooth_saturate
+from vcjax.linalg import rot2, saturate, smooth_saturate, spd_solve_small
 from vcjax.loops.base import GainSpec, Loop, Scenario, Signals
 from vcjax.mechanics import MechanicalSystem, VCMGains, VirtualConstraints, reaction_force
 
@@ -163,7 +163,7 @@ class EngineLoop(Loop):
         q, qd = x
         sat = smooth_saturate if self.smooth else saturate
         tau = sat(u, p.tau_max) + dist
-        qdd = jnp.linalg.solve(self.mass_matrix(q, p), tau - self.bias_force(q, qd, p))
+        qdd = spd_solve_small(self.mass_matrix(q, p), tau - self.bias_force(q, qd, p))
         return qd, qdd
 
     def control(self, t, x, z, ctrl):

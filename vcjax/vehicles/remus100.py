@@ -92,7 +92,7 @@ from vcjax._checks import (
     float_dtype,
     is_concrete,
 )
-from vcjax.linalg import safe_norm, saturate, smooth_saturate
+from vcjax.linalg import safe_norm, saturate, smooth_saturate, spd_solve_small
 from vcjax.vehicles.sixdof import (
     SixDofParams,
     current_ned,
@@ -605,7 +605,7 @@ def _nu_dot(x: Remus100State, act_applied, args: Remus100Args):
         - (coriolis(p, nu_r) + damping(p, U_r)) @ nu_r
         - restoring(p, eta)
     )
-    return nu_c_dot + jnp.linalg.solve(mass_matrix(p), tau_sum)
+    return nu_c_dot + spd_solve_small(mass_matrix(p), tau_sum)
 
 
 # --------------------------------------------------------------------------------------------

@@ -42,6 +42,7 @@ from vcjax._checks import (
     is_concrete,
 )
 from vcjax.currents import current_ned  # noqa: F401 (re-exported)
+from vcjax.linalg import spd_solve_small
 
 __all__ = [
     "Smtrx",
@@ -436,7 +437,7 @@ def vector_field(p: SixDofParams, eta, nu, tau, v_c=None, v_c_dot=None):
         nu_c, nu_c_dot = current_in_body(eta, nu, v_c, v_c_dot)
         nu_r = nu - nu_c
     rhs = tau - coriolis(p, nu_r) @ nu_r - p.D @ nu_r - restoring(p, eta)
-    nu_r_dot = jnp.linalg.solve(mass_matrix(p), rhs)
+    nu_r_dot = spd_solve_small(mass_matrix(p), rhs)
     return kinematics(eta) @ nu, nu_r_dot + nu_c_dot
 
 
