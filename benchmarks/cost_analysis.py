@@ -5,6 +5,9 @@
    programs with different horizons are fitted as ``a + b N``; if ``b`` is per-step sized the
    per-step cost is ``b / B``, otherwise ``a / B`` (the body counted once plus a small fixed
    part). Both raw numbers are reported.
+   Kernels per step: the top-level instructions of the compiled ``while`` body that launch
+   work (``fusion``, ``dot``, ``custom-call`` such as LAPACK, ``call``), counted in
+   ``compiled.as_text()`` for each controller timing, batched and single.
 2. The achieved rate (flops/step x measured steps/s) as a fraction of the machine's measured
    float32 matmul rate (jitted ``n x n @ n x n``, best of repeats).
 3. A breakdown by component, each vmapped over the batch and iterated ``--iters`` times in a
@@ -49,7 +52,7 @@ def matmul_rate(n: int, repeats: int) -> dict:
     return {"n": n, "best_s": t, "flops_per_s": 2.0 * n**3 / t, "cpu_s": C.LAST_CPU_S}
 
 
-def step_flops(batch: int) -> dict:
+def step_flops(batch: int, timing: str = "continuous") -> dict:
     """Flops of the batched rollout for several horizons; per trajectory-step estimate."""
     import jax
 
@@ -57,7 +60,7 @@ def step_flops(batch: int) -> dict:
     scb = C.batched_scenario(sc, batch)
     raw = {}
     for n in (10, 100, 1000):
-        comp = jax.jit(C.metric_fn(n)).lower(gains, scb, C.DT).compile()
+        comp = jax.jit(C.metric_fn(n, timing=timing)).lower(gains, scb, C.DT).compile()
         ca = C.cost(comp)
         raw[n] = {
             "flops": float(ca.get("flops", 0.0)),
@@ -77,12 +80,56 @@ def step_flops(batch: int) -> dict:
         per_step_bytes = (raw[1000]["bytes_accessed"] - raw[100]["bytes_accessed"]) / 900 / batch
     return {
         "batch": batch,
+        "timing": timing,
         "raw_by_horizon": raw,
         "while_body_counted_once": body_once,
         "flops_per_step": per_step,
         "transcendentals_per_step": per_step_tr,
         "bytes_per_step_upper": per_step_bytes,
     }
+
+
+#: opcodes of a ``while`` body's top-level instructions that each run as one kernel on the CPU
+KERNEL_OPS = ("fusion", "dot", "custom-call", "call", "convolution", "sort", "scatter", "gather")
+
+
+def while_body_kernels(hlo_text: str) -> dict:
+    """Count the kernels of the largest ``while`` body in an optimised HLO module's text: its
+    top-level instructions by opcode (``KERNEL_OPS``; everything else, e.g. tuples, bitcasts,
+    parameters and constants, launches nothing)."""
+    import re
+
+    bodies = re.findall(r"\bwhile\(.*?body=%?([\w.\-]+)", hlo_text)
+    blocks = {}
+    for m in re.finditer(r"^%?([\w.\-]+) [^\n]*\{\n(.*?)^\}", hlo_text, re.S | re.M):
+        blocks[m.group(1)] = m.group(2)
+    best = {}
+    for name in bodies:
+        counts = dict.fromkeys(KERNEL_OPS, 0)
+        for line in blocks.get(name, "").splitlines():
+            m = re.match(r"\s*(?:ROOT )?%?[\w.\-]+ = [^=]*?\s([a-z\-]+)\(", line)
+            if m and m.group(1) in counts:
+                counts[m.group(1)] += 1
+        counts = {k: v for k, v in counts.items() if v}
+        if sum(counts.values()) > sum(best.values()):
+            best = counts
+    return {**best, "total": sum(best.values())}
+
+
+def kernel_rows(batch: int) -> list[dict]:
+    """Kernels per closed-loop step for each controller timing, single and batched."""
+    import jax
+
+    gains, sc = C.base_inputs()
+    rows = []
+    for timing in ("continuous", "sampled"):
+        for b in (1, batch):
+            f = C.metric_fn(100, batched=b > 1, timing=timing)
+            s = C.batched_scenario(sc, b) if b > 1 else sc
+            comp = jax.jit(f).lower(gains, s, C.DT).compile()
+            k = while_body_kernels(comp.as_text())
+            rows.append({"timing": timing, "batch": b, **k})
+    return rows
 
 
 def _loop_time(body, init, iters, repeats):
@@ -193,26 +240,42 @@ def main(argv=None):
 
     mm = matmul_rate(args.matmul_n, args.repeats)
     print(f"float32 matmul {args.matmul_n}: {mm['flops_per_s'] / 1e9:.1f} GFLOP/s", flush=True)
-    fl = step_flops(args.batch)
-    run = T.batched_rollout(args.batch, args.steps, args.repeats, args.dtype)
-    achieved = fl["flops_per_step"] * run["steps_per_s"]
-    summary = {
-        "dtype": args.dtype,
-        "device": C.device_str(),
-        "batch": args.batch,
-        "flops_per_step": fl["flops_per_step"],
-        "transcendentals_per_step": fl["transcendentals_per_step"],
-        "steps_per_s": run["steps_per_s"],
-        "achieved_GFLOP_s": achieved / 1e9,
-        "matmul_f32_GFLOP_s": mm["flops_per_s"] / 1e9,
-        "fraction_of_matmul": achieved / mm["flops_per_s"],
-        "steps_per_s_at_matmul_rate": mm["flops_per_s"] / fl["flops_per_step"],
-        "load": C.load_average(),
-    }
-    C.print_table([summary], list(summary), "flops per closed-loop step vs matmul rate")
-    print(f"  (XLA while body counted once: {fl['while_body_counted_once']}; raw by horizon:")
-    for n, r in fl["raw_by_horizon"].items():
-        print(f"     N={n}: {r})")
+    summaries, flops, runs = [], {}, {}
+    for timing in ("continuous", "sampled"):
+        fl = flops[timing] = step_flops(args.batch, timing)
+        run = runs[timing] = T.batched_rollout(
+            args.batch, args.steps, args.repeats, args.dtype, timing
+        )
+        achieved = fl["flops_per_step"] * run["steps_per_s"]
+        summaries.append(
+            {
+                "timing": timing,
+                "dtype": args.dtype,
+                "device": C.device_str(),
+                "batch": args.batch,
+                "flops_per_step": fl["flops_per_step"],
+                "transcendentals_per_step": fl["transcendentals_per_step"],
+                "steps_per_s": run["steps_per_s"],
+                "steps_per_cpu_s": args.batch * args.steps / run["cpu_s"],
+                "achieved_GFLOP_s": achieved / 1e9,
+                "matmul_f32_GFLOP_s": mm["flops_per_s"] / 1e9,
+                "fraction_of_matmul": achieved / mm["flops_per_s"],
+                "steps_per_s_at_matmul_rate": mm["flops_per_s"] / fl["flops_per_step"],
+                "load": C.load_average(),
+            }
+        )
+    C.print_table(summaries, list(summaries[0]), "flops per closed-loop step vs matmul rate")
+    for timing, fl in flops.items():
+        print(f"  {timing}: XLA while body counted once: {fl['while_body_counted_once']}; raw:")
+        for n, r in fl["raw_by_horizon"].items():
+            print(f"     N={n}: {r})")
+    run = runs["continuous"]
+    kern = kernel_rows(args.batch)
+    C.print_table(
+        kern,
+        ["timing", "batch", "total", *[k for k in KERNEL_OPS if any(k in r for r in kern)]],
+        "kernels per closed-loop step (top-level instructions of the compiled while body)",
+    )
     comp = components(args.batch, args.iters, args.repeats)
     step_ns = 1e9 / run["steps_per_s"]
     for r in comp:
@@ -222,8 +285,17 @@ def main(argv=None):
         ["component", "batch", "iters", "ns_per_eval", "xla_flops_per_eval", "x4_share_of_step"],
         f"component breakdown (closed-loop RK4 step: {step_ns:.0f} ns per trajectory-step)",
     )
-    C.write_json(args.json, args, [summary], flops=fl, matmul=mm, components=comp, rollout=run)
-    return summary, comp
+    C.write_json(
+        args.json,
+        args,
+        summaries,
+        flops=flops,
+        matmul=mm,
+        components=comp,
+        rollout=runs,
+        kernels=kern,
+    )
+    return summaries, comp
 
 
 if __name__ == "__main__":

@@ -4,7 +4,10 @@ Loss: ``L(g) = mean_b sum_k (s_k^2 + e_k^2) dt`` over a batch of scenarios (rand
 and currents), differentiated w.r.t. every field of the VCM gains (:class:`PMGains`).
 
 1. Timing, in ``--dtype``, for a few batch sizes: the forward loss alone vs
-   ``jax.value_and_grad`` (plain and with ``RolloutConfig(checkpoint=True)``), and the ratios.
+   ``jax.value_and_grad`` (plain and with ``RolloutConfig(checkpoint=True)``), and the ratios;
+   also the ratio of XLA's flop counts (``cost_analysis()``, which counts each ``while`` body
+   once, so the ratio is per step: the gradient program's forward and backward bodies against
+   the forward's body).
 2. Memory for ``--mem-batch`` x ``--mem-steps`` (default 8192 x 4000) in float64, with and
    without ``jax.checkpoint``: XLA's static ``compiled.memory_analysis()`` (argument + output +
    temp bytes) for the forward and both gradients (nothing allocated: the inputs are
@@ -28,6 +31,8 @@ from benchmarks import _common as C
 COLUMNS = [
     "batch",
     "steps",
+    "timing",
+    "segment",
     "dtype",
     "device",
     "fwd_s",
@@ -37,6 +42,8 @@ COLUMNS = [
     "ckpt_over_fwd",
     "ckpt_seg_over_fwd",
     "jacfwd_over_fwd",
+    "flops_grad_over_fwd",
+    "flops_ckpt_seg_over_fwd",
     "compile_fwd_s",
     "compile_grad_s",
     "load",
@@ -50,6 +57,18 @@ def parse_args(argv=None):
     C.add_common_args(p)
     p.add_argument("--batches", type=int, nargs="+", default=None, help="default 1 64 1024")
     p.add_argument("--steps", type=int, default=None, help="default 500")
+    p.add_argument(
+        "--timing",
+        choices=("continuous", "sampled"),
+        default="continuous",
+        help="controller timing (RolloutConfig.timing); the tuner's default is continuous",
+    )
+    p.add_argument(
+        "--segment",
+        type=int,
+        default=10,
+        help="checkpoint_every of the segment-checkpointed gradient (default 10)",
+    )
     p.add_argument("--mem-batch", type=int, default=8192)
     p.add_argument("--mem-steps", type=int, default=4000)
     p.add_argument(
@@ -79,7 +98,7 @@ def parse_args(argv=None):
     return args
 
 
-def loss_fn(num_steps: int, checkpoint: bool, every: int = 1):
+def loss_fn(num_steps: int, checkpoint: bool, every: int = 1, timing: str = "continuous"):
     """``L(pm_gains, scenario_batch, dt)``: mean over the batch of sum (s^2 + e^2) dt."""
     import jax
     import jax.numpy as jnp
@@ -88,7 +107,11 @@ def loss_fn(num_steps: int, checkpoint: bool, every: int = 1):
     from vcjax.rollout import RolloutConfig
 
     cfg = RolloutConfig(
-        num_steps=num_steps, integrator="rk4", checkpoint=checkpoint, checkpoint_every=every
+        num_steps=num_steps,
+        integrator="rk4",
+        checkpoint=checkpoint,
+        checkpoint_every=every,
+        timing=timing,
     )
     base = sim1.default_gains()
 
@@ -103,30 +126,37 @@ def loss_fn(num_steps: int, checkpoint: bool, every: int = 1):
     return loss
 
 
-#: segment length of the ``grad_checkpoint_seg`` program (``RolloutConfig.checkpoint_every``)
+#: default segment length of the ``grad_checkpoint_seg`` program (``--segment``)
 SEGMENT = 10
 
 
-def _programs(num_steps):
+def _programs(num_steps, timing="continuous", segment=SEGMENT):
     import jax
 
+    def lf(checkpoint, every=1):
+        return loss_fn(num_steps, checkpoint, every, timing)
+
     return {
-        "forward": jax.jit(loss_fn(num_steps, False)),
-        "grad": jax.jit(jax.value_and_grad(loss_fn(num_steps, False))),
-        "grad_checkpoint": jax.jit(jax.value_and_grad(loss_fn(num_steps, True))),
-        "grad_checkpoint_seg": jax.jit(jax.value_and_grad(loss_fn(num_steps, True, SEGMENT))),
+        "forward": jax.jit(lf(False)),
+        "grad": jax.jit(jax.value_and_grad(lf(False))),
+        "grad_checkpoint": jax.jit(jax.value_and_grad(lf(True))),
+        "grad_checkpoint_seg": jax.jit(jax.value_and_grad(lf(True, segment))),
         # forward mode: 12 gain scalars -> 12 tangents carried along the scan, no residuals
-        "jacfwd": jax.jit(jax.jacfwd(loss_fn(num_steps, False))),
+        "jacfwd": jax.jit(jax.jacfwd(lf(False))),
     }
 
 
-def timing_row(batch, steps, repeats, dtype):
+def timing_row(batch, steps, repeats, dtype, timing="continuous", segment=SEGMENT):
     gains, sc = C.base_inputs()
     pm, scb = gains.vcm, C.batched_scenario(sc, batch)
     out = {"batch": batch, "steps": steps, "dtype": dtype, "device": C.device_str()}
-    for name, f in _programs(steps).items():
+    out.update(timing=timing, segment=segment)
+    for name, f in _programs(steps, timing, segment).items():
         lower_s, compile_s, comp = C.compile_timed(f, pm, scb, C.DT)
         out[f"compile_{name}_s"] = lower_s + compile_s
+        # XLA's cost analysis counts each while body once: per-step flops of the program
+        out[f"{name}_flops"] = float(C.cost(comp).get("flops", 0.0))
+        out[f"{name}_transcendentals"] = float(C.cost(comp).get("transcendentals", 0.0))
         out[f"{name}_s"] = C.best_of(lambda comp=comp: comp(pm, scb, C.DT), repeats)
         out[f"{name}_cpu_s"] = C.LAST_CPU_S
     out["fwd_s"], out["grad_s"], out["grad_ckpt_s"] = (
@@ -139,6 +169,8 @@ def timing_row(batch, steps, repeats, dtype):
     out["ckpt_over_fwd"] = out["grad_ckpt_s"] / out["fwd_s"]
     out["jacfwd_over_fwd"] = out["jacfwd_s"] / out["fwd_s"]
     out["ckpt_seg_over_fwd"] = out["grad_checkpoint_seg_s"] / out["fwd_s"]
+    out["flops_grad_over_fwd"] = out["grad_flops"] / out["forward_flops"]
+    out["flops_ckpt_seg_over_fwd"] = out["grad_checkpoint_seg_flops"] / out["forward_flops"]
     out["load"] = C.load_average()
     return out
 
@@ -278,7 +310,9 @@ def main(argv=None):
     rows = []
     if not args.no_timing:
         for b in args.batches:
-            rows.append(timing_row(b, args.steps, args.repeats, args.dtype))
+            rows.append(
+                timing_row(b, args.steps, args.repeats, args.dtype, args.timing, args.segment)
+            )
             print(f"  batch {b}: grad/fwd = {rows[-1]['grad_over_fwd']:.2f}", flush=True)
         C.print_table(rows, COLUMNS, "forward vs value_and_grad (w.r.t. the VCM gains)")
     mem = [] if args.no_memory else memory_rows(args)

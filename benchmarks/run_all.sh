@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Every measurement of benchmarks/README.md (issue 12), one after the other, float32.
-# Usage: bash benchmarks/run_all.sh [PYTHON]   (from the repository root; ~30-60 min on 2 cores)
+# Usage: bash benchmarks/run_all.sh [PYTHON]   (from the repository root; ~25 min on a quiet 2-core machine)
 set -euo pipefail
 PY=${1:-.venv/bin/python}
 R=benchmarks/results
@@ -30,4 +30,9 @@ $PY -m benchmarks.numpy_remus100 --cpu-devices 2 --json $R/remus100_float32.json
 $PY -m benchmarks.cost_analysis --quick --json $R/cost_float32.json > $R/cost_float32.txt
 $PY -m benchmarks.gradient_cost --batches 1024 --no-memory --json $R/gradient_b1024_float32.json \
   > $R/gradient_b1024_float32.txt
+$PY -m benchmarks.gradient_cost --batches 1024 --no-memory --timing sampled \
+  --json $R/gradient_b1024_sampled_float32.json > $R/gradient_b1024_sampled_float32.txt
 $PY -m benchmarks.layout --json $R/layout_float32.json > $R/layout_float32.txt
+# the unrolled small solves on the 6-DOF loops, against the commit before them
+$PY -m benchmarks.loops_before_after --json $R/loops_linalg_before_after.json \
+  > $R/loops_linalg_before_after.txt
