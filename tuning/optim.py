@@ -120,6 +120,26 @@ def init_state(opt, theta):
     return jax.tree_util.tree_map(lambda x: jnp.asarray(x, dtype=jnp.asarray(x).dtype), st)
 
 
+def replicate_like(args, *trees):
+    """``trees`` placed, replicated, on the device mesh of the first sharded array in ``args``
+    (when that mesh spans several devices, all of this process); otherwise unchanged.
+
+    A jitted step whose arguments include a batch sharded over several devices returns its
+    parameters and optimiser state replicated over those devices. Fed back in, they differ in
+    sharding from the single-device arrays of the first call, and ``jax.jit`` compiles the
+    step a second time (the whole reverse-mode rollout: minutes for the 6-DOF loops). Starting
+    from the placement the step returns makes it compile once.
+    """
+    for leaf in jax.tree_util.tree_leaves(args):
+        sh = getattr(leaf, "sharding", None)
+        mesh = getattr(sh, "mesh", None)
+        if mesh is None or mesh.size < 2 or not sh.is_fully_addressable:
+            continue
+        rep = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec())
+        return tuple(jax.device_put(t, rep) for t in trees)
+    return trees
+
+
 def _finite(tree):
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree_util.tree_leaves(tree)]))
 
@@ -253,6 +273,7 @@ def run_gradient_tuner(
     step = step_fn or make_step(loss_fn, opt, optimizer, grad_mode)
     theta = jnp.asarray(theta0)
     state = init_state(opt, theta)
+    theta, state = replicate_like(args, theta, state)  # compile the step once, not twice
     scale = 1.0
     good = (theta, state)  # input of the last accepted step
     best_theta, best_loss = theta, np.inf
