@@ -240,6 +240,9 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     train_d, data_d, start = distribute(train, data, start)
     if train_d is not train:
         say(f"training batch sharded over {jax.device_count()} devices")
+        # gains copied per scenario: their gradient reduces across devices once, not per step
+        sharded = dataclasses.replace(problem, tile_gains=True)
+        loss_fn = lambda th, d, s: objective(th, d, s, sharded)[0]
     res = run_gradient_tuner(
         loss_fn,
         start,
