@@ -36,3 +36,6 @@ $PY -m benchmarks.layout --json $R/layout_float32.json > $R/layout_float32.txt
 # the unrolled small solves on the 6-DOF loops, against the commit before them
 $PY -m benchmarks.loops_before_after --json $R/loops_linalg_before_after.json \
   > $R/loops_linalg_before_after.txt
+# the tuner's gradient on a sharded batch: shared vs tiled gains
+$PY -m benchmarks.sharded_gradient --json $R/sharded_gradient_float32.json \
+  > $R/sharded_gradient_float32.txt

@@ -523,7 +523,7 @@ print(json.dumps(out))
 def test_tiled_gains_on_a_sharded_batch_reduce_once_with_the_same_gradient():
     """Training batch sharded over two devices: with the gains shared by the ``vmap``, XLA
     reduces their cotangent across devices at every step of the backward scan (all-reduce inside
-    the loop: 20x slower measured); tiled per scenario (``tile_gains``, what ``vcjax tune`` uses
+    the loop: 18x slower measured); tiled per scenario (``tile_gains``, what ``vcjax tune`` uses
     when it shards) the loop bodies hold no all-reduce. Loss and gradient are those of one device
     with the gains shared (1e-12)."""
     import os

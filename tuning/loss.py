@@ -135,8 +135,9 @@ class TuningProblem:
         tile_gains: copy the gains once per scenario before the ``vmap`` (for a batch sharded
             over several devices): the gradient w.r.t. the gains is then accumulated per
             scenario and reduced across devices once, instead of by an all-reduce at every step
-            of the backward scan (20x slower measured, 48 scenarios on 2 CPU devices); on one
-            device it costs ~1.5x, so ``vcjax tune`` sets it only when it shards the batch.
+            of the backward scan (18x slower measured, 48 scenarios on 2 CPU devices,
+            ``benchmarks/sharded_gradient.py``); on one device it brings nothing (measured equal
+            to 1.5x slower), so ``vcjax tune`` sets it only when it shards the batch.
     """
 
     space: GainSpace = GainSpace()
