@@ -125,6 +125,12 @@ def test_two_process_tuning_loss_and_gradient_equal_one_process(tmp_path, child_
     for r in recs:
         assert r["loss"] == pytest.approx(float(loss), rel=1e-12)
         np.testing.assert_allclose(r["grad"], np.asarray(grad), rtol=1e-10, atol=1e-12)
+        # tiled gains (vcjax tune on a sharded batch): the same loss and gradient
+        assert r["loss_tiled"] == pytest.approx(float(loss), rel=1e-12)
+        np.testing.assert_allclose(r["grad_tiled"], np.asarray(grad), rtol=1e-10, atol=1e-12)
+        # the tuner's step compiled once across processes (parameters start replicated)
+        assert r["step_compiles"] == 1
+    assert recs[0]["tuned_loss"] == recs[1]["tuned_loss"] < float(loss)
 
 
 def _slurm_port() -> int:

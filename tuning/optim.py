@@ -122,7 +122,8 @@ def init_state(opt, theta):
 
 def replicate_like(args, *trees):
     """``trees`` placed, replicated, on the device mesh of the first sharded array in ``args``
-    (when that mesh spans several devices, all of this process); otherwise unchanged.
+    (when that mesh spans several devices; global arrays when they span several processes, the
+    same value expected in every process); otherwise unchanged.
 
     A jitted step whose arguments include a batch sharded over several devices returns its
     parameters and optimiser state replicated over those devices. Fed back in, they differ in
@@ -133,8 +134,12 @@ def replicate_like(args, *trees):
     for leaf in jax.tree_util.tree_leaves(args):
         sh = getattr(leaf, "sharding", None)
         mesh = getattr(sh, "mesh", None)
-        if mesh is None or mesh.size < 2 or not sh.is_fully_addressable:
+        if mesh is None or mesh.size < 2:
             continue
+        if not sh.is_fully_addressable:  # a mesh over several processes: global arrays
+            from vcjax import distributed
+
+            return tuple(distributed.replicate(t, mesh) for t in trees)
         rep = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec())
         return tuple(jax.device_put(t, rep) for t in trees)
     return trees
