@@ -93,20 +93,25 @@ def step_flops(batch: int, timing: str = "continuous") -> dict:
 KERNEL_OPS = ("fusion", "dot", "custom-call", "call", "convolution", "sort", "scatter", "gather")
 
 
+def while_bodies(hlo_text: str) -> list[str]:
+    """The text of every ``while`` body computation in an optimised HLO module's text."""
+    import re
+
+    names = re.findall(r"\bwhile\(.*?body=%?([\w.\-]+)", hlo_text)
+    blocks = dict(re.findall(r"^%?([\w.\-]+) [^\n]*\{\n(.*?)^\}", hlo_text, re.S | re.M))
+    return [blocks.get(n, "") for n in names]
+
+
 def while_body_kernels(hlo_text: str) -> dict:
     """Count the kernels of the largest ``while`` body in an optimised HLO module's text: its
     top-level instructions by opcode (``KERNEL_OPS``; everything else, e.g. tuples, bitcasts,
     parameters and constants, launches nothing)."""
     import re
 
-    bodies = re.findall(r"\bwhile\(.*?body=%?([\w.\-]+)", hlo_text)
-    blocks = {}
-    for m in re.finditer(r"^%?([\w.\-]+) [^\n]*\{\n(.*?)^\}", hlo_text, re.S | re.M):
-        blocks[m.group(1)] = m.group(2)
     best = {}
-    for name in bodies:
+    for body in while_bodies(hlo_text):
         counts = dict.fromkeys(KERNEL_OPS, 0)
-        for line in blocks.get(name, "").splitlines():
+        for line in body.splitlines():
             m = re.match(r"\s*(?:ROOT )?%?[\w.\-]+ = [^=]*?\s([a-z\-]+)\(", line)
             if m and m.group(1) in counts:
                 counts[m.group(1)] += 1

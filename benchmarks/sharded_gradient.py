@@ -15,9 +15,9 @@ continuous controller), the best wall time of ``--repeats`` after a warm-up, and
 from __future__ import annotations
 
 import argparse
-import re
 
 from benchmarks import _common as C
+from benchmarks.cost_analysis import while_bodies
 
 COLUMNS = ["gains", "devices", "batch", "steps", "dtype", "run_s", "compile_s", "loop_allreduce"]
 
@@ -36,9 +36,7 @@ def parse_args(argv=None):
 
 def loop_allreduces(hlo_text: str) -> int:
     """``all-reduce`` instructions inside the ``while`` bodies of an HLO module's text."""
-    bodies = re.findall(r"\bwhile\(.*?body=%?([\w.\-]+)", hlo_text)
-    blocks = dict(re.findall(r"^%?([\w.\-]+) [^\n]*\{\n(.*?)^\}", hlo_text, re.S | re.M))
-    return sum(blocks.get(b, "").count("all-reduce(") for b in bodies)
+    return sum(body.count("all-reduce(") for body in while_bodies(hlo_text))
 
 
 def main(argv=None):

@@ -490,10 +490,11 @@ def test_tuner_compiles_its_step_once_when_the_batch_is_sharded():
 
 
 _SHARDED_GRAD = """
-import dataclasses, json, re
+import dataclasses, json
 import jax
 jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp, numpy as np
+from benchmarks.sharded_gradient import loop_allreduces
 from tuning.cli import distribute
 from tuning.loss import TuningProblem, objective, problem_data
 from tuning.scenarios import sample_scenarios
@@ -510,9 +511,7 @@ for tile in (False, True):
     f = jax.jit(jax.value_and_grad(lambda th, d, s: objective(th, d, s, p)[0]))
     v, g = f(theta_d, data_d, scen_d)
     text = f.lower(theta_d, data_d, scen_d).compile().as_text()
-    bodies = re.findall(r"\\bwhile\\(.*?body=%?([\\w.\\-]+)", text)
-    blocks = dict(re.findall(r"^%?([\\w.\\-]+) [^\\n]*\\{\\n(.*?)^\\}", text, re.S | re.M))
-    in_loops = sum(blocks.get(b, "").count("all-reduce(") for b in bodies)
+    in_loops = loop_allreduces(text)
     out[str(tile)] = {"v": float(v), "g": np.asarray(g).tolist(), "in_loops": in_loops}
 v1, g1 = jax.jit(jax.value_and_grad(lambda th: objective(th, data, scen, prob)[0]))(theta)
 out["single"] = {"v": float(v1), "g": np.asarray(g1).tolist()}
