@@ -22,6 +22,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 
 from benchmarks import _common as C
 
@@ -95,8 +96,6 @@ KERNEL_OPS = ("fusion", "dot", "custom-call", "call", "convolution", "sort", "sc
 
 def while_bodies(hlo_text: str) -> list[str]:
     """The text of every ``while`` body computation in an optimised HLO module's text."""
-    import re
-
     names = re.findall(r"\bwhile\(.*?body=%?([\w.\-]+)", hlo_text)
     blocks = dict(re.findall(r"^%?([\w.\-]+) [^\n]*\{\n(.*?)^\}", hlo_text, re.S | re.M))
     return [blocks.get(n, "") for n in names]
@@ -106,8 +105,6 @@ def while_body_kernels(hlo_text: str) -> dict:
     """Count the kernels of the largest ``while`` body in an optimised HLO module's text: its
     top-level instructions by opcode (``KERNEL_OPS``; everything else, e.g. tuples, bitcasts,
     parameters and constants, launches nothing)."""
-    import re
-
     best = {}
     for body in while_bodies(hlo_text):
         counts = dict.fromkeys(KERNEL_OPS, 0)

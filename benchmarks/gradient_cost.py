@@ -155,8 +155,9 @@ def timing_row(batch, steps, repeats, dtype, timing="continuous", segment=SEGMEN
         lower_s, compile_s, comp = C.compile_timed(f, pm, scb, C.DT)
         out[f"compile_{name}_s"] = lower_s + compile_s
         # XLA's cost analysis counts each while body once: per-step flops of the program
-        out[f"{name}_flops"] = float(C.cost(comp).get("flops", 0.0))
-        out[f"{name}_transcendentals"] = float(C.cost(comp).get("transcendentals", 0.0))
+        ca = C.cost(comp)
+        out[f"{name}_flops"] = float(ca.get("flops", 0.0))
+        out[f"{name}_transcendentals"] = float(ca.get("transcendentals", 0.0))
         out[f"{name}_s"] = C.best_of(lambda comp=comp: comp(pm, scb, C.DT), repeats)
         out[f"{name}_cpu_s"] = C.LAST_CPU_S
     out["fwd_s"], out["grad_s"], out["grad_ckpt_s"] = (

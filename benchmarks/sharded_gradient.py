@@ -45,7 +45,6 @@ def main(argv=None):
     import jax
     import jax.numpy as jnp
     import numpy as np
-    from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
     from vcjax import sim1
     from vcjax.rollout import RolloutConfig
@@ -55,10 +54,7 @@ def main(argv=None):
     pm, scb = gains.vcm, C.batched_scenario(sc, B)
     axes = C.scenario_axes(scb)
     base = sim1.default_gains()
-    mesh = Mesh(np.asarray(jax.devices()), ("scenarios",))
-    put = lambda a, x: x if a is None else jax.device_put(x, NamedSharding(mesh, PartitionSpec(a)))
-    put_axis = lambda a, x: put(None if a is None else "scenarios", x)
-    scs = jax.tree_util.tree_map(put_axis, axes, scb, is_leaf=lambda x: x is None)
+    scs = C.shard_batch(scb, len(jax.devices()))
 
     def one(g, s, dt):
         cfg = RolloutConfig(num_steps=N, integrator="rk4", timing="continuous")

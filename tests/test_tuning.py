@@ -446,6 +446,27 @@ def test_example_tuning_configs_are_valid():
         assert cfg["problem"]["variant"] and cfg["scenario"]["vehicle"]
 
 
+def _on_two_devices(script: str) -> dict:
+    """Run ``script`` in a fresh process whose host CPU is split into two JAX devices (the count
+    is fixed when JAX starts); return the JSON its last line prints."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+    env.pop("VCJAX_CPU_DEVICES", None)
+    out = subprocess.run(
+        [sys.executable, "-c", script],
+        env=env,
+        cwd=Path(__file__).parents[1],
+        capture_output=True,
+        text=True,
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 _SHARDED_TUNE = """
 import json
 import jax, jax.numpy as jnp, numpy as np
@@ -472,19 +493,7 @@ def test_tuner_compiles_its_step_once_when_the_batch_is_sharded():
     replicated over both; the tuner starts from that placement, so ``jax.jit`` compiles the step
     once (it compiled twice before: the whole reverse-mode rollout again at step 2). Also: the
     minimum is that of the normal equations (NumPy)."""
-    import os
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
-    env.pop("VCJAX_CPU_DEVICES", None)
-    root = Path(__file__).parents[1]
-    out = subprocess.run(
-        [sys.executable, "-c", _SHARDED_TUNE], env=env, cwd=root, capture_output=True, text=True
-    )
-    assert out.returncode == 0, out.stderr[-2000:]
-    res = json.loads(out.stdout.strip().splitlines()[-1])
+    res = _on_two_devices(_SHARDED_TUNE)
     assert res["compiles"] == 1
     assert res["err"] < 1e-8
 
@@ -525,22 +534,7 @@ def test_tiled_gains_on_a_sharded_batch_reduce_once_with_the_same_gradient():
     the loop: 18x slower measured); tiled per scenario (``tile_gains``, what ``vcjax tune`` uses
     when it shards) the loop bodies hold no all-reduce. Loss and gradient are those of one device
     with the gains shared (1e-12)."""
-    import os
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
-    env.pop("VCJAX_CPU_DEVICES", None)
-    out = subprocess.run(
-        [sys.executable, "-c", _SHARDED_GRAD],
-        env=env,
-        cwd=Path(__file__).parents[1],
-        capture_output=True,
-        text=True,
-    )
-    assert out.returncode == 0, out.stderr[-2000:]
-    res = json.loads(out.stdout.strip().splitlines()[-1])
+    res = _on_two_devices(_SHARDED_GRAD)
     assert res["False"]["in_loops"] >= 1  # the per-step reduction the tiling removes
     assert res["True"]["in_loops"] == 0
     for k in ("False", "True"):

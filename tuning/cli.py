@@ -220,7 +220,6 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         f"({o['grad_mode']} mode); training batch on {n_dev} device(s)"
     )
     eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
-    loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
     theta0 = data.theta_ref  # the default gains: what 'before' means
     N = problem.num_steps
     say(
@@ -241,8 +240,8 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     if train_d is not train:
         say(f"training batch sharded over {jax.device_count()} devices")
         # gains copied per scenario: their gradient reduces across devices once, not per step
-        sharded = dataclasses.replace(problem, tile_gains=True)
-        loss_fn = lambda th, d, s: objective(th, d, s, sharded)[0]
+        problem = dataclasses.replace(problem, tile_gains=True)
+    loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
     res = run_gradient_tuner(
         loss_fn,
         start,

@@ -27,6 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from vcjax import distributed
+
 __all__ = [
     "OPTIMIZERS",
     "GRAD_MODES",
@@ -134,14 +136,8 @@ def replicate_like(args, *trees):
     for leaf in jax.tree_util.tree_leaves(args):
         sh = getattr(leaf, "sharding", None)
         mesh = getattr(sh, "mesh", None)
-        if mesh is None or mesh.size < 2:
-            continue
-        if not sh.is_fully_addressable:  # a mesh over several processes: global arrays
-            from vcjax import distributed
-
+        if mesh is not None and mesh.size > 1:
             return tuple(distributed.replicate(t, mesh) for t in trees)
-        rep = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec())
-        return tuple(jax.device_put(t, rep) for t in trees)
     return trees
 
 
