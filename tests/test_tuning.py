@@ -541,3 +541,8 @@ def test_tiled_gains_on_a_sharded_batch_reduce_once_with_the_same_gradient():
         np.testing.assert_allclose(res[k]["v"], res["single"]["v"], rtol=1e-12)
         np.testing.assert_allclose(res[k]["g"], res["single"]["g"], rtol=1e-10, atol=1e-12)
     assert np.max(np.abs(res["single"]["g"])) > 0
+
+
+def test_tile_gains_must_be_a_bool():
+    with pytest.raises(ValueError, match="tile_gains"):
+        TuningProblem(tile_gains="yes")

@@ -156,6 +156,8 @@ class TuningProblem:
             raise ValueError(f"risk: expected 'mean' or 'cvar', got {self.risk!r}")
         if not (0.0 < float(self.alpha) <= 1.0):
             raise ValueError(f"alpha: expected a value in (0, 1], got {self.alpha!r}")
+        if not isinstance(self.tile_gains, bool):
+            raise ValueError(f"tile_gains: expected True or False, got {self.tile_gains!r}")
         self.rollout_config()  # validates num_steps, integrator, timing
 
     @property
