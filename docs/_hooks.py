@@ -1,0 +1,175 @@
+"""mkdocs hooks: pages generated from the code and the benchmark results at build time.
+
+* ``api/<module>.md`` for every public module of ``vcjax`` and ``tuning`` (mkdocstrings renders
+  the docstrings), listed under *API* in the navigation;
+* ``<!-- vcjax:config-reference -->`` in a page becomes the configuration reference generated from
+  the config schema objects (:func:`vcjax.config.schema`), one table per section;
+* ``<!-- vcjax:benchmark-tables -->`` becomes one table per result file of
+  ``benchmarks/results/*.json``, each with the machine it was measured on;
+* ``benchmarks/results/*.png`` are served under ``benchmarks/``.
+"""
+
+from __future__ import annotations
+
+import json
+import pkgutil
+from pathlib import Path
+
+from mkdocs.structure.files import File
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("vcjax", "tuning")
+
+
+def public_modules() -> list[str]:
+    """Dotted names of the public modules (no ``_private`` part) of :data:`PACKAGES`."""
+    out = []
+    for pkg in PACKAGES:
+        out.append(pkg)
+        for info in pkgutil.walk_packages([str(ROOT / pkg)], prefix=f"{pkg}."):
+            if any(part.startswith("_") for part in info.name.split(".")):
+                continue
+            out.append(info.name)
+    return sorted(out)
+
+
+def _api_page(module: str) -> str:
+    return f"# `{module}`\n\n::: {module}\n"
+
+
+def _api_index(modules) -> str:
+    lines = [
+        "# API reference",
+        "",
+        "Generated from the docstrings of every public module (shapes, units and frames are",
+        "given there). Start with `vcjax.loops` (closed loops by name), `vcjax.rollout`,",
+        "`vcjax.mechanics` (the generic engine) and `vcjax.metrics`.",
+        "",
+    ]
+    lines += [f"- [`{m}`]({m}.md)" for m in modules]
+    return "\n".join(lines) + "\n"
+
+
+def on_config(config):
+    modules = public_modules()
+    for item in config["nav"]:
+        if isinstance(item, dict) and "API" in item:
+            item["API"] = ["api/index.md"] + [{m: f"api/{m}.md"} for m in modules]
+    return config
+
+
+def on_files(files, config):
+    modules = public_modules()
+    files.append(File.generated(config, "api/index.md", content=_api_index(modules)))
+    for m in modules:
+        files.append(File.generated(config, f"api/{m}.md", content=_api_page(m)))
+    for png in sorted((ROOT / "benchmarks" / "results").glob("*.png")):
+        files.append(File.generated(config, f"benchmarks/{png.name}", abs_src_path=str(png)))
+    return files
+
+
+# ------------------------------------------------------------------------------ benchmark tables
+
+#: result files shown as current tables (the rest go to the history appendix)
+HISTORY_SUFFIX = "_round1"
+
+
+def _fmt(v) -> str:
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, float):
+        if v == 0 or 1e-3 <= abs(v) < 1e6:
+            return f"{v:.4g}"
+        return f"{v:.3e}"
+    if isinstance(v, (list, tuple)):
+        return ", ".join(_fmt(x) for x in v)
+    if isinstance(v, dict):
+        return "; ".join(f"{k}: {_fmt(x)}" for k, x in v.items())
+    return str(v)
+
+
+def _machine(meta: dict) -> str:
+    keys = ("date", "device", "cpu", "cpu_model", "jax", "python", "load_average_1min_at_end")
+    parts = [f"{k} {_fmt(meta[k])}" for k in keys if k in meta]
+    return "Measured on: " + ", ".join(parts) + "."
+
+
+def _rows_table(rows: list[dict]) -> list[str]:
+    cols: list[str] = []
+    for r in rows:
+        cols += [k for k in r if k not in cols]
+    out = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    for r in rows:
+        out.append("| " + " | ".join(_fmt(r.get(c, "")) for c in cols) + " |")
+    return out
+
+
+def _result_section(path: Path) -> list[str]:
+    data = json.loads(path.read_text())
+    out = [f"### `{path.name}`", ""]
+    if isinstance(data, dict) and "rows" in data and isinstance(data["rows"], list):
+        meta = data.get("meta", {})
+        out += [_machine(meta), ""] if meta else []
+        if data["rows"] and isinstance(data["rows"][0], dict):
+            out += _rows_table(data["rows"])
+    elif isinstance(data, dict) and "machine" in data:
+        out += [_machine(data["machine"]), ""]
+        body = {k: v for k, v in data.items() if k != "machine"}
+        rows = [
+            {"case": k, **v} if isinstance(v, dict) else {"case": k, "value": v}
+            for k, v in body.items()
+        ]
+        out += _rows_table(_flatten_rows(rows))
+    elif isinstance(data, dict):
+        out += ["| key | value |", "|---|---|"]
+        out += [f"| {k} | {_fmt(v)[:200]} |" for k, v in data.items() if k != "spec"]
+    return out + [""]
+
+
+def _flatten_rows(rows):
+    flat = []
+    for r in rows:
+        f = {}
+        for k, v in r.items():
+            if isinstance(v, dict):
+                for k2, v2 in v.items():
+                    f[f"{k}.{k2}"] = v2
+            else:
+                f[k] = v
+        flat.append(f)
+    return flat
+
+
+def benchmark_tables() -> str:
+    files = sorted((ROOT / "benchmarks" / "results").glob("*.json"))
+    current = [p for p in files if HISTORY_SUFFIX not in p.stem]
+    history = [p for p in files if HISTORY_SUFFIX in p.stem]
+    out = ["## Every result file", ""]
+    for p in current:
+        out += _result_section(p)
+    out += ["## Appendix: history", "", "Earlier measurements kept for comparison.", ""]
+    for p in history:
+        out += _result_section(p)
+    return "\n".join(out)
+
+
+# ------------------------------------------------------------------------------ config reference
+
+
+def config_reference() -> str:
+    from vcjax.config import reference_markdown
+
+    return reference_markdown()
+
+
+MARKERS = {
+    "<!-- vcjax:benchmark-tables -->": benchmark_tables,
+    "<!-- vcjax:config-reference -->": config_reference,
+}
+
+
+def on_page_markdown(markdown, page, config, files):
+    for marker, make in MARKERS.items():
+        if marker in markdown:
+            markdown = markdown.replace(marker, make())
+    return markdown
