@@ -72,10 +72,16 @@ def test_pseudo_inverse_structure_32():
             assert not np.allclose(np.linalg.pinv(W_b)[:2, 3:], 0.5 * R)
 
 
-def test_closed_form_matches_generic_engine():
+#: gains with no two entries equal, so a row or index swap between two gains of the same kind
+#: (p_G of s vs e, p_Phi of u vs v or s vs e) changes the law and is caught by a cross-check
+ASYMMETRIC = pm_gains(P_G=(1.1, 0.4, 0.7), P_Phi=(1.3, 0.8, 2.2, 0.6, 0.35), Delta=4.0, sigma=0.6)
+
+
+@pytest.mark.parametrize("gains", [GAINS, ASYMMETRIC], ids=["paper", "asymmetric"])
+def test_closed_form_matches_generic_engine(gains):
     """Implied mode == generic engine fed the exact constraint set (26)-(27), rel. diff <= 1e-8."""
     cfg = VCMConfig(path=LINE_PATH, actuation="full", edd="implied")
-    traj, params = simulate(cfg, T=20.0, dt=0.05)
+    traj, params = simulate(cfg, T=20.0, dt=0.05, gains=gains)
     g = params.gains
 
     def frame(z):
