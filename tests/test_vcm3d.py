@@ -82,8 +82,11 @@ def test_theorem1_consistent_rows_decay_exactly():
 def test_heading_and_pitch_rows_decay_exactly_from_any_state(guidance, integral):
     """Off the path, mis-aligned, inconsistent linear rows: the heading and pitch rows still
     decay as exp(-p_Phi t) (their accelerations appear in no other row), and psi~ obeys the
-    two-pole law (37)."""
-    gains = vcm3d_gains()
+    two-pole law (37). Gains with no two entries equal (heading vs pitch, v vs w, e vs h), so a
+    row or index swap between them fails this test."""
+    gains = vcm3d_gains(
+        P_G=(1.0, 1.4, 0.3, 0.25, 0.35), P_Phi=(0.5, 0.45, 0.55, 2.0, 1.6, 0.5, 0.4, 0.6)
+    )
     q0 = jnp.array([3.0, -4.0, 1.0, 0.2, 1.2])
     nu0 = jnp.array([1.2, 0.1, -0.05, 0.02, -0.05])
     traj = _simulate(cfg_of("full", integral, guidance), gains, (q0, nu0), T=8.0, dt=0.01)
