@@ -1,0 +1,374 @@
+"""Waves (vcjax.waves) against independent physics: quadrature of the spectra, the statistics of
+long realisations, the Airy potential differentiated by autodiff, the free-surface boundary
+condition, finite differences, and a body that must move with the water particles."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy import integrate, optimize
+
+from vcjax import waves
+
+G = 9.81
+
+
+def _np_spectrum(spectrum, hs, tp, gamma=3.3):
+    """The spectrum as a vectorised numpy function of omega (for scipy's quadrature)."""
+    if spectrum == "pm":
+        f = jax.jit(lambda w: waves.pierson_moskowitz(w, hs, tp))
+    else:
+        f = jax.jit(lambda w: waves.jonswap(w, hs, tp, gamma))
+    return lambda w: float(f(jnp.asarray(w, dtype=jnp.float64)))
+
+
+def _quad(f, lo, hi, peak):
+    # split at the peak (the JONSWAP width changes there) for scipy's adaptive rule
+    return sum(integrate.quad(f, a, b, limit=400, epsabs=0, epsrel=1e-11)[0] for a, b in
+               ((lo, peak), (peak, hi)))  # fmt: skip
+
+
+# --------------------------------------------------------------------------------------------
+# Spectra
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "spectrum, gamma", [("pm", None), ("jonswap", 1.0), ("jonswap", 3.3), ("jonswap", 7.0)]
+)
+def test_spectrum_zeroth_moment_and_peak(spectrum, gamma):
+    hs, tp = 2.5, 9.0
+    wp = 2 * math.pi / tp
+    f = _np_spectrum(spectrum, hs, tp, gamma)
+    m0 = _quad(f, 0.05 * wp, 200 * wp, wp) + 5 / 16 * hs**2 / 4 / 200**4  # + analytic PM tail
+    assert m0 == pytest.approx(hs**2 / 16, rel=1e-8)
+    res = optimize.minimize_scalar(lambda w: -f(w), bounds=(0.5 * wp, 2 * wp), method="bounded",
+                                   options={"xatol": 1e-10})  # fmt: skip
+    assert res.x == pytest.approx(wp, rel=1e-5)
+
+
+def test_jonswap_with_gamma_one_is_pierson_moskowitz_and_dnv_factor_is_close():
+    w = jnp.linspace(0.1, 3.0, 50)
+    pm = waves.pierson_moskowitz(w, 3.0, 8.0)
+    np.testing.assert_allclose(waves.jonswap(w, 3.0, 8.0, 1.0), pm, rtol=1e-12)
+    # the closed-form PM (Hs, Tp) spectrum written out independently
+    wp = 2 * np.pi / 8.0
+    ref = 5 / 16 * 9.0 * wp**4 * np.asarray(w) ** -5 * np.exp(-1.25 * (wp / np.asarray(w)) ** 4)
+    np.testing.assert_allclose(pm, ref, rtol=1e-12, atol=1e-300)
+    # the exact normalisation agrees with DNV's 1 - 0.287 ln(gamma) to its stated accuracy
+    i33 = float(waves.jonswap_normalisation(3.3))
+    assert 1 / i33 == pytest.approx(1 - 0.287 * np.log(3.3), rel=5e-3)
+
+
+def test_jonswap_is_differentiable_in_gamma():
+    f = lambda g: waves.jonswap(jnp.asarray(0.7), 2.0, 9.0, g)
+    g0, h = 3.3, 1e-5
+    fd = (f(g0 + h) - f(g0 - h)) / (2 * h)
+    assert float(jax.grad(f)(g0)) == pytest.approx(float(fd), rel=1e-7)
+
+
+# --------------------------------------------------------------------------------------------
+# Realisations
+# --------------------------------------------------------------------------------------------
+
+
+def _record_sigma(s_of_w, lo, hi, duration):
+    """Standard deviation of a record's variance estimate for a Gaussian process with one-sided
+    spectrum ``s_of_w`` observed for ``duration``: ``var(m0_hat) = 2 pi / T int S^2 d omega``."""
+    return math.sqrt(2 * np.pi / duration * integrate.quad(lambda w: s_of_w(w) ** 2, lo, hi,
+                                                           limit=400)[0])  # fmt: skip
+
+
+def _bins_sigma(s_of_w, lo, hi, n):
+    """Standard deviation of ``sum_i S(omega_i) d_omega`` with ``omega_i`` uniform in bin ``i``
+    (the draw-to-draw scatter of a realised sea's variance), by quadrature."""
+    d_omega, var = (hi - lo) / n, 0.0
+    for i in range(n):
+        a, b = lo + i * d_omega, lo + (i + 1) * d_omega
+        m1 = integrate.quad(s_of_w, a, b)[0] / d_omega
+        m2 = integrate.quad(lambda w: s_of_w(w) ** 2, a, b)[0] / d_omega
+        var += d_omega**2 * max(m2 - m1 * m1, 0.0)
+    return math.sqrt(var)
+
+
+def _band(tp):
+    wp = 2 * np.pi / tp
+    return waves.BAND[0] * wp, waves.BAND[1] * wp, wp
+
+
+def test_long_realisation_has_the_significant_wave_height():
+    hs, tp, beta, n = 2.0, 8.0, 0.4, 64
+    sea = waves.sea_state(jax.random.key(3), hs, tp, beta, components=n)
+    duration, dt = 20 * 3600.0, 0.5
+    t = jnp.arange(0.0, duration, dt)
+    zeta = jax.jit(jax.vmap(lambda ti: waves.elevation(sea, ti, 10.0, -4.0)))(t)
+    m0_hat = float(jnp.var(zeta))
+    m0_sea = float(jnp.sum(sea.amplitude**2) / 2)  # this realisation's own variance
+
+    lo, hi, wp = _band(tp)
+    f = _np_spectrum("jonswap", hs, tp)
+    m0_band = integrate.quad(f, lo, hi, limit=400, points=[wp])[0]
+    # the band holds > 99.5 % of m0 (module docstring)
+    assert m0_band / (hs**2 / 16) == pytest.approx(1.0, abs=0.005)
+    # (a) the 20 h record's variance is the sea's: 4 sigma (a false alarm once in ~16 000
+    # records), sigma / m0 = 1.3 % for this record length
+    sig_rec = _record_sigma(f, lo, hi, duration)
+    assert abs(m0_hat - m0_sea) < 4 * sig_rec, (m0_hat, m0_sea, sig_rec)
+    # (b) a sea's variance scatters about the band's integral by the random frequencies
+    # within bins (3.1 % of m0 for 64 components, i.e. 1.5 % in Hs); over 400 seas the mean is
+    # the integral (unbiased draws) within 4 sigma / sqrt(400) = 0.6 %
+    sig_bins = _bins_sigma(f, lo, hi, n)
+    assert abs(m0_sea - m0_band) < 4 * sig_bins
+    seas = jax.vmap(lambda k: waves.sea_state(k, hs, tp, beta, components=n))(
+        jax.random.split(jax.random.key(30), 400)
+    )
+    m0_seas = np.asarray(jnp.sum(seas.amplitude**2, axis=1) / 2)
+    assert abs(m0_seas.mean() - m0_band) < 4 * sig_bins / math.sqrt(400)
+    assert np.std(m0_seas) == pytest.approx(sig_bins, rel=0.2)  # 400 samples: std within ~7 %
+    # so 4 std(zeta) is Hs: within 4 sqrt(sig_rec^2 + sig_bins^2) / 2 / m0 + 0.25 % = 7 %
+    assert 4 * math.sqrt(m0_hat) == pytest.approx(hs, rel=0.07)
+
+
+def test_orbital_velocity_variance_at_depth():
+    hs, tp, beta, n, depth = 3.0, 10.0, 2.2, 64, 8.0
+    sea = waves.sea_state(jax.random.key(7), hs, tp, beta, spectrum="pm", components=n)
+    duration, dt = 20 * 3600.0, 0.5
+    t = jnp.arange(0.0, duration, dt)
+    p = jnp.array([3.0, 1.0, depth])
+    u = jax.jit(jax.vmap(lambda ti: waves.orbital_velocity(sea, ti, p)))(t)
+    along = u[:, 0] * np.cos(beta) + u[:, 1] * np.sin(beta)
+    across = -u[:, 0] * np.sin(beta) + u[:, 1] * np.cos(beta)
+    np.testing.assert_allclose(across, 0.0, atol=1e-13)  # long-crested: no cross velocity
+
+    lo, hi, wp = _band(tp)
+    s_pm = _np_spectrum("pm", hs, tp)
+    s_u = lambda w: s_pm(w) * w**2 * np.exp(-2 * w**2 / G * depth)
+    ref = integrate.quad(s_u, lo, hi, limit=400)[0]
+    # the full-line integral: the band's cut-off loses < 0.01 % of the velocity variance at 8 m
+    assert integrate.quad(s_u, 0.3 * wp, 20 * wp, limit=400)[0] == pytest.approx(ref, rel=1e-4)
+    var_sea = float(jnp.sum((sea.amplitude * sea.omega) ** 2 * jnp.exp(-2 * sea.wavenumber *
+                                                                        depth)) / 2)  # fmt: skip
+    sig_rec = _record_sigma(s_u, lo, hi, duration)
+    for comp in (along, u[:, 2]):  # horizontal and vertical variances are equal in deep water
+        assert abs(float(jnp.var(comp)) - var_sea) < 4 * sig_rec, (jnp.var(comp), var_sea)
+    assert abs(var_sea - ref) < 4 * _bins_sigma(s_u, lo, hi, n)
+    seas = jax.vmap(lambda k: waves.sea_state(k, hs, tp, beta, spectrum="pm", components=n))(
+        jax.random.split(jax.random.key(31), 400)
+    )
+    var_seas = jnp.sum((seas.amplitude * seas.omega) ** 2 * jnp.exp(-2 * seas.wavenumber *
+                                                                     depth), axis=1) / 2  # fmt: skip
+    assert abs(float(jnp.mean(var_seas)) - ref) < 4 * _bins_sigma(s_u, lo, hi, n) / 20
+
+
+def test_spreading_draws_cos2s_directions():
+    s, beta0, n = 4.0, 1.0, 20000
+    sea = waves.sea_state(jax.random.key(1), 1.0, 8.0, beta0, spreading=s, components=n)
+    dev = np.asarray(sea.direction) - beta0
+    assert np.all(np.abs(dev) <= np.pi / 2)
+    dens = lambda x: np.cos(x) ** (2 * s)
+    norm = integrate.quad(dens, -np.pi / 2, np.pi / 2)[0]
+    for fn in (np.cos, lambda x: x**2):
+        mean = integrate.quad(lambda x, f=fn: f(x) * dens(x), -np.pi / 2, np.pi / 2)[0] / norm
+        var = integrate.quad(lambda x, f=fn: f(x) ** 2 * dens(x), -np.pi / 2, np.pi / 2)[0] / norm
+        assert abs(np.mean(fn(dev)) - mean) < 4 * math.sqrt((var - mean**2) / n)
+    # the mean direction is beta0 (odd moment zero) and spreading leaves frequencies/phases alone
+    assert abs(np.mean(dev)) < 4 * math.sqrt(np.var(dev) / n)
+    sea0 = waves.sea_state(jax.random.key(1), 1.0, 8.0, beta0, components=n)
+    np.testing.assert_array_equal(sea.omega, sea0.omega)
+    np.testing.assert_array_equal(sea.phase, sea0.phase)
+    np.testing.assert_array_equal(sea0.direction, beta0)
+
+
+# --------------------------------------------------------------------------------------------
+# Regular waves: closed-form Airy kinematics and signs
+# --------------------------------------------------------------------------------------------
+
+
+def _regular(a=1.5, omega=0.8, phase=0.4, beta=0.9):
+    one = lambda x: jnp.array([x])
+    return waves.Sea(one(omega), one(a), one(omega**2 / G), one(phase), one(beta))
+
+
+def test_regular_wave_against_the_airy_potential():
+    a, w, phi, beta = 1.5, 0.8, 0.4, 0.9
+    sea = _regular(a, w, phi, beta)
+    k = w**2 / G
+
+    def potential(t, n, e, z_up):  # deep-water Airy potential, z up
+        return g_a_w * jnp.exp(k * z_up) * jnp.sin(k * (n * np.cos(beta) + e * np.sin(beta))
+                                                    - w * t + phi)  # fmt: skip
+
+    g_a_w = G * a / w
+    grad = jax.grad(potential, argnums=(1, 2, 3))
+    for t, n, e, d in [(0.3, 1.0, -2.0, 0.0), (7.1, 30.0, 4.0, 5.0), (-3.0, -8.0, 11.0, 25.0)]:
+        vn, ve, vup = grad(t, n, e, -d)
+        ref = jnp.stack([vn, ve, -vup])  # NED: down = -up
+        np.testing.assert_allclose(waves.orbital_velocity(sea, t, jnp.array([n, e, d])), ref,
+                                   rtol=1e-12, atol=1e-14)  # fmt: skip
+        # linearised Bernoulli at the surface: g zeta = -dPhi/dt
+        zeta_ref = -jax.grad(potential)(t, n, e, 0.0) / G
+        assert float(waves.elevation(sea, t, n, e)) == pytest.approx(float(zeta_ref), rel=1e-12)
+
+
+def test_regular_wave_signs_and_free_surface_condition():
+    a, w, phi, beta = 0.8, 1.1, 0.0, 0.6
+    sea = _regular(a, w, phi, beta)
+    k, depth = w**2 / G, 4.0
+    h = jnp.array([np.cos(beta), np.sin(beta)])
+    speed = a * w * np.exp(-k * depth)
+    # a crest at the origin at t = 0 (theta = 0)
+    assert float(waves.elevation(sea, 0.0, 0.0, 0.0)) == pytest.approx(a)
+    u = waves.orbital_velocity(sea, 0.0, jnp.array([0.0, 0.0, depth]))
+    np.testing.assert_allclose(u[:2], speed * h, rtol=1e-12)  # along the direction of travel
+    assert abs(float(u[2])) < 1e-15
+    # under the crest the water accelerates downwards (positive down)
+    acc = waves.orbital_acceleration(sea, 0.0, jnp.array([0.0, 0.0, depth]))
+    assert float(acc[2]) == pytest.approx(a * w**2 * np.exp(-k * depth), rel=1e-12)
+    # a quarter wavelength ahead of the crest the surface is rising: the water moves up (w < 0)
+    ahead = (np.pi / 2 / k) * h
+    u = waves.orbital_velocity(sea, 0.0, jnp.array([ahead[0], ahead[1], depth]))
+    assert float(u[2]) == pytest.approx(-speed, rel=1e-12)
+    assert float(jax.grad(lambda t: waves.elevation(sea, t, ahead[0], ahead[1]))(0.0)) > 0
+    # kinematic free-surface condition d zeta / dt = -u_down(depth = 0) (holds only if k = w^2/g)
+    for t, n, e in [(0.0, 0.0, 0.0), (1.3, 5.0, 2.0), (4.0, -7.0, 9.0)]:
+        dz = jax.grad(lambda t, n=n, e=e: waves.elevation(sea, t, n, e))(t)
+        ud = waves.orbital_velocity(sea, t, jnp.array([n, e, 0.0]))[2]
+        assert float(dz) == pytest.approx(-float(ud), rel=1e-12, abs=1e-14)
+    # the wave travels towards beta: a crest moves by c t along h (phase speed w / k)
+    t1 = 2.0
+    crest = (w / k) * t1 * h
+    assert float(waves.elevation(sea, t1, crest[0], crest[1])) == pytest.approx(a)
+
+
+def test_above_the_mean_surface_the_kinematics_are_those_at_the_surface():
+    sea = waves.sea_state(jax.random.key(2), 2.0, 7.0, 0.0, components=16)
+    top = waves.orbital_velocity(sea, 1.0, jnp.array([1.0, 2.0, 0.0]))
+    np.testing.assert_array_equal(waves.orbital_velocity(sea, 1.0, jnp.array([1.0, 2.0, -0.5])),
+                                  top)  # fmt: skip
+
+
+# --------------------------------------------------------------------------------------------
+# Derivatives
+# --------------------------------------------------------------------------------------------
+
+
+def test_acceleration_and_gradient_are_the_derivatives_of_the_velocity():
+    sea = waves.sea_state(jax.random.key(5), 2.5, 9.0, 1.2, spreading=3.0, components=32)
+    current = jnp.array([0.3, -0.2, 0.05])
+    for t, p in [(2.0, jnp.array([4.0, -3.0, 6.0])), (13.0, jnp.array([-20.0, 7.0, 1.5]))]:
+        vel = lambda t, p=p: waves.orbital_velocity(sea, t, p)
+        h = 1e-4
+        fd = (vel(t + h) - vel(t - h)) / (2 * h)
+        acc = waves.orbital_acceleration(sea, t, p)
+        np.testing.assert_allclose(acc, fd, rtol=1e-7, atol=1e-10)
+        np.testing.assert_allclose(acc, jax.jvp(vel, (t,), (1.0,))[1], rtol=1e-12, atol=1e-14)
+        gp = waves.orbital_velocity_gradient(sea, t, p)
+        np.testing.assert_allclose(gp, jax.jacfwd(lambda q, t=t: waves.orbital_velocity(sea, t, q))(p),
+                                   rtol=1e-12, atol=1e-14)  # fmt: skip
+        np.testing.assert_allclose(gp, gp.T, atol=1e-14)  # irrotational
+        assert abs(float(jnp.trace(gp))) < 1e-14  # incompressible
+        # water_kinematics: the particle's acceleration d/dt v(t, p + v0 (t - t0)) at t0
+        v0, a0 = waves.water_kinematics(sea, t, p, current)
+        line = lambda s, t=t, p=p, v0=v0: waves.orbital_velocity(sea, t + s, p + v0 * s) + current
+        np.testing.assert_allclose(v0, line(0.0), rtol=1e-14)
+        np.testing.assert_allclose(a0, jax.jvp(line, (0.0,), (1.0,))[1], rtol=1e-12, atol=1e-14)
+
+
+# --------------------------------------------------------------------------------------------
+# Calm sea, reproducibility, dtypes, bad input
+# --------------------------------------------------------------------------------------------
+
+
+def test_zero_hs_is_exactly_calm_and_differentiable():
+    for spectrum in waves.SPECTRA:
+        sea = waves.sea_state(jax.random.key(0), 0.0, 8.0, 0.5, spectrum=spectrum, spreading=2.0)
+        assert not np.any(np.asarray(sea.amplitude))
+        p = jnp.array([3.0, 4.0, 2.0])
+        current, current_dot = jnp.array([0.1, 0.5, 0.0]), jnp.array([1e-3, 0.0, 0.0])
+        v, a = waves.water_kinematics(sea, 1.7, p, current, current_dot)
+        np.testing.assert_array_equal(v, current)  # bit-identical to no waves
+        np.testing.assert_array_equal(a, current_dot)
+        for fn in (waves.orbital_velocity, waves.orbital_acceleration):
+            np.testing.assert_array_equal(fn(sea, 1.7, p), 0.0)
+        assert float(waves.elevation(sea, 1.7, 3.0, 4.0)) == 0.0
+    calm = waves.calm_sea(4)
+    np.testing.assert_array_equal(waves.water_kinematics(calm, 2.0, p, current)[0], current)
+
+    def speed2(hs):
+        sea = waves.sea_state(jax.random.key(0), hs, 8.0, 0.5)
+        return jnp.sum(waves.orbital_velocity(sea, 1.0, jnp.array([0.0, 0.0, 2.0])) ** 2)
+
+    g0 = jax.grad(speed2)(0.0)  # exactly 0 (quadratic in hs), and finite at hs = 0
+    assert float(g0) == 0.0
+    assert np.isfinite(float(jax.grad(lambda hs: waves.elevation(
+        waves.sea_state(jax.random.key(0), hs, 8.0, 0.5), 1.0, 0.0, 0.0))(0.0)))  # fmt: skip
+
+
+@pytest.mark.parametrize("spreading", [0.0, 2.0])
+def test_draws_are_the_same_in_and_out_of_vmap_and_jit(spreading):
+    keys = jax.random.split(jax.random.key(11), 4)
+    hs = jnp.array([0.5, 1.0, 2.0, 0.0])
+    tp = jnp.array([5.0, 7.0, 12.0, 9.0])
+    beta = jnp.array([0.0, 1.0, -2.0, 3.0])
+    draw = lambda k, h, t, b: waves.sea_state(k, h, t, b, spreading=spreading, components=16)
+    batched = jax.vmap(draw)(keys, hs, tp, beta)
+    jitted = jax.jit(jax.vmap(draw))(keys, hs, tp, beta)
+    for i in range(4):
+        one = draw(keys[i], float(hs[i]), float(tp[i]), float(beta[i]))
+        one_jit = jax.jit(draw)(keys[i], hs[i], tp[i], beta[i])
+        for a, b, c, d in zip(one, one_jit, batched, jitted, strict=True):
+            np.testing.assert_allclose(b, a, rtol=1e-14)
+            np.testing.assert_allclose(c[i], a, rtol=1e-14)
+            np.testing.assert_allclose(d[i], a, rtol=1e-14)
+    # and the kinematics vmap over seas (one sea per scenario)
+    p = jnp.array([1.0, 2.0, 3.0])
+    vb = jax.vmap(lambda s: waves.orbital_velocity(s, 2.0, p))(batched)
+    for i in range(4):
+        sea_i = jax.tree.map(lambda x, i=i: x[i], batched)
+        np.testing.assert_allclose(vb[i], waves.orbital_velocity(sea_i, 2.0, p), rtol=1e-13)
+
+
+def test_float32():
+    args = (jax.random.key(4), 2.0, 8.0, 0.3)
+    s64 = waves.sea_state(*args, spreading=1.0)
+    s32 = waves.sea_state(*args, spreading=1.0, dtype=jnp.float32)
+    s32b = waves.sea_state(args[0], jnp.float32(2.0), jnp.float32(8.0), jnp.float32(0.3),
+                           spreading=1.0)  # fmt: skip
+    assert all(x.dtype == jnp.float32 for x in (*s32, *s32b))
+    p32 = jnp.array([1.0, 2.0, 3.0], dtype=jnp.float32)
+    out = jax.jit(lambda s, t: waves.water_kinematics(s, t, p32, jnp.zeros(3, jnp.float32)))(
+        s32, jnp.float32(4.0)
+    )
+    assert all(o.dtype == jnp.float32 for o in out)
+    # jax.random draws other bits for float32, so s32 is another realisation: compare the
+    # float32 kinematics with float64 ones of the same sea, and the draws' statistics
+    s32_64 = jax.tree.map(lambda x: x.astype(jnp.float64), s32)
+    u64 = waves.water_kinematics(s32_64, 4.0, jnp.array([1.0, 2.0, 3.0]), jnp.zeros(3))
+    for o, r in zip(out, u64, strict=True):
+        np.testing.assert_allclose(o, r, atol=1e-5 * float(jnp.max(jnp.abs(r))))
+    np.testing.assert_allclose(jnp.sum(s32_64.amplitude**2), jnp.sum(s64.amplitude**2), rtol=0.2)
+    assert waves.jonswap(jnp.linspace(0.2, 2.0, 5, dtype=jnp.float32), 1.0, 8.0).dtype == (
+        jnp.float32
+    )
+
+
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(hs=-1.0), "hs"),
+        (dict(tp=0.0), "tp"),
+        (dict(spectrum="bretschneider"), "spectrum"),
+        (dict(components=0), "components"),
+        (dict(components=8.0), "components"),
+        (dict(gamma=0.5), "gamma"),
+        (dict(spreading=-1.0), "spreading"),
+        (dict(direction=float("nan")), "direction"),
+    ],
+)
+def test_bad_input_names_the_field(kwargs, field):
+    args = dict(hs=1.0, tp=8.0, direction=0.0) | kwargs
+    with pytest.raises(ValueError, match=f"^{field}"):
+        waves.sea_state(jax.random.key(0), args.pop("hs"), args.pop("tp"), args.pop("direction"),
+                        **args)  # fmt: skip
