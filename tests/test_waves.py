@@ -3,6 +3,7 @@ long realisations, the Airy potential differentiated by autodiff, the free-surfa
 condition, finite differences, and a body that must move with the water particles."""
 
 import math
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -11,6 +12,7 @@ import pytest
 from scipy import integrate, optimize
 
 from vcjax import waves
+from vcjax.vehicles import remus100, sixdof
 
 G = 9.81
 
@@ -372,3 +374,135 @@ def test_bad_input_names_the_field(kwargs, field):
     with pytest.raises(ValueError, match=f"^{field}"):
         waves.sea_state(jax.random.key(0), args.pop("hs"), args.pop("tp"), args.pop("direction"),
                         **args)  # fmt: skip
+
+
+# --------------------------------------------------------------------------------------------
+# A body in the wave field (the plant-side seam)
+# --------------------------------------------------------------------------------------------
+
+
+def _remus_body(cg_at_cb):
+    """REMUS 100's rigid-body and added mass, damping, W = B (PVS numbers); CG at the CB or
+    PVS's 2 cm below it."""
+    b = remus100.remus100_params().body
+    if not cg_at_cb:
+        return b
+    h_inv = sixdof.Hmtrx(-b.r_bg)  # M_RB = H(r)^T M_CG H(r), H(r)^-1 = H(-r)
+    m_cg = h_inv.T @ b.M_RB @ h_inv
+    return b._replace(M_RB=m_cg, r_bg=jnp.zeros(3))
+
+
+def _explicit_nu_dot(b, eta, nu, tau, v_w, a_w, m_d):
+    """The body equation of the module docstring, written out: (M_RB + M_A) nu_dot = tau +
+    tau_FK + M_A nu_w_dot - C_RB(nu) nu - C_A(nu_r) nu_r - D nu_r - g(eta)."""
+    R = sixdof.Rzyx(eta[3], eta[4], eta[5])
+    vb = R.T @ v_w
+    nu_r = nu - jnp.concatenate([vb, jnp.zeros(3)])
+    nu_w_dot = jnp.concatenate([R.T @ a_w - jnp.cross(nu[3:], vb), jnp.zeros(3)])
+    rhs = (
+        tau
+        + waves.froude_krylov(R, a_w, m_d, b.r_bb)
+        + b.M_A @ nu_w_dot
+        - sixdof.m2c(b.M_RB, nu) @ nu
+        - sixdof.m2c(b.M_A, nu_r) @ nu_r
+        - b.D @ nu_r
+        - sixdof.restoring(b, eta)
+    )
+    return jnp.linalg.solve(b.M_RB + b.M_A, rhs)
+
+
+def test_the_current_door_plus_correction_is_the_froude_krylov_body():
+    rng = np.random.default_rng(0)
+    for cg_at_cb, m_scale, r_bb in [(False, 1.0, (0, 0, 0)), (True, 1.07, (0.01, -0.02, 0.0))]:
+        b = _remus_body(cg_at_cb)
+        m_d = m_scale * float(b.B) / 9.81
+        b = b._replace(r_bb=jnp.asarray(r_bb, dtype=jnp.float64), B=jnp.asarray(m_d * 9.81))
+        for _ in range(3):
+            eta = jnp.asarray(rng.normal(size=6) * 0.4)
+            nu, tau = jnp.asarray(rng.normal(size=6)), jnp.asarray(rng.normal(size=6) * 5)
+            v_w, a_w = jnp.asarray(rng.normal(size=3)), jnp.asarray(rng.normal(size=3))
+            R = sixdof.Rzyx(eta[3], eta[4], eta[5])
+            corr = waves.current_door_correction(R, a_w, b.M_RB, m_d, b.r_bb)
+            _, nu_dot = sixdof.vector_field(b, eta, nu, tau + corr, v_w, a_w)
+            ref = _explicit_nu_dot(b, eta, nu, tau, v_w, a_w, m_d)
+            np.testing.assert_allclose(nu_dot, ref, rtol=1e-10, atol=1e-10)
+    # neutrally buoyant with CG = CB: the plant's current door alone is the physics
+    b = _remus_body(True)
+    corr = waves.current_door_correction(R, a_w, b.M_RB, float(b.B) / 9.81, b.r_bb)
+    np.testing.assert_allclose(corr, 0.0, atol=1e-12)
+
+
+@partial(jax.jit, static_argnames="steps")
+def _follow(sea, current, b, m_d, p0, psi, period, steps):
+    """RK4 of the body (the sixdof plant taking the water as its current, plus the correction)
+    and of the water particle ``x' = v_w(t, x)`` released at the same point, over two periods."""
+    dt = 2 * period / steps
+
+    def kin(t, p):
+        return waves.water_kinematics(sea, t, p, current)
+
+    def body(t, y):
+        eta, nu = y
+        v_w, a_w = kin(t, eta[:3])
+        R = sixdof.Rzyx(eta[3], eta[4], eta[5])
+        tau = waves.current_door_correction(R, a_w, b.M_RB, m_d, b.r_bb)
+        return sixdof.vector_field(b, eta, nu, tau, v_w, a_w)
+
+    def particle(t, x):
+        return kin(t, x)[0]
+
+    def rk4(f, t, y):
+        add = lambda y, k, h: jax.tree.map(lambda a, b: a + h * b, y, k)
+        k1 = f(t, y)
+        k2 = f(t + dt / 2, add(y, k1, dt / 2))
+        k3 = f(t + dt / 2, add(y, k2, dt / 2))
+        k4 = f(t + dt, add(y, k3, dt))
+        ks = jax.tree.map(lambda a, b, c, d: (a + 2 * b + 2 * c + d) / 6, k1, k2, k3, k4)
+        return add(y, ks, dt)
+
+    z = jnp.zeros_like(psi)
+    eta0 = jnp.concatenate([p0, jnp.stack([z, z, psi])])
+    R0 = sixdof.Rzyx(z, z, psi)
+    nu0 = jnp.concatenate([R0.T @ kin(0.0, p0)[0], jnp.zeros(3)])
+
+    def step(carry, k):
+        y, x = carry
+        t = k * dt
+        y, x = rk4(body, t, y), rk4(particle, t, x)
+        return (y, x), (y[0], x)
+
+    steps_f = jnp.arange(steps, dtype=p0.dtype)
+    return jax.lax.scan(step, ((eta0, nu0), p0), steps_f)[1]
+
+
+@pytest.mark.parametrize("regular", [True, False])
+def test_a_neutrally_buoyant_body_moves_with_the_water_particles(regular):
+    """Actuators off, released with the water's velocity: the body's position follows the
+    particle's path (an identity of the model when CG = CB: both solve x'' = a_w(t, x)); the
+    Froude–Krylov term is what makes it so (without it the body lags visibly)."""
+    period, depth = 6.0, 3.0
+    if regular:
+        w = 2 * np.pi / period
+        sea = _regular(a=0.5, omega=w, phase=0.3, beta=0.5)
+    else:
+        sea = waves.sea_state(jax.random.key(9), 1.5, period, 0.5, spreading=2.0, components=16)
+    current = jnp.array([0.2, -0.1, 0.0])
+    p0 = jnp.array([1.0, 2.0, depth])
+    b = _remus_body(cg_at_cb=True)
+    m_d, psi, n = jnp.asarray(float(b.B) / 9.81), jnp.asarray(0.7), 300
+    etas, xs = _follow(sea, current, b, m_d, p0, psi, period, n)
+    orbit = xs - p0 - current * (jnp.arange(1.0, n + 1.0)[:, None] * 2 * period / n)
+    assert float(jnp.max(jnp.abs(orbit))) > 0.2  # the particle's excursion is not small
+    np.testing.assert_allclose(etas[:, :3], xs, atol=1e-7)
+    np.testing.assert_allclose(etas[:, 3:] - jnp.array([0.0, 0.0, 0.7]), 0.0, atol=1e-7)
+    # negative control: drop the Froude-Krylov force (m_d = 0 in the load): the body lags
+    etas_nofk, _ = _follow(sea, current, b, 0.0 * m_d, p0, psi, period, n)
+    assert float(jnp.max(jnp.abs(etas_nofk[:, :3] - xs))) > 0.1 * float(jnp.max(jnp.abs(orbit)))
+    # with PVS's CG 2 cm below the CB the body sways like a pendulum (pitch/roll up to ~2 deg
+    # here), yet its origin (the CB) stays on the particle's path to within |r_bg| x tilt
+    b_pvs = _remus_body(cg_at_cb=False)
+    etas_pvs, _ = _follow(sea, current, b_pvs, m_d, p0, psi, period, n)
+    dev = float(jnp.max(jnp.abs(etas_pvs[:, :3] - xs)))
+    tilt = float(jnp.max(jnp.abs(etas_pvs[:, 3:5])))
+    assert tilt > 0.005
+    assert dev < 2 * 0.02 * tilt
