@@ -432,6 +432,16 @@ def test_the_current_door_plus_correction_is_the_froude_krylov_body():
     np.testing.assert_allclose(corr, 0.0, atol=1e-12)
 
 
+def _rk4(f, t, y, dt):
+    add = lambda y, k, h: jax.tree.map(lambda a, b: a + h * b, y, k)
+    k1 = f(t, y)
+    k2 = f(t + dt / 2, add(y, k1, dt / 2))
+    k3 = f(t + dt / 2, add(y, k2, dt / 2))
+    k4 = f(t + dt, add(y, k3, dt))
+    ks = jax.tree.map(lambda a, b, c, d: (a + 2 * b + 2 * c + d) / 6, k1, k2, k3, k4)
+    return add(y, ks, dt)
+
+
 @partial(jax.jit, static_argnames="steps")
 def _follow(sea, current, b, m_d, p0, psi, period, steps):
     """RK4 of the body (the sixdof plant taking the water as its current, plus the correction)
@@ -451,15 +461,6 @@ def _follow(sea, current, b, m_d, p0, psi, period, steps):
     def particle(t, x):
         return kin(t, x)[0]
 
-    def rk4(f, t, y):
-        add = lambda y, k, h: jax.tree.map(lambda a, b: a + h * b, y, k)
-        k1 = f(t, y)
-        k2 = f(t + dt / 2, add(y, k1, dt / 2))
-        k3 = f(t + dt / 2, add(y, k2, dt / 2))
-        k4 = f(t + dt, add(y, k3, dt))
-        ks = jax.tree.map(lambda a, b, c, d: (a + 2 * b + 2 * c + d) / 6, k1, k2, k3, k4)
-        return add(y, ks, dt)
-
     z = jnp.zeros_like(psi)
     eta0 = jnp.concatenate([p0, jnp.stack([z, z, psi])])
     R0 = sixdof.Rzyx(z, z, psi)
@@ -468,7 +469,7 @@ def _follow(sea, current, b, m_d, p0, psi, period, steps):
     def step(carry, k):
         y, x = carry
         t = k * dt
-        y, x = rk4(body, t, y), rk4(particle, t, x)
+        y, x = _rk4(body, t, y, dt), _rk4(particle, t, x, dt)
         return (y, x), (y[0], x)
 
     steps_f = jnp.arange(steps, dtype=p0.dtype)
@@ -506,3 +507,66 @@ def test_a_neutrally_buoyant_body_moves_with_the_water_particles(regular):
     tilt = float(jnp.max(jnp.abs(etas_pvs[:, 3:5])))
     assert tilt > 0.005
     assert dev < 2 * 0.02 * tilt
+
+
+@partial(jax.jit, static_argnames="steps")
+def _follow_remus(sea, current, p, p0, period, steps):
+    """The REMUS 100 plant itself (actuators off), taking the water as its (3,) current, with
+    :func:`waves.current_door_correction` added as a body force, and the water particle."""
+    dt = 2 * period / steps
+    m_d = p.body.B / p.body.W * p.body.M_RB[0, 0]  # W = B: the displaced mass is the mass
+
+    def body(t, x):
+        v_w, a_w = waves.water_kinematics(sea, t, x.eta[:3], current)
+        args = remus100.Remus100Args(p, v_w, a_w)
+        dx = remus100.remus100_plant(t, x, jnp.zeros(3), args)
+        R = sixdof.Rzyx(x.eta[3], x.eta[4], x.eta[5])
+        corr = waves.current_door_correction(R, a_w, p.body.M_RB, m_d, p.body.r_bb)
+        return dx._replace(nu=dx.nu + jnp.linalg.solve(remus100.mass_matrix(p), corr))
+
+    particle = lambda t, x: waves.water_kinematics(sea, t, x, current)[0]
+    nu0 = jnp.concatenate([waves.water_kinematics(sea, 0.0, p0, current)[0], jnp.zeros(3)])
+    x0 = remus100.Remus100State(jnp.concatenate([p0, jnp.zeros(3)]), nu0, jnp.zeros(3))
+
+    def step(carry, k):
+        x, q = carry
+        x, q = _rk4(body, k * dt, x, dt), _rk4(particle, k * dt, q, dt)
+        return (x, q), (x.eta, q)
+
+    return jax.lax.scan(step, (x0, p0), jnp.arange(steps, dtype=p0.dtype))[1]
+
+
+def test_the_remus100_plant_moves_with_the_water_particles():
+    """The REMUS 100 plant (hull lift/drag, cross-flow drag, PVS damping, CG 2 cm below the CB)
+    with its actuators off, released with the water's velocity in a regular wave plus a
+    current: its origin (the CB) stays on the particle path to within |r_bg| x tilt."""
+    period = 6.0
+    sea = _regular(a=0.5, omega=2 * np.pi / period, phase=0.3, beta=0.5)
+    current = jnp.array([0.2, -0.1, 0.0])
+    p0 = jnp.array([1.0, 2.0, 3.0])
+    p = remus100.remus100_params()
+    etas, xs = _follow_remus(sea, current, p, p0, period, 300)
+    orbit = float(jnp.max(jnp.abs(xs - p0 - current * (jnp.arange(1.0, 301.0)[:, None] * 0.04))))
+    dev = float(jnp.max(jnp.abs(etas[:, :3] - xs)))
+    tilt = float(jnp.max(jnp.abs(etas[:, 3:5])))
+    assert orbit > 0.2 and tilt > 0.005
+    assert dev < 2 * 0.02 * tilt, (dev, tilt, orbit)
+    # the body sways in roll and pitch; its heading barely moves
+    assert float(jnp.max(jnp.abs(etas[:, 5]))) < tilt
+
+
+def test_remus100_takes_a_3d_water_velocity():
+    """A (3,) current takes the full rotation R^T; level and horizontal it is PVS's (2,) door."""
+    nu = jnp.array([1.0, 0.1, -0.2, 0.01, 0.02, 0.3])
+    v2, d2 = jnp.array([0.3, -0.4]), jnp.array([0.01, 0.02])
+    v3, d3 = jnp.append(v2, 0.0), jnp.append(d2, 0.0)
+    level = jnp.array([1.0, 2.0, 3.0, 0.0, 0.0, 0.8])
+    yawing = nu.at[3:5].set(0.0)  # PVS's door rotates with the yaw rate only
+    for a, b in zip(remus100.current_in_body(level, yawing, v2, d2),
+                    remus100.current_in_body(level, yawing, v3, d3), strict=True):  # fmt: skip
+        np.testing.assert_allclose(b, a, rtol=1e-14, atol=1e-16)
+    tilted = jnp.array([1.0, 2.0, 3.0, 0.2, -0.3, 0.8])
+    v3 = jnp.array([0.3, -0.4, 0.25])
+    for a, b in zip(remus100.current_in_body(tilted, nu, v3, d3),
+                    sixdof.current_in_body(tilted, nu, v3, d3), strict=True):  # fmt: skip
+        np.testing.assert_array_equal(a, b)
