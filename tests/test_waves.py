@@ -570,3 +570,22 @@ def test_remus100_takes_a_3d_water_velocity():
     for a, b in zip(remus100.current_in_body(tilted, nu, v3, d3),
                     sixdof.current_in_body(tilted, nu, v3, d3), strict=True):  # fmt: skip
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("dtype, tol", [(jnp.float64, 1e-12), (jnp.float32, 2e-5)])
+def test_phases_far_from_zero_are_accurate(dtype, tol):
+    """The kinematics' shared sin/cos reduction holds over long runs (phases of thousands of
+    rad): a regular wave's elevation and velocity against numpy's cos/sin in float64."""
+    a, w, phi, beta, k = 1.0, 1.3, 0.2, 0.4, 1.3**2 / G
+    sea = jax.tree.map(lambda x: x.astype(dtype), _regular(a, w, phi, beta))
+    t = np.concatenate([np.linspace(0.0, 20.0, 401), np.linspace(3000.0, 3020.0, 401)])
+    if dtype == jnp.float32:
+        t = t[:401]  # float32 cannot represent phases of 4000 rad to better than 2.4e-4
+    n, e, d = 3.0, -2.0, 1.5
+    theta = k * (n * np.cos(beta) + e * np.sin(beta)) - w * t + phi
+    p = jnp.array([n, e, d], dtype=dtype)
+    zeta = jax.vmap(lambda ti: waves.elevation(sea, ti, p[0], p[1]))(jnp.asarray(t, dtype))
+    u = jax.vmap(lambda ti: waves.orbital_velocity(sea, ti, p))(jnp.asarray(t, dtype))
+    np.testing.assert_allclose(zeta, a * np.cos(theta), atol=tol)
+    ref_w = -a * w * np.exp(-k * d) * np.sin(theta)
+    np.testing.assert_allclose(u[:, 2], ref_w, atol=tol * a * w)

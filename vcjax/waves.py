@@ -352,6 +352,36 @@ def sea_state(
 # --------------------------------------------------------------------------------------------
 
 
+# 2 pi = _TWO_PI_HI + _TWO_PI_LO: the high part has 8 significant bits, so n * _TWO_PI_HI is
+# exact for |n| < 2^16 in float32 (far beyond in float64); the low part is 2 pi - 6.28125.
+_TWO_PI_HI = 6.28125
+_TWO_PI_LO = 0.0019353071795864769253
+
+
+def _sincos(theta):
+    """``(cos(theta), sin(theta))`` by one shared reduction and two short polynomials.
+
+    ``r = theta - 2 pi n`` (``n = round(theta / 2 pi)``, two-part constant), ``h = r / 2`` in
+    ``[-pi/2, pi/2]``, Taylor series of ``sin h`` and ``cos h`` (to ``h^13``/``h^12`` in float32,
+    ``h^23``/``h^22`` in float64; truncation below the dtype's epsilon), then ``cos r = 1 - 2
+    sin^2 h`` and ``sin r = 2 sin h cos h``. Branch-free multiply-adds: about 5x cheaper than
+    ``jnp.cos`` plus ``jnp.sin`` on XLA:CPU, for 6e-7 (float32) and 1e-15 (float64) absolute
+    error (``tests/test_waves.py``); differentiable (``round`` has zero derivative).
+    """
+    dt = theta.dtype
+    n = jnp.round(theta * (1.0 / (2.0 * math.pi)))
+    h = 0.5 * ((theta - n * _TWO_PI_HI) - n * _TWO_PI_LO)
+    h2 = h * h
+    terms = 11 if jnp.finfo(dt).bits > 32 else 6
+    s = jnp.full_like(h, (-1) ** terms / math.factorial(2 * terms + 1))
+    c = jnp.full_like(h, (-1) ** terms / math.factorial(2 * terms))
+    for j in range(terms - 1, -1, -1):
+        s = s * h2 + (-1) ** j / math.factorial(2 * j + 1)
+        c = c * h2 + (-1) ** j / math.factorial(2 * j)
+    s = s * h
+    return 1.0 - 2.0 * s * s, 2.0 * s * c
+
+
 def _phase(sea: Sea, t, north, east):
     cb, sb = jnp.cos(sea.direction), jnp.sin(sea.direction)
     theta = sea.wavenumber * (north * cb + east * sb) - sea.omega * t + sea.phase
@@ -365,13 +395,14 @@ def _components(sea: Sea, t, p):
     below = p[2] > 0
     depth = jnp.where(below, p[2], 0.0)
     amp = sea.amplitude * sea.omega * jnp.exp(-sea.wavenumber * depth)
-    return amp * jnp.cos(theta), amp * jnp.sin(theta), cb, sb, below
+    cos, sin = _sincos(theta)
+    return amp * cos, amp * sin, cb, sb, below
 
 
 def elevation(sea: Sea, t, north, east):
     """() free-surface elevation ``zeta`` [m, positive up] at time ``t`` [s], (north, east) [m]."""
     theta, _, _ = _phase(sea, t, north, east)
-    return jnp.sum(sea.amplitude * jnp.cos(theta))
+    return jnp.sum(sea.amplitude * _sincos(theta)[0])
 
 
 def orbital_velocity(sea: Sea, t, p):
