@@ -99,6 +99,21 @@ nu_c_dot`` with ``v_c = v_w``, ``v_c_dot = a_w``), the same physics needs the ex
 :func:`current_door_correction` ``= tau_FK - M_RB [R^T a_w; 0]``, which is exactly zero for a
 neutrally buoyant body whose CG is at its CB (``m = m_d``, ``r_bg = r_bb``). A neutrally buoyant
 body with its actuators off then moves with the water particles (``tests/test_waves.py``).
+
+The water depends on the vehicle's position, so it is evaluated inside the plant's vector field
+(every integrator stage), not once per control step like a uniform current::
+
+    def plant_in_waves(t, x, u, args):             # x.eta (6,), args.v_c / args.v_c_dot (3,)
+        v_w, a_w = water_kinematics(sea, t, x.eta[:3], current)
+        dx = plant(t, x, u, args._replace(v_c=v_w, v_c_dot=a_w))
+        R = Rzyx(*x.eta[3:])
+        tau_fk = current_door_correction(R, a_w, M_RB, m_d, r_bb)   # (6,) body force
+        return dx._replace(nu=dx.nu + M^-1 tau_fk)   # or add tau_fk to the plant's force sum
+
+:func:`vcjax.vehicles.sixdof.vector_field` takes ``(v_c, v_c_dot)`` (3,) as they are;
+:mod:`vcjax.vehicles.remus100` takes a (3,) ``v_c``/``v_c_dot`` with the full rotation (its
+(2,) door is PVS's yaw-only rotation of a horizontal current). For REMUS 100 (``W = B``, CB at
+the origin, CG 2 cm below) the correction is the pendulum moment ``-m r_bg x R^T a_w``.
 """
 
 from __future__ import annotations
