@@ -10,7 +10,7 @@ ROOT = Path(__file__).resolve().parents[1] / "vcjax"
 LAYERS = [
     {"_checks", "_config", "devices", "linalg", "integrators", "progress"},
     {"distributed", "runinfo"},
-    {"mechanics", "systems", "paths", "currents"},
+    {"mechanics", "systems", "paths", "currents", "waves"},
     {"vehicles", "guidance", "allocation", "rollout"},
     {"control"},
     {"loops"},

@@ -101,6 +101,7 @@ from vcjax.vehicles.sixdof import (
     m2c,
     sixdof_params,
 )
+from vcjax.vehicles.sixdof import current_in_body as _current_in_body_3d
 from vcjax.vehicles.sixdof import validate as _validate_body
 
 __all__ = [
@@ -224,8 +225,9 @@ class Remus100Args(NamedTuple):
 
     Attributes:
         vehicle: :class:`Remus100Params`.
-        v_c: (2,) horizontal current in NED ``[north, east]`` [m/s].
-        v_c_dot: (2,) its time derivative [m/s^2] (zero in PVS).
+        v_c: (2,) horizontal current in NED ``[north, east]`` [m/s] (or (3,): see
+            :func:`current_in_body`).
+        v_c_dot: (2,) its time derivative [m/s^2] (zero in PVS; (3,) with a (3,) ``v_c``).
     """
 
     vehicle: Remus100Params
@@ -471,12 +473,19 @@ def current_in_body(eta, nu, v_c, v_c_dot=None):
     ``nu_c = [Rz(psi)^T v_c, 0, 0, 0, 0]`` (= ``[V_c cos(beta_c - psi), V_c sin(beta_c - psi),
     0, ...]``) and ``nu_c_dot = [r v_c, -r u_c, 0, ...]`` (+ ``Rz(psi)^T v_c_dot``).
 
+    A (3,) ``v_c`` (the water's NED velocity, e.g. current + waves,
+    :func:`vcjax.waves.water_kinematics`) takes the full rotation instead,
+    ``nu_c = [R(Theta)^T v_c; 0]`` (:func:`vcjax.vehicles.sixdof.current_in_body`).
+
     Args:
-        eta: (6,) pose; nu: (6,) body velocity; v_c, v_c_dot: (2,) NED current and its rate.
+        eta: (6,) pose; nu: (6,) body velocity; v_c, v_c_dot: (2,) NED current and its rate,
+            or (3,) both.
 
     Returns:
         ``(nu_c (6,), nu_c_dot (6,))``.
     """
+    if v_c.shape[-1] == 3:
+        return _current_in_body_3d(eta, nu, v_c, v_c_dot)
     c, s = jnp.cos(eta[5]), jnp.sin(eta[5])
     u_c = c * v_c[0] + s * v_c[1]
     v_cb = -s * v_c[0] + c * v_c[1]
