@@ -206,11 +206,20 @@ def test_two_process_vcjax_tune_equals_one_process(tmp_path, child_env):
 
 
 def test_spawn_sets_the_environment_and_stops_the_others_on_failure(tmp_path, child_env):
+    # every process writes its file (atomically: a complete file or none); the failing one
+    # fails only once its siblings' files are there (a condition, not a start-up race), and
+    # gives up waiting after 60 s (the assertion on the files then fails, not the wait)
     script = (
         "import os, sys, time, json\n"
         "keys = ('VCJAX_COORDINATOR', 'VCJAX_NUM_PROCESSES', 'VCJAX_PROCESS_ID', 'XLA_FLAGS')\n"
         "i = os.environ['VCJAX_PROCESS_ID']\n"
-        f"open(r'{tmp_path}/env' + i, 'w').write(json.dumps({{k: os.environ.get(k) for k in keys}}))\n"
+        f"d = r'{tmp_path}'\n"
+        "open(f'{d}/tmp' + i, 'w').write(json.dumps({k: os.environ.get(k) for k in keys}))\n"
+        "os.replace(f'{d}/tmp' + i, f'{d}/env' + i)\n"
+        "end = time.monotonic() + 60\n"
+        "while i == '2' and time.monotonic() < end and not all(\n"
+        "    os.path.exists(f'{d}/env{j}') for j in '01'):\n"
+        "    time.sleep(0.01)\n"
         "sys.exit(3) if i == '2' else time.sleep(120)\n"
     )
     codes = distributed.spawn(3, [sys.executable, "-c", script], cpu_devices=2, timeout_s=60)

@@ -39,6 +39,7 @@ from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from vcjax import distributed, loops, paths
 from vcjax._config import ConfigError
 from vcjax.loops.config import ScenarioChoice
+from vcjax.outputs import write_json_atomic
 
 __all__ = ["build", "run_tune_config", "main"]
 
@@ -274,7 +275,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     if not writer:
         return {"summary": None, "files": files}
     f = out / "gains.json"
-    f.write_text(json.dumps(gains_json, indent=2) + "\n")
+    write_json_atomic(f, gains_json)
     files.append(f)
     f = out / "history.json"
     hist = {
@@ -288,7 +289,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         "evals": res.evals,
         "rollouts": res.evals * B,
     }
-    f.write_text(json.dumps(hist, indent=1) + "\n")
+    write_json_atomic(f, hist, indent=1)
     files.append(f)
     files.append(plot_loss_curve(res.history, out / "loss_curve.png", f"{o['name']} tuning"))
     n_plot = min(cfg["report"]["plot_scenarios"], cfg["heldout"]["size"])
@@ -344,7 +345,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         "total_wall_s": time.perf_counter() - t_start,
     }
     f = out / "summary.json"
-    f.write_text(json.dumps(summary, indent=2) + "\n")
+    write_json_atomic(f, summary)
     files.append(f)
     say(
         f"held-out loss {lb:.6g} -> {la:.6g} "

@@ -28,6 +28,30 @@ def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
     path = write_run_json(out, command, config=config, seeds=seeds, wall_s=wall)
     if path is not None:
         print(f"wrote {path}")
+    _outputs_done(args)
+
+
+def _prepare(args, path, command: str) -> Path:
+    """Check, clear (``--overwrite``) and lock ``--out`` before any work (:mod:`vcjax.outputs`)."""
+    from vcjax.outputs import OutputError, prepare_out
+
+    try:
+        _OUT[:] = [prepare_out(path, getattr(args, "overwrite", False), command)]
+    except OutputError as err:
+        raise _CLIError(str(err)) from None
+    return _OUT[0].path
+
+
+#: The output folder of the running command (:func:`_prepare`), released when it ends.
+_OUT: list = []
+
+
+def _outputs_done(args=None, release: bool = True) -> None:
+    """List the files this run wrote (for a later ``--overwrite``) and release the lock."""
+    if _OUT:
+        _OUT[0].record_written()
+        if release:
+            _OUT.pop().release()
 
 
 class _CLIError(Exception):
@@ -82,7 +106,7 @@ def _cmd_demo(args) -> int:
     from vcjax.demos import ARM_DT
 
     _time_grid(args.horizon, ARM_DT)
-    out = _out_dir(args.out)
+    out = _prepare(args, args.out, "demo")
     _enable_x64(args.x64)
     from vcjax.demos import arm_demo
 
@@ -108,7 +132,7 @@ def _cmd_simulate(args) -> int:
     horizon = horizon if args.horizon is None else args.horizon
     dt = dt if args.dt is None else args.dt
     _time_grid(horizon, dt)
-    out = _out_dir(args.out or f"out/{args.experiment}")
+    out = _prepare(args, args.out or f"out/{args.experiment}", f"simulate {args.experiment}")
     if args.experiment == "sim2":
         return _simulate_sim2(args, out, horizon, dt)
     if args.experiment == "remus100":
@@ -224,7 +248,7 @@ def _use_cores(args, command: str) -> int | None:
 
 
 def _cmd_sweep(args) -> int:
-    _check_out(args.out)
+    _prepare(args, args.out, "sweep")
     if (rc := _use_cores(args, "sweep")) is not None:
         return rc
     _enable_x64(args.x64)
@@ -232,6 +256,7 @@ def _cmd_sweep(args) -> int:
 
     try:
         spec, extras = load_config(args.config)
+        _size_check(args, "sweep", spec=spec)
         result = run_sweep_config(args.config, args.out, progress=True, netcdf=args.netcdf)
     except (OSError, ValueError, ImportError) as err:
         return _fail(f"sweep: {err}")
@@ -268,8 +293,39 @@ def _cmd_sweep(args) -> int:
     return 0
 
 
+def _size_check(args, command: str, spec=None, cfg=None) -> None:
+    """Refuse (ValueError, exit 2) work that cannot fit or seeds the PRNG cannot take
+    (:mod:`vcjax.sizing`), before anything is compiled."""
+    from vcjax import sizing
+
+    sizing.check_limits_options(args.max_steps, args.max_memory_gb)
+    if spec is not None:
+        sizing.check_seed(f"{args.config}: [sweep] seed", spec.seed, args.x64)
+        est = sizing.sweep_estimate(spec)
+    else:
+        for sec in ("train", "heldout"):
+            sizing.check_seed(f"{args.config}: {sec}.seed", cfg[sec]["seed"], args.x64)
+        est = sizing.tune_estimate(cfg)
+    sizing.check_estimate(est, f"{args.config}", args.max_steps, args.max_memory_gb)
+
+
+def _add_size_limits(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--max-steps",
+        type=int,
+        metavar="N",
+        help="allow up to N steps per rollout (default 10,000,000)",
+    )
+    p.add_argument(
+        "--max-memory-gb",
+        type=float,
+        metavar="G",
+        help="allow an estimated peak memory up to G GB (default: 80%% of the physical memory)",
+    )
+
+
 def _cmd_tune(args) -> int:
-    _check_out(args.out)
+    _prepare(args, args.out, "tune")
     if (rc := _use_cores(args, "tune")) is not None:
         return rc
     _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
@@ -278,6 +334,7 @@ def _cmd_tune(args) -> int:
 
     try:
         cfg = load_config(args.config)
+        _size_check(args, "tune", cfg=cfg)
         result = run_tune_config(args.config, args.out)
     except (OSError, ValueError) as err:
         return _fail(f"tune: {err}")
@@ -299,7 +356,7 @@ def _cmd_tune(args) -> int:
 
 
 def _cmd_fit(args) -> int:
-    _check_out(args.out)
+    _prepare(args, args.out, "fit")
     _enable_x64(args.x64)
     from vcjax.identify import run_fit_config
 
@@ -351,6 +408,12 @@ def _cmd_launch(args) -> int:
     if args.cpu_devices is not None and args.cpu_devices < 1:
         return _fail(f"launch: --cpu-devices must be >= 1, got {args.cpu_devices}")
     from vcjax.devices import usable_cores
+    from vcjax.sizing import SizeError, check_launch
+
+    try:
+        check_launch(args.n, args.timeout, args.max_processes, usable_cores())
+    except SizeError as err:
+        return _fail(f"launch: {err}")
 
     # the local processes share the cores: by default each splits off its share of them
     cpu = max(1, usable_cores() // args.n) if args.cpu_devices is None else args.cpu_devices
@@ -386,6 +449,15 @@ def _add_cpu_devices(p: argparse.ArgumentParser) -> None:
         default=None,
         help="split the host CPU into N JAX devices and shard the scenarios over them "
         "(default: $VCJAX_CPU_DEVICES, else one per core; 1: no sharding)",
+    )
+
+
+def _add_overwrite(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="--out may hold an earlier vcjax run: its files are removed first (files vcjax "
+        "did not write are kept)",
     )
 
 
@@ -440,6 +512,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="sim2: headline mode (the paper: underactuated); the other is run for comparison",
     )
     s.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    _add_overwrite(s)
     s.set_defaults(func=_cmd_simulate)
 
     w = sub.add_parser(
@@ -454,6 +527,8 @@ def build_parser() -> argparse.ArgumentParser:
         help='also write results.nc (labelled xarray dataset; pip install "vcjax[xarray]")',
     )
     _add_cpu_devices(w)
+    _add_overwrite(w)
+    _add_size_limits(w)
     w.set_defaults(func=_cmd_sweep)
 
     t = sub.add_parser(
@@ -463,6 +538,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--out", default="out/tune", help="output directory (default: out/tune)")
     t.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
     _add_cpu_devices(t)
+    _add_overwrite(t)
+    _add_size_limits(t)
     t.set_defaults(func=_cmd_tune)
 
     f = sub.add_parser(
@@ -473,6 +550,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--out", default="out/fit", help="output directory (default: out/fit)")
     f.add_argument("--quiet", action="store_true", help="no per-iteration progress lines")
     f.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    _add_overwrite(f)
     f.set_defaults(func=_cmd_fit)
 
     d = sub.add_parser(
@@ -482,6 +560,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
     d.add_argument("--horizon", type=float, default=6.0, help="simulated time [s]")
     d.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    _add_overwrite(d)
     d.set_defaults(func=_cmd_demo)
 
     n = sub.add_parser(
@@ -498,7 +577,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="CPU devices per process (default: the cores divided among the processes)",
     )
     n.add_argument("--port", type=int, help="coordinator port (default: a free one)")
-    n.add_argument("--timeout", type=float, help="terminate all processes after this many s")
+    n.add_argument("--timeout", type=float, help="terminate all processes after this many s (> 0)")
+    n.add_argument(
+        "--max-processes",
+        type=int,
+        metavar="N",
+        help="allow up to N local processes (default: the number of usable CPU cores)",
+    )
     n.add_argument("rest", nargs=argparse.REMAINDER, help="-- COMMAND [ARGS...]")
     n.set_defaults(func=_cmd_launch)
     return p
@@ -526,6 +611,9 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except _CLIError as err:
         return _fail(f"{args.command}: {err}")
+    finally:
+        while _OUT:
+            _OUT.pop().release()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -22,7 +22,6 @@ over ground (the current is unknown).
 from __future__ import annotations
 
 import functools
-import json
 from pathlib import Path
 
 import jax
@@ -33,6 +32,7 @@ from vcjax import loops, paths
 from vcjax._checks import check_array, check_positive
 from vcjax.loops.infante import InfanteGains, InfanteLoop, infante_gains
 from vcjax.metrics import run_metrics
+from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig, first_unhealthy_step
 from vcjax.vehicles import infante
 
@@ -243,7 +243,7 @@ def run_sim1(
         progress(f"[{i + 1}/{len(VARIANTS)}] simulating {v} ({horizon:g} s, dt {dt:g} s)")
         trajs[v] = jax.device_get(run_variant(v, gains, sc, horizon, dt, edd, timing))
         metrics[v] = tracking_metrics(v, trajs[v], sc)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    write_json_atomic(out / "metrics.json", metrics)
     files = plots.sim1_figures(trajs, sc, out)
     return {
         "metrics": metrics,

@@ -20,7 +20,6 @@ which at least one thruster is commanded at its limit, whole run).
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from pathlib import Path
 from typing import Any, Literal
@@ -33,6 +32,7 @@ from vcjax import loops, paths
 from vcjax._checks import check_array, check_positive
 from vcjax.loops.odin import OdinGains, OdinLoop, default_odin_gains, odin_gains
 from vcjax.metrics import run_metrics
+from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig
 from vcjax.vehicles import odin
 
@@ -262,6 +262,6 @@ def run_sim2(
         trajs[mode] = jax.device_get(run_variant(cfg, gains, sc, horizon, dt))
         by_mode[mode] = sim2_metrics(trajs[mode], sc, config=cfg)
     metrics = {"actuation": actuation, **by_mode[actuation], "by_actuation": by_mode}
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    write_json_atomic(out / "metrics.json", metrics)
     files = plots_sim2.sim2_figures(trajs, sc, PATH, out)
     return {"metrics": metrics, "files": [out / "metrics.json", *files]}

@@ -24,7 +24,6 @@ Unknown sections and keys are rejected.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -41,6 +40,7 @@ from vcjax._config import (
 from vcjax.identify.data import load_log
 from vcjax.identify.models import get_fit_model, scalar_fields
 from vcjax.identify.shooting import FitResult, fit_logs
+from vcjax.outputs import write_json_atomic
 
 __all__ = ["FitConfig", "load_fit_config", "run_fit_config", "FIT_SCHEMA"]
 
@@ -181,7 +181,7 @@ def run_fit_config(config_path, out, progress: bool = False) -> dict:
     fit["files"] = [str(x) for x in cfg["data"]["files"]]
     fit["config"] = {k: dict(v) for k, v in cfg.items()}
     files = [out / "fit.json"]
-    (out / "fit.json").write_text(json.dumps(fit, indent=2, allow_nan=False) + "\n")
+    write_json_atomic(out / "fit.json", fit, allow_nan=False)
     from vcjax.identify.figures import cost_history_figure, prediction_figure
 
     files.append(cost_history_figure(result, out / "cost_history.png"))

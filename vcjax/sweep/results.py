@@ -214,8 +214,9 @@ def save_results(result: SweepResult, path: Path) -> Path:
             arrays[f"{v}.{k}"] = a
         for k, a in result.traces[v].items():
             arrays[f"{v}.trace_{k}"] = a
-    np.savez_compressed(path, **arrays)
-    return path
+    from vcjax.outputs import save_npz_atomic
+
+    return save_npz_atomic(path, **arrays)
 
 
 def load_results(path: Path) -> SweepResult:
