@@ -257,7 +257,8 @@ def _cmd_sweep(args) -> int:
     try:
         spec, extras = load_config(args.config)
         _size_check(args, "sweep", spec=spec)
-        result = run_sweep_config(args.config, args.out, progress=True, netcdf=args.netcdf)
+        with _interruptible():
+            result = run_sweep_config(args.config, args.out, progress=True, netcdf=args.netcdf)
     except (OSError, ValueError, ImportError) as err:
         return _fail(f"sweep: {err}")
     summary = result["summary"]
@@ -290,7 +291,29 @@ def _cmd_sweep(args) -> int:
         print(f"wrote {f}")
     config = {"file": args.config, "spec": spec, **extras}
     _record(args.out, "sweep", args, config=config, seeds={"sweep": spec.seed})
+    if summary is not None and summary.get("interrupted"):
+        return _interrupted(
+            "sweep",
+            f"kept the {summary['num_scenarios']} of {summary['num_scenarios_planned']} "
+            f"scenarios that ran (summary.json: interrupted) in {args.out}",
+        )
     return 0
+
+
+def _interruptible():
+    """SIGINT / SIGTERM ask the running loop to stop at its next safe point and write what is
+    done (:func:`vcjax.outputs.interrupt_guard`)."""
+    from vcjax.outputs import interrupt_guard
+
+    return interrupt_guard()
+
+
+def _interrupted(command: str, what: str) -> int:
+    """The one line of an interrupted run; exit code 130."""
+    from vcjax.outputs import EXIT_INTERRUPTED, stop_signal
+
+    print(f"vcjax: {command}: interrupted ({stop_signal() or 'signal'}): {what}", file=sys.stderr)
+    return EXIT_INTERRUPTED
 
 
 def _size_check(args, command: str, spec=None, cfg=None) -> None:
@@ -335,7 +358,8 @@ def _cmd_tune(args) -> int:
     try:
         cfg = load_config(args.config)
         _size_check(args, "tune", cfg=cfg)
-        result = run_tune_config(args.config, args.out)
+        with _interruptible():
+            result = run_tune_config(args.config, args.out)
     except (OSError, ValueError) as err:
         return _fail(f"tune: {err}")
     for f in result["files"]:
@@ -352,6 +376,12 @@ def _cmd_tune(args) -> int:
         )
     if summary.get("aborted"):
         return _fail(f"tune: aborted: {summary.get('reason', 'non-finite steps')}")
+    if summary.get("interrupted"):
+        return _interrupted(
+            "tune",
+            f"after {summary['iterations']} of {summary['steps_planned']} steps; wrote the best "
+            f"gains so far, the history and summary.json (interrupted) to {args.out}",
+        )
     return 0
 
 
@@ -611,6 +641,13 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except _CLIError as err:
         return _fail(f"{args.command}: {err}")
+    except KeyboardInterrupt:  # a second signal while the first one's outputs were written
+        print(
+            f"vcjax: {args.command}: interrupted twice: stopped at once (the files written "
+            "so far are complete; the rest are missing)",
+            file=sys.stderr,
+        )
+        return 130
     finally:
         while _OUT:
             _OUT.pop().release()

@@ -41,6 +41,8 @@ class SweepResult:
         trace_t: (P,) [s].
         wall_s: wall time of the sweep [s]; devices: number of devices used (per process).
         timing: ``timing[variant]``: :func:`run_timing` (compile and run seconds, throughput).
+        interrupted: the sweep was stopped (SIGINT / SIGTERM) after its first ``len(index)``
+            scenarios' chunks; the result is valid, only smaller.
     """
 
     spec: SweepSpec
@@ -52,6 +54,7 @@ class SweepResult:
     wall_s: float = 0.0
     devices: int = 1
     timing: dict = dataclasses.field(default_factory=dict)
+    interrupted: bool = False  # stopped by a signal: ``index`` holds the scenarios that ran
 
     def to_xarray(self):
         """An ``xarray.Dataset``: dimensions ``variant`` x ``scenario``, sampled inputs and
@@ -126,6 +129,7 @@ def merge_results(parts: list[SweepResult]) -> SweepResult:
         wall_s=max(p.wall_s for p in parts),
         devices=devices,
         timing=timing,
+        interrupted=any(p.interrupted for p in parts),
     )
 
 
@@ -159,13 +163,17 @@ def summarize(result: SweepResult) -> dict:
         if v in result.timing:
             entry["timing"] = result.timing[v]
         out[v] = entry
-    return {
+    summary = {
         "num_scenarios": int(result.index.size),
         "wall_s": round(result.wall_s, 3),
         "devices": result.devices,
         "spec": spec_to_dict(result.spec),
         "variants": out,
     }
+    if result.interrupted:  # only then: summaries of complete sweeps keep their keys
+        summary["interrupted"] = True
+        summary["num_scenarios_planned"] = int(result.spec.num_scenarios)
+    return summary
 
 
 def spec_to_dict(spec: SweepSpec) -> dict:
@@ -206,6 +214,8 @@ def save_results(result: SweepResult, path: Path) -> Path:
     arrays["model_fields"] = np.array(result.spec.mc_config().model_fields, dtype=str)
     arrays["spec_json"] = np.array(json.dumps(spec_to_dict(result.spec)))
     meta = {"wall_s": result.wall_s, "devices": result.devices, "timing": result.timing}
+    if result.interrupted:
+        meta["interrupted"] = True
     arrays["meta_json"] = np.array(json.dumps(meta))
     for k, a in result.scenarios.items():
         arrays[f"scenario.{k}"] = a
@@ -240,4 +250,5 @@ def load_results(path: Path) -> SweepResult:
             meta["wall_s"],
             meta["devices"],
             meta.get("timing", {}),
+            bool(meta.get("interrupted", False)),
         )
