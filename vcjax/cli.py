@@ -392,7 +392,8 @@ def _cmd_fit(args) -> int:
 
     print(f"fit: {args.config} (compiling the multiple-shooting Jacobian first)")
     try:
-        result = run_fit_config(args.config, args.out, progress=not args.quiet)
+        with _interruptible():
+            result = run_fit_config(args.config, args.out, progress=not args.quiet)
     except (OSError, ValueError) as err:
         return _fail(f"fit: {err}")
     fit = result["fit"]
@@ -409,6 +410,12 @@ def _cmd_fit(args) -> int:
     from vcjax.identify.config import load_fit_config
 
     _record(args.out, "fit", args, config={"file": args.config, **load_fit_config(args.config)})
+    if fit["reason"] == "interrupted":
+        return _interrupted(
+            "fit",
+            f"after {fit['iterations']} iterations; wrote the current estimates "
+            f"(converged: false) to {args.out}",
+        )
     return 0
 
 

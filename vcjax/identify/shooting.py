@@ -478,6 +478,8 @@ def fit_logs(
         history += res.cost_history
         stage_iters.append(res.iterations)
         z, s = res.z, res.s
+        if res.reason == "interrupted":
+            break
         if stage == 1:
             sig = np.sqrt(
                 np.sum((res.r.reshape(seg.y.shape) / w) ** 2 * mask[..., None], axis=(0, 1))
@@ -505,7 +507,12 @@ def fit_logs(
     corr = cov / np.outer(np.where(sd > 0, sd, 1.0), np.where(sd > 0, sd, 1.0))
     names = prob.all_names
     warns = _identifiability(names, corr, info_n)
-    if not res.converged:
+    if res.reason == "interrupted":
+        warns.append(
+            f"interrupted after {sum(stage_iters)} iterations: the estimates are the last "
+            "accepted iterate, not an optimum"
+        )
+    elif not res.converged:
         warns.append(f"did not converge in {max_iters} iterations ; raise max_iters")
 
     nominal = prob.values(np.zeros_like(z))
