@@ -460,3 +460,118 @@ def test_launch_bounds(argv, message, capsys):
     rc, err = _run(["launch", *argv, "--", "sweep", "x.toml"], capsys)
     assert rc == 2
     assert message in err
+
+
+# ------------------------------------------------------------------ vcjax fit: logs it must not trust
+
+PVS_CSV = Path(__file__).parent / "data" / "remus100_pvs_reference.csv"
+
+
+def _fit_case(tmp_path, edit, rows: int = 301) -> Path:
+    """A fit config on the first ``rows`` samples of the REMUS 100 reference log after
+    ``edit(cols)`` (a dict of column arrays)."""
+    import csv
+
+    with open(PVS_CSV) as f:
+        lines = f.read().splitlines()
+    prov, header = lines[0], lines[1].split(",")
+    data = np.array([[float(c) for c in r] for r in csv.reader(lines[2 : 2 + rows])])
+    cols = {h: data[:, j].copy() for j, h in enumerate(header)}
+    cols = edit(cols) or cols
+    log = tmp_path / "log.csv"
+    with open(log, "w") as f:
+        f.write(prov + "\n" + ",".join(cols) + "\n")
+        np.savetxt(f, np.column_stack(list(cols.values())), delimiter=",", fmt="%.12g")
+    cfg = tmp_path / "fit.toml"
+    cfg.write_text(
+        f'[data]\nfiles = ["{log}"]\n[model]\nvehicle = "remus100"\nstep = "pvs"\n'
+        "current_speed = 0.5\ncurrent_direction_deg = 170.0\n[fit]\n"
+        'params = ["CD_0", "CL_delta_r"]\nsegment_steps = 25\n'
+    )
+    return cfg
+
+
+def _deg(*names):
+    def edit(cols):
+        for n in names:
+            cols[n] = np.degrees(cols[n])
+
+    return edit
+
+
+def _drop_rows(lo, hi):
+    def edit(cols):
+        keep = np.r_[0:lo, hi : len(cols["t"])]
+        return {k: v[keep] for k, v in cols.items()}
+
+    return edit
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        # the issue's degrees log: every angle and rate in degrees -> the pitch is named first
+        (
+            _deg(
+                "phi",
+                "theta",
+                "psi",
+                "p",
+                "q",
+                "r",
+                "delta_r",
+                "delta_s",
+                "delta_r_cmd",
+                "delta_s_cmd",
+            ),
+            "column 'theta' reaches",
+        ),  # fmt: skip
+        (_deg("theta"), "an angle beyond pi rad only makes sense in degrees"),
+        (_deg("delta_r"), "'delta_r' is in degrees, 'delta_r_cmd' in radians"),
+        (_deg("delta_r_cmd"), "'delta_r_cmd' is in degrees, 'delta_r' in radians"),
+        (_deg("psi"), "'psi' is in degrees, 'r' in radians"),
+        (_deg("theta", "q"), "column 'theta' reaches"),
+        (_deg("q"), "column 'q' reaches"),
+        (_deg("r"), "log.csv: column 'r' is "),
+        (_deg("r"), "x the rate of 'psi' (180/pi = 57.3): 'r' is in degrees"),
+        (_deg("p"), "'p' is in degrees, 'phi' in radians"),
+        (lambda c: {**c, "q": c["q"] * 100}, "rates must be in rad/s"),
+        # the issue's time in milliseconds
+        (lambda c: {**c, "t": c["t"] * 1000.0}, "only makes sense if t is in milliseconds"),
+        (lambda c: {**c, "t": c["t"] * 1000.0}, "the median time step is 20 s"),
+        # the issue's 0.24 s gap in a 0.02 s log (12 samples missing)
+        (_drop_rows(100, 112), "sampling is not uniform: the step is 0.02 s"),
+        (_drop_rows(100, 112), "from sample 99 to 100 (data rows 100 and 101; t = 1.98 -> 2.24 s"),
+        (_drop_rows(200, 201), "a step of 0.04 s"),
+        # jitter of 1 % in one step
+        (
+            lambda c: {**c, "t": np.where(np.arange(len(c["t"])) >= 50, c["t"] + 2e-4, c["t"])},
+            "1 step(s) differ, the first from sample 49 to 50",
+        ),  # fmt: skip
+    ],
+)
+def test_fit_refuses_logs_it_cannot_trust(edit, message, tmp_path, capsys):
+    cfg = _fit_case(tmp_path, edit)
+    out = tmp_path / "out"
+    rc, err = _run(["fit", str(cfg), "--out", str(out), "--quiet"], capsys)
+    assert rc == 2, err
+    assert message in err
+    assert err.startswith("vcjax: fit: ") and "Traceback" not in err
+    assert not (out / "fit.json").exists()
+
+
+def test_a_gains_file_alone_is_not_another_run(tmp_path):
+    (tmp_path / "gains.json").write_text("{}")  # a user's input, e.g. from vcjax tune
+    outputs.prepare_out(tmp_path, False, "simulate").release()
+    assert (tmp_path / "gains.json").exists()
+
+
+def test_overwrite_never_removes_the_commands_inputs(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "run.json").write_text("{}")
+    (out / "gains.json").write_text("{}")
+    (out / outputs.MANIFEST).write_text(json.dumps({"files": ["gains.json", "run.json"]}))
+    d = outputs.prepare_out(out, True, "simulate", keep=[str(out / "gains.json")])
+    d.release()
+    assert sorted(p.name for p in out.iterdir()) == ["gains.json"]

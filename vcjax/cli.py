@@ -36,7 +36,8 @@ def _prepare(args, path, command: str) -> Path:
     from vcjax.outputs import OutputError, prepare_out
 
     try:
-        _OUT[:] = [prepare_out(path, getattr(args, "overwrite", False), command)]
+        inputs = [getattr(args, k, None) for k in ("config", "gains")]  # never removed
+        _OUT[:] = [prepare_out(path, getattr(args, "overwrite", False), command, keep=inputs)]
     except OutputError as err:
         raise _CLIError(str(err)) from None
     return _OUT[0].path
@@ -401,10 +402,19 @@ def _cmd_fit(args) -> int:
     sections = [fit] + ([fit["current"]] if "current" in fit else [])
     for sec in sections:
         for name, value in sec["estimates"].items():
-            print(f"{name:<22}{sec['initial'][name]:>14.6g}{value:>14.6g}{sec['std'][name]:>12.3g}")
+            sd = sec["std"][name]
+            sd = f"{sd:>12.3g}" if sd is not None else f"{'null':>12}"  # non-finite: null
+            est = f"{value:>14.6g}" if value is not None else f"{'null':>14}"
+            print(f"{name:<22}{sec['initial'][name]:>14.6g}{est}{sd}")
     print(f"{fit['iterations']} iterations, {fit['wall_time_s']:.1f} s ({fit['reason']})")
     for w in fit["warnings"]:
         print(f"vcjax: fit: warning: {w}", file=sys.stderr)
+    if not fit["converged"] and fit["reason"] != "interrupted":
+        print(
+            "vcjax: fit: warning: converged: false -- the optimum is not trustworthy "
+            "(see the warnings in fit.json)",
+            file=sys.stderr,
+        )
     for f in result["files"]:
         print(f"wrote {f}")
     from vcjax.identify.config import load_fit_config

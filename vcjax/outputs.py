@@ -72,7 +72,8 @@ EXIT_INTERRUPTED = 130
 LOCK = ".vcjax.lock"
 #: Manifest of the files a run wrote (read by ``--overwrite`` to remove exactly those).
 MANIFEST = ".vcjax-files.json"
-#: Files only vcjax writes: their presence means the folder holds a vcjax run.
+#: Files only vcjax writes: their presence means the folder holds a vcjax run. (``gains.json``
+#: is not one: users keep gains files as inputs; a run's own is listed in its manifest.)
 MARKERS = (
     "run.json",
     "summary.json",
@@ -80,7 +81,6 @@ MARKERS = (
     "results.nc",
     "fit.json",
     "metrics.json",
-    "gains.json",
     "history.json",
 )
 
@@ -323,7 +323,9 @@ def _check_writable(out: Path, raw) -> None:
         raise OutputError(f"--out {raw}: not writable: {err.strerror}") from None
 
 
-def prepare_out(path, overwrite: bool, command: str, *, writer: bool | None = None) -> OutDir:
+def prepare_out(
+    path, overwrite: bool, command: str, *, writer: bool | None = None, keep=()
+) -> OutDir:
     """Check, clear (with ``overwrite``) and lock the output folder ``path`` before any work.
 
     Args:
@@ -332,6 +334,7 @@ def prepare_out(path, overwrite: bool, command: str, *, writer: bool | None = No
         command: what runs (written into the lock file, named in messages).
         writer: whether this process writes the shared outputs (default: process 0 of a
             multi-process run, :func:`process_id_from_env`).
+        keep: files never removed (the command's inputs, e.g. ``--gains out/gains.json``).
 
     Raises:
         OutputError (a ``ValueError``): the folder cannot be created or written, holds another
@@ -347,7 +350,8 @@ def prepare_out(path, overwrite: bool, command: str, *, writer: bool | None = No
         return d
     d._lock(command)
     try:
-        old = _vcjax_files(out)
+        kept = {Path(k).resolve() for k in keep if k}
+        old = [p for p in _vcjax_files(out) if p.resolve() not in kept]
         if old and not overwrite:
             names = ", ".join(sorted({p.name for p in old})[:4])
             raise OutputError(
