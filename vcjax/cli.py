@@ -98,7 +98,8 @@ def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
     if n > max_steps:
         raise _CLIError(
             f"--horizon {horizon:g} / --dt {dt:g} = {n} steps: more than {max_steps} "
-            "(the trajectory is kept in memory); use a larger --dt or a shorter --horizon"
+            "(the trajectory is kept in memory); use a larger --dt or a shorter --horizon, "
+            "or raise the limit with --max-steps"
         )
     return n
 
@@ -132,7 +133,11 @@ def _cmd_simulate(args) -> int:
     horizon, dt = _SIM_DEFAULTS[args.experiment]
     horizon = horizon if args.horizon is None else args.horizon
     dt = dt if args.dt is None else args.dt
-    _time_grid(horizon, dt)
+    if args.max_steps is not None and args.max_steps < 1:
+        raise _CLIError(f"--max-steps: expected an integer >= 1, got {args.max_steps}")
+    _time_grid(horizon, dt, args.max_steps or 10_000_000)
+    if args.diverge_e is not None and not (math.isfinite(args.diverge_e) and args.diverge_e > 0):
+        raise _CLIError(f"--diverge-e: expected a finite bound > 0 [m], got {args.diverge_e:g}")
     out = _prepare(args, args.out or f"out/{args.experiment}", f"simulate {args.experiment}")
     if args.experiment == "sim2":
         return _simulate_sim2(args, out, horizon, dt)
@@ -157,8 +162,9 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
     except ValueError as err:
         return _fail(f"simulate: {err}")
     result = sim1.run_sim1(
-        out, gains, horizon=horizon, dt=dt, edd=args.edd, timing=args.timing, scenario=scenario
-    )
+        out, gains, horizon=horizon, dt=dt, edd=args.edd, timing=args.timing, scenario=scenario,
+        **_diverge(args),
+    )  # fmt: skip
     _print_metrics(result["metrics"])
     for f in result["files"]:
         print(f"wrote {f}")
@@ -168,13 +174,19 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
     return _report_unhealthy(result["unhealthy"], dt)
 
 
+def _diverge(args) -> dict:
+    """``diverge_e`` of ``--diverge-e`` (when given)."""
+    return {} if args.diverge_e is None else {"diverge_e": args.diverge_e}
+
+
 def _report_unhealthy(unhealthy: dict, dt: float) -> int:
     """Print one line per unhealthy run (stderr); exit code 1 if there is any, else 0."""
     for variant, (k, t) in unhealthy.items():
         print(
             f"vcjax: UNHEALTHY RUN: {variant} diverged at step {k} (t = {t:g} s, dt {dt:g} s): "
-            "its state became non-finite or left the divergence bound and was frozen there; "
-            "its metrics and figures after that time are not meaningful",
+            "its state became non-finite or left the divergence bound (then frozen there), or "
+            "it left the path-error bound (--diverge-e); its metrics and figures after that "
+            "time are not meaningful",
             file=sys.stderr,
         )
     return 1 if unhealthy else 0
@@ -193,7 +205,9 @@ def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
             gains = sim2.gains_from_json(json.loads(Path(args.gains).read_text()), args.actuation)
         except (OSError, json.JSONDecodeError, ValueError) as err:
             return _fail(f"simulate sim2: cannot use gains file {args.gains}: {err}")
-    result = sim2.run_sim2(out, gains, horizon=horizon, dt=dt, actuation=args.actuation)
+    result = sim2.run_sim2(
+        out, gains, horizon=horizon, dt=dt, actuation=args.actuation, **_diverge(args)
+    )
     by_mode = result["metrics"]["by_actuation"]
     _print_metrics(
         {mode: {k: v for k, v in m.items() if _is_number(v)} for mode, m in by_mode.items()}
@@ -212,6 +226,8 @@ def _simulate_remus100(args, out: Path, horizon: float, dt: float) -> int:
 
     if args.gains:
         return _fail("simulate remus100: --gains is not supported (tune through `vcjax tune`)")
+    if args.diverge_e is not None:
+        return _fail("simulate remus100: --diverge-e is not supported (its bound is 25 m)")
     current = tuple(args.current) if args.current else (0.0, 0.3)
     if not all(math.isfinite(c) for c in current):
         return _fail(f"simulate remus100: --current must be finite, got {current}")
@@ -559,6 +575,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="sim2: headline mode (the paper: underactuated); the other is run for comparison",
     )
     s.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    s.add_argument(
+        "--diverge-e",
+        type=float,
+        metavar="M",
+        help="sim1/sim2: a run more than M metres off the path is unhealthy (default: 25%% of "
+        "u_d x horizon, at least 50 m)",
+    )
+    s.add_argument(
+        "--max-steps", type=int, metavar="N", help="allow up to N steps (default 10,000,000)"
+    )
     _add_overwrite(s)
     s.set_defaults(func=_cmd_simulate)
 
