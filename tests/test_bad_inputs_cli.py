@@ -141,7 +141,14 @@ def test_overwrite_removes_vcjax_files_and_keeps_user_files(tmp_path):
     (out / "notes.txt").write_text("mine")
     (out / "user_plot.png").write_text("user figure")
     d = outputs.prepare_out(out, overwrite=False, command="first")
-    for name in ("run.json", "summary.json", "results.npz", "results.part1-of-2.npz", "a.png"):
+    for name in (
+        "run.json",
+        "summary.json",
+        "results.npz",
+        "results.nc",
+        "results.part1-of-2.npz",
+        "a.png",
+    ):
         (out / name).write_text("old")
     d.record_written()
     d.release()
@@ -159,6 +166,7 @@ def test_overwrite_removes_vcjax_files_and_keeps_user_files(tmp_path):
         "run.json",
         "summary.json",
         "results.npz",
+        "results.nc",
         "results.part1-of-2.npz",
         "a.png",
         outputs.MANIFEST,
@@ -325,6 +333,7 @@ def _cfg(tmp_path, text: str) -> Path:
             "12000 steps per run (horizon / dt) exceeds the limit of 1000",
         ),
         (100_000, 60.0, ["--max-memory-gb", "0.01"], "but the limit is 0.01 GB"),
+        ("1e9", 60.0, [], "[sweep] num_scenarios: expected an integer, got 1000000000.0"),
         (4, 60.0, ["--max-steps", "0"], "--max-steps: expected an integer >= 1, got 0"),
         (4, 60.0, ["--max-memory-gb", "-1"], "--max-memory-gb: expected a finite number > 0"),
         (4, 60.0, ["--max-memory-gb", "nan"], "--max-memory-gb: expected a finite number > 0"),
@@ -457,6 +466,7 @@ def test_largest_seed_is_accepted_by_jax():
     ],
 )
 def test_launch_bounds(argv, message, capsys):
+    """(-n 1000 is beyond any machine here; at least 2 processes are always allowed)"""
     rc, err = _run(["launch", *argv, "--", "sweep", "x.toml"], capsys)
     assert rc == 2
     assert message in err
@@ -575,3 +585,13 @@ def test_overwrite_never_removes_the_commands_inputs(tmp_path):
     d = outputs.prepare_out(out, True, "simulate", keep=[str(out / "gains.json")])
     d.release()
     assert sorted(p.name for p in out.iterdir()) == ["gains.json"]
+
+
+def test_launch_bound_is_the_cores_and_at_least_two():
+    from vcjax import sizing
+
+    sizing.check_launch(2, None, None, cores=1)  # two processes may always be tried
+    with pytest.raises(sizing.SizeError, match="-n 3: more processes than the number of usable"):
+        sizing.check_launch(3, None, None, cores=2)
+    sizing.check_launch(8, 1.0, None, cores=8)
+    sizing.check_launch(64, None, 64, cores=8)  # --max-processes allows more

@@ -684,10 +684,10 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except _CLIError as err:
         return _fail(f"{args.command}: {err}")
-    except KeyboardInterrupt:  # a second signal while the first one's outputs were written
+    except KeyboardInterrupt:  # a signal outside the long loops, or a second one
         print(
-            f"vcjax: {args.command}: interrupted twice: stopped at once (the files written "
-            "so far are complete; the rest are missing)",
+            f"vcjax: {args.command}: interrupted: stopped at once (the files written so far "
+            "are complete; the rest are missing)",
             file=sys.stderr,
         )
         return 130

@@ -26,8 +26,9 @@ The checks run after the configuration is parsed and before anything is compiled
 * **Seeds**: ``jax.random.PRNGKey`` takes integers of the default integer type: seeds must lie
   in ``0 .. 2**63 - 1`` in float64 mode and ``0 .. 2**31 - 1`` with ``--no-x64``
   (:func:`check_seed`).
-* **vcjax launch**: ``-n`` at most the number of usable cores unless ``--max-processes`` allows
-  more; ``--timeout`` must be positive (:func:`check_launch`).
+* **vcjax launch**: ``-n`` at most the number of usable cores (and at least 2 are always
+  allowed) unless ``--max-processes`` allows more; ``--timeout`` must be positive
+  (:func:`check_launch`).
 """
 
 from __future__ import annotations
@@ -171,10 +172,11 @@ def check_seed(name: str, seed, x64: bool) -> None:
 
 
 def check_launch(n, timeout, max_processes, cores: int) -> None:
-    """``vcjax launch``: ``1 <= n <= max_processes`` (default ``cores``), ``timeout > 0``."""
+    """``vcjax launch``: ``1 <= n <= max_processes`` (default: the usable ``cores``, at least 2
+    so that a two-process run can always be tried), ``timeout > 0``."""
     if max_processes is not None and max_processes < 1:
         raise SizeError(f"--max-processes: expected an integer >= 1, got {max_processes}")
-    bound = cores if max_processes is None else max_processes
+    bound = max(int(cores), 2) if max_processes is None else max_processes
     if n is not None and n > bound:
         src = "the number of usable CPU cores" if max_processes is None else "--max-processes"
         raise SizeError(
