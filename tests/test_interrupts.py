@@ -31,17 +31,20 @@ LIMIT_S = 300  # per run: compile-bound, generous for a loaded machine
 class Child:
     """A ``vcjax`` subprocess whose stderr is collected by a thread."""
 
-    def __init__(self, argv, cwd):
+    def __init__(self, argv, cwd, new_session: bool = False):
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
         env["VCJAX_CPU_DEVICES"] = "1"
         env.pop("XLA_FLAGS", None)
+        for k in ("VCJAX_COORDINATOR", "VCJAX_NUM_PROCESSES", "VCJAX_PROCESS_ID"):
+            env.pop(k, None)
         self.p = subprocess.Popen(
             [sys.executable, "-m", "vcjax.cli", *argv],
             cwd=cwd,
             env=env,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
+            start_new_session=new_session,  # a process group of its own (a terminal's Ctrl-C)
         )
         self.err = self.out_b = b""
         self._ts = [
@@ -210,3 +213,24 @@ def test_interrupted_fit_writes_estimates_not_converged(tmp_path):
     assert all(np.isfinite(v) for v in fit["estimates"].values())
     assert 1 <= fit["iterations"] < 16 and f"after {fit['iterations']} iterations" in lines[0]
     assert "warning: interrupted after" in c.text  # the warning on stderr too
+
+
+def test_ctrl_c_in_a_two_process_tune_stops_both_at_the_same_step(tmp_path):
+    """``vcjax launch -n 2 -- tune``, Ctrl-C to the whole process group (what a terminal does):
+    the processes agree on the step to stop at (an all-gather of the flag after each step), so
+    none waits in a collective for one that stopped; process 0 writes the best gains so far."""
+    cfg = tmp_path / "t.toml"
+    cfg.write_text(TUNE)
+    out = tmp_path / "out"
+    argv = ["launch", "-n", "2", "--cpu-devices", "1", "--timeout", "600", "--"]
+    c = Child([*argv, "tune", str(cfg), "--out", str(out)], tmp_path, new_session=True)
+    c.wait_for(r" [3-9]/100000 | \d\d+/100000 ")
+    os.killpg(c.p.pid, signal.SIGINT)
+    rc = c.finish()
+    assert rc == 130, c.text
+    assert "Traceback" not in c.text
+    summary = json.loads((out / "summary.json").read_text())
+    hist = json.loads((out / "history.json").read_text())
+    assert summary["interrupted"] is True and len(hist["iterations"]) == summary["iterations"]
+    assert (out / "gains.json").exists() and not (out / outputs.LOCK).exists()
+    assert "vcjax: launch: interrupted: exit codes [130, 0]" in c.text

@@ -39,7 +39,7 @@ from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from vcjax import distributed, loops, paths
 from vcjax._config import ConfigError
 from vcjax.loops.config import ScenarioChoice
-from vcjax.outputs import stop_requested, write_json_atomic
+from vcjax.outputs import stop_requested_everywhere, write_json_atomic
 
 __all__ = ["build", "run_tune_config", "main"]
 
@@ -250,7 +250,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         **tuner_options(o),
         on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
         progress=bar,
-        should_stop=stop_requested,
+        should_stop=stop_requested_everywhere,  # all processes stop at the same step
     )
     interrupted = res.reason == "interrupted"
     if bar is not None and len(res.history) < o["steps"]:

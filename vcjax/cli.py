@@ -480,13 +480,17 @@ def _cmd_launch(args) -> int:
 
     # the local processes share the cores: by default each splits off its share of them
     cpu = max(1, usable_cores() // args.n) if args.cpu_devices is None else args.cpu_devices
-    codes = distributed.spawn(
-        args.n,
-        [sys.executable, "-m", "vcjax.cli", *rest],
-        port=args.port,
-        cpu_devices=cpu,
-        timeout_s=args.timeout,
-    )
+    with _interruptible():  # Ctrl-C: forwarded to the processes, which keep what is done
+        codes = distributed.spawn(
+            args.n,
+            [sys.executable, "-m", "vcjax.cli", *rest],
+            port=args.port,
+            cpu_devices=cpu,
+            timeout_s=args.timeout,
+        )
+    if any(codes) and set(codes) <= {0, 130}:  # interrupted: the processes kept what was done
+        print(f"vcjax: launch: interrupted: exit codes {codes}", file=sys.stderr)
+        return 130
     if any(codes):
         return _fail(f"launch: exit codes of the {args.n} processes: {codes}")
     return 0
