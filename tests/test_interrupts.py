@@ -113,7 +113,9 @@ figures = false
 """
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize(
+    "sig", [signal.SIGINT, pytest.param(signal.SIGTERM, marks=pytest.mark.slow)]
+)
 def test_interrupted_sweep_keeps_the_chunks_done(sig, tmp_path):
     from vcjax.sweep import load_results
 
@@ -160,6 +162,7 @@ plot_scenarios = 1
 """
 
 
+@pytest.mark.slow  # ~20 s: compiles a tuning step in a subprocess
 def test_interrupted_tune_writes_best_gains_history_and_summary(tmp_path):
     cfg = tmp_path / "t.toml"
     cfg.write_text(TUNE)
@@ -215,6 +218,7 @@ def test_interrupted_fit_writes_estimates_not_converged(tmp_path):
     assert "warning: interrupted after" in c.text  # the warning on stderr too
 
 
+@pytest.mark.slow  # ~30 s: two processes compile a tuning step
 def test_ctrl_c_in_a_two_process_tune_stops_both_at_the_same_step(tmp_path):
     """``vcjax launch -n 2 -- tune``, Ctrl-C to the whole process group (what a terminal does):
     the processes agree on the step to stop at (an all-gather of the flag after each step), so

@@ -147,7 +147,9 @@ def summarize(result: SweepResult) -> dict:
     ``summary["variants"][v]``: ``n``, ``n_diverged``, ``n_nonfinite`` and, for every metric,
     ``mean``, ``std``, ``p5``, ``p50``, ``p95``, ``min``, ``max`` over the runs that did not
     diverge (``None`` where there are none); ``timing`` (:func:`run_timing`: ``compile_s``,
-    ``run_s``, ``traj_steps_per_s``, ...).
+    ``run_s``, ``traj_steps_per_s``, ...). A sweep stopped by SIGINT / SIGTERM also has
+    ``"interrupted": true`` and ``num_scenarios_planned`` (``num_scenarios`` is then the number
+    of scenarios that ran: the chunks completed).
     """
     out = {}
     for v, m in result.metrics.items():
