@@ -10,7 +10,13 @@ with code 2 before anything is compiled), :func:`check_logs`:
   one shooting step into a 12x longer Euler step and biases the fit);
 * **angles in radians**: an angle column (unit ``rad``) other than the heading whose magnitude
   exceeds pi, a heading whose step-to-step change (wrapped) exceeds pi rad/s, or a rate column
-  (unit ``rad/s``) above pi rad/s (180 deg/s) only makes sense in degrees.
+  (unit ``rad/s``) above pi rad/s (180 deg/s) only makes sense in degrees; and small angles
+  in degrees are found by consistency: a rate that is 180/pi (within a factor 2) times the
+  derivative of its angle (``r`` and ``psi``, ``q`` and ``theta``, ``p`` and ``phi``;
+  differences over 0.5 s, so that sensor noise does not dominate), or an actuator 180/pi times
+  its command (or the other way round), names the one in degrees -- where the two move together
+  (correlation above :data:`MIN_PAIR_CORRELATION`); a channel that hardly moves (the roll of a
+  noisy REMUS 100 log) gives no evidence and is not judged.
 
 Before fitting, once the Jacobian is compiled, :func:`check_excitation`: each fitted
 parameter's *sensitivity* -- the RMS change of the weighted residuals per unit relative change
@@ -79,6 +85,8 @@ def check_logs(model, logs: Sequence) -> None:
 _RATE_PAIRS = (("psi", "r"), ("theta", "q"), ("phi", "p"))
 _VALUE_PAIRS = (("delta_r", "delta_r_cmd"), ("delta_s", "delta_s_cmd"), ("delta", "delta_cmd"))
 _DEG = 180.0 / math.pi
+#: Correlation (about zero) above which a pair is compared at all.
+MIN_PAIR_CORRELATION = 0.9
 
 
 def _check_pairs(model, log) -> None:
@@ -86,18 +94,26 @@ def _check_pairs(model, log) -> None:
     command (or 1/57 x): one of the pair is in degrees."""
     cols = {c: log.x[:, j] for j, c in enumerate(model.state_columns)}
     cols.update({c: log.u[:, j] for j, c in enumerate(model.command_columns)})
-    dt = np.diff(log.t)
+    # differences over ~0.5 s (not one sample): sensor noise on the angle would dominate
+    n = log.t.size
+    stride = int(min(max(1, round(0.5 / float(np.median(np.diff(log.t))))), max(1, n - 1)))
+    span = log.t[stride:] - log.t[:-stride]
     pairs = []
     for a, b in _RATE_PAIRS:
         if a in cols and b in cols:
-            d = ((np.diff(cols[a]) + math.pi) % (2 * math.pi) - math.pi) / dt
-            pairs.append((a, b, d, 0.5 * (cols[b][1:] + cols[b][:-1]), "the rate of"))
+            d = (cols[a][stride:] - cols[a][:-stride] + math.pi) % (2 * math.pi) - math.pi
+            c = np.cumsum(np.concatenate([[0.0], 0.5 * (cols[b][1:] + cols[b][:-1])]))
+            mean_rate = (c[stride:] - c[:-stride]) / stride  # the rate averaged over the span
+            pairs.append((a, b, d / span, mean_rate, "the rate of"))
     for a, b in _VALUE_PAIRS:
         if a in cols and b in cols:
             pairs.append((a, b, cols[a][1:], cols[b][:-1], ""))
     for a, b, xa, xb, what in pairs:
         if np.sqrt(np.mean(xa**2)) < 1e-9 or np.sqrt(np.mean(xb**2)) < 1e-9:
             continue  # nothing moves: no evidence either way
+        corr = float(np.dot(xa, xb) / np.sqrt(np.dot(xa, xa) * np.dot(xb, xb)))
+        if corr < MIN_PAIR_CORRELATION:
+            continue  # they do not move together (noise, other terms): no evidence
         k = float(np.dot(xa, xb) / np.dot(xa, xa))  # xb ~ k xa
         for ratio, deg in ((k, b), (1.0 / k if k else math.inf, a)):
             if _DEG / 2.0 < ratio < _DEG * 2.0:
