@@ -28,7 +28,7 @@ def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
     path = write_run_json(out, command, config=config, seeds=seeds, wall_s=wall)
     if path is not None:
         print(f"wrote {path}")
-    _outputs_done(args)
+    _outputs_done()
 
 
 def _prepare(args, path, command: str) -> Path:
@@ -47,12 +47,11 @@ def _prepare(args, path, command: str) -> Path:
 _OUT: list = []
 
 
-def _outputs_done(args=None, release: bool = True) -> None:
+def _outputs_done() -> None:
     """List the files this run wrote (for a later ``--overwrite``) and release the lock."""
     if _OUT:
         _OUT[0].record_written()
-        if release:
-            _OUT.pop().release()
+        _OUT.pop().release()
 
 
 class _CLIError(Exception):
