@@ -58,35 +58,6 @@ class _CLIError(Exception):
     """A bad input of the command line: printed as one line, exit code 2."""
 
 
-def _out_dir(path) -> Path:
-    """Create the output directory ``path`` (and parents) or raise :class:`_CLIError`."""
-    out = Path(path)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:
-        raise _CLIError(f"--out {path}: exists and is not a directory") from None
-    except OSError as err:
-        raise _CLIError(f"--out {path}: cannot create the directory: {err.strerror}") from None
-    if not out.is_dir():
-        raise _CLIError(f"--out {path}: exists and is not a directory")
-    return out
-
-
-def _check_out(path) -> None:
-    """Raise :class:`_CLIError` if ``path`` cannot become a directory (checked, not created):
-    it, or its first existing ancestor, is not a directory."""
-    p = Path(path)
-    if p.exists():
-        if not p.is_dir():
-            raise _CLIError(f"--out {path}: exists and is not a directory")
-        return
-    for parent in p.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise _CLIError(f"--out {path}: cannot create the directory: {parent} is a file")
-            return
-
-
 def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
     """Number of steps of ``horizon`` in steps of ``dt``; both finite, ``0 < dt <= horizon``."""
     if not (math.isfinite(horizon) and math.isfinite(dt)):
