@@ -595,3 +595,27 @@ def test_launch_bound_is_the_cores_and_at_least_two():
         sizing.check_launch(3, None, None, cores=2)
     sizing.check_launch(8, 1.0, None, cores=8)
     sizing.check_launch(64, None, 64, cores=8)  # --max-processes allows more
+
+
+@pytest.mark.slow  # ~10 s: two demo runs (the logic is covered by the fast tests above)
+def test_demo_twice_into_one_out_then_overwrite(tmp_path, capsys):
+    """End to end: a second run into a used --out is refused; with --overwrite it replaces the
+    first run's files (figures included, from its manifest) and keeps the user's own file."""
+    out = tmp_path / "demo"
+    assert cli.main(["demo", "--out", str(out), "--horizon", "0.5"]) == 0
+    first = {p.name for p in out.iterdir()}
+    assert {"run.json", outputs.MANIFEST} <= first and any(n.endswith(".png") for n in first)
+    manifest = set(json.loads((out / outputs.MANIFEST).read_text())["files"])
+    assert manifest == first - {outputs.MANIFEST}  # every file it wrote, nothing else
+    (out / "notes.txt").write_text("mine")
+    capsys.readouterr()
+    assert cli.main(["demo", "--out", str(out), "--horizon", "0.5"]) == 2
+    assert "holds another vcjax run's files" in capsys.readouterr().err
+    stale = out / "arm_old_figure.png"
+    stale.write_text("from the first run")  # pretend the first run wrote it too
+    m = json.loads((out / outputs.MANIFEST).read_text())
+    outputs.write_json_atomic(out / outputs.MANIFEST, {"files": [*m["files"], stale.name]})
+    assert cli.main(["demo", "--out", str(out), "--horizon", "0.5", "--overwrite"]) == 0
+    assert not stale.exists()  # the earlier run's figure is gone, not left beside the new ones
+    assert (out / "notes.txt").read_text() == "mine"
+    assert not (out / outputs.LOCK).exists()
