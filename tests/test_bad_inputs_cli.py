@@ -619,3 +619,25 @@ def test_demo_twice_into_one_out_then_overwrite(tmp_path, capsys):
     assert not stale.exists()  # the earlier run's figure is gone, not left beside the new ones
     assert (out / "notes.txt").read_text() == "mine"
     assert not (out / outputs.LOCK).exists()
+
+
+@pytest.mark.parametrize(
+    "flags, message",
+    [
+        (["--max-memory-gb", "1e-7"], "fit: needs about 0.00"),
+        (["--max-memory-gb", "1e-7"], "GB of memory (residuals and Jacobians"),
+        (["--max-memory-gb", "0"], "--max-memory-gb: expected a finite number > 0, got 0"),
+    ],
+)
+def test_fit_sized_before_it_starts(flags, message, tmp_path, capsys):
+    cfg = _fit_case(tmp_path, lambda c: None)
+    rc, err = _run(["fit", str(cfg), "--out", str(tmp_path / "o"), "--quiet", *flags], capsys)
+    assert rc == 2
+    assert message in err
+
+
+def test_fit_estimate_hand_count():
+    from vcjax import sizing
+
+    e = sizing.fit_estimate(segments=4, segment_steps=25, n_x=15, n_params=2)
+    assert e["memory_bytes"] == 3 * 8 * (4 * 25 * 15) * (1 + 2 + 15)

@@ -374,13 +374,21 @@ def _cmd_tune(args) -> int:
 
 def _cmd_fit(args) -> int:
     _prepare(args, args.out, "fit")
+    from vcjax.sizing import check_limits_options
+
+    try:
+        check_limits_options(None, args.max_memory_gb)
+    except ValueError as err:
+        raise _CLIError(str(err)) from None
     _enable_x64(args.x64)
     from vcjax.identify import run_fit_config
 
     print(f"fit: {args.config} (compiling the multiple-shooting Jacobian first)")
     try:
         with _interruptible():
-            result = run_fit_config(args.config, args.out, progress=not args.quiet)
+            result = run_fit_config(
+                args.config, args.out, progress=not args.quiet, max_memory_gb=args.max_memory_gb
+            )
     except (OSError, ValueError) as err:
         return _fail(f"fit: {err}")
     fit = result["fit"]
@@ -597,6 +605,12 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--out", default="out/fit", help="output directory (default: out/fit)")
     f.add_argument("--quiet", action="store_true", help="no per-iteration progress lines")
     f.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    f.add_argument(
+        "--max-memory-gb",
+        type=float,
+        metavar="G",
+        help="allow an estimated peak memory up to G GB (default: 80%% of the physical memory)",
+    )
     _add_overwrite(f)
     f.set_defaults(func=_cmd_fit)
 

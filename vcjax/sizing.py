@@ -23,6 +23,8 @@ The checks run after the configuration is parsed and before anything is compiled
   loops (state, controller state, controller outputs and diagnostics; the 6-DOF REMUS 100 loop
   is the largest, at about 50). The estimate is an order-of-magnitude guard against work that
   cannot fit (``num_scenarios = 1e9``, ``horizon = 1e9``), not a measurement.
+* **Fit**: the multiple-shooting residuals and Jacobians of ``vcjax fit``
+  (:func:`fit_estimate`), against the same memory limit.
 * **Seeds**: ``jax.random.PRNGKey`` takes integers of the default integer type: seeds must lie
   in ``0 .. 2**63 - 1`` in float64 mode and ``0 .. 2**31 - 1`` with ``--no-x64``
   (:func:`check_seed`).
@@ -46,6 +48,7 @@ __all__ = [
     "default_memory_limit",
     "sweep_estimate",
     "tune_estimate",
+    "fit_estimate",
     "check_estimate",
 ]
 
@@ -127,6 +130,21 @@ def tune_estimate(cfg: dict, n_gains: int = 16) -> Estimate:
         trajectory_steps=(B * evals + 2 * H) * n_steps,
         memory_bytes=tape + traj,
         parts={"gradient tape": tape, "plotted trajectories": traj},
+    )
+
+
+def fit_estimate(segments: int, segment_steps: int, n_x: int, n_params: int) -> Estimate:
+    """Memory of ``vcjax fit``'s Levenberg–Marquardt: the residuals ``(J, S n_x)`` and the
+    Jacobians ``(J, S n_x, p)`` and ``(J, S n_x, n_x)`` in float64, three copies (the current
+    and the trial linearisation, and the device buffers)."""
+    rows = int(segments) * int(segment_steps) * int(n_x)
+    jac = 3 * _F64 * rows * (1 + int(n_params) + int(n_x))
+    return Estimate(
+        steps_per_run=int(segment_steps),
+        runs=int(segments),
+        trajectory_steps=int(segments) * int(segment_steps),
+        memory_bytes=jac,
+        parts={"residuals and Jacobians": jac},
     )
 
 

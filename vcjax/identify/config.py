@@ -138,7 +138,7 @@ def _check_values(path: Path, cfg: FitConfig) -> None:
     f["max_iters"] = as_int(w("fit", "max_iters"), f["max_iters"], lo=1)
 
 
-def run_fit_config(config_path, out, progress: bool = False) -> dict:
+def run_fit_config(config_path, out, progress: bool = False, max_memory_gb=None) -> dict:
     """Run ``vcjax fit``: load the logs, fit, write ``fit.json`` and the figures into ``out``.
 
     Returns:
@@ -176,6 +176,7 @@ def run_fit_config(config_path, out, progress: bool = False) -> dict:
         segment_steps=f["segment_steps"],
         max_iters=f["max_iters"],
         callback=callback,
+        max_memory_gb=max_memory_gb,
     )
     fit = result.to_json()
     fit["files"] = [str(x) for x in cfg["data"]["files"]]

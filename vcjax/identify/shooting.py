@@ -37,6 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from vcjax import sizing
 from vcjax._checks import float_dtype
 from vcjax.identify.checks import check_excitation, check_logs, trust_warnings
 from vcjax.identify.data import Log
@@ -74,6 +75,11 @@ class Segments:
     dt: np.ndarray
     mask: np.ndarray
     log_index: np.ndarray
+
+
+def seg_count(logs: Sequence[Log], segment_steps: int) -> int:
+    """Number of segments :func:`make_segments` cuts ``logs`` into."""
+    return sum(-(-log.t.size // int(segment_steps)) for log in logs)
 
 
 def make_segments(logs: Sequence[Log], segment_steps: int) -> Segments:
@@ -419,6 +425,7 @@ def fit_logs(
     base=None,
     dtype=None,
     callback=None,
+    max_memory_gb: float | None = None,
 ) -> FitResult:
     """Estimate ``params`` of ``model``'s plant from ``logs`` (see the module docstring).
 
@@ -431,6 +438,8 @@ def fit_logs(
         segment_steps: samples per shooting segment (>= 2); max_iters: per stage.
         base: the nominal parameters (default: the vehicle's defaults in ``dtype``).
         callback: ``callback(stage, iteration, cost, lam)`` after every iteration.
+        max_memory_gb: limit of the estimated memory (:func:`vcjax.sizing.fit_estimate`;
+            default 80 % of the machine's).
 
     Raises:
         ValueError: naming the argument (before anything is compiled).
@@ -452,6 +461,8 @@ def fit_logs(
     check_logs(model, logs)  # time in s, uniform sampling, angles in rad: before compiling
     base = model.nominal(float_dtype(dtype)) if base is None else base
     prob = ShootingProblem(model, step, params, base, fit_current, current_speed, current_direction)
+    est = sizing.fit_estimate(seg_count(logs, segment_steps), segment_steps, model.n_x, len(params))
+    sizing.check_estimate(est, "fit", max_memory_gb=max_memory_gb)  # before anything is built
     seg = make_segments(logs, segment_steps)
     mask = seg.mask
     cols = model.state_columns
