@@ -11,7 +11,7 @@ $PY -m benchmarks.before_after --before b39f07b --kinds sweep --batch 8192 --ste
   --json $R/before_after_sweep_float32.json > $R/before_after_sweep_float32.txt
 for n in 1 2; do
   VCJAX_CPU_DEVICES=$n $PY -m vcjax.cli sweep benchmarks/configs/sweep_8192x3000.toml --no-x64 \
-    --out /tmp/vcjax-sweep-bench-$n 2> $R/sweep_8192x3000_devices$n.txt >/dev/null
+    --overwrite --out /tmp/vcjax-sweep-bench-$n 2> $R/sweep_8192x3000_devices$n.txt >/dev/null
   cp /tmp/vcjax-sweep-bench-$n/summary.json $R/sweep_8192x3000_devices$n.json
 done
 for t in sampled continuous; do

@@ -109,7 +109,10 @@ def test_cli_sim2_and_argument_errors(tmp_path, capsys):
     run = json.loads((out / "run.json").read_text())
     assert run["command"] == "simulate sim2" and run["config"]["horizon"] == 4.0
     assert (out / "sim2_path_3d.png").exists()
-    assert cli.main(["simulate", "sim2", "--out", str(out), "--current", "0", "1"]) == 2
+    bad = tmp_path / "bad"  # `out` holds a run now: a new command there needs --overwrite
+    assert cli.main(["simulate", "sim2", "--out", str(bad), "--current", "0", "1"]) == 2
     assert "not supported" in capsys.readouterr().err
     assert cli.main(["simulate", "sim1", "--out", str(out), "--dt", "-1"]) == 2
     assert "dt" in capsys.readouterr().err
+    assert cli.main(["simulate", "sim2", "--out", str(out), "--horizon", "4"]) == 2
+    assert "holds another vcjax run's files" in capsys.readouterr().err

@@ -39,6 +39,7 @@ from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from vcjax import distributed, loops, paths
 from vcjax._config import ConfigError
 from vcjax.loops.config import ScenarioChoice
+from vcjax.outputs import stop_requested_everywhere, write_json_atomic
 
 __all__ = ["build", "run_tune_config", "main"]
 
@@ -249,7 +250,9 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         **tuner_options(o),
         on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
         progress=bar,
+        should_stop=stop_requested_everywhere,  # all processes stop at the same step
     )
+    interrupted = res.reason == "interrupted"
     if bar is not None and len(res.history) < o["steps"]:
         bar.close()
     walls = [h["wall_s"] for h in res.history]
@@ -274,7 +277,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     if not writer:
         return {"summary": None, "files": files}
     f = out / "gains.json"
-    f.write_text(json.dumps(gains_json, indent=2) + "\n")
+    write_json_atomic(f, gains_json)
     files.append(f)
     f = out / "history.json"
     hist = {
@@ -288,10 +291,11 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         "evals": res.evals,
         "rollouts": res.evals * B,
     }
-    f.write_text(json.dumps(hist, indent=1) + "\n")
+    write_json_atomic(f, hist, indent=1)
     files.append(f)
     files.append(plot_loss_curve(res.history, out / "loss_curve.png", f"{o['name']} tuning"))
     n_plot = min(cfg["report"]["plot_scenarios"], cfg["heldout"]["size"])
+    n_plot = 0 if interrupted else n_plot  # no new compiles once stopped
     if n_plot:
         t, tr_before = _trajectories(eval_problem, data.base, heldout, data.dt, n_plot)
         _, tr_after = _trajectories(eval_problem, tuned, heldout, data.dt, n_plot)
@@ -343,8 +347,11 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         "tuning_wall_s": res.history[-1]["wall_s"] if res.history else 0.0,
         "total_wall_s": time.perf_counter() - t_start,
     }
+    if interrupted:  # SIGINT / SIGTERM: the best gains so far, of o["steps"] planned steps
+        summary["interrupted"] = True
+        summary["steps_planned"] = o["steps"]
     f = out / "summary.json"
-    f.write_text(json.dumps(summary, indent=2) + "\n")
+    write_json_atomic(f, summary)
     files.append(f)
     say(
         f"held-out loss {lb:.6g} -> {la:.6g} "

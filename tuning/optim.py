@@ -247,6 +247,7 @@ def run_gradient_tuner(
     on_step: Callable | None = None,
     progress: Callable | None = None,
     step_fn: Callable | None = None,
+    should_stop: Callable[[], bool] | None = None,
 ) -> TuneResult:
     """Minimise ``loss_fn(theta, *args)`` from ``theta0`` (n,).
 
@@ -265,6 +266,8 @@ def run_gradient_tuner(
             excluded from ``wall_s``.
         progress: ``progress(k, steps, record)`` for a progress bar.
         step_fn: a step from :func:`make_step` to reuse (avoids recompiling).
+        should_stop: polled after each step; True ends the loop there (``reason``
+            ``"interrupted"``; the best parameters so far are returned, no further evaluation).
     """
     if not (isinstance(steps, int) and steps >= 1):
         raise ValueError(f"steps: expected a positive int, got {steps!r}")
@@ -326,8 +329,12 @@ def run_gradient_tuner(
         if stalls >= 3:
             reason = "stalled"
             break
+        if should_stop is not None and should_stop():
+            reason = "interrupted"
+            break
     aborted = reason.startswith("aborted")
-    if not aborted:  # the final iterate's loss (L-BFGS keeps it in its state; else evaluate)
+    # the final iterate's loss (L-BFGS keeps it in its state; else evaluate)
+    if not aborted and reason != "interrupted":
         if optimizer == "lbfgs":
             final = float(jax.device_get(optax.tree.get(state, "value")))
         else:

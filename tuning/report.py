@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vcjax.outputs import savefig_atomic
 from vcjax.plots import _plt
 from vcjax.progress import ProgressBar as _Bar
 
@@ -47,7 +48,7 @@ def plot_loss_curve(history: list, path, title: str = "gain tuning") -> Path:
         a.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     return path
 
@@ -89,7 +90,7 @@ def plot_before_after(t, before, after, currents, out_dir, path_xy=None) -> list
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
     p1 = out_dir / "before_after_paths.png"
-    fig.savefig(p1, dpi=110)
+    savefig_atomic(fig, p1, dpi=110)
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(8, 4))
@@ -108,7 +109,7 @@ def plot_before_after(t, before, after, currents, out_dir, path_xy=None) -> list
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
     p2 = out_dir / "before_after_cross_track.png"
-    fig.savefig(p2, dpi=110)
+    savefig_atomic(fig, p2, dpi=110)
     plt.close(fig)
     return [p1, p2]
 
@@ -184,6 +185,6 @@ def plot_loss_terms(t, before, after, terms, weights, actuators, path) -> Path:
     fig.suptitle("What the loss measures: default gains (dashed) vs tuned (solid)", fontsize=11)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     return path

@@ -28,39 +28,34 @@ def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
     path = write_run_json(out, command, config=config, seeds=seeds, wall_s=wall)
     if path is not None:
         print(f"wrote {path}")
+    _outputs_done()
+
+
+def _prepare(args, path, command: str) -> Path:
+    """Check, clear (``--overwrite``) and lock ``--out`` before any work (:mod:`vcjax.outputs`)."""
+    from vcjax.outputs import OutputError, prepare_out
+
+    try:
+        inputs = [getattr(args, k, None) for k in ("config", "gains")]  # never removed
+        _OUT[:] = [prepare_out(path, getattr(args, "overwrite", False), command, keep=inputs)]
+    except OutputError as err:
+        raise _CLIError(str(err)) from None
+    return _OUT[0].path
+
+
+#: The output folder of the running command (:func:`_prepare`), released when it ends.
+_OUT: list = []
+
+
+def _outputs_done() -> None:
+    """List the files this run wrote (for a later ``--overwrite``) and release the lock."""
+    if _OUT:
+        _OUT[0].record_written()
+        _OUT.pop().release()
 
 
 class _CLIError(Exception):
     """A bad input of the command line: printed as one line, exit code 2."""
-
-
-def _out_dir(path) -> Path:
-    """Create the output directory ``path`` (and parents) or raise :class:`_CLIError`."""
-    out = Path(path)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:
-        raise _CLIError(f"--out {path}: exists and is not a directory") from None
-    except OSError as err:
-        raise _CLIError(f"--out {path}: cannot create the directory: {err.strerror}") from None
-    if not out.is_dir():
-        raise _CLIError(f"--out {path}: exists and is not a directory")
-    return out
-
-
-def _check_out(path) -> None:
-    """Raise :class:`_CLIError` if ``path`` cannot become a directory (checked, not created):
-    it, or its first existing ancestor, is not a directory."""
-    p = Path(path)
-    if p.exists():
-        if not p.is_dir():
-            raise _CLIError(f"--out {path}: exists and is not a directory")
-        return
-    for parent in p.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise _CLIError(f"--out {path}: cannot create the directory: {parent} is a file")
-            return
 
 
 def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
@@ -73,7 +68,8 @@ def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
     if n > max_steps:
         raise _CLIError(
             f"--horizon {horizon:g} / --dt {dt:g} = {n} steps: more than {max_steps} "
-            "(the trajectory is kept in memory); use a larger --dt or a shorter --horizon"
+            "(the trajectory is kept in memory); use a larger --dt or a shorter --horizon, "
+            "or raise the limit with --max-steps"
         )
     return n
 
@@ -82,7 +78,7 @@ def _cmd_demo(args) -> int:
     from vcjax.demos import ARM_DT
 
     _time_grid(args.horizon, ARM_DT)
-    out = _out_dir(args.out)
+    out = _prepare(args, args.out, "demo")
     _enable_x64(args.x64)
     from vcjax.demos import arm_demo
 
@@ -107,8 +103,12 @@ def _cmd_simulate(args) -> int:
     horizon, dt = _SIM_DEFAULTS[args.experiment]
     horizon = horizon if args.horizon is None else args.horizon
     dt = dt if args.dt is None else args.dt
-    _time_grid(horizon, dt)
-    out = _out_dir(args.out or f"out/{args.experiment}")
+    if args.max_steps is not None and args.max_steps < 1:
+        raise _CLIError(f"--max-steps: expected an integer >= 1, got {args.max_steps}")
+    _time_grid(horizon, dt, args.max_steps or 10_000_000)
+    if args.diverge_e is not None and not (math.isfinite(args.diverge_e) and args.diverge_e > 0):
+        raise _CLIError(f"--diverge-e: expected a finite bound > 0 [m], got {args.diverge_e:g}")
+    out = _prepare(args, args.out or f"out/{args.experiment}", f"simulate {args.experiment}")
     if args.experiment == "sim2":
         return _simulate_sim2(args, out, horizon, dt)
     if args.experiment == "remus100":
@@ -132,8 +132,9 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
     except ValueError as err:
         return _fail(f"simulate: {err}")
     result = sim1.run_sim1(
-        out, gains, horizon=horizon, dt=dt, edd=args.edd, timing=args.timing, scenario=scenario
-    )
+        out, gains, horizon=horizon, dt=dt, edd=args.edd, timing=args.timing, scenario=scenario,
+        **_diverge(args),
+    )  # fmt: skip
     _print_metrics(result["metrics"])
     for f in result["files"]:
         print(f"wrote {f}")
@@ -143,13 +144,19 @@ def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
     return _report_unhealthy(result["unhealthy"], dt)
 
 
+def _diverge(args) -> dict:
+    """``diverge_e`` of ``--diverge-e`` (when given)."""
+    return {} if args.diverge_e is None else {"diverge_e": args.diverge_e}
+
+
 def _report_unhealthy(unhealthy: dict, dt: float) -> int:
     """Print one line per unhealthy run (stderr); exit code 1 if there is any, else 0."""
     for variant, (k, t) in unhealthy.items():
         print(
             f"vcjax: UNHEALTHY RUN: {variant} diverged at step {k} (t = {t:g} s, dt {dt:g} s): "
-            "its state became non-finite or left the divergence bound and was frozen there; "
-            "its metrics and figures after that time are not meaningful",
+            "its state became non-finite or left the divergence bound (then frozen there), or "
+            "it left the path-error bound (--diverge-e); its metrics and figures after that "
+            "time are not meaningful",
             file=sys.stderr,
         )
     return 1 if unhealthy else 0
@@ -168,7 +175,9 @@ def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
             gains = sim2.gains_from_json(json.loads(Path(args.gains).read_text()), args.actuation)
         except (OSError, json.JSONDecodeError, ValueError) as err:
             return _fail(f"simulate sim2: cannot use gains file {args.gains}: {err}")
-    result = sim2.run_sim2(out, gains, horizon=horizon, dt=dt, actuation=args.actuation)
+    result = sim2.run_sim2(
+        out, gains, horizon=horizon, dt=dt, actuation=args.actuation, **_diverge(args)
+    )
     by_mode = result["metrics"]["by_actuation"]
     _print_metrics(
         {mode: {k: v for k, v in m.items() if _is_number(v)} for mode, m in by_mode.items()}
@@ -187,6 +196,8 @@ def _simulate_remus100(args, out: Path, horizon: float, dt: float) -> int:
 
     if args.gains:
         return _fail("simulate remus100: --gains is not supported (tune through `vcjax tune`)")
+    if args.diverge_e is not None:
+        return _fail("simulate remus100: --diverge-e is not supported (its bound is 25 m)")
     current = tuple(args.current) if args.current else (0.0, 0.3)
     if not all(math.isfinite(c) for c in current):
         return _fail(f"simulate remus100: --current must be finite, got {current}")
@@ -224,7 +235,7 @@ def _use_cores(args, command: str) -> int | None:
 
 
 def _cmd_sweep(args) -> int:
-    _check_out(args.out)
+    _prepare(args, args.out, "sweep")
     if (rc := _use_cores(args, "sweep")) is not None:
         return rc
     _enable_x64(args.x64)
@@ -232,7 +243,9 @@ def _cmd_sweep(args) -> int:
 
     try:
         spec, extras = load_config(args.config)
-        result = run_sweep_config(args.config, args.out, progress=True, netcdf=args.netcdf)
+        _size_check(args, "sweep", spec=spec)
+        with _interruptible():
+            result = run_sweep_config(args.config, args.out, progress=True, netcdf=args.netcdf)
     except (OSError, ValueError, ImportError) as err:
         return _fail(f"sweep: {err}")
     summary = result["summary"]
@@ -265,11 +278,64 @@ def _cmd_sweep(args) -> int:
         print(f"wrote {f}")
     config = {"file": args.config, "spec": spec, **extras}
     _record(args.out, "sweep", args, config=config, seeds={"sweep": spec.seed})
+    if summary is not None and summary.get("interrupted"):
+        return _interrupted(
+            "sweep",
+            f"kept the {summary['num_scenarios']} of {summary['num_scenarios_planned']} "
+            f"scenarios that ran (summary.json: interrupted) in {args.out}",
+        )
     return 0
 
 
+def _interruptible():
+    """SIGINT / SIGTERM ask the running loop to stop at its next safe point and write what is
+    done (:func:`vcjax.outputs.interrupt_guard`)."""
+    from vcjax.outputs import interrupt_guard
+
+    return interrupt_guard()
+
+
+def _interrupted(command: str, what: str) -> int:
+    """The one line of an interrupted run; exit code 130."""
+    from vcjax.outputs import EXIT_INTERRUPTED, stop_signal
+
+    print(f"vcjax: {command}: interrupted ({stop_signal() or 'signal'}): {what}", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+def _size_check(args, command: str, spec=None, cfg=None) -> None:
+    """Refuse (ValueError, exit 2) work that cannot fit or seeds the PRNG cannot take
+    (:mod:`vcjax.sizing`), before anything is compiled."""
+    from vcjax import sizing
+
+    sizing.check_limits_options(args.max_steps, args.max_memory_gb)
+    if spec is not None:
+        sizing.check_seed(f"{args.config}: [sweep] seed", spec.seed, args.x64)
+        est = sizing.sweep_estimate(spec)
+    else:
+        for sec in ("train", "heldout"):
+            sizing.check_seed(f"{args.config}: {sec}.seed", cfg[sec]["seed"], args.x64)
+        est = sizing.tune_estimate(cfg)
+    sizing.check_estimate(est, f"{args.config}", args.max_steps, args.max_memory_gb)
+
+
+def _add_size_limits(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--max-steps",
+        type=int,
+        metavar="N",
+        help="allow up to N steps per rollout (default 10,000,000)",
+    )
+    p.add_argument(
+        "--max-memory-gb",
+        type=float,
+        metavar="G",
+        help="allow an estimated peak memory up to G GB (default: 80%% of the physical memory)",
+    )
+
+
 def _cmd_tune(args) -> int:
-    _check_out(args.out)
+    _prepare(args, args.out, "tune")
     if (rc := _use_cores(args, "tune")) is not None:
         return rc
     _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
@@ -278,7 +344,9 @@ def _cmd_tune(args) -> int:
 
     try:
         cfg = load_config(args.config)
-        result = run_tune_config(args.config, args.out)
+        _size_check(args, "tune", cfg=cfg)
+        with _interruptible():
+            result = run_tune_config(args.config, args.out)
     except (OSError, ValueError) as err:
         return _fail(f"tune: {err}")
     for f in result["files"]:
@@ -295,17 +363,32 @@ def _cmd_tune(args) -> int:
         )
     if summary.get("aborted"):
         return _fail(f"tune: aborted: {summary.get('reason', 'non-finite steps')}")
+    if summary.get("interrupted"):
+        return _interrupted(
+            "tune",
+            f"after {summary['iterations']} of {summary['steps_planned']} steps; wrote the best "
+            f"gains so far, the history and summary.json (interrupted) to {args.out}",
+        )
     return 0
 
 
 def _cmd_fit(args) -> int:
-    _check_out(args.out)
+    _prepare(args, args.out, "fit")
+    from vcjax.sizing import check_limits_options
+
+    try:
+        check_limits_options(None, args.max_memory_gb)
+    except ValueError as err:
+        raise _CLIError(str(err)) from None
     _enable_x64(args.x64)
     from vcjax.identify import run_fit_config
 
     print(f"fit: {args.config} (compiling the multiple-shooting Jacobian first)")
     try:
-        result = run_fit_config(args.config, args.out, progress=not args.quiet)
+        with _interruptible():
+            result = run_fit_config(
+                args.config, args.out, progress=not args.quiet, max_memory_gb=args.max_memory_gb
+            )
     except (OSError, ValueError) as err:
         return _fail(f"fit: {err}")
     fit = result["fit"]
@@ -313,15 +396,30 @@ def _cmd_fit(args) -> int:
     sections = [fit] + ([fit["current"]] if "current" in fit else [])
     for sec in sections:
         for name, value in sec["estimates"].items():
-            print(f"{name:<22}{sec['initial'][name]:>14.6g}{value:>14.6g}{sec['std'][name]:>12.3g}")
+            sd = sec["std"][name]
+            sd = f"{sd:>12.3g}" if sd is not None else f"{'null':>12}"  # non-finite: null
+            est = f"{value:>14.6g}" if value is not None else f"{'null':>14}"
+            print(f"{name:<22}{sec['initial'][name]:>14.6g}{est}{sd}")
     print(f"{fit['iterations']} iterations, {fit['wall_time_s']:.1f} s ({fit['reason']})")
     for w in fit["warnings"]:
         print(f"vcjax: fit: warning: {w}", file=sys.stderr)
+    if not fit["converged"] and fit["reason"] != "interrupted":
+        print(
+            "vcjax: fit: warning: converged: false -- the optimum is not trustworthy "
+            "(see the warnings in fit.json)",
+            file=sys.stderr,
+        )
     for f in result["files"]:
         print(f"wrote {f}")
     from vcjax.identify.config import load_fit_config
 
     _record(args.out, "fit", args, config={"file": args.config, **load_fit_config(args.config)})
+    if fit["reason"] == "interrupted":
+        return _interrupted(
+            "fit",
+            f"after {fit['iterations']} iterations; wrote the current estimates "
+            f"(converged: false) to {args.out}",
+        )
     return 0
 
 
@@ -351,16 +449,26 @@ def _cmd_launch(args) -> int:
     if args.cpu_devices is not None and args.cpu_devices < 1:
         return _fail(f"launch: --cpu-devices must be >= 1, got {args.cpu_devices}")
     from vcjax.devices import usable_cores
+    from vcjax.sizing import SizeError, check_launch
+
+    try:
+        check_launch(args.n, args.timeout, args.max_processes, usable_cores())
+    except SizeError as err:
+        return _fail(f"launch: {err}")
 
     # the local processes share the cores: by default each splits off its share of them
     cpu = max(1, usable_cores() // args.n) if args.cpu_devices is None else args.cpu_devices
-    codes = distributed.spawn(
-        args.n,
-        [sys.executable, "-m", "vcjax.cli", *rest],
-        port=args.port,
-        cpu_devices=cpu,
-        timeout_s=args.timeout,
-    )
+    with _interruptible():  # Ctrl-C: forwarded to the processes, which keep what is done
+        codes = distributed.spawn(
+            args.n,
+            [sys.executable, "-m", "vcjax.cli", *rest],
+            port=args.port,
+            cpu_devices=cpu,
+            timeout_s=args.timeout,
+        )
+    if any(codes) and set(codes) <= {0, 130}:  # interrupted: the processes kept what was done
+        print(f"vcjax: launch: interrupted: exit codes {codes}", file=sys.stderr)
+        return 130
     if any(codes):
         return _fail(f"launch: exit codes of the {args.n} processes: {codes}")
     return 0
@@ -386,6 +494,15 @@ def _add_cpu_devices(p: argparse.ArgumentParser) -> None:
         default=None,
         help="split the host CPU into N JAX devices and shard the scenarios over them "
         "(default: $VCJAX_CPU_DEVICES, else one per core; 1: no sharding)",
+    )
+
+
+def _add_overwrite(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="--out may hold an earlier vcjax run: its files are removed first (files vcjax "
+        "did not write are kept)",
     )
 
 
@@ -440,6 +557,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="sim2: headline mode (the paper: underactuated); the other is run for comparison",
     )
     s.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    s.add_argument(
+        "--diverge-e",
+        type=float,
+        metavar="M",
+        help="sim1/sim2: a run more than M metres off the path is unhealthy (default: 25%% of "
+        "u_d x horizon, at least 50 m)",
+    )
+    s.add_argument(
+        "--max-steps", type=int, metavar="N", help="allow up to N steps (default 10,000,000)"
+    )
+    _add_overwrite(s)
     s.set_defaults(func=_cmd_simulate)
 
     w = sub.add_parser(
@@ -454,6 +582,8 @@ def build_parser() -> argparse.ArgumentParser:
         help='also write results.nc (labelled xarray dataset; pip install "vcjax[xarray]")',
     )
     _add_cpu_devices(w)
+    _add_overwrite(w)
+    _add_size_limits(w)
     w.set_defaults(func=_cmd_sweep)
 
     t = sub.add_parser(
@@ -463,6 +593,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--out", default="out/tune", help="output directory (default: out/tune)")
     t.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
     _add_cpu_devices(t)
+    _add_overwrite(t)
+    _add_size_limits(t)
     t.set_defaults(func=_cmd_tune)
 
     f = sub.add_parser(
@@ -473,6 +605,13 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--out", default="out/fit", help="output directory (default: out/fit)")
     f.add_argument("--quiet", action="store_true", help="no per-iteration progress lines")
     f.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    f.add_argument(
+        "--max-memory-gb",
+        type=float,
+        metavar="G",
+        help="allow an estimated peak memory up to G GB (default: 80%% of the physical memory)",
+    )
+    _add_overwrite(f)
     f.set_defaults(func=_cmd_fit)
 
     d = sub.add_parser(
@@ -482,6 +621,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
     d.add_argument("--horizon", type=float, default=6.0, help="simulated time [s]")
     d.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    _add_overwrite(d)
     d.set_defaults(func=_cmd_demo)
 
     n = sub.add_parser(
@@ -498,7 +638,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="CPU devices per process (default: the cores divided among the processes)",
     )
     n.add_argument("--port", type=int, help="coordinator port (default: a free one)")
-    n.add_argument("--timeout", type=float, help="terminate all processes after this many s")
+    n.add_argument("--timeout", type=float, help="terminate all processes after this many s (> 0)")
+    n.add_argument(
+        "--max-processes",
+        type=int,
+        metavar="N",
+        help="allow up to N local processes (default: the number of usable CPU cores)",
+    )
     n.add_argument("rest", nargs=argparse.REMAINDER, help="-- COMMAND [ARGS...]")
     n.set_defaults(func=_cmd_launch)
     return p
@@ -526,6 +672,16 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except _CLIError as err:
         return _fail(f"{args.command}: {err}")
+    except KeyboardInterrupt:  # a signal outside the long loops, or a second one
+        print(
+            f"vcjax: {args.command}: interrupted: stopped at once (the files written so far "
+            "are complete; the rest are missing)",
+            file=sys.stderr,
+        )
+        return 130
+    finally:
+        while _OUT:
+            _OUT.pop().release()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax.mechanics import VirtualConstraints, reaction_force, vcm_gains
+from vcjax.outputs import savefig_atomic
 from vcjax.rollout import RolloutConfig, rollout
 from vcjax.systems import TWO_LINK_ARM, arm_end_effector, arm_params
 
@@ -112,6 +113,6 @@ def arm_demo(out: Path, horizon: float = 6.0, dt: float = ARM_DT) -> list[Path]:
     ax[2].legend(fontsize=8)
     fig.tight_layout()
     path = Path(out) / "arm_demo.png"
-    fig.savefig(path, dpi=120)
+    savefig_atomic(fig, path, dpi=120)
     plt.close(fig)
     return [path]

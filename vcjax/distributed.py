@@ -33,6 +33,8 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from vcjax.outputs import stop_requested
+
 __all__ = [
     "ENV_COORDINATOR",
     "ENV_NUM_PROCESSES",
@@ -157,7 +159,9 @@ def spawn(
     (default: this process's environment); with ``cpu_devices`` each process splits the host CPU
     into that many devices (``VCJAX_CPU_DEVICES``, read by the ``vcjax`` commands, and
     ``XLA_FLAGS=--xla_force_host_platform_device_count`` for any other JAX program). If one
-    process fails, or ``timeout_s`` passes, the others are terminated.
+    process fails, or ``timeout_s`` passes, the others are terminated. Called inside
+    :func:`vcjax.outputs.interrupt_guard`, an interrupt is forwarded to the processes (SIGINT)
+    and they are waited for: each keeps and writes what it has done.
 
     Returns:
         the ``n`` exit codes (``-SIGTERM``'s value for a terminated process).
@@ -188,11 +192,17 @@ def spawn(
         procs.append(subprocess.Popen(list(argv), env=e, stdout=stdout, stderr=stderr))
     deadline = None if timeout_s is None else time.monotonic() + float(timeout_s)
     codes: list[int | None] = [None] * len(procs)
+    forwarded = False
     try:
         while any(c is None for c in codes):
             for k, p in enumerate(procs):
                 if codes[k] is None:
                     codes[k] = p.poll()
+            if stop_requested() and not forwarded:  # interrupted (vcjax.outputs): pass it on
+                forwarded = True
+                for k, p in enumerate(procs):
+                    if codes[k] is None:
+                        p.send_signal(signal.SIGINT)
             failed = any(c not in (None, 0) for c in codes)
             late = deadline is not None and time.monotonic() > deadline
             if failed or late:

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from vcjax.outputs import savefig_atomic
+
 __all__ = ["sim1_figures", "STYLE"]
 
 #: Line styles of the Simulation 1 variants (the paper: solid blue with integral action,
@@ -31,7 +33,7 @@ def _plt():
 
 def _save(fig, path: Path) -> Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    savefig_atomic(fig, path, dpi=120)
     _plt().close(fig)
     return path
 

@@ -33,7 +33,9 @@ Health is data: ``Trajectory.finite[k]`` is False when step k produced a non-fin
 state is then frozen at its last finite value so that a vmapped sweep never propagates NaNs.
 ``Trajectory.diverged[k]`` is True when step k's state is non-finite *or* has an entry larger
 in magnitude than ``bound`` (a caller-set divergence bound, default 1e9: a state that runs away
-while staying finite is not healthy either). :func:`first_unhealthy_step` finds the first such
+while staying finite is not healthy either), or when the controller's ``aux`` reports
+``ok = False`` (:func:`controller_ok`; e.g. a :class:`~vcjax.mechanics.Diagnostics` whose mass
+matrix is not SPD). :func:`first_unhealthy_step` finds the first such
 step. ``dt`` is checked eagerly when it is a concrete value (finite and > 0).
 """
 
@@ -56,6 +58,7 @@ __all__ = [
     "rollout_reduce",
     "Reduction",
     "all_finite",
+    "controller_ok",
     "first_unhealthy_step",
     "DEFAULT_BOUND",
 ]
@@ -127,6 +130,29 @@ class Trajectory(NamedTuple):
     def healthy(self):
         """() bool: no step diverged (every state finite and within the bound)."""
         return ~jnp.any(self.diverged)
+
+
+def _has_ok(node) -> bool:
+    return (isinstance(node, tuple) and "ok" in getattr(node, "_fields", ())) or (
+        isinstance(node, dict) and "ok" in node
+    )
+
+
+def controller_ok(aux) -> jax.Array:
+    """() bool: the controller's own health, where its ``aux`` reports one -- every ``ok``
+    field found in the ``aux`` pytree (a NamedTuple field or dict key named ``ok``, e.g. a
+    :class:`vcjax.mechanics.Diagnostics` returned as or inside ``aux``) is True; True when
+    there is none. A step whose controller says its solve was unusable is unhealthy."""
+    oks = []
+
+    def visit(node):
+        if _has_ok(node):
+            ok = node["ok"] if isinstance(node, dict) else node.ok
+            oks.append(jnp.all(jnp.asarray(ok, bool)))
+        return node
+
+    jax.tree_util.tree_map(visit, aux, is_leaf=_has_ok)
+    return jnp.all(jnp.stack(oks)) if oks else jnp.array(True)
 
 
 def all_finite(tree) -> jax.Array:
@@ -219,7 +245,7 @@ def _stepper(plant, controller, config, plant_params, ctrl_params, x0, dt, t0, e
         # one reduction for both flags: the max of |.| is NaN or inf iff some entry is
         peak = _max_abs(y_next)
         ok = jnp.isfinite(peak)
-        diverged = ~ok | (peak > bound)
+        diverged = ~ok | (peak > bound) | ~controller_ok(aux)
         y_next = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), y_next, y)
         return (y_next, s), (y_next, u, aux, (ok, diverged))
 

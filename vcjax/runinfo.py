@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 import datetime
 import enum
-import json
 import math
 import platform
 import subprocess
@@ -146,5 +145,6 @@ def write_run_json(out_dir, command: str, **kwargs) -> Path | None:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "run.json"
-    path.write_text(json.dumps(run_info(command, **kwargs), indent=2) + "\n")
-    return path
+    from vcjax.outputs import write_json_atomic
+
+    return write_json_atomic(path, run_info(command, **kwargs))

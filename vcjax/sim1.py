@@ -22,7 +22,6 @@ over ground (the current is unknown).
 from __future__ import annotations
 
 import functools
-import json
 from pathlib import Path
 
 import jax
@@ -32,7 +31,8 @@ import numpy as np
 from vcjax import loops, paths
 from vcjax._checks import check_array, check_positive
 from vcjax.loops.infante import InfanteGains, InfanteLoop, infante_gains
-from vcjax.metrics import run_metrics
+from vcjax.metrics import first_excursion, path_bound, run_metrics
+from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig, first_unhealthy_step
 from vcjax.vehicles import infante
 
@@ -204,17 +204,25 @@ def run_variant(
     return _run(variant, gains, sc, cfg, dt, edd, smooth)
 
 
-def tracking_metrics(variant: str, traj, scenario: loops.Scenario, tail: float = 0.2) -> dict:
+def tracking_metrics(
+    variant: str, traj, scenario: loops.Scenario, tail: float = 0.2, diverge_e=None
+) -> dict:
     """Simulation 1's metrics of one run (:func:`vcjax.metrics.run_metrics`, steady-state
     window the last ``tail`` of the run), as Python floats, plus ``healthy`` (no step diverged:
-    every state finite and within the rollout's bound, :attr:`vcjax.rollout.Trajectory.diverged`)
-    and ``unhealthy_step`` (the first diverged step, or ``None``)."""
+    every state finite and within the rollout's bound, :attr:`vcjax.rollout.Trajectory.diverged`,
+    and the cross-track error within the path bound :func:`vcjax.metrics.path_bound`, default
+    scaled to ``u_d x horizon``, or ``diverge_e`` [m]) and ``unhealthy_step`` (the first such
+    step, or ``None``)."""
     loop = closed_loop(variant)
     sig = loop.signals(traj, scenario)
     m = run_metrics(sig, traj.finite, traj.t[1] - traj.t[0], start=1.0 - tail)
     out = {k: float(m[k]) for k in METRIC_KEYS}
-    out["healthy"] = not bool(np.any(np.asarray(traj.diverged)))
-    out["unhealthy_step"] = first_unhealthy_step(traj)
+    t = np.asarray(traj.t)
+    bound = path_bound(float(np.asarray(scenario.u_d)), t[-1] - t[0], diverge_e)
+    steps = [first_unhealthy_step(traj), first_excursion(np.asarray(sig.eps)[:, 1], bound)]
+    steps = [k for k in steps if k is not None]
+    out["healthy"] = not steps
+    out["unhealthy_step"] = min(steps) if steps else None
     return out
 
 
@@ -227,8 +235,10 @@ def run_sim1(
     timing: str = "continuous",
     progress=print,
     scenario: loops.Scenario | None = None,
+    diverge_e: float | None = None,
 ) -> dict:
     """Run every variant (:data:`VARIANTS`), write ``metrics.json`` and the figures into ``out``.
+    ``diverge_e``: path-error bound [m] of ``healthy`` (default :func:`vcjax.metrics.path_bound`).
 
     ``scenario`` defaults to the paper's (:func:`sim1_scenario`); pass another current or start
     to compare the controllers elsewhere.
@@ -242,14 +252,16 @@ def run_sim1(
     for i, v in enumerate(VARIANTS):
         progress(f"[{i + 1}/{len(VARIANTS)}] simulating {v} ({horizon:g} s, dt {dt:g} s)")
         trajs[v] = jax.device_get(run_variant(v, gains, sc, horizon, dt, edd, timing))
-        metrics[v] = tracking_metrics(v, trajs[v], sc)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+        metrics[v] = tracking_metrics(v, trajs[v], sc, diverge_e=diverge_e)
+    write_json_atomic(out / "metrics.json", metrics)
     files = plots.sim1_figures(trajs, sc, out)
-    return {
-        "metrics": metrics,
-        "files": [out / "metrics.json", *files],
-        "unhealthy": unhealthy_runs(trajs),
+    t = {v: np.asarray(tr.t) for v, tr in trajs.items()}
+    unhealthy = {
+        v: (m["unhealthy_step"], float(t[v][m["unhealthy_step"] + 1]))
+        for v, m in metrics.items()
+        if not m["healthy"]
     }
+    return {"metrics": metrics, "files": [out / "metrics.json", *files], "unhealthy": unhealthy}
 
 
 def unhealthy_runs(trajs: dict) -> dict:

@@ -20,7 +20,6 @@ which at least one thruster is commanded at its limit, whole run).
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from pathlib import Path
 from typing import Any, Literal
@@ -32,7 +31,8 @@ import numpy as np
 from vcjax import loops, paths
 from vcjax._checks import check_array, check_positive
 from vcjax.loops.odin import OdinGains, OdinLoop, default_odin_gains, odin_gains
-from vcjax.metrics import run_metrics
+from vcjax.metrics import first_excursion, path_bound, run_metrics
+from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig
 from vcjax.vehicles import odin
 
@@ -189,7 +189,7 @@ _GENERIC = {
 
 
 def sim2_metrics(
-    traj, scenario: loops.Scenario | None = None, skip: float = 0.2, config=None
+    traj, scenario: loops.Scenario | None = None, skip: float = 0.2, config=None, diverge_e=None
 ) -> dict:
     """Metrics of one run (module docstring); ``skip``: fraction of the run left out.
 
@@ -199,7 +199,8 @@ def sim2_metrics(
     """
     sc = sim2_scenario() if scenario is None else scenario
     loop = (Sim2Config() if config is None else config).loop()
-    m = run_metrics(loop.signals(traj, sc), traj.finite, traj.t[1] - traj.t[0], start=skip)
+    sig = loop.signals(traj, sc)
+    m = run_metrics(sig, traj.finite, traj.t[1] - traj.t[0], start=skip)
     out = {ours: float(m[k]) for k, ours in _GENERIC.items()}
     t = np.asarray(traj.t[:-1])
     n = t.size
@@ -217,6 +218,10 @@ def sim2_metrics(
         "horizon_s": float(t[-1] + (t[1] - t[0])),
         "healthy": not bool(np.any(np.asarray(traj.diverged))),
     }
+    # and never further from the path than its bound (vcjax.metrics.path_bound), whole run
+    bound = path_bound(float(np.asarray(sc.u_d)), out["horizon_s"], diverge_e)
+    dist = np.linalg.norm(np.asarray(sig.p_err), axis=1)
+    out["healthy"] = out["healthy"] and first_excursion(dist, bound) is None
     return out
 
 
@@ -228,8 +233,10 @@ def run_sim2(
     actuation: str = "underactuated",
     compare: bool = True,
     progress=print,
+    diverge_e: float | None = None,
 ) -> dict:
-    """Run Simulation 2, write ``metrics.json`` and the figures (PNG) into ``out``.
+    """Run Simulation 2, write ``metrics.json`` and the figures (PNG) into ``out``
+    (``diverge_e``: path-error bound [m] of ``healthy``, default :func:`vcjax.metrics.path_bound`).
 
     Args:
         out: output folder (created).
@@ -260,8 +267,8 @@ def run_sim2(
         )
         cfg = Sim2Config(actuation=mode)
         trajs[mode] = jax.device_get(run_variant(cfg, gains, sc, horizon, dt))
-        by_mode[mode] = sim2_metrics(trajs[mode], sc, config=cfg)
+        by_mode[mode] = sim2_metrics(trajs[mode], sc, config=cfg, diverge_e=diverge_e)
     metrics = {"actuation": actuation, **by_mode[actuation], "by_actuation": by_mode}
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    write_json_atomic(out / "metrics.json", metrics)
     files = plots_sim2.sim2_figures(trajs, sc, PATH, out)
     return {"metrics": metrics, "files": [out / "metrics.json", *files]}

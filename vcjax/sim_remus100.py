@@ -25,7 +25,6 @@ each law's own error signals.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import jax
@@ -34,6 +33,7 @@ import numpy as np
 
 from vcjax import loops, paths
 from vcjax.loops.remus100 import REMUS_CONTROLLERS
+from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig
 from vcjax.vehicles import remus100 as r100
 
@@ -179,7 +179,7 @@ def run_remus100(out, horizon=880.0, dt=0.05, current=(0.0, 0.3), variants=VARIA
     meta = {"horizon": horizon, "dt": dt, "current_ned": [float(c) for c in current]}
     clean = {v: {k: (None if isinstance(x, float) and not np.isfinite(x) else x)
                  for k, x in m.items()} for v, m in metrics.items()}  # fmt: skip
-    (out / "metrics.json").write_text(json.dumps({"config": meta, "variants": clean}, indent=2))
+    write_json_atomic(out / "metrics.json", {"config": meta, "variants": clean}, newline=False)
     files = [out / "metrics.json"]
     files += remus100_figures(trajs, path, coeffs, out, LABELS)
     return {"metrics": metrics, "files": files}

@@ -108,14 +108,14 @@ def main() -> None:
 
     # 2. identify
     (out / "fit.toml").write_text(FIT)
-    vcjax("fit", str(out / "fit.toml"), "--out", str(out / "fit"), "--quiet")
+    vcjax("fit", str(out / "fit.toml"), "--out", str(out / "fit"), "--quiet", "--overwrite")
     fit_json = out / "fit" / "fit.json"
 
     # 3. tune on the nominal and on the identified model
     def tune(name, scenario="", problem="", steps=a.steps):
         cfg = out / f"{name}.toml"
         cfg.write_text(TUNE.format(scenario=scenario, problem=problem, steps=steps, **sizes))
-        vcjax("tune", str(cfg), "--out", str(out / name))
+        vcjax("tune", str(cfg), "--out", str(out / name), "--overwrite")
         return json.loads((out / name / "summary.json").read_text())
 
     identified = f'params = "{fit_json}"'

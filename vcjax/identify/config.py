@@ -24,7 +24,6 @@ Unknown sections and keys are rejected.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -41,6 +40,7 @@ from vcjax._config import (
 from vcjax.identify.data import load_log
 from vcjax.identify.models import get_fit_model, scalar_fields
 from vcjax.identify.shooting import FitResult, fit_logs
+from vcjax.outputs import write_json_atomic
 
 __all__ = ["FitConfig", "load_fit_config", "run_fit_config", "FIT_SCHEMA"]
 
@@ -138,7 +138,7 @@ def _check_values(path: Path, cfg: FitConfig) -> None:
     f["max_iters"] = as_int(w("fit", "max_iters"), f["max_iters"], lo=1)
 
 
-def run_fit_config(config_path, out, progress: bool = False) -> dict:
+def run_fit_config(config_path, out, progress: bool = False, max_memory_gb=None) -> dict:
     """Run ``vcjax fit``: load the logs, fit, write ``fit.json`` and the figures into ``out``.
 
     Returns:
@@ -176,12 +176,13 @@ def run_fit_config(config_path, out, progress: bool = False) -> dict:
         segment_steps=f["segment_steps"],
         max_iters=f["max_iters"],
         callback=callback,
+        max_memory_gb=max_memory_gb,
     )
     fit = result.to_json()
     fit["files"] = [str(x) for x in cfg["data"]["files"]]
     fit["config"] = {k: dict(v) for k, v in cfg.items()}
     files = [out / "fit.json"]
-    (out / "fit.json").write_text(json.dumps(fit, indent=2, allow_nan=False) + "\n")
+    write_json_atomic(out / "fit.json", fit, allow_nan=False)
     from vcjax.identify.figures import cost_history_figure, prediction_figure
 
     files.append(cost_history_figure(result, out / "cost_history.png"))

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
 
-from vcjax.plots import _plt, _save
+from vcjax.plots import _plt
 
 __all__ = ["prediction_figure", "cost_history_figure"]
 
@@ -43,7 +44,7 @@ def prediction_figure(result, log, pred_initial, pred_fitted, path, index: int =
         f"{log.name}: measured vs free simulation from the first sample "
         f"({model.vehicle}, step {result.problem.step_name!r})"
     )
-    return _save(fig, Path(path))
+    return _save_fit(fig, Path(path), result)
 
 
 def cost_history_figure(result, path) -> Path:
@@ -69,4 +70,28 @@ def cost_history_figure(result, path) -> Path:
     )
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
-    return _save(fig, Path(path))
+    return _save_fit(fig, Path(path), result)
+
+
+def _save_fit(fig, path: Path, result) -> Path:
+    """Lay out, write the fit's warnings (and an untrusted optimum) into the figure in red,
+    save atomically (:func:`vcjax.outputs.savefig_atomic`), close."""
+    from vcjax.outputs import savefig_atomic
+
+    bottom = _warnings_text(fig, result)
+    fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0))
+    savefig_atomic(fig, path, dpi=120)
+    _plt().close(fig)
+    return path
+
+
+def _warnings_text(fig, result) -> float:
+    """Write the warnings at the bottom of ``fig``; returns the height they take (0: none)."""
+    if not result.warnings and result.converged:
+        return 0.0
+    lines = ([] if result.converged else ["NOT CONVERGED / NOT TRUSTWORTHY"]) + [
+        f"warning: {w}" for w in result.warnings
+    ]
+    text = "\n".join(textwrap.shorten(x, 150, placeholder=" ...") for x in lines[:6])
+    fig.text(0.01, 0.005, text, color="C3", fontsize=6, va="bottom", ha="left")
+    return min(0.04 + 0.025 * min(len(lines), 6), 0.3)

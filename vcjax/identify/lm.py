@@ -114,6 +114,7 @@ def levenberg_marquardt(
     xtol: float = 1e-8,
     rtol_cost: float = 1e-20,
     callback: Callable | None = None,
+    should_stop: Callable[[], bool] | None = None,
 ) -> LMResult:
     """Minimise ``0.5 |r(z, s)|^2`` over ``z`` and the blocks ``s``.
 
@@ -128,7 +129,13 @@ def levenberg_marquardt(
         rtol_cost: stop when the cost is below ``rtol_cost`` x the initial cost (noise-free
             data fitted to round-off).
         callback: called as ``callback(iteration, cost, lam)`` after every iteration.
+        should_stop: polled before every iteration (default
+            :func:`vcjax.outputs.stop_requested`: SIGINT / SIGTERM in the CLI); True stops with
+            the last accepted iterate, ``converged = False``, ``reason = "interrupted"``.
     """
+    from vcjax.outputs import stop_requested
+
+    should_stop = stop_requested if should_stop is None else should_stop
     z, s = np.asarray(z0, np.float64), np.asarray(s0, np.float64)
     r, Jz, Js = (np.asarray(a, np.float64) for a in linearize(z, s))
     cost = 0.5 * float(np.sum(r * r))
@@ -139,6 +146,9 @@ def levenberg_marquardt(
         return LMResult(z, s, r, Jz, Js, history, 0, 0, False, "non-finite cost at the start")
     cost0 = cost
     for it in range(1, max_iters + 1):
+        if should_stop():
+            converged, reason, it = False, "interrupted", it - 1
+            break
         if cost <= rtol_cost * cost0:
             converged, reason, it = True, "cost at round-off level", it - 1
             break

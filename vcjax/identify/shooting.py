@@ -37,7 +37,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from vcjax import sizing
 from vcjax._checks import float_dtype
+from vcjax.identify.checks import check_excitation, check_logs, trust_warnings
 from vcjax.identify.data import Log
 from vcjax.identify.lm import levenberg_marquardt, schur_information
 from vcjax.identify.models import FitModel, current_vector, scalar_fields
@@ -73,6 +75,11 @@ class Segments:
     dt: np.ndarray
     mask: np.ndarray
     log_index: np.ndarray
+
+
+def seg_count(logs: Sequence[Log], segment_steps: int) -> int:
+    """Number of segments :func:`make_segments` cuts ``logs`` into."""
+    return sum(-(-log.t.size // int(segment_steps)) for log in logs)
 
 
 def make_segments(logs: Sequence[Log], segment_steps: int) -> Segments:
@@ -281,10 +288,18 @@ class FitResult:
         noise_std: channel -> residual standard deviation estimated from the fit.
         cost_history: cost of every iteration of both stages (weights of each stage).
         stage_iterations: iterations of each stage run (stage 2 is skipped when stage 1 fits
-            the data to round-off); iterations: their sum; converged: the last stage converged.
+            the data to round-off); iterations: their sum; converged: the last stage converged
+            *and* the optimum is trustworthy (:func:`vcjax.identify.checks.trust_warnings`:
+            finite, non-zero standard errors, estimates inside the plausible range, a
+            well-conditioned information matrix).
         wall_time_s: seconds, including compilation.
         warnings: identifiability (and convergence) warnings.
         z: (q,) the scaled estimate; problem: the :class:`ShootingProblem`.
+        s: (J, n_x) the segments' fitted initial states; weights: (n_x,) the last stage's
+            residual weights (``problem.residuals(z, s, segments, weights)`` is the fitted
+            residual vector); sensitivity: name -> RMS change of the weighted residuals per
+            unit relative change, at the initial estimate
+            (:func:`vcjax.identify.checks.sensitivities`).
     """
 
     names: tuple
@@ -310,6 +325,9 @@ class FitResult:
     segments: int
     samples: int
     problem: ShootingProblem = dataclasses.field(repr=False)
+    s: np.ndarray | None = None
+    weights: np.ndarray | None = None
+    sensitivity: dict = dataclasses.field(default_factory=dict)
 
     def to_json(self) -> dict:
         """fit.json's content: ``estimates`` is a flat {parameter: value} map (vehicle parameters
@@ -349,6 +367,7 @@ class FitResult:
             segments=self.segments,
             samples=self.samples,
             warnings=self.warnings,
+            sensitivity=self.sensitivity,
         )
         return _finite_or_none(out)
 
@@ -406,6 +425,7 @@ def fit_logs(
     base=None,
     dtype=None,
     callback=None,
+    max_memory_gb: float | None = None,
 ) -> FitResult:
     """Estimate ``params`` of ``model``'s plant from ``logs`` (see the module docstring).
 
@@ -418,6 +438,8 @@ def fit_logs(
         segment_steps: samples per shooting segment (>= 2); max_iters: per stage.
         base: the nominal parameters (default: the vehicle's defaults in ``dtype``).
         callback: ``callback(stage, iteration, cost, lam)`` after every iteration.
+        max_memory_gb: limit of the estimated memory (:func:`vcjax.sizing.fit_estimate`;
+            default 80 % of the machine's).
 
     Raises:
         ValueError: naming the argument (before anything is compiled).
@@ -436,8 +458,11 @@ def fit_logs(
     for log in logs:
         if log.x.shape[1] != model.n_x or log.u.shape[1] != model.n_u:
             raise ValueError(f"{log.name}: state/command columns do not match {model.vehicle!r}")
+    check_logs(model, logs)  # time in s, uniform sampling, angles in rad: before compiling
     base = model.nominal(float_dtype(dtype)) if base is None else base
     prob = ShootingProblem(model, step, params, base, fit_current, current_speed, current_direction)
+    est = sizing.fit_estimate(seg_count(logs, segment_steps), segment_steps, model.n_x, len(params))
+    sizing.check_estimate(est, "fit", max_memory_gb=max_memory_gb)  # before anything is built
     seg = make_segments(logs, segment_steps)
     mask = seg.mask
     cols = model.state_columns
@@ -464,6 +489,8 @@ def fit_logs(
             f"({int(m)} residuals for {n_par} unknowns)"
         )
     dof_factor = m / (m - n_par)
+    _, Jz0, Js0 = prob.linearize(z0, s0, seg, w)  # each parameter excited by the logs?
+    sensitivity = check_excitation(prob.all_names, schur_information(Jz0, Js0), m)
     res = None
     for stage in (1, 2):
         cb = (lambda it, c, lam, _s=stage: callback(_s, it, c, lam)) if callback else None
@@ -478,6 +505,8 @@ def fit_logs(
         history += res.cost_history
         stage_iters.append(res.iterations)
         z, s = res.z, res.s
+        if res.reason == "interrupted":
+            break
         if stage == 1:
             sig = np.sqrt(
                 np.sum((res.r.reshape(seg.y.shape) / w) ** 2 * mask[..., None], axis=(0, 1))
@@ -504,15 +533,24 @@ def fit_logs(
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     corr = cov / np.outer(np.where(sd > 0, sd, 1.0), np.where(sd > 0, sd, 1.0))
     names = prob.all_names
-    warns = _identifiability(names, corr, info_n)
-    if not res.converged:
+    finite = bool(np.all(np.isfinite(info_n)) and np.all(np.isfinite(corr)))
+    warns = _identifiability(names, corr, info_n) if finite else []
+    std = {n: float(v) for n, v in zip(names, sd, strict=True)}
+    estimates, nominal = prob.values(z), prob.values(np.zeros_like(z))
+    untrusted = trust_warnings(names, estimates, nominal, std, info_n)
+    warns += untrusted
+    if res.reason == "interrupted":
+        warns.append(
+            f"interrupted after {sum(stage_iters)} iterations: the estimates are the last "
+            "accepted iterate, not an optimum"
+        )
+    elif not res.converged:
         warns.append(f"did not converge in {max_iters} iterations ; raise max_iters")
 
-    nominal = prob.values(np.zeros_like(z))
     return FitResult(
         names=names,
-        estimates=prob.values(z),
-        std={n: float(v) for n, v in zip(names, sd, strict=True)},
+        estimates=estimates,
+        std=std,
         initial=prob.values(z0),
         nominal=nominal,
         correlation=corr,
@@ -524,7 +562,7 @@ def fit_logs(
         cost_history=[float(c) for c in history],
         stage_iterations=stage_iters,
         iterations=int(sum(stage_iters)),
-        converged=bool(res.converged),
+        converged=bool(res.converged) and not untrusted,
         reason=res.reason,
         wall_time_s=time.perf_counter() - t_start,
         warnings=warns,
@@ -533,6 +571,9 @@ def fit_logs(
         segments=int(seg.y.shape[0]),
         samples=int(n_real),
         problem=prob,
+        s=np.asarray(s),
+        weights=np.asarray(w),
+        sensitivity={n: float(v) for n, v in zip(names, sensitivity, strict=True)},
     )
 
 

@@ -176,6 +176,8 @@ def run_sweep_config(
         ``{"summary": dict, "files": [Path, ...]}`` (on processes other than 0: the part file
         only, and ``summary`` None).
     """
+    from vcjax.outputs import write_json_atomic
+
     spec, extras = load_config(config_path)
     if netcdf:
         from vcjax.sweep.labelled import _xr
@@ -207,7 +209,7 @@ def run_sweep_config(
         )
     summary = summarize(result)
     files = [save_results(result, out / "results.npz")]
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_json_atomic(out / "summary.json", summary)
     files.append(out / "summary.json")
     if netcdf:
         from vcjax.sweep.labelled import write_netcdf

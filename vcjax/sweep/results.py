@@ -41,6 +41,8 @@ class SweepResult:
         trace_t: (P,) [s].
         wall_s: wall time of the sweep [s]; devices: number of devices used (per process).
         timing: ``timing[variant]``: :func:`run_timing` (compile and run seconds, throughput).
+        interrupted: the sweep was stopped (SIGINT / SIGTERM) after its first ``len(index)``
+            scenarios' chunks; the result is valid, only smaller.
     """
 
     spec: SweepSpec
@@ -52,6 +54,7 @@ class SweepResult:
     wall_s: float = 0.0
     devices: int = 1
     timing: dict = dataclasses.field(default_factory=dict)
+    interrupted: bool = False  # stopped by a signal: ``index`` holds the scenarios that ran
 
     def to_xarray(self):
         """An ``xarray.Dataset``: dimensions ``variant`` x ``scenario``, sampled inputs and
@@ -126,6 +129,7 @@ def merge_results(parts: list[SweepResult]) -> SweepResult:
         wall_s=max(p.wall_s for p in parts),
         devices=devices,
         timing=timing,
+        interrupted=any(p.interrupted for p in parts),
     )
 
 
@@ -143,7 +147,9 @@ def summarize(result: SweepResult) -> dict:
     ``summary["variants"][v]``: ``n``, ``n_diverged``, ``n_nonfinite`` and, for every metric,
     ``mean``, ``std``, ``p5``, ``p50``, ``p95``, ``min``, ``max`` over the runs that did not
     diverge (``None`` where there are none); ``timing`` (:func:`run_timing`: ``compile_s``,
-    ``run_s``, ``traj_steps_per_s``, ...).
+    ``run_s``, ``traj_steps_per_s``, ...). A sweep stopped by SIGINT / SIGTERM also has
+    ``"interrupted": true`` and ``num_scenarios_planned`` (``num_scenarios`` is then the number
+    of scenarios that ran: the chunks completed).
     """
     out = {}
     for v, m in result.metrics.items():
@@ -159,13 +165,17 @@ def summarize(result: SweepResult) -> dict:
         if v in result.timing:
             entry["timing"] = result.timing[v]
         out[v] = entry
-    return {
+    summary = {
         "num_scenarios": int(result.index.size),
         "wall_s": round(result.wall_s, 3),
         "devices": result.devices,
         "spec": spec_to_dict(result.spec),
         "variants": out,
     }
+    if result.interrupted:  # only then: summaries of complete sweeps keep their keys
+        summary["interrupted"] = True
+        summary["num_scenarios_planned"] = int(result.spec.num_scenarios)
+    return summary
 
 
 def spec_to_dict(spec: SweepSpec) -> dict:
@@ -206,6 +216,8 @@ def save_results(result: SweepResult, path: Path) -> Path:
     arrays["model_fields"] = np.array(result.spec.mc_config().model_fields, dtype=str)
     arrays["spec_json"] = np.array(json.dumps(spec_to_dict(result.spec)))
     meta = {"wall_s": result.wall_s, "devices": result.devices, "timing": result.timing}
+    if result.interrupted:
+        meta["interrupted"] = True
     arrays["meta_json"] = np.array(json.dumps(meta))
     for k, a in result.scenarios.items():
         arrays[f"scenario.{k}"] = a
@@ -214,8 +226,9 @@ def save_results(result: SweepResult, path: Path) -> Path:
             arrays[f"{v}.{k}"] = a
         for k, a in result.traces[v].items():
             arrays[f"{v}.trace_{k}"] = a
-    np.savez_compressed(path, **arrays)
-    return path
+    from vcjax.outputs import save_npz_atomic
+
+    return save_npz_atomic(path, **arrays)
 
 
 def load_results(path: Path) -> SweepResult:
@@ -239,4 +252,5 @@ def load_results(path: Path) -> SweepResult:
             meta["wall_s"],
             meta["devices"],
             meta.get("timing", {}),
+            bool(meta.get("interrupted", False)),
         )

@@ -24,6 +24,7 @@ from vcjax.metrics import (
     run_metrics,
     window_start,
 )
+from vcjax.outputs import stop_requested
 from vcjax.progress import ProgressBar
 from vcjax.rollout import Reduction, RolloutConfig, Trajectory
 from vcjax.sweep.results import SweepResult, run_timing
@@ -237,6 +238,7 @@ def run_sweep(
     devices=None,
     process_index: int | None = None,
     process_count: int | None = None,
+    stop: Callable[[], bool] | None = None,
 ) -> SweepResult:
     """Run every variant of ``spec`` on its scenarios, chunk by chunk.
 
@@ -253,6 +255,10 @@ def run_sweep(
         progress: True: a bar on stderr; a callable: receives a line per chunk; False: silent.
         devices: devices to shard over (default ``jax.local_devices()``).
         process_index, process_count: this process's share (default from JAX).
+        stop: polled after each chunk; when it returns True the sweep ends there and returns
+            the chunks done so far, with ``interrupted = True`` (default:
+            :func:`vcjax.outputs.stop_requested`, set by SIGINT / SIGTERM inside
+            :func:`vcjax.outputs.interrupt_guard`).
 
     Each variant's program is traced and compiled once, timed apart from running it:
     :attr:`~vcjax.sweep.results.SweepResult.timing` holds per variant ``compile_s``, ``run_s``
@@ -295,7 +301,13 @@ def run_sweep(
     parts_m = {v: [] for v in spec.variants}
     parts_tr = {v: [] for v in spec.variants}
     loop0 = loops_[spec.variants[0]]
+    stop = stop_requested if stop is None else stop
+    interrupted = False
     for c in mine:
+        if stop():  # a signal arrived: keep the chunks done (at least one, once started)
+            interrupted = bool(parts_idx)
+            if interrupted:
+                break
         lo = c * chunk
         n_valid = min(chunk, spec.num_scenarios - lo)
         idx = np.arange(lo, lo + chunk)
@@ -345,4 +357,5 @@ def run_sweep(
         wall_s=time.perf_counter() - t_start,
         devices=n_dev,
         timing=timing,
+        interrupted=interrupted,
     )

@@ -1,0 +1,192 @@
+"""``vcjax fit`` does not return confident wrong answers (issue 24): excitation checked before
+fitting, untrustworthy optima flagged after it, and the reported standard errors checked against
+an independent ``sigma^2 (J^T J)^-1`` from a finite-difference Jacobian of the whole
+multiple-shooting problem (parameters and segment states, dense, numpy).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vcjax.cli import main
+from vcjax.identify import fit_logs, get_fit_model, load_log, make_segments, save_log_csv
+from vcjax.identify.checks import (
+    MAX_CONDITION,
+    check_excitation,
+    sensitivities,
+    trust_warnings,
+)
+
+CSV = Path(__file__).parent / "data" / "remus100_pvs_reference.csv"
+REMUS = get_fit_model("remus100")
+CURRENT = dict(current_speed=0.5, current_direction=math.radians(170.0))
+
+
+def _log(n):
+    log = load_log(CSV, REMUS.state_columns, REMUS.command_columns)
+    return dataclasses.replace(log, t=log.t[:n], x=log.x[:n], u=log.u[:n])
+
+
+# ------------------------------------------------------------------ excitation (before fitting)
+
+
+def test_all_zero_log_is_refused_naming_every_parameter(tmp_path, capsys):
+    """The issue's log without excitation (all zeros): refused, not 'converged' at 9e6."""
+    log = _log(101)
+    path = save_log_csv(
+        tmp_path / "zeros.csv",
+        log.t,
+        np.zeros_like(log.x),
+        np.zeros_like(log.u),
+        REMUS.state_columns,
+        REMUS.command_columns,
+    )
+    cfg = tmp_path / "fit.toml"
+    cfg.write_text(
+        f'[data]\nfiles = ["{path}"]\n[model]\nvehicle = "remus100"\nstep = "pvs"\n'
+        '[fit]\nparams = ["CD_0", "CL_delta_r"]\nsegment_steps = 25\n'
+    )
+    out = tmp_path / "out"
+    assert main(["fit", str(cfg), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "vcjax: fit: [fit] params: the logs do not excite CD_0 (0), CL_delta_r (0)" in err
+    assert "Traceback" not in err and not (out / "fit.json").exists()
+
+
+def test_check_excitation_names_the_weak_parameter():
+    info = np.diag([4.0, 1e-14, 9.0])
+    with pytest.raises(ValueError, match=r"do not excite b \(1e-07\)"):
+        check_excitation(["a", "b", "c"], info, m=1.0)
+    np.testing.assert_allclose(sensitivities(info, 4.0), [1.0, 5e-8, 1.5])
+    assert check_excitation(["a", "c"], np.diag([4.0, 9.0]), 1.0).tolist() == [2.0, 3.0]
+    with pytest.raises(ValueError, match="non-finite sensitivity"):
+        check_excitation(["a"], np.array([[np.nan]]), 1.0)
+
+
+# ------------------------------------------------------------------ trust (after fitting)
+
+
+@pytest.mark.parametrize(
+    "std, est, info, message",
+    [
+        ({"a": 0.0}, {"a": 1.0}, np.eye(1), "a: standard error 0.0: zero or non-finite"),
+        ({"a": math.nan}, {"a": 1.0}, np.eye(1), "a: standard error nan"),
+        ({"a": None}, {"a": 1.0}, np.eye(1), "a: standard error None"),
+        ({"a": 0.1}, {"a": 150.0}, np.eye(1), "a: estimate 150 is 150 x its nominal value 1"),
+        ({"a": 0.1}, {"a": 0.005}, np.eye(1), "at the bound of the plausible range"),
+        ({"a": 0.1}, {"a": 1.0}, np.array([[np.inf]]), "information matrix is not finite"),
+    ],
+)
+def test_trust_warnings(std, est, info, message):
+    w = trust_warnings(["a"], est, {"a": 1.0}, std, info)
+    assert len(w) == 1 and message in w[0]
+
+
+def test_trust_warnings_conditioning_and_clean_case():
+    a = 1.0 - 1e-11
+    ill = np.array([[1.0, a], [a, 1.0]])  # condition number ~2e11
+    w = trust_warnings(["a", "b"], {"a": 1, "b": 1}, {"a": 1, "b": 1}, {"a": 1, "b": 1}, ill)
+    assert len(w) == 1 and f"> {MAX_CONDITION:.0e}" in w[0] and "poorly conditioned" in w[0]
+    ok = trust_warnings(["a", "b"], {"a": 1, "b": 2}, {"a": 1, "b": 1}, {"a": 1, "b": 1}, np.eye(2))
+    assert ok == []
+
+
+def test_product_pair_is_not_converged_and_warned_in_fit_json(tmp_path, capsys):
+    """A_r and CL_delta_r enter only as a product: the information matrix is singular, so the
+    fit is marked converged: false (the optimum is not unique), with the warning on stderr."""
+    res = fit_logs(
+        REMUS, [_log(201)], ["A_r", "CL_delta_r"], step="pvs", initial_scale=1.2,
+        segment_steps=25, max_iters=20, **CURRENT,
+    )  # fmt: skip
+    assert res.converged is False
+    assert any("poorly conditioned" in w for w in res.warnings), res.warnings
+    assert res.to_json()["converged"] is False
+
+
+# ------------------------------------------------------------------ standard errors, calibrated
+
+
+def _noisy(log, seed, scale=1.0):
+    sig = scale * np.array(
+        [0.02] * 3 + [math.radians(0.1)] * 3 + [0.01] * 3 + [0.002] * 3
+        + [math.radians(0.1)] * 2 + [2.0]
+    )  # fmt: skip
+    rng = np.random.default_rng(seed)
+    return dataclasses.replace(log, x=log.x + rng.normal(size=log.x.shape) * sig)
+
+
+def test_standard_errors_equal_an_independent_dense_sigma2_inverse_jtj():
+    """std from the fit (Schur-complement information, delta method) == the square roots of
+    the parameter block of sigma^2 (J^T J)^-1, J the dense finite-difference Jacobian of the
+    weighted residuals with respect to (z, every segment state), sigma^2 = |r|^2 / (m - n)."""
+    names = ["CD_0", "CL_delta_r"]
+    log = _noisy(_log(201), seed=3)
+    res = fit_logs(
+        REMUS, [log], names, step="pvs", initial_scale=1.1, segment_steps=25, max_iters=30,
+        **CURRENT,
+    )  # fmt: skip
+    prob, seg = res.problem, make_segments([log], 25)
+    z, s, w = res.z, res.s, res.weights
+    p, ns = z.size, s.size
+
+    def r_of(v):
+        return prob.residuals(v[:p], v[p:].reshape(s.shape), seg, w).ravel()
+
+    v0 = np.concatenate([z, s.ravel()])
+    r0 = r_of(v0)
+    J = np.empty((r0.size, p + ns))
+    for k in range(p + ns):
+        h = 1e-6 * max(1.0, abs(v0[k]))
+        e = np.zeros_like(v0)
+        e[k] = h
+        J[:, k] = (r_of(v0 + e) - r_of(v0 - e)) / (2 * h)
+    m = float(seg.mask.sum()) * REMUS.n_x  # real residuals (padding rows are zero)
+    sigma2 = float(r0 @ r0) / (m - (p + ns))
+    cov = sigma2 * np.linalg.inv(J.T @ J)
+    theta = np.array([res.estimates[n] for n in names])  # log scale: d theta / d z = theta
+    std_dense = theta * np.sqrt(np.diag(cov)[:p])
+    np.testing.assert_allclose([res.std[n] for n in names], std_dense, rtol=2e-3)
+    assert all(0 < res.std[n] < abs(res.estimates[n]) for n in names)  # finite, informative
+
+
+def test_noise_free_fit_recovers_the_truth_and_is_trusted():
+    res = fit_logs(
+        REMUS, [_log(201)], ["CD_0", "CL_delta_s"], step="pvs", initial_scale=1.3,
+        segment_steps=25, max_iters=30, **CURRENT,
+    )  # fmt: skip
+    for n in ("CD_0", "CL_delta_s"):
+        assert res.estimates[n] == pytest.approx(res.nominal[n], rel=1e-7)
+    assert res.converged is True and res.warnings == []
+    assert set(res.sensitivity) == {"CD_0", "CL_delta_s"}
+    assert all(v > 0 for v in res.sensitivity.values())
+
+
+def test_fit_json_and_figure_carry_the_warnings(tmp_path, capsys):
+    """Through the CLI: an untrusted fit (product pair) says converged: false in fit.json and on
+    stderr, and exits 0 with its files written."""
+    log = _log(201)
+    path = save_log_csv(
+        tmp_path / "run.csv", log.t, log.x, log.u, REMUS.state_columns, REMUS.command_columns
+    )
+    cfg = tmp_path / "fit.toml"
+    cfg.write_text(
+        f'[data]\nfiles = ["{path}"]\n[model]\nvehicle = "remus100"\nstep = "pvs"\n'
+        "current_speed = 0.5\ncurrent_direction_deg = 170.0\n"
+        '[fit]\nparams = ["A_r", "CL_delta_r"]\ninitial_scale = 1.2\nsegment_steps = 25\n'
+        "max_iters = 20\n"
+    )
+    out = tmp_path / "out"
+    assert main(["fit", str(cfg), "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "vcjax: fit: warning: converged: false -- the optimum is not trustworthy" in err
+    fit = json.loads((out / "fit.json").read_text())
+    assert fit["converged"] is False
+    assert any("poorly conditioned" in w for w in fit["warnings"])
+    assert set(fit["sensitivity"]) == {"A_r", "CL_delta_r"}
+    assert (out / "cost_history.png").stat().st_size > 0

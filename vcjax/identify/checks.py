@@ -1,0 +1,258 @@
+"""What ``vcjax fit`` checks so that it does not return a confident wrong answer.
+
+Before fitting (errors, ``ValueError`` naming the log, the column and the samples; the CLI exits
+with code 2 before anything is compiled), :func:`check_logs`:
+
+* **time in seconds**: a median time step above :data:`MAX_STEP_S` (2 s) only makes sense if
+  ``t`` is in milliseconds (a 20 ms step read as 20 s), and is named as such;
+* **uniform sampling**: every step within :data:`SAMPLING_RTOL` (0.1 %) of the median step;
+  otherwise the samples around the first gap are named (a 0.24 s gap in a 0.02 s log turns
+  one shooting step into a 12x longer Euler step and biases the fit);
+* **angles in radians**: an angle column (unit ``rad``) other than the heading whose magnitude
+  exceeds pi, a heading whose step-to-step change (wrapped) exceeds pi rad/s, or a rate column
+  (unit ``rad/s``) above pi rad/s (180 deg/s) only makes sense in degrees; and small angles
+  in degrees are found by consistency: a rate that is 180/pi (within a factor 2) times the
+  derivative of its angle (``r`` and ``psi``, ``q`` and ``theta``, ``p`` and ``phi``;
+  differences over 0.5 s, so that sensor noise does not dominate), or an actuator 180/pi times
+  its command (or the other way round), names the one in degrees -- where the two move together
+  (correlation above :data:`MIN_PAIR_CORRELATION`); a channel that hardly moves (the roll of a
+  noisy REMUS 100 log) gives no evidence and is not judged.
+
+Before fitting, once the Jacobian is compiled, :func:`check_excitation`: each fitted
+parameter's *sensitivity* -- the RMS change of the weighted residuals per unit relative change
+of the parameter, ``sqrt(I_ii / m)`` with ``I`` the Fisher information (profiled over the
+segments' initial states) and ``m`` the number of residuals -- at the initial estimate. A
+parameter whose sensitivity is below :data:`MIN_SENSITIVITY` (absolute) or
+:data:`MIN_RELATIVE_SENSITIVITY` x the largest one is not excited by the logs: an error naming
+it (a log without excitation, all zeros, cannot estimate a rudder coefficient).
+
+After fitting, :func:`trust_warnings`: a zero or non-finite standard error, an estimate outside
+the plausible range (more than a factor :data:`PLAUSIBLE_FACTOR` from the nominal value: the fit
+runs on a log scale, so this is its bound), or an information matrix whose condition number
+(normalised to unit diagonal) exceeds :data:`MAX_CONDITION` is a warning, and the fit is marked
+``converged: false`` (the optimum is not trustworthy).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = [
+    "MAX_CONDITION",
+    "MAX_STEP_S",
+    "MIN_RELATIVE_SENSITIVITY",
+    "MIN_SENSITIVITY",
+    "PLAUSIBLE_FACTOR",
+    "SAMPLING_RTOL",
+    "check_excitation",
+    "check_logs",
+    "sensitivities",
+    "trust_warnings",
+]
+
+#: A median time step above this [s] means ``t`` is not in seconds.
+MAX_STEP_S = 2.0
+#: Relative tolerance of every time step against the median step.
+SAMPLING_RTOL = 1e-3
+#: Angles (other than the heading) beyond this [rad], and rates beyond this [rad/s], are degrees.
+MAX_ANGLE = math.pi
+MAX_RATE = math.pi
+#: Sensitivities (see the module docstring) below this are "not excited".
+MIN_SENSITIVITY = 1e-9
+MIN_RELATIVE_SENSITIVITY = 1e-6
+#: Estimates more than this factor from the nominal value are at the plausible range's bound.
+PLAUSIBLE_FACTOR = 100.0
+#: Condition number (unit-diagonal information matrix) above which the fit is not trusted.
+MAX_CONDITION = 1e10
+
+_HEADINGS = ("psi",)
+
+
+def check_logs(model, logs: Sequence) -> None:
+    """Raise ``ValueError`` for a log whose time is not in seconds, whose sampling is not
+    uniform, or whose angles / rates only make sense in degrees (see the module docstring)."""
+    for log in logs:
+        _check_time(log)
+        _check_units(model, log)
+        _check_pairs(model, log)
+
+
+#: (angle, its rate) and (actuator, its command) column pairs: one of a pair in degrees and the
+#: other in radians shows as a factor 180/pi between them.
+_RATE_PAIRS = (("psi", "r"), ("theta", "q"), ("phi", "p"))
+_VALUE_PAIRS = (("delta_r", "delta_r_cmd"), ("delta_s", "delta_s_cmd"), ("delta", "delta_cmd"))
+_DEG = 180.0 / math.pi
+#: Correlation (about zero) above which a pair is compared at all.
+MIN_PAIR_CORRELATION = 0.9
+
+
+def _check_pairs(model, log) -> None:
+    """A rate about 57 x (or 1/57 x) the derivative of its angle, or an actuator about 57 x its
+    command (or 1/57 x): one of the pair is in degrees."""
+    cols = {c: log.x[:, j] for j, c in enumerate(model.state_columns)}
+    cols.update({c: log.u[:, j] for j, c in enumerate(model.command_columns)})
+    # differences over ~0.5 s (not one sample): sensor noise on the angle would dominate
+    n = log.t.size
+    stride = int(min(max(1, round(0.5 / float(np.median(np.diff(log.t))))), max(1, n - 1)))
+    span = log.t[stride:] - log.t[:-stride]
+    pairs = []
+    for a, b in _RATE_PAIRS:
+        if a in cols and b in cols:
+            d = (cols[a][stride:] - cols[a][:-stride] + math.pi) % (2 * math.pi) - math.pi
+            c = np.cumsum(np.concatenate([[0.0], 0.5 * (cols[b][1:] + cols[b][:-1])]))
+            mean_rate = (c[stride:] - c[:-stride]) / stride  # the rate averaged over the span
+            pairs.append((a, b, d / span, mean_rate, "the rate of"))
+    for a, b in _VALUE_PAIRS:
+        if a in cols and b in cols:
+            pairs.append((a, b, cols[a][1:], cols[b][:-1], ""))
+    for a, b, xa, xb, what in pairs:
+        if np.sqrt(np.mean(xa**2)) < 1e-9 or np.sqrt(np.mean(xb**2)) < 1e-9:
+            continue  # nothing moves: no evidence either way
+        corr = float(np.dot(xa, xb) / np.sqrt(np.dot(xa, xa) * np.dot(xb, xb)))
+        if corr < MIN_PAIR_CORRELATION:
+            continue  # they do not move together (noise, other terms): no evidence
+        k = float(np.dot(xa, xb) / np.dot(xa, xa))  # xb ~ k xa
+        for ratio, deg in ((k, b), (1.0 / k if k else math.inf, a)):
+            if _DEG / 2.0 < ratio < _DEG * 2.0:
+                other = a if deg == b else b
+                if deg == b:
+                    rel = f"column {b!r} is {ratio:.3g} x {what + ' ' if what else ''}{a!r}"
+                else:
+                    rel = f"{what + ' ' if what else ''}column {a!r} is {ratio:.3g} x {b!r}"
+                raise ValueError(
+                    f"{log.name}: {rel} (180/pi = 57.3): {deg!r} is in degrees, {other!r} in "
+                    "radians; angles must be in rad and rates in rad/s"
+                )
+
+
+def _check_time(log) -> None:
+    dt = np.diff(log.t)
+    h = float(np.median(dt))
+    if h > MAX_STEP_S:
+        raise ValueError(
+            f"{log.name}: column 't': the median time step is {h:g} s, which only makes sense "
+            f"if t is in milliseconds (a step of {h / 1000:g} s); t must be in seconds"
+        )
+    bad = np.flatnonzero(np.abs(dt - h) > SAMPLING_RTOL * h)
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"{log.name}: column 't': sampling is not uniform: the step is {h:g} s, but "
+            f"{bad.size} step(s) differ, the first from sample {i} to {i + 1} (data rows "
+            f"{i + 1} and {i + 2}; t = {log.t[i]:g} -> {log.t[i + 1]:g} s, a step of "
+            f"{dt[i]:g} s); resample the log or split it at the gap"
+        )
+
+
+def _check_units(model, log) -> None:
+    dt = np.diff(log.t)
+    for j, (c, unit) in enumerate(zip(model.state_columns, model.units, strict=True)):
+        x = log.x[:, j]
+        if unit == "rad" and c in _HEADINGS:
+            d = (np.diff(x) + math.pi) % (2 * math.pi) - math.pi
+            rate = np.abs(d) / dt
+            k = int(np.argmax(rate)) if rate.size else 0
+            if rate.size and rate[k] > MAX_RATE:
+                raise ValueError(
+                    f"{log.name}: column {c!r} turns by {abs(d[k]):.3g} rad in {dt[k]:g} s at "
+                    f"sample {k} ({rate[k]:.3g} rad/s): only plausible in degrees; angles "
+                    "must be in rad"
+                )
+        elif unit == "rad":
+            k = int(np.argmax(np.abs(x)))
+            if abs(x[k]) > MAX_ANGLE:
+                raise ValueError(
+                    f"{log.name}: column {c!r} reaches {x[k]:.4g} at sample {k}: an angle beyond "
+                    "pi rad only makes sense in degrees; angles must be in rad"
+                )
+        elif unit == "rad/s":
+            k = int(np.argmax(np.abs(x)))
+            if abs(x[k]) > MAX_RATE:
+                raise ValueError(
+                    f"{log.name}: column {c!r} reaches {x[k]:.4g} at sample {k}: a rate beyond "
+                    "pi rad/s (180 deg/s) only makes sense in deg/s; rates must be in rad/s"
+                )
+
+
+def sensitivities(info: np.ndarray, m: float) -> np.ndarray:
+    """``sqrt(I_ii / m)``: the RMS change of the ``m`` weighted residuals per unit relative
+    change of each parameter (``info``: the profiled Fisher information, log-scale
+    parameters)."""
+    return np.sqrt(np.maximum(np.diag(np.asarray(info, np.float64)), 0.0) / max(float(m), 1.0))
+
+
+def check_excitation(names: Sequence[str], info: np.ndarray, m: float) -> np.ndarray:
+    """Raise ``ValueError`` naming the parameters the logs do not excite; returns the
+    sensitivities (:func:`sensitivities`)."""
+    sens = sensitivities(info, m)
+    top = float(np.max(sens)) if sens.size else 0.0
+    if not np.all(np.isfinite(sens)):
+        bad = [n for n, s in zip(names, sens, strict=True) if not np.isfinite(s)]
+        raise ValueError(
+            f"[fit] params: non-finite sensitivity of the residuals to {bad} at the initial "
+            "estimate (the model blows up on these logs: check their units)"
+        )
+    low = [
+        (n, float(s))
+        for n, s in zip(names, sens, strict=True)
+        if s < MIN_SENSITIVITY or s < MIN_RELATIVE_SENSITIVITY * top
+    ]
+    if low:
+        listed = ", ".join(f"{n} ({s:.2g})" for n, s in low)
+        raise ValueError(
+            f"[fit] params: the logs do not excite {listed}: sensitivity of the residuals to a "
+            f"relative change, largest {top:.2g}; these cannot be estimated from these data: "
+            "remove them from [fit] params or log manoeuvres that move them"
+        )
+    return sens
+
+
+def trust_warnings(
+    names: Sequence[str],
+    estimates: dict,
+    nominal: dict,
+    std: dict,
+    info_n: np.ndarray,
+    scale_names: Sequence[str] | None = None,
+) -> list[str]:
+    """Warnings that make an optimum untrustworthy (see the module docstring); empty when the
+    fit can be trusted. ``scale_names``: the parameters fitted on a log scale (default all
+    but the current's)."""
+    out = []
+    for n in names:
+        s = std.get(n)
+        if s is None or not math.isfinite(s) or s == 0.0:
+            out.append(
+                f"{n}: standard error {s}: zero or non-finite, so the data do not determine "
+                "its uncertainty (the estimate is not trustworthy)"
+            )
+    scale_names = (
+        [n for n in names if not n.startswith("current")] if scale_names is None else scale_names
+    )
+    for n in scale_names:
+        e, nom = estimates.get(n), nominal.get(n)
+        if e is None or nom in (None, 0.0) or not math.isfinite(e):
+            continue
+        ratio = abs(e / nom)
+        if not (1.0 / PLAUSIBLE_FACTOR <= ratio <= PLAUSIBLE_FACTOR):
+            out.append(
+                f"{n}: estimate {e:.4g} is {ratio:.3g} x its nominal value {nom:.4g}, at the "
+                f"bound of the plausible range (a factor {PLAUSIBLE_FACTOR:g} either way)"
+            )
+    info_n = np.asarray(info_n, np.float64)
+    if info_n.size:
+        if not np.all(np.isfinite(info_n)):
+            out.append("the information matrix is not finite: no standard errors")
+        else:
+            ev = np.linalg.eigvalsh(info_n)
+            cond = float(ev[-1] / ev[0]) if ev[0] > 0 else math.inf
+            if cond > MAX_CONDITION:
+                out.append(
+                    f"the information matrix is poorly conditioned (condition number "
+                    f"{cond:.3g} > {MAX_CONDITION:.0e}): some combination of {list(names)} is "
+                    "not determined by these data"
+                )
+    return out

@@ -1,0 +1,451 @@
+"""Output folders that lose nothing and clobber nothing: checks before any work, a lock, atomic
+writes, and interrupts that keep what is done.
+
+Every ``vcjax`` command that writes a folder (``simulate``, ``sweep``, ``tune``, ``fit``) calls
+:func:`prepare_out` before it compiles or runs anything:
+
+* ``--out`` must be creatable and writable (a file in the way, a read-only parent, a folder
+  without write permission: exit 2 naming it). Checked by creating the folder and writing (then
+  removing) a probe file, so what is reported is what the operating system allows.
+* A non-empty ``--out`` that holds another vcjax run's files (:data:`MARKERS`: ``run.json``,
+  ``summary.json``, ``results.npz``, ``fit.json``, ... or the manifest :data:`MANIFEST`) is
+  refused unless ``--overwrite`` is given. With it, vcjax's own files are removed first: the
+  data files of :data:`MARKERS` (and the per-process ``results.part*.npz``), and every file the
+  earlier run listed in its manifest (its figures). A file vcjax did not write is never
+  removed: a folder that holds only user files is used as it is.
+* A lock file (:data:`LOCK`, holding ``pid`` and host) makes one writer per folder: a second
+  process writing the same ``--out`` gets exit 2 naming the holder. The lock is released when
+  the process ends (``atexit``; also by :meth:`OutDir.release`). A lock left by a process that
+  no longer exists (same host) is taken over.
+
+In a multi-process run (``vcjax launch``) only process 0 checks contents, locks and writes the
+shared files; the others only check that the folder is writable (they write their
+``results.part`` files there). The process id is read from the environment (the JAX backend
+must not start before the devices are set up).
+
+Writes are atomic (:func:`write_json_atomic`, :func:`save_npz_atomic`, :func:`savefig_atomic`):
+a temporary file in the same folder, then ``os.replace``, so a killed run never leaves a
+half-written JSON or npz behind.
+
+Interrupts (:func:`interrupt_guard`): SIGINT and SIGTERM set a flag (:func:`stop_requested`)
+that the long loops poll at safe points (after a sweep chunk, a tuning step, a fit iteration);
+they stop there and write what is done, marked ``interrupted``. The CLI then prints one line and
+exits with :data:`EXIT_INTERRUPTED` (130). A second signal more than
+:data:`SAME_INTERRUPT_S` later raises :class:`KeyboardInterrupt` (the CLI turns it into a
+one-line exit too). ``vcjax launch`` forwards its interrupt to the processes it started and
+waits for them to write their results; the processes of a tuning agree on the step to stop at
+(:func:`stop_requested_everywhere`).
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import json
+import os
+import signal
+import socket
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "EXIT_INTERRUPTED",
+    "LOCK",
+    "MANIFEST",
+    "MARKERS",
+    "OutDir",
+    "OutputError",
+    "interrupt_guard",
+    "process_id_from_env",
+    "prepare_out",
+    "request_stop",
+    "save_npz_atomic",
+    "savefig_atomic",
+    "stop_requested",
+    "stop_requested_everywhere",
+    "stop_signal",
+    "write_json_atomic",
+]
+
+#: Exit code of a run stopped by SIGINT / SIGTERM (128 + SIGINT, the shell's convention).
+EXIT_INTERRUPTED = 130
+#: Lock file name inside ``--out``.
+LOCK = ".vcjax.lock"
+#: Manifest of the files a run wrote (read by ``--overwrite`` to remove exactly those).
+MANIFEST = ".vcjax-files.json"
+#: Files only vcjax writes: their presence means the folder holds a vcjax run. (``gains.json``
+#: is not one: users keep gains files as inputs; a run's own is listed in its manifest.)
+MARKERS = (
+    "run.json",
+    "summary.json",
+    "results.npz",
+    "results.nc",
+    "fit.json",
+    "metrics.json",
+    "history.json",
+)
+
+
+class OutputError(ValueError):
+    """An unusable ``--out`` (the CLI prints it as one line, exit code 2)."""
+
+
+# --------------------------------------------------------------------------- atomic writes
+
+
+def _tmp_for(path: Path) -> Path:
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    return Path(name)
+
+
+def _replace(tmp: Path, path: Path) -> Path:
+    try:
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    return path
+
+
+def write_json_atomic(path, obj, indent: int | None = 2, newline: bool = True, **kwargs) -> Path:
+    """Write ``obj`` as JSON (plus a newline unless ``newline=False``) to ``path`` atomically;
+    returns the path.
+
+    ``kwargs`` go to ``json.dumps`` (e.g. ``allow_nan=False``); an object that cannot be
+    serialised raises before anything is written."""
+    path = Path(path)
+    text = json.dumps(obj, indent=indent, **kwargs) + ("\n" if newline else "")
+    tmp = _tmp_for(path)
+    try:
+        with open(tmp, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    return _replace(tmp, path)
+
+
+def save_npz_atomic(path, compressed: bool = True, **arrays) -> Path:
+    """``np.savez_compressed(path, **arrays)`` (``np.savez`` unless ``compressed``), atomically."""
+    path = Path(path)
+    tmp = _tmp_for(path)
+    try:
+        with open(tmp, "wb") as f:
+            (np.savez_compressed if compressed else np.savez)(f, **arrays)
+            f.flush()
+            os.fsync(f.fileno())
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    return _replace(tmp, path)
+
+
+def savefig_atomic(fig, path, **kwargs) -> Path:
+    """``fig.savefig(path, **kwargs)`` through a temporary file (format from ``path``'s suffix
+    unless ``format`` is given), then ``os.replace``."""
+    path = Path(path)
+    kwargs.setdefault("format", path.suffix.lstrip(".") or None)
+    tmp = _tmp_for(path)
+    try:
+        fig.savefig(tmp, **kwargs)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    return _replace(tmp, path)
+
+
+# --------------------------------------------------------------------------- output folder
+
+
+def process_id_from_env(environ=None) -> int:
+    """This process's index in a multi-process run, from the environment (``vcjax launch``:
+    ``VCJAX_PROCESS_ID``; a SLURM step: ``SLURM_PROCID``), else 0. Does not start JAX."""
+    env = os.environ if environ is None else environ
+    for key in ("VCJAX_PROCESS_ID", "SLURM_PROCID"):
+        if key == "SLURM_PROCID" and int(env.get("SLURM_NTASKS", "1") or 1) <= 1:
+            continue
+        v = env.get(key)
+        if v not in (None, ""):
+            try:
+                return int(v)
+            except ValueError:
+                return 0
+    return 0
+
+
+def _pid_alive(pid: int) -> bool:
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by someone else
+        return True
+    return True
+
+
+class OutDir:
+    """A checked, locked output folder (from :func:`prepare_out`).
+
+    Attributes:
+        path: the folder; writer: whether this process writes the shared files (process 0);
+        removed: the files ``--overwrite`` removed.
+    """
+
+    def __init__(self, path: Path, writer: bool, removed: list[Path]):
+        self.path, self.writer, self.removed = path, writer, removed
+        self._locked = False
+        self._before: dict[str, int] = {}
+
+    def _snapshot(self) -> dict[str, int]:
+        """``relative name -> mtime_ns`` of every file below the folder (lock, manifest and
+        temporary files left out)."""
+        snap = {}
+        for root, _, names in os.walk(self.path):
+            for n in names:
+                if n in (LOCK, MANIFEST) or n.endswith(".tmp") or n.startswith(".vcjax-probe."):
+                    continue
+                p = Path(root) / n
+                with contextlib.suppress(OSError):
+                    snap[str(p.relative_to(self.path))] = p.stat().st_mtime_ns
+        return snap
+
+    def record_written(self) -> Path | None:
+        """Write the manifest :data:`MANIFEST`: every file created or rewritten since
+        :func:`prepare_out` (what ``--overwrite`` of a later run removes; a user's file that
+        was there before and left alone is not listed)."""
+        if not self.writer:
+            return None
+        now = self._snapshot()
+        new = [n for n, t in now.items() if self._before.get(n) != t]
+        names = sorted(set(new) | set(_read_manifest(self.path)))
+        return write_json_atomic(self.path / MANIFEST, {"files": names})
+
+    def _lock(self, command: str) -> None:
+        lock = self.path / LOCK
+        me = {"pid": os.getpid(), "host": socket.gethostname(), "command": command}
+        for _ in range(3):
+            try:
+                fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            except FileExistsError:
+                holder = _read_lock(lock)
+                if holder is None:  # being written this instant, or unreadable: look again
+                    holder = {}
+                pid, host = holder.get("pid"), holder.get("host")
+                same_host = host in (None, socket.gethostname())
+                mine = pid == os.getpid()  # left by an earlier command of this process
+                if isinstance(pid, int) and same_host and (mine or not _pid_alive(pid)):
+                    with contextlib.suppress(FileNotFoundError):
+                        lock.unlink()  # stale: its process is gone
+                    continue
+                who = f"process {pid}" + (f" on {host}" if host else "")
+                what = holder.get("command", "another vcjax run")
+                raise OutputError(
+                    f"--out {self.path}: in use by {who} ({what}; lock file {lock}); "
+                    "wait for it, or choose another --out"
+                ) from None
+            except OSError as err:
+                raise OutputError(
+                    f"--out {self.path}: cannot create the lock file: {err.strerror}"
+                ) from None
+            with os.fdopen(fd, "w") as f:
+                json.dump(me, f)
+            self._locked = True
+            atexit.register(self.release)
+            return
+        raise OutputError(f"--out {self.path}: cannot take the lock file {lock}")
+
+    def release(self) -> None:
+        """Remove the lock (if this object holds it)."""
+        if self._locked:
+            lock = self.path / LOCK
+            holder = _read_lock(lock)
+            if holder is not None and holder.get("pid") == os.getpid():
+                with contextlib.suppress(OSError):
+                    lock.unlink()
+            self._locked = False
+
+
+def _read_lock(lock: Path) -> dict | None:
+    try:
+        d = json.loads(lock.read_text())
+    except (OSError, ValueError):
+        return None
+    return d if isinstance(d, dict) else None
+
+
+def _read_manifest(path: Path) -> list[str]:
+    try:
+        d = json.loads((path / MANIFEST).read_text())
+        files = d.get("files", []) if isinstance(d, dict) else []
+        return [f for f in files if isinstance(f, str)]
+    except (OSError, ValueError):
+        return []
+
+
+def _vcjax_files(path: Path) -> list[Path]:
+    """The files of an earlier vcjax run in ``path``: markers, part files, manifest entries."""
+    found = [path / m for m in MARKERS if (path / m).is_file()]
+    found += sorted(path.glob("results.part*-of-*.npz"))
+    for rel in _read_manifest(path):
+        p = (path / rel).resolve()
+        if p.is_file() and path.resolve() in p.parents and p not in [q.resolve() for q in found]:
+            found.append(p)
+    if (path / MANIFEST).is_file():
+        found.append(path / MANIFEST)
+    return found
+
+
+def _check_writable(out: Path, raw) -> None:
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {raw}: exists and is not a directory")
+    for parent in out.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise OutputError(f"--out {raw}: cannot create the directory: {parent} is a file")
+            break
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(f"--out {raw}: cannot create the directory: {err.strerror}") from None
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".vcjax-probe.", dir=out)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as err:
+        raise OutputError(f"--out {raw}: not writable: {err.strerror}") from None
+
+
+def prepare_out(
+    path, overwrite: bool, command: str, *, writer: bool | None = None, keep=()
+) -> OutDir:
+    """Check, clear (with ``overwrite``) and lock the output folder ``path`` before any work.
+
+    Args:
+        path: the ``--out`` folder (created with its parents).
+        overwrite: remove an earlier vcjax run's files first instead of refusing.
+        command: what runs (written into the lock file, named in messages).
+        writer: whether this process writes the shared outputs (default: process 0 of a
+            multi-process run, :func:`process_id_from_env`).
+        keep: files never removed (the command's inputs, e.g. ``--gains out/gains.json``).
+
+    Raises:
+        OutputError (a ``ValueError``): the folder cannot be created or written, holds another
+        run's files (without ``overwrite``), or is locked by a live process.
+    """
+    if path is None or str(path).strip() == "":
+        raise OutputError("--out: expected a folder name, got an empty string")
+    out = Path(path)
+    writer = process_id_from_env() == 0 if writer is None else bool(writer)
+    _check_writable(out, path)
+    d = OutDir(out, writer, [])
+    if not writer:
+        return d
+    d._lock(command)
+    try:
+        kept = {Path(k).resolve() for k in keep if k}
+        old = [p for p in _vcjax_files(out) if p.resolve() not in kept]
+        if old and not overwrite:
+            names = ", ".join(sorted({p.name for p in old})[:4])
+            raise OutputError(
+                f"--out {path}: holds another vcjax run's files ({names}); "
+                "pass --overwrite to replace them, or choose another --out"
+            )
+        for p in old:
+            try:
+                p.unlink()
+            except FileNotFoundError:
+                pass
+            except OSError as err:
+                raise OutputError(f"--out {path}: cannot remove {p}: {err.strerror}") from None
+            d.removed.append(p)
+    except BaseException:
+        d.release()
+        raise
+    d._before = d._snapshot()
+    return d
+
+
+# --------------------------------------------------------------------------- interrupts
+
+_stop = threading.Event()
+_stop_signal: list[int] = []
+_stop_time: list[float] = [0.0]
+#: Signals closer together than this [s] count as one interrupt.
+SAME_INTERRUPT_S = 1.0
+
+
+def stop_requested() -> bool:
+    """Whether SIGINT / SIGTERM arrived inside :func:`interrupt_guard` (polled by the loops)."""
+    return _stop.is_set()
+
+
+def stop_requested_everywhere() -> bool:
+    """:func:`stop_requested` agreed by every process of a multi-process run (one small
+    all-gather; call it at the same point in every process, e.g. after each tuning step, so
+    that they all stop at the same step and none waits in a collective for one that stopped).
+    One process: :func:`stop_requested`."""
+    import jax
+
+    if jax.process_count() == 1:
+        return stop_requested()
+    from jax.experimental import multihost_utils
+
+    flags = multihost_utils.process_allgather(np.array(stop_requested()))
+    return bool(np.any(flags))
+
+
+def stop_signal() -> str | None:
+    """Name of the signal that requested the stop (``"SIGINT"``, ``"SIGTERM"``), or None."""
+    return signal.Signals(_stop_signal[0]).name if _stop_signal else None
+
+
+def request_stop(signum: int = signal.SIGINT) -> None:
+    """Ask the running loop to stop at its next safe point (what the signal handler does)."""
+    if not _stop_signal:
+        _stop_signal.append(int(signum))
+    _stop.set()
+
+
+@contextlib.contextmanager
+def interrupt_guard():
+    """Within the block, SIGINT / SIGTERM request a stop (:func:`stop_requested`) instead of
+    killing the process; a second signal raises :class:`KeyboardInterrupt`. On exit the
+    handlers are restored and the flag cleared (a later run in the same process starts afresh;
+    :func:`stop_signal` still names the signal). Only in the main thread (elsewhere: no-op)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        # a second signal stops at once -- unless it is the same interrupt arriving twice (a
+        # terminal's Ctrl-C to the process group, and vcjax launch forwarding it): < 1 s apart
+        if _stop.is_set() and time.monotonic() - _stop_time[0] > SAME_INTERRUPT_S:
+            raise KeyboardInterrupt
+        if not _stop.is_set():
+            _stop_time[:] = [time.monotonic()]
+        request_stop(signum)
+
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    _stop.clear()
+    _stop_signal.clear()
+    for s in old:
+        signal.signal(s, handler)
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        _stop.clear()
