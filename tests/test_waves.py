@@ -305,6 +305,23 @@ def test_spreading_draws_cos2s_directions_and_draws_are_the_same_in_and_out_of_v
         np.testing.assert_allclose(vb[i], _field(sea_i, 2.0, p)["u"], rtol=1e-13)
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("spreading", [0.0, 2.5])
+def test_draws_are_the_same_out_of_jit(spreading):
+    """Eager (op-by-op) draws against the jitted unbatched and batched programs (slow: eager
+    dispatch compiles ~60 small kernels and the beta sampler once more)."""
+    keys = KEYS[1]
+    hs, tp, beta = np.array([0.5, 1.0, 2.0, 0.0]), np.array([5.0, 7.0, 12.0, 9.0]), np.arange(4.0)
+    full = lambda x: np.resize(x, SEAS)
+    batched = _draws(keys, full(hs), full(tp), full(beta), spreading=spreading)
+    for i in range(4):
+        args = (keys[i], float(hs[i]), float(tp[i]), float(beta[i]))
+        one = waves.sea_state(*args, spreading=spreading, components=N)
+        for a, b, c in zip(one, _draw(*args, spreading=spreading), batched, strict=True):
+            np.testing.assert_allclose(b, a, rtol=1e-14)
+            np.testing.assert_allclose(c[i], a, rtol=1e-14)
+
+
 # --------------------------------------------------------------------------------------------
 # Regular waves: closed-form Airy kinematics and signs
 # --------------------------------------------------------------------------------------------
@@ -560,10 +577,16 @@ def test_bad_input_names_the_field(kwargs, field):
 # --------------------------------------------------------------------------------------------
 
 
+@functools.cache
+def _remus_params():
+    return remus100.remus100_params()
+
+
+@functools.cache
 def _remus_body(cg_at_cb):
     """REMUS 100's rigid-body and added mass, damping, W = B (PVS numbers); CG at the CB or
     PVS's 2 cm below it."""
-    b = remus100.remus100_params().body
+    b = _remus_params().body
     if not cg_at_cb:
         return b
     h_inv = sixdof.Hmtrx(-b.r_bg)  # M_RB = H(r)^T M_CG H(r), H(r)^-1 = H(-r)
@@ -734,8 +757,7 @@ def test_the_remus100_plant_moving_with_the_water_solves_its_equations():
     (``eta_dot = [v_w; 0]``, ``nu_dot = [R^T a_w; 0]`` at zero rotation rate), so the particle's
     path solves the plant's equations: the vehicle moves with the water (by uniqueness). The
     integrated version with PVS's CG below the CB is the slow test below."""
-    p = remus100.remus100_params()
-    p = p._replace(body=_remus_body(cg_at_cb=True))
+    p = _remus_params()._replace(body=_remus_body(cg_at_cb=True))
     current = jnp.array([0.2, -0.1, 0.05])
     seas = (
         _regular(a=0.5, omega=2 * np.pi / 6.0, phase=0.3, beta=0.5),
@@ -762,7 +784,7 @@ def test_the_remus100_plant_moves_with_the_water_particles():
     sea = _regular(a=0.5, omega=2 * np.pi / period, phase=0.3, beta=0.5, components=1)
     current = jnp.array([0.2, -0.1, 0.0])
     p0 = jnp.array([1.0, 2.0, 3.0])
-    p = remus100.remus100_params()
+    p = _remus_params()
     etas, xs = _follow_remus(sea, current, p, p0, period, 300)
     orbit = float(jnp.max(jnp.abs(xs - p0 - current * (jnp.arange(1.0, 301.0)[:, None] * 0.04))))
     dev = float(jnp.max(jnp.abs(etas[:, :3] - xs)))
