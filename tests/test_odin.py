@@ -176,6 +176,7 @@ def test_validation_errors_name_the_field():
         (lambda: odin.odin_state(np.zeros(6), nu=[0, 0, 0, 0, 0, np.inf]), "nu"),
         (lambda: odin.odin_args(P, tau_dist=[1.0, 2.0, 3.0, 4.0]), "tau_dist"),
         (lambda: odin.odin_args(P, v_c=[0.0, float("nan"), 0.0]), "v_c"),
+        (lambda: odin.odin_args(P, v_c_dot=[0.0, 0.0]), "v_c_dot"),
         (lambda: odin.odin_args("odin"), "vehicle"),
         (lambda: odin.design_model(P, u_design=0.0), "u_design"),
     ]
@@ -202,3 +203,64 @@ def test_float32():
     x = odin.odin_state(np.zeros(6), dtype=jnp.float32)
     xd = odin.odin_plant(0.0, x, jnp.ones(8, jnp.float32), odin.odin_args(p, [0.0, 5.0, 0.0]))
     assert all(leaf.dtype == jnp.float32 for leaf in xd)
+
+
+def _level(psi):
+    c, s = math.cos(psi), math.sin(psi)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def test_a_neutrally_buoyant_sphere_moves_with_a_uniformly_accelerating_current():
+    """Thrusters off, released with the water's velocity in the current ``v_c(t) = v0 + a t``:
+    ``nu_r = 0`` for all time, so no drag, no damping and no Coriolis act, and the water's
+    acceleration moves the rigid body and the added mass with it (``(M_RB + M_A) R^T a``): the
+    sphere follows the water, ``p(t) = p0 + v0 t + a t^2 / 2``, level, on its heading."""
+    v0, acc, psi = np.array([0.3, -0.2, 0.05]), np.array([0.02, 0.015, -0.01]), 0.8
+    Rt, p0 = _level(psi).T, np.array([1.0, -2.0, 30.0])
+    zero6 = jnp.zeros(6)
+
+    def args_at(t, v_c_dot=True):
+        return odin.OdinArgs(P, zero6, v0 + acc * t, acc if v_c_dot else None)
+
+    # (a) the analytic motion solves the plant's equations at every instant ...
+    for t in (0.0, 7.0, 30.0):
+        eta = np.concatenate([p0 + v0 * t + 0.5 * acc * t**2, [0.0, 0.0, psi]])
+        x = odin.odin_state(eta, np.concatenate([Rt @ (v0 + acc * t), np.zeros(3)]))
+        xd = odin.odin_plant(t, x, jnp.zeros(8), args_at(t))
+        np.testing.assert_allclose(xd.eta, np.concatenate([v0 + acc * t, np.zeros(3)]), atol=1e-14)
+        np.testing.assert_allclose(xd.nu, np.concatenate([Rt @ acc, np.zeros(3)]), atol=1e-14)
+        np.testing.assert_array_equal(xd.thrust, 0.0)
+        # without the water's acceleration the plant would hold the body's velocity instead
+        xd0 = odin.odin_plant(t, x, jnp.zeros(8), args_at(t, v_c_dot=False))
+        np.testing.assert_allclose(xd0.nu, 0.0, atol=1e-14)
+
+    # (b) ... and RK4 integrates it (20 s) onto the analytic path
+    @jax.jit
+    def path(x0):
+        def f(t, x, _):
+            return odin.odin_plant(t, x, jnp.zeros(8), args_at(t)), None
+
+        def step(x, k):
+            x, _ = rk4(f, 0.25 * k, x, 0.25, None)
+            return x, x.eta
+
+        return jax.lax.scan(step, x0, jnp.arange(80.0))[1]
+
+    x0 = odin.odin_state([*p0, 0.0, 0.0, psi], np.concatenate([Rt @ v0, np.zeros(3)]))
+    t = 0.25 * np.arange(1.0, 81.0)[:, None]
+    etas = path(x0)
+    np.testing.assert_allclose(etas[:, :3], p0 + v0 * t + 0.5 * acc * t**2, atol=1e-9)
+    np.testing.assert_allclose(etas[:, 3:], np.broadcast_to([0.0, 0.0, psi], (80, 3)), atol=1e-12)
+
+
+def test_a_zero_current_rate_changes_no_result():
+    """``v_c_dot = 0`` gives the results of the constant-current plant (``v_c_dot=None``)."""
+    rng = np.random.default_rng(4)
+    for _ in range(3):
+        x = odin.OdinState(*(jnp.asarray(rng.normal(size=n)) for n in (6, 6, 8)))
+        v_c, u = rng.normal(size=3), jnp.asarray(rng.normal(size=8) * 10)
+        a0 = odin.odin_args(P, [1.0, -2.0, 0.5], v_c)
+        a1 = odin.odin_args(P, [1.0, -2.0, 0.5], v_c, v_c_dot=np.zeros(3))
+        for plant in (odin.odin_plant, odin.odin_plant_smooth):
+            for r0, r1 in zip(plant(0.0, x, u, a0), plant(0.0, x, u, a1), strict=True):
+                np.testing.assert_array_equal(r1, r0)

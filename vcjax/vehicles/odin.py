@@ -52,7 +52,10 @@ Model (6-DOF, built on :mod:`vcjax.vehicles.sixdof`: ``m2c`` Coriolis of rigid b
 with ``f`` (8,) the thruster forces (state), ``f_cmd`` (8,) the commands (input; clipped to
 ``±thrust_max``, or ``thrust_max tanh(f_cmd / thrust_max)`` in :func:`odin_plant_smooth`),
 ``tau_dist`` (6,) a constant body-frame disturbance (traced) and ``v_c`` (3,) an optional current
-in NED. Thruster matrix (§3.1, ``s = 1/sqrt(2)``; rows ``[X Y Z K M N]``, columns
+in NED, with ``v_c_dot`` (3,) its time derivative when it varies (a tidal current, a sea):
+``nu_dot = nu_r_dot + nu_c_dot`` as in :func:`vcjax.vehicles.sixdof.vector_field`, so the
+water's acceleration acts on the rigid body and, through ``M_A``, on the added mass. Thruster
+matrix (§3.1, ``s = 1/sqrt(2)``; rows ``[X Y Z K M N]``, columns
 ``[H1..H4 V1..V4]``; a positive vertical thrust pushes up, i.e. ``-Z``)::
 
       X [  s    -s    -s     s     0        0        0        0      ]
@@ -151,12 +154,15 @@ class OdinArgs(NamedTuple):
     Attributes:
         vehicle: :class:`OdinParams`.
         tau_dist: (6,) constant body-frame disturbance ``[X, Y, Z, K, M, N]`` [N, N m].
-        v_c: (3,) ocean current in NED [m/s] (irrotational, constant).
+        v_c: (3,) ocean current in NED [m/s] (irrotational; uniform over the hull).
+        v_c_dot: (3,) its time derivative [m/s^2], or ``None`` (the default: a constant current,
+            the same results as zeros).
     """
 
     vehicle: OdinParams
     tau_dist: Any
     v_c: Any
+    v_c_dot: Any = None
 
 
 def thruster_matrix(R_hor=0.356, R_ver=0.252, dtype=None):
@@ -292,7 +298,7 @@ def odin_state(eta, nu=None, thrust=None, dtype=None) -> OdinState:
     return OdinState(eta=eta, nu=nu, thrust=thrust)
 
 
-def odin_args(vehicle: OdinParams, tau_dist=None, v_c=None) -> OdinArgs:
+def odin_args(vehicle: OdinParams, tau_dist=None, v_c=None, v_c_dot=None) -> OdinArgs:
     """Validated :class:`OdinArgs` (arrays take the dtype of ``vehicle``).
 
     Args:
@@ -300,6 +306,7 @@ def odin_args(vehicle: OdinParams, tau_dist=None, v_c=None) -> OdinArgs:
         tau_dist: (6,) body disturbance ``[X, Y, Z, K, M, N]``, or (3,) forces only (the paper's
             ``[0, 5, 0]`` N; moments zero). Default zeros.
         v_c: (3,) ocean current in NED [m/s]. Default zeros.
+        v_c_dot: (3,) its time derivative [m/s^2]. Default ``None`` (constant current).
     """
     validate(vehicle)
     dt = jnp.asarray(vehicle.radius).dtype
@@ -313,7 +320,9 @@ def odin_args(vehicle: OdinParams, tau_dist=None, v_c=None) -> OdinArgs:
         if tau_dist.shape == (3,):
             tau_dist = jnp.concatenate([tau_dist, jnp.zeros(3, dt)])
     v_c = jnp.zeros(3, dt) if v_c is None else as_float_array("v_c", v_c, (3,), dt)
-    return OdinArgs(vehicle=vehicle, tau_dist=tau_dist, v_c=v_c)
+    if v_c_dot is not None:
+        v_c_dot = as_float_array("v_c_dot", v_c_dot, (3,), dt)
+    return OdinArgs(vehicle=vehicle, tau_dist=tau_dist, v_c=v_c, v_c_dot=v_c_dot)
 
 
 # --------------------------------------------------------------------------------------------
@@ -358,7 +367,7 @@ def _plant(t, x: OdinState, u_cmd, args: OdinArgs, smooth: bool) -> OdinState:
     nu_c, _ = sd.current_in_body(x.eta, x.nu, args.v_c)
     nu_r = x.nu - nu_c
     tau = p.thrusters @ x.thrust + args.tau_dist + drag_force(p, nu_r)
-    eta_dot, nu_dot = sd.vector_field(p.body, x.eta, x.nu, tau, args.v_c)
+    eta_dot, nu_dot = sd.vector_field(p.body, x.eta, x.nu, tau, args.v_c, args.v_c_dot)
     return OdinState(eta=eta_dot, nu=nu_dot, thrust=thrust_dot)
 
 
@@ -369,7 +378,7 @@ def odin_plant(t, x: OdinState, u_cmd, args: OdinArgs) -> OdinState:
         t: () time [s] (unused; autonomous).
         x: :class:`OdinState`.
         u_cmd: (8,) thruster commands [N] (hard-clipped to ``±thrust_max``).
-        args: :class:`OdinArgs` (vehicle, ``tau_dist`` (6,), ``v_c`` (3,)).
+        args: :class:`OdinArgs` (vehicle, ``tau_dist`` (6,), ``v_c`` (3,), ``v_c_dot``).
 
     Returns:
         :class:`OdinState` of time derivatives.
