@@ -231,8 +231,10 @@ def _cmd_sweep(args) -> int:
     from vcjax.sweep import load_config, run_sweep_config
 
     try:
-        spec, extras = load_config(args.config)
-        result = run_sweep_config(args.config, args.out, progress=True, netcdf=args.netcdf)
+        spec, extras = loaded = load_config(args.config)  # parsed once, recorded in run.json
+        result = run_sweep_config(
+            args.config, args.out, progress=True, netcdf=args.netcdf, loaded=loaded
+        )
     except (OSError, ValueError, ImportError) as err:
         return _fail(f"sweep: {err}")
     summary = result["summary"]
@@ -277,8 +279,8 @@ def _cmd_tune(args) -> int:
     from tuning.config import load_config
 
     try:
-        cfg = load_config(args.config)
-        result = run_tune_config(args.config, args.out)
+        cfg = load_config(args.config)  # parsed once, recorded in run.json
+        result = run_tune_config(args.config, args.out, cfg=cfg)
     except (OSError, ValueError) as err:
         return _fail(f"tune: {err}")
     for f in result["files"]:
@@ -301,11 +303,12 @@ def _cmd_tune(args) -> int:
 def _cmd_fit(args) -> int:
     _check_out(args.out)
     _enable_x64(args.x64)
-    from vcjax.identify import run_fit_config
+    from vcjax.identify import load_fit_config, run_fit_config
 
     print(f"fit: {args.config} (compiling the multiple-shooting Jacobian first)")
     try:
-        result = run_fit_config(args.config, args.out, progress=not args.quiet)
+        cfg = load_fit_config(args.config)  # parsed once, recorded in run.json
+        result = run_fit_config(args.config, args.out, progress=not args.quiet, cfg=cfg)
     except (OSError, ValueError) as err:
         return _fail(f"fit: {err}")
     fit = result["fit"]
@@ -319,9 +322,7 @@ def _cmd_fit(args) -> int:
         print(f"vcjax: fit: warning: {w}", file=sys.stderr)
     for f in result["files"]:
         print(f"wrote {f}")
-    from vcjax.identify.config import load_fit_config
-
-    _record(args.out, "fit", args, config={"file": args.config, **load_fit_config(args.config)})
+    _record(args.out, "fit", args, config={"file": args.config, **cfg})
     return 0
 
 

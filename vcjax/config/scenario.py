@@ -1,0 +1,309 @@
+"""The ``[scenario]`` section shared by ``vcjax sweep`` and ``vcjax tune`` configs::
+
+    [scenario]
+    module = "my_loops.py"       # optional: a Python file that registers your own loops
+                                 # (vcjax.loops.register), imported first
+    vehicle = "infante"          # a registered vehicle (vcjax.loops.vehicles())
+    controller = "vcm_integral"  # one of that vehicle's controllers (errors list them)
+    params = "model.json"        # optional: parameter overrides of plant AND design model
+    plant_params = "plant.json"  # optional: overrides of the plant only (after params)
+    edd = "paper"                # optional static options of the loop class: any of its
+                                 # dataclass fields but controller, path and smooth
+                                 # (INFANTE-class: edd = "paper" | "implied"; ODIN: also
+                                 # integral, polish)
+    [scenario.path]
+    kind = "circle"              # "line" | "circle" | "helix" | "waypoints" | "lawnmower"
+    center = [0.0, 0.0]          # kind-specific keys (vcjax.paths constructors):
+    radius = 40.0                #   line: origin, direction; circle: center, radius, clockwise,
+                                 #   phase; helix: center, a, b, T, climb, phase;
+                                 #   waypoints: points, extend; lawnmower: start, leg,
+                                 #   radius, n_legs, depth, descent
+
+Without ``[scenario]`` a config means :data:`vcjax.config.schema.DEFAULT_SCENARIO` (Simulation 1:
+INFANTE-class on the line ``[10, w]``).
+Parameter files (paths relative to the config file) are JSON: a flat ``{name: value}`` map, or a
+``vcjax fit`` output whose ``"estimates"`` map is used; names are the vehicle's parameter names
+(``loop.param_names()``), unknown ones are rejected with the valid ones listed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import sys
+from pathlib import Path
+from typing import Any
+
+from vcjax import loops, paths
+from vcjax.config.schema import DEFAULT_SCENARIO, key
+from vcjax.config.values import (
+    ConfigError,
+    as_bool,
+    as_choice,
+    as_int,
+    as_number,
+    as_str,
+    resolve_file,
+)
+
+__all__ = [
+    "PATH_KINDS",
+    "PathSpec",
+    "ScenarioChoice",
+    "parse_scenario",
+    "SCENARIO_KEYS",
+    "loop_options",
+]
+
+#: kind -> (constructor, its keyword arguments)
+PATH_KINDS = {
+    "line": (paths.line, ("origin", "direction")),
+    "circle": (paths.circle, ("center", "radius", "clockwise", "phase")),
+    "helix": (paths.helix, ("center", "a", "b", "T", "climb", "phase")),
+    "waypoints": (paths.waypoints, ("points", "extend")),
+    "lawnmower": (paths.lawnmower, ("start", "leg", "radius", "n_legs", "depth", "descent")),
+}
+#: fixed keys of [scenario] (besides the [scenario.path] table and the loop's options)
+SCENARIO_KEYS = ("module", "vehicle", "controller", "params", "plant_params")
+#: loop dataclass fields that are not [scenario] options
+_NOT_OPTIONS = ("controller", "path", "smooth")
+
+
+def loop_options(cls) -> dict[str, dict]:
+    """The static options of a loop class that ``[scenario]`` accepts: its dataclass fields
+    but controller, path and smooth, as ``{name: {"type", "default", "choices"}}``."""
+    out = {}
+    for f in dataclasses.fields(cls):
+        if f.name in _NOT_OPTIONS:
+            continue
+        t = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
+        choices = ()
+        if t.startswith("Literal["):
+            choices = tuple(a.strip().strip("'\"") for a in t[len("Literal[") : -1].split(","))
+            t = "str"
+        elif t not in ("bool", "int", "float", "str"):
+            t = type(f.default).__name__
+        out[f.name] = {"type": t, "default": f.default, "choices": choices}
+    return out
+
+
+def _option(name: str, v, opt: dict):
+    t = opt["type"]
+    if t == "bool":
+        return as_bool(name, v)
+    if t == "int":
+        return as_int(name, v, 0)
+    if t == "float":
+        return as_number(name, v)
+    if t == "str":
+        v = as_str(name, v)
+        return as_choice(name, v, opt["choices"]) if opt["choices"] else v
+    raise ConfigError(f"{name}: the option's type {t} cannot be given in a config")
+
+
+def import_module_file(path) -> None:
+    """Import a Python file once (by its resolved path), e.g. one that registers loops."""
+    path = Path(path).resolve()
+    if str(path) in _IMPORTED:
+        return
+    name = f"vcjax_user_{len(_IMPORTED)}_{path.stem}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise ValueError(f"module: cannot import {path}")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    _IMPORTED[str(path)] = mod
+
+
+_IMPORTED: dict[str, Any] = {}
+
+
+def _freeze(v):
+    return tuple(_freeze(a) for a in v) if isinstance(v, list | tuple) else v
+
+
+def _thaw(v):
+    return [_thaw(a) for a in v] if isinstance(v, tuple) else v
+
+
+@dataclasses.dataclass(frozen=True)
+class PathSpec:
+    """A path named in a config: ``kind`` and the constructor's keyword arguments (hashable)."""
+
+    kind: str
+    args: tuple[tuple[str, Any], ...] = ()
+
+    def build(self):
+        """``(Path, coeffs)`` from :mod:`vcjax.paths` (raises ``ValueError`` naming the key)."""
+        fn, _ = PATH_KINDS[self.kind]
+        return fn(**{k: _thaw(v) for k, v in self.args})
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, **{k: _thaw(v) for k, v in self.args}}
+
+
+def path_spec(d: dict, where: str) -> PathSpec:
+    """Validated :class:`PathSpec` of a ``[scenario.path]`` table (built once to check it)."""
+    if not isinstance(d, dict):
+        raise ConfigError(f"{where}: [scenario.path] must be a table, got {d!r}")
+    if "kind" not in d:
+        raise ConfigError(f"{where}: [scenario.path] kind is required; one of {list(PATH_KINDS)}")
+    kind = as_choice(f"{where}: [scenario.path] kind", d["kind"], PATH_KINDS)
+    allowed = PATH_KINDS[kind][1]
+    for k in d:
+        if k != "kind" and k not in allowed:
+            raise ConfigError(
+                f"{where}: unknown key [scenario.path] {k!r} for kind {kind!r}; "
+                f"expected one of {list(allowed)}"
+            )
+    spec = PathSpec(kind, tuple((k, _freeze(d[k])) for k in allowed if k in d))
+    try:
+        spec.build()
+    except (ValueError, TypeError) as err:
+        raise ConfigError(f"{where}: [scenario.path] {err}") from None
+    return spec
+
+
+@dataclasses.dataclass(frozen=True)
+class ScenarioChoice:
+    """What a config simulates (hashable): vehicle, controller (``None``: not given), path
+    (``None``: the vehicle's default), parameter overrides (name, value) of plant and design
+    (``params``) and of the plant only (``plant_params``), static loop options."""
+
+    vehicle: str = key(
+        DEFAULT_SCENARIO["vehicle"], "str", "", "a registered vehicle (vcjax.loops.vehicles())"
+    )
+    controller: str | None = key(
+        DEFAULT_SCENARIO["controller"],
+        "str",
+        "",
+        "one of the vehicle's controllers (default: all of them in a sweep, its default "
+        "controller in tune)",
+        aliases=("[problem] variant", "[sweep] variants"),
+    )
+    module: str | None = key(
+        None, "file", "", "a Python file that registers your own loops, imported first"
+    )
+    path: PathSpec | None = key(
+        DEFAULT_SCENARIO["path"], "table", "", "[scenario.path]: kind and its constructor's keys"
+    )
+    params: tuple[tuple[str, Any], ...] = key(
+        (), "file", "", "JSON parameter overrides of plant and design model"
+    )
+    plant_params: tuple[tuple[str, Any], ...] = key(
+        (), "file", "", "JSON parameter overrides of the plant only (after params)"
+    )
+    options: tuple[tuple[str, Any], ...] = key(
+        (), "options", "", "static options of the loop class (its dataclass fields)"
+    )
+
+    def loop(self, controller: str | None = None, **options) -> loops.Loop:
+        """The loop of ``controller`` (default :attr:`controller`) with this path and options."""
+        ctrl = controller or self.controller
+        cls = loops.loop_class(self.vehicle)
+        path = cls.default_path()[0] if self.path is None else self.path.build()[0]
+        return loops.make_loop(self.vehicle, ctrl, path, **(dict(self.options) | options))
+
+    def coeffs(self):
+        """The path's coefficients."""
+        cls = loops.loop_class(self.vehicle)
+        return cls.default_path()[1] if self.path is None else self.path.build()[1]
+
+    def nominal(self, loop: loops.Loop, dtype=None):
+        """``(plant, design)`` parameters: defaults, ``params`` on both, ``plant_params`` on
+        the plant."""
+        design = loops.apply_params(loop.default_params(dtype), dict(self.params), "params")
+        plant = loops.apply_params(design, dict(self.plant_params), "plant_params")
+        return plant, design
+
+    def to_dict(self) -> dict:
+        return {
+            "vehicle": self.vehicle,
+            "controller": self.controller,
+            "module": self.module,
+            "path": None if self.path is None else self.path.to_dict(),
+            "params": {k: _thaw(v) for k, v in self.params},
+            "plant_params": {k: _thaw(v) for k, v in self.plant_params},
+            "options": dict(self.options),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ScenarioChoice:
+        if d.get("module"):
+            import_module_file(d["module"])
+        p = d.get("path")
+        path = None
+        if p is not None:
+            p = dict(p)
+            kind = p.pop("kind")
+            allowed = PATH_KINDS[kind][1]
+            path = PathSpec(kind, tuple((k, _freeze(p[k])) for k in allowed if k in p))
+        return cls(
+            vehicle=d["vehicle"],
+            controller=d.get("controller"),
+            module=d.get("module"),
+            path=path,
+            params=tuple((k, _freeze(v)) for k, v in d.get("params", {}).items()),
+            plant_params=tuple((k, _freeze(v)) for k, v in d.get("plant_params", {}).items()),
+            options=tuple(d.get("options", {}).items()),
+        )
+
+
+def parse_scenario(raw: dict | None, where: str, config_path) -> ScenarioChoice:
+    """Validated :class:`ScenarioChoice` of a ``[scenario]`` table (``None``: Simulation 1).
+
+    Raises:
+        ConfigError: naming the file, ``[scenario]`` and the key; parameter files by path.
+    """
+    if raw is None:
+        return ScenarioChoice()
+    module = None
+    if "module" in raw:
+        module = str(resolve_file(f"{where}: [scenario] module", raw["module"], Path(config_path)))
+        try:
+            import_module_file(module)
+        except Exception as err:  # the user's file: report whatever it raised, in one line
+            raise ConfigError(f"{where}: [scenario] module: {module}: {err!r}") from None
+    vehicle = raw.get("vehicle", DEFAULT_SCENARIO["vehicle"])
+    try:
+        cls = loops.loop_class(as_str("vehicle", vehicle))
+    except ValueError as err:
+        raise ConfigError(f"{where}: [scenario] {err}") from None
+    opts = loop_options(cls)
+    for k in raw:
+        if k not in SCENARIO_KEYS and k != "path" and k not in opts:
+            if any(k in loop_options(loops.loop_class(v)) for v in loops.vehicles()):
+                raise ConfigError(f"{where}: [scenario] {k}: not an option of the {vehicle} loop")
+            raise ConfigError(
+                f"{where}: unknown key [scenario] {k!r}; expected one of {[*SCENARIO_KEYS, *opts]}"
+            )
+    controller = raw.get("controller")
+    if controller is not None and controller not in cls.controllers:
+        raise ConfigError(
+            f"{where}: [scenario] controller: vehicle {vehicle!r} supports "
+            f"{list(cls.controllers)}, got {controller!r}"
+        )
+    options = tuple(
+        (k, _option(f"{where}: [scenario] {k}", raw[k], opts[k])) for k in opts if k in raw
+    )
+    path = None if "path" not in raw else path_spec(raw["path"], where)
+    choice = ScenarioChoice(
+        vehicle=vehicle, controller=controller, module=module, path=path, options=options
+    )
+    probe = choice.loop(controller or cls.controllers[0])
+    over = {}
+    for name in ("params", "plant_params"):
+        if name in raw:
+            f = resolve_file(f"{where}: [scenario] {name}", raw[name], Path(config_path))
+            try:
+                vals = loops.read_param_file(f, probe, where=f"[scenario] {name}")
+            except ValueError as err:
+                raise ConfigError(f"{where}: {err}") from None
+            over[name] = tuple((k, _freeze(v)) for k, v in vals.items())
+    choice = dataclasses.replace(choice, **over)
+    try:
+        choice.nominal(probe)
+    except ValueError as err:
+        raise ConfigError(f"{where}: [scenario] {err}") from None
+    return choice
