@@ -14,8 +14,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax import currents, sim1
+from vcjax import currents
 from vcjax._config import ConfigError
+from vcjax.experiments import sim1
 from vcjax.metrics import metric_names
 from vcjax.sweep import (
     FLAGS,

@@ -79,14 +79,12 @@ def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
 
 
 def _cmd_demo(args) -> int:
-    from vcjax.demos import ARM_DT
+    from vcjax.experiments import ARM
 
-    _time_grid(args.horizon, ARM_DT)
+    _time_grid(args.horizon, ARM.dt)
     out = _out_dir(args.out)
     _enable_x64(args.x64)
-    from vcjax.demos import arm_demo
-
-    files = arm_demo(out, horizon=args.horizon)
+    files = ARM.load().arm_demo(out, horizon=args.horizon)
     for f in files:
         print(f"wrote {f}")
     _record(out, "demo", args)
@@ -98,112 +96,67 @@ def _fail(msg: str) -> int:
     return 2
 
 
-#: Per-experiment defaults of ``vcjax simulate`` (horizon [s], RK4 step [s]).
-_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05), "remus100": (880.0, 0.05)}
+#: options of ``vcjax simulate`` that only some experiments take (Experiment.options)
+_OWN_OPTIONS = ("edd", "timing", "actuation")
 
 
 def _cmd_simulate(args) -> int:
-    _enable_x64(args.x64)
-    horizon, dt = _SIM_DEFAULTS[args.experiment]
-    horizon = horizon if args.horizon is None else args.horizon
-    dt = dt if args.dt is None else args.dt
+    """``vcjax simulate NAME``: one experiment of the registry (:mod:`vcjax.experiments`)."""
+    import json
+
+    from vcjax.experiments import get
+
+    exp = get(args.experiment)
+    where = f"simulate {exp.name}"
+    own = dict(exp.options)
+    for opt in _OWN_OPTIONS:
+        if getattr(args, opt) is not None and opt not in own:
+            takes = ", ".join(f"--{o}" for o in own) or "none"
+            return _fail(
+                f"{where}: --{opt} does not apply to {exp.name} (its own options: {takes})"
+            )
+    if args.current is not None and exp.current is None:
+        return _fail(f"{where}: --current is not supported for {exp.name} (no ocean current)")
+    if args.gains is not None and not exp.gains:
+        return _fail(f"{where}: --gains is not supported for {exp.name}")
+    current = None if exp.current is None else tuple(args.current or exp.current)
+    if current is not None and not all(math.isfinite(c) for c in current):
+        return _fail(f"{where}: --current: contains NaN or inf, got {list(current)}")
+    horizon = exp.horizon if args.horizon is None else args.horizon
+    dt = exp.dt if args.dt is None else args.dt
     _time_grid(horizon, dt)
-    out = _out_dir(args.out or f"out/{args.experiment}")
-    if args.experiment == "sim2":
-        return _simulate_sim2(args, out, horizon, dt)
-    if args.experiment == "remus100":
-        return _simulate_remus100(args, out, horizon, dt)
-    return _simulate_sim1(args, out, horizon, dt)
-
-
-def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
-    import json
-
-    from vcjax import sim1
-
+    out = _out_dir(args.out or f"out/{exp.name}")
+    _enable_x64(args.x64)
+    options = {
+        k: default if getattr(args, k) is None else getattr(args, k) for k, default in own.items()
+    }
+    mod = exp.load()
     gains = None
     if args.gains:
         try:
-            gains = sim1.gains_from_json(json.loads(Path(args.gains).read_text()))
+            gains = mod.load_gains(json.loads(Path(args.gains).read_text()), **options)
         except (OSError, json.JSONDecodeError, ValueError) as err:
-            return _fail(f"simulate: cannot use gains file {args.gains}: {err}")
-    try:
-        scenario = sim1.sim1_scenario(current=args.current or (0.0, 0.5))
-    except ValueError as err:
-        return _fail(f"simulate: {err}")
-    result = sim1.run_sim1(
-        out, gains, horizon=horizon, dt=dt, edd=args.edd, timing=args.timing, scenario=scenario
-    )
-    _print_metrics(result["metrics"])
+            return _fail(f"{where}: cannot use gains file {args.gains}: {err}")
+    result = mod.run_experiment(out, gains, horizon=horizon, dt=dt, current=current, **options)
+    _print_metrics(result["printed"])
     for f in result["files"]:
         print(f"wrote {f}")
-    config = {**vars(args), "horizon": horizon, "dt": dt, "scenario": scenario, "gains": gains}
-    config.pop("func")
-    _record(out, "simulate sim1", args, config=config)
-    return _report_unhealthy(result["unhealthy"], dt)
-
-
-def _report_unhealthy(unhealthy: dict, dt: float) -> int:
-    """Print one line per unhealthy run (stderr); exit code 1 if there is any, else 0."""
-    for variant, (k, t) in unhealthy.items():
-        print(
-            f"vcjax: UNHEALTHY RUN: {variant} diverged at step {k} (t = {t:g} s, dt {dt:g} s): "
-            "its state became non-finite or left the divergence bound and was frozen there; "
-            "its metrics and figures after that time are not meaningful",
-            file=sys.stderr,
-        )
-    return 1 if unhealthy else 0
-
-
-def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
-    import json
-
-    from vcjax import sim2
-
-    if args.current:
-        return _fail("simulate sim2: --current is not supported for Simulation 2")
-    gains = None
-    if args.gains:
-        try:
-            gains = sim2.gains_from_json(json.loads(Path(args.gains).read_text()), args.actuation)
-        except (OSError, json.JSONDecodeError, ValueError) as err:
-            return _fail(f"simulate sim2: cannot use gains file {args.gains}: {err}")
-    result = sim2.run_sim2(out, gains, horizon=horizon, dt=dt, actuation=args.actuation)
-    by_mode = result["metrics"]["by_actuation"]
-    _print_metrics(
-        {mode: {k: v for k, v in m.items() if _is_number(v)} for mode, m in by_mode.items()}
-    )
-    for f in result["files"]:
-        print(f"wrote {f}")
-    _record(out, "simulate sim2", args, config={**vars(args), "horizon": horizon, "dt": dt})
-    unhealthy = {f"sim2 {mode}": m for mode, m in by_mode.items() if not m.get("healthy", True)}
-    for name in unhealthy:
-        print(f"vcjax: UNHEALTHY RUN: {name} diverged (see metrics.json)", file=sys.stderr)
-    return 1 if unhealthy else 0
-
-
-def _simulate_remus100(args, out: Path, horizon: float, dt: float) -> int:
-    from vcjax import sim_remus100
-
-    if args.gains:
-        return _fail("simulate remus100: --gains is not supported (tune through `vcjax tune`)")
-    current = tuple(args.current) if args.current else (0.0, 0.3)
-    if not all(math.isfinite(c) for c in current):
-        return _fail(f"simulate remus100: --current must be finite, got {current}")
-    result = sim_remus100.run_remus100(out, horizon=horizon, dt=dt, current=current)
-    _print_metrics(result["metrics"])
-    for f in result["files"]:
-        print(f"wrote {f}")
-    config = {**vars(args), "horizon": horizon, "dt": dt, "current": current}
-    _record(out, "simulate remus100", args, config=config)
-    unhealthy = [name for name, m in result["metrics"].items() if not m.get("healthy", True)]
-    for name in unhealthy:
-        print(
-            f"vcjax: UNHEALTHY RUN: remus100 {name}: a non-finite or runaway state, or more "
-            "than 25 m off the path (see metrics.json)",
-            file=sys.stderr,
-        )
-    return 1 if unhealthy else 0
+    config = {
+        "experiment": exp.name,
+        "horizon": horizon,
+        "dt": dt,
+        "current": current,
+        "gains": args.gains,
+        "gains_values": gains,
+        "out": str(out),
+        "x64": args.x64,
+        **options,
+        **result.get("config", {}),
+    }
+    _record(out, where, args, config=config)
+    for line in result["unhealthy"]:
+        print(f"vcjax: UNHEALTHY RUN: {line}", file=sys.stderr)
+    return 1 if result["unhealthy"] else 0
 
 
 def _is_number(v) -> bool:
@@ -398,20 +351,25 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
+    from vcjax.experiments import EXPERIMENTS
+
     s = sub.add_parser("simulate", help="run one of the paper's experiments and write figures")
     s.add_argument(
         "experiment",
-        choices=sorted(_SIM_DEFAULTS),
-        help="sim1: Simulation 1 (INFANTE-class, line, Figs. 4-5); "
-        "sim2: Simulation 2 (ODIN-class, helix, Figs. 6-7); "
-        "remus100: 3-D survey mission of the PVS REMUS 100 under a cross current",
+        choices=sorted(EXPERIMENTS),
+        help="; ".join(f"{e.name}: {e.summary}" for e in EXPERIMENTS.values()),
     )
     s.add_argument("--out", help="output directory (default: out/EXPERIMENT)")
     s.add_argument(
-        "--gains", help="sim1/sim2: JSON file of gains (e.g. the gains.json `vcjax tune` writes)"
+        "--gains",
+        help="JSON file of gains (e.g. the gains.json `vcjax tune` writes for the vehicle)",
     )
     s.add_argument(
-        "--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300, remus100: 880)"
+        "--horizon",
+        type=float,
+        help="simulated time [s] ("
+        + ", ".join(f"{e.name}: {e.horizon:g}" for e in EXPERIMENTS.values())
+        + ")",
     )
     s.add_argument("--dt", type=float, help="RK4 step [s] (default 0.05)")
     s.add_argument(
@@ -419,26 +377,30 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         nargs=2,
         metavar=("V_N", "V_E"),
-        help="sim1/remus100: ocean current, north and east [m/s] (sim1: 0 0.5, along the path; "
-        "remus100: 0 0.3, across the legs)",
+        help="ocean current, north and east [m/s] ("
+        + ", ".join(
+            f"{e.name}: {e.current[0]:g} {e.current[1]:g}"
+            for e in EXPERIMENTS.values()
+            if e.current
+        )
+        + "); not for experiments without a current",
     )
     s.add_argument(
         "--edd",
         choices=["paper", "implied"],
-        default="paper",
-        help="sim1: which e_ddot enters psi_d_ddot (SPEC §3; paper = reference mode)",
+        help="sim1 only: which e_ddot enters psi_d_ddot (paper = reference mode; default paper)",
     )
     s.add_argument(
         "--timing",
         choices=["continuous", "sampled"],
-        default="continuous",
-        help="sim1: controller evaluated at every RK4 stage, or once per step and held",
+        help="sim1 only: controller evaluated at every RK4 stage, or once per step and held "
+        "(default continuous)",
     )
     s.add_argument(
         "--actuation",
         choices=["underactuated", "full"],
-        default="underactuated",
-        help="sim2: headline mode (the paper: underactuated); the other is run for comparison",
+        help="sim2 only: headline mode (the paper: underactuated, the default); the other is "
+        "run for comparison",
     )
     s.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
     s.set_defaults(func=_cmd_simulate)
