@@ -181,12 +181,13 @@ def _cmd_sweep(args) -> int:
     if (rc := _use_cores(args, "sweep")) is not None:
         return rc
     _enable_x64(args.x64)
+    from vcjax.plots.sweep import sweep_figures as draw
     from vcjax.sweep import load_config, run_sweep_config
 
     try:
         spec, extras = loaded = load_config(args.config)  # parsed once, recorded in run.json
         result = run_sweep_config(
-            args.config, args.out, progress=True, netcdf=args.netcdf, loaded=loaded
+            args.config, args.out, progress=True, netcdf=args.netcdf, loaded=loaded, draw=draw
         )
     except (OSError, ValueError, ImportError) as err:
         return _fail(f"sweep: {err}")

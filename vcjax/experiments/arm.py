@@ -1,4 +1,5 @@
-"""Demo jobs for the CLI: the generic engine on a non-marine system."""
+"""The arm demo (``vcjax demo``): the generic engine on a non-marine system, a two-link arm
+whose end effector is held on a circle by virtual constraints."""
 
 from __future__ import annotations
 
@@ -53,11 +54,6 @@ def _controller(t, x, z, ctrl):
 
 def arm_demo(out: Path, horizon: float = 6.0, dt: float = ARM_DT) -> list[Path]:
     """Simulate the arm demo and write ``arm_demo.png``; returns the written files."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     p = arm_params()
     gains = vcm_gains(P_G=[2.0], P_Phi=[1.5, 3.0])
     x0 = (jnp.array([0.35, 1.3], dtype=p.l1.dtype), jnp.array([0.2, -0.1], dtype=p.l1.dtype))
@@ -67,51 +63,7 @@ def arm_demo(out: Path, horizon: float = 6.0, dt: float = ARM_DT) -> list[Path]:
     ee = np.asarray(jax.vmap(arm_end_effector, in_axes=(0, None))(traj.x[0], p))
     t = np.asarray(traj.t)
 
-    fig, ax = plt.subplots(1, 3, figsize=(14, 4.2))
-    th = np.linspace(0, 2 * np.pi, 200)
-    ax[0].plot(
-        _CENTER[0] + _RADIUS * np.cos(th),
-        _CENTER[1] + _RADIUS * np.sin(th),
-        "k--",
-        label="constraint circle",
-    )
-    ax[0].plot(ee[:, 0], ee[:, 1], "C0", label="end effector")
-    ax[0].plot(ee[0, 0], ee[0, 1], "C0o")
-    ax[0].set_aspect("equal")
-    ax[0].set_xlabel("x [m]")
-    ax[0].set_ylabel("y [m]")
-    ax[0].legend(loc="lower left", fontsize=8)
-    ax[0].set_title("end-effector path")
-    Phi = np.abs(np.asarray(traj.aux.Phi))
-    P_Phi = np.asarray(gains.P_Phi)
-    tt = t[:-1]
-    for i, row in enumerate(("speed row", "circle row")):
-        ax[1].semilogy(tt, Phi[:, i], f"C{i}", label=f"|Φ{'₁₂'[i]}| ({row})")
-        ax[1].semilogy(
-            tt,
-            Phi[0, i] * np.exp(-P_Phi[i] * tt),
-            color="k",
-            linestyle="none",
-            marker="o",
-            markersize=5,
-            markerfacecolor="none",
-            markevery=max(len(tt) // 12, 1),
-            label=f"|Φ{'₁₂'[i]}(0)| exp(−P_Φ{'₁₂'[i]} t), P_Φ{'₁₂'[i]} = {P_Phi[i]:g} /s",
-        )
-    ax[1].semilogy(tt, np.abs(np.asarray(traj.aux.G)[:, 0]), "C2", label="|G| (distance to circle)")
-    ax[1].set_xlabel("t [s]")
-    ax[1].set_ylabel("constraint value [m/s, m]")
-    ax[1].set_title("constraint violation vs. the exact decay (14)")
-    ax[1].legend(fontsize=7)
-    u = np.asarray(traj.u)
-    ax[2].plot(t[:-1], u[:, 0], label="τ₁")
-    ax[2].plot(t[:-1], u[:, 1], label="τ₂")
-    ax[2].set_xlabel("t [s]")
-    ax[2].set_ylabel("joint torque [N m]")
-    ax[2].set_title("reaction (control) torques")
-    ax[2].legend(fontsize=8)
-    fig.tight_layout()
-    path = Path(out) / "arm_demo.png"
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return [path]
+    from vcjax.plots.arm import arm_figure
+
+    f = Path(out) / "arm_demo.png"
+    return [arm_figure(t, ee, traj.aux, traj.u, gains, _CENTER, _RADIUS, f)]

@@ -170,7 +170,7 @@ def run_remus100(
 ) -> dict:
     """Run every variant of the survey mission; write ``metrics.json`` and figures to ``out``
     (``gains``: of every controller, default: the loop's defaults)."""
-    from vcjax.plots_remus100 import remus100_figures
+    from vcjax.plots.remus100 import remus100_figures
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

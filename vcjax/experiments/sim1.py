@@ -233,7 +233,7 @@ def run_sim1(
     ``scenario`` defaults to the paper's (:func:`sim1_scenario`); pass another current or start
     to compare the controllers elsewhere.
     """
-    from vcjax import plots
+    from vcjax.plots.sim1 import sim1_figures
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -244,7 +244,7 @@ def run_sim1(
         trajs[v] = jax.device_get(run_variant(v, gains, sc, horizon, dt, edd, timing))
         metrics[v] = tracking_metrics(v, trajs[v], sc)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
-    files = plots.sim1_figures(trajs, sc, out)
+    files = sim1_figures(trajs, sc, out)
     return {
         "metrics": metrics,
         "files": [out / "metrics.json", *files],

@@ -245,7 +245,7 @@ def run_sim2(
     Returns:
         ``{"metrics": dict, "files": [Path, ...]}``.
     """
-    from vcjax import plots_sim2
+    from vcjax.plots.sim2 import sim2_figures
 
     if actuation not in ACTUATIONS:
         raise ValueError(f"actuation: expected one of {ACTUATIONS}, got {actuation!r}")
@@ -263,7 +263,7 @@ def run_sim2(
         by_mode[mode] = sim2_metrics(trajs[mode], sc, config=cfg)
     metrics = {"actuation": actuation, **by_mode[actuation], "by_actuation": by_mode}
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
-    files = plots_sim2.sim2_figures(trajs, sc, PATH, out)
+    files = sim2_figures(trajs, sc, PATH, out)
     return {"metrics": metrics, "files": [out / "metrics.json", *files]}
 
 

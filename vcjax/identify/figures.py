@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vcjax.plots import _plt, _save
+from vcjax.plots import pyplot, save
 
 __all__ = ["prediction_figure", "cost_history_figure"]
 
@@ -15,7 +15,7 @@ __all__ = ["prediction_figure", "cost_history_figure"]
 def prediction_figure(result, log, pred_initial, pred_fitted, path, index: int = 0) -> Path:
     """Every state channel of one log: measured, and the free simulation from the first sample
     with the initial and with the fitted parameters (angles in degrees)."""
-    plt = _plt()
+    plt = pyplot()
     model = result.problem.model
     cols, units = model.state_columns, model.units
     n = len(cols)
@@ -43,12 +43,12 @@ def prediction_figure(result, log, pred_initial, pred_fitted, path, index: int =
         f"{log.name}: measured vs free simulation from the first sample "
         f"({model.vehicle}, step {result.problem.step_name!r})"
     )
-    return _save(fig, Path(path))
+    return save(fig, Path(path))
 
 
 def cost_history_figure(result, path) -> Path:
     """The multiple-shooting cost per Levenberg–Marquardt iteration, both stages."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     h = np.asarray(result.cost_history)
     k = 0
@@ -69,4 +69,4 @@ def cost_history_figure(result, path) -> Path:
     )
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
-    return _save(fig, Path(path))
+    return save(fig, Path(path))

@@ -173,12 +173,13 @@ def run_sweep_config(
     progress: bool | Callable[[str], Any] = True,
     netcdf: bool = False,
     loaded: tuple[SweepSpec, dict] | None = None,
+    draw: Callable[[Any, Path], list[Path]] | None = None,
 ) -> dict:
     """Run the sweep described by a TOML file and write its results (the ``vcjax sweep`` CLI).
 
     Writes into ``out_dir``: ``summary.json`` (:func:`~vcjax.sweep.results.summarize`),
-    ``results.npz`` (:func:`~vcjax.sweep.results.save_results`) and, unless ``[output] figures
-    = false``, the figures of :func:`vcjax.sweep_plots.sweep_figures`. In a multi-process run
+    ``results.npz`` (:func:`~vcjax.sweep.results.save_results`) and, with ``draw`` and unless
+    ``[output] figures = false``, the figures ``draw`` writes. In a multi-process run
     (after ``jax.distributed.initialize``) every process runs its share of chunks and writes
     ``results.part<p>-of-<P>.npz`` into the (shared) ``out_dir``; process 0 waits for the others,
     merges the parts and writes the outputs. With ``netcdf``, also ``results.nc``
@@ -190,10 +191,13 @@ def run_sweep_config(
         netcdf: also write ``results.nc``.
         loaded: the file already parsed by :func:`load_config` (the CLI parses it once and
             records it); default: parse ``config_path``.
+        draw: ``draw(result, out_dir) -> [Path, ...]`` writes the figures (the CLI passes
+            :func:`vcjax.plots.sweep.sweep_figures`; the sweep itself draws nothing), called
+            unless ``[output] figures = false``.
 
     Returns:
-        ``{"summary": dict, "files": [Path, ...]}`` (on processes other than 0: the part file
-        only, and ``summary`` None).
+        ``{"summary": dict, "files": [Path, ...], "result": SweepResult, "figures": bool}``
+        (on processes other than 0: the part file only, and ``summary`` None).
     """
     spec, extras = load_config(config_path) if loaded is None else loaded
     if netcdf:
@@ -232,8 +236,6 @@ def run_sweep_config(
         from vcjax.sweep.labelled import write_netcdf
 
         files.append(write_netcdf(result, out / "results.nc"))
-    if extras["figures"]:
-        from vcjax import sweep_plots
-
-        files += sweep_plots.sweep_figures(result, out)
-    return {"summary": summary, "files": files}
+    if extras["figures"] and draw is not None:
+        files += draw(result, out)
+    return {"summary": summary, "files": files, "result": result, "figures": extras["figures"]}
