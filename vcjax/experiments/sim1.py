@@ -114,11 +114,11 @@ def sim1_scenario(
     design_vehicle = vehicle if design_vehicle is None else design_vehicle
     for name, v in (("vehicle", vehicle), ("design_vehicle", design_vehicle)):
         infante.validate(v, name)
-    dt = jnp.asarray(vehicle.mass).dtype
-    f = lambda x: jnp.asarray(x, dtype=dt)
+    dtype = jnp.asarray(vehicle.mass).dtype
+    f = lambda x: jnp.asarray(x, dtype=dtype)
     current = f(current)
     if current.shape == (2,):
-        current = jnp.concatenate([current, jnp.zeros(1, dt)])
+        current = jnp.concatenate([current, jnp.zeros(1, dtype)])
     eta0 = f(eta0)
     return loops.Scenario(
         eta0=eta0,
@@ -126,10 +126,10 @@ def sim1_scenario(
         current=current,
         u_d=f(u_d),
         varpi0=eta0[1],  # the point of the line x = 10 nearest to the start
-        path=path_coeffs(dt),
+        path=path_coeffs(dtype),
         plant=vehicle,
         design=design_vehicle,
-        disturbance=jnp.zeros(3, dt),
+        disturbance=jnp.zeros(3, dtype),
     )
 
 

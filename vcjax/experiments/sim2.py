@@ -82,12 +82,12 @@ def sim2_scenario(
     check_array("varpi0", varpi0, ())
     vehicle = odin.odin_params() if vehicle is None else odin.validate(vehicle)
     args = odin.odin_args(vehicle, tau_dist, current)
-    dt = args.tau_dist.dtype
-    f = lambda x: jnp.asarray(x, dtype=dt)
-    eta0 = jnp.concatenate([f(p0), jnp.zeros(2, dt), f(psi0)[None]])
+    dtype = args.tau_dist.dtype
+    f = lambda x: jnp.asarray(x, dtype=dtype)
+    eta0 = jnp.concatenate([f(p0), jnp.zeros(2, dtype), f(psi0)[None]])
     return loops.Scenario(
         eta0=eta0,
-        nu0=jnp.zeros(6, dt),
+        nu0=jnp.zeros(6, dtype),
         current=args.v_c,
         u_d=f(u_d),
         varpi0=f(varpi0),
