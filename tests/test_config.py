@@ -108,3 +108,24 @@ def test_sweep_refuses_smooth_plant(tmp_path):
     f.write_text("[simulation]\nsmooth = false\nu_d = [1.0, 1.2]\n[sweep]\nnum_scenarios = 2\n")
     spec, _ = load_config(f)
     assert spec.scenario.u_d == (1.0, 1.2)
+
+
+def test_reference_markdown_has_one_row_per_key():
+    md = config.reference_markdown()
+    for name, sec in config.schema().items():
+        assert f"### [{name}]" in md
+        rows = [ln for ln in md.split(f"### [{name}]")[1].split("###")[0].splitlines()]
+        assert len([r for r in rows if r.startswith("| ") and not r.startswith("| key")]) == len(
+            sec["keys"]
+        )
+    assert "| horizon | float | None | s |" in md and "[problem] horizon" in md
+
+
+def test_tune_simulation_u_d_reaches_the_scenarios():
+    from tuning.cli import build
+
+    base = {"problem": {"horizon": 1.0, "dt": 0.5}, "train": {"size": 3}, "heldout": {"size": 2}}
+    train = build(validate_config({**base, "simulation": {"u_d": 1.25}}))[3]
+    np.testing.assert_array_equal(np.asarray(train.u_d), 1.25)
+    default = build(validate_config(base))[3]
+    assert not np.any(np.asarray(default.u_d) == 1.25)

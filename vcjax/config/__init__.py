@@ -6,7 +6,8 @@
   type, default, unit, description and older spellings: ``[simulation]`` (horizon, dt,
   integrator, timing, u_d, smooth), ``[current]``, ``[initial]``, ``[model_error]``,
   ``[sensor_noise]``, ``[disturbance]``; :func:`schema` returns them for a reference table and
-  :data:`DEFAULT_SCENARIO` is the scenario of a config without ``[scenario]`` (Simulation 1).
+  :data:`DEFAULT_SCENARIO` is the scenario of a config without ``[scenario]`` (Simulation 1);
+  :func:`reference_markdown` renders the reference tables.
 * :mod:`vcjax.config.scenario` -- ``[scenario]`` (:class:`ScenarioChoice`: vehicle,
   controller, path, parameter files, a module of your own loops, and any static option of the
   loop class read from its dataclass fields).
@@ -33,6 +34,7 @@ from vcjax.config.schema import (
     SensorNoise,
     Simulation,
     parse_section,
+    reference_markdown,
     schema,
 )
 from vcjax.config.values import (
@@ -71,4 +73,5 @@ __all__ = [
     "Disturbance",
     "parse_section",
     "schema",
+    "reference_markdown",
 ]

@@ -167,9 +167,12 @@ def path_spec(d: dict, where: str) -> PathSpec:
 
 @dataclasses.dataclass(frozen=True)
 class ScenarioChoice:
-    """What a config simulates (hashable): vehicle, controller (``None``: not given), path
-    (``None``: the vehicle's default), parameter overrides (name, value) of plant and design
-    (``params``) and of the plant only (``plant_params``), static loop options."""
+    """``[scenario]``: what a config simulates (hashable): vehicle, controller (``None``: not
+    given), path (``[scenario.path]``; ``None``: the vehicle's default), parameter overrides
+    (name, value) of plant and design (``params``) and of the plant only (``plant_params``), and
+    the static options of the loop class, written as keys of ``[scenario]`` named like its
+    dataclass fields (e.g. ``edd``; ODIN: ``integral``, ``polish``). Without ``[scenario]``:
+    Simulation 1 (:data:`~vcjax.config.schema.DEFAULT_SCENARIO`)."""
 
     vehicle: str = key(
         DEFAULT_SCENARIO["vehicle"], "str", "", "a registered vehicle (vcjax.loops.vehicles())"
@@ -195,7 +198,11 @@ class ScenarioChoice:
         (), "file", "", "JSON parameter overrides of the plant only (after params)"
     )
     options: tuple[tuple[str, Any], ...] = key(
-        (), "options", "", "static options of the loop class (its dataclass fields)"
+        (),
+        "options",
+        "",
+        "static options of the loop class (its dataclass fields but controller, path, smooth)",
+        open_keys="the loop class's options",
     )
 
     def loop(self, controller: str | None = None, **options) -> loops.Loop:
