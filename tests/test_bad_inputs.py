@@ -14,8 +14,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax import cli, sim1
+from vcjax import cli
 from vcjax.allocation import allocate, clip_allocate
+from vcjax.experiments import sim1
 from vcjax.mechanics import (
     MechanicalSystem,
     VCMGains,

@@ -6,20 +6,29 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1] / "vcjax"
 
-#: layers in data-flow order; a module may import from its own layer or an earlier one
+#: layers in data-flow order; a module may import from its own layer or an earlier one.
+#: ``config`` sits just above ``loops``: the ``[scenario]`` section reads the loop registry and
+#: the loop classes' dataclass fields (its options), so ``loops`` never imports it (``_config``
+#: is its older name, a re-export). Figures (``plots``) read results of loops and sweeps and run
+#: nothing; the experiments (presets of ``vcjax simulate``) sit on top, below only the CLI;
+#: ``sim1``/``sim2``/``demos``/``sim_remus100`` are the experiments' older names (aliases).
 LAYERS = [
-    {"_checks", "_config", "devices", "linalg", "integrators", "progress", "outputs", "sizing"},
+    {"_checks", "devices", "linalg", "integrators", "progress", "cache", "outputs", "sizing"},
     {"distributed", "runinfo"},
     {"mechanics", "systems", "paths", "currents", "waves"},
     {"vehicles", "guidance", "allocation", "rollout"},
     {"control"},
     {"loops"},
+    {"config", "_config"},
     {"metrics"},
-    {"plots", "plots_sim2", "sweep_plots", "plots_remus100"},
     {"sweep"},
-    {"sim1", "sim2", "demos", "sim_remus100", "identify"},
+    {"plots"},
+    {"experiments", "identify"},
+    {"sim1", "sim2", "demos", "sim_remus100"},
     {"cli"},
 ]
+#: the only modules of vcjax that may import vcjax.experiments (besides itself)
+EXPERIMENT_IMPORTERS = {"cli", "sim1", "sim2", "demos", "sim_remus100"}
 LAYER_OF = {name: i for i, names in enumerate(LAYERS) for name in names}
 
 
@@ -61,7 +70,7 @@ def test_imports_follow_the_data_flow():
 
 TUNING = Path(__file__).resolve().parents[1] / "tuning"
 #: what the tuner may not import: the experiments and the CLI sit above it
-ABOVE_TUNING = {"sim1", "sim2", "demos", "cli"}
+ABOVE_TUNING = {"sim1", "sim2", "demos", "sim_remus100", "experiments", "cli"}
 
 
 def test_tuning_imports_the_layer_never_an_experiment_and_vcjax_never_imports_tuning():
@@ -91,6 +100,30 @@ def test_sweep_never_imports_an_experiment():
         f"{p.relative_to(ROOT)} imports vcjax.{dep}"
         for p in (ROOT / "sweep").rglob("*.py")
         for dep in _imports(p)
-        if dep in ("sim1", "sim2", "demos")
+        if dep in ("sim1", "sim2", "demos", "sim_remus100", "experiments", "plots")
     ]
+    assert not bad, bad
+
+
+def test_nothing_but_the_cli_imports_an_experiment():
+    bad = [
+        f"{p.relative_to(ROOT)} imports vcjax.experiments"
+        for p in ROOT.rglob("*.py")
+        if p.relative_to(ROOT).parts[0].removesuffix(".py")
+        not in EXPERIMENT_IMPORTERS | {"experiments"}
+        for dep in _imports(p)
+        if dep == "experiments"
+    ]
+    assert not bad, bad
+
+
+def test_no_private_figure_helpers_across_modules():
+    """Figures use the public helpers of vcjax.plots (pyplot, save), no private names."""
+    bad = []
+    for path in [*ROOT.rglob("*.py"), *TUNING.rglob("*.py")]:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("vcjax.plots"):
+                bad += [
+                    f"{path.name}: {node.module}.{a.name}" for a in node.names if a.name[0] == "_"
+                ]
     assert not bad, bad

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vcjax import sim1
+from vcjax.experiments import sim1
 from vcjax.vehicles import infante
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))

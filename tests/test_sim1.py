@@ -6,7 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from vcjax import cli, sim1
+from vcjax import cli
+from vcjax.experiments import sim1
 
 KEYS = {
     "ss_abs_e",

@@ -12,7 +12,8 @@ import jax
 import numpy as np
 import pytest
 
-from vcjax import paths, sim2
+from vcjax import paths
+from vcjax.experiments import sim2
 from vcjax.vehicles import odin
 
 # a descending straight line 3 m east of the start, 2 m below it, heading north

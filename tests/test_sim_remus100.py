@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax import sim_remus100 as sr
+from vcjax.experiments import remus100 as sr
 from vcjax.vehicles import remus100 as r100
 from vcjax.vehicles import remus100_design as rd
 

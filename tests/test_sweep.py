@@ -14,9 +14,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax import currents, sim1
+from vcjax import currents
 from vcjax._config import ConfigError
+from vcjax.experiments import sim1
 from vcjax.metrics import metric_names
+from vcjax.plots.sweep import sweep_figures
 from vcjax.sweep import (
     FLAGS,
     METRICS,
@@ -332,7 +334,9 @@ def test_config_end_to_end_writes_results_summary_and_figures(tmp_path):
     spec, _ = load_config(path)
     assert spec == make_spec()
     lines = []
-    out = run_sweep_config(path, tmp_path / "out", progress=lines.append, netcdf=HAVE_XARRAY)
+    out = run_sweep_config(
+        path, tmp_path / "out", progress=lines.append, netcdf=HAVE_XARRAY, draw=sweep_figures
+    )
     assert len(lines) == 1 and "1/1" in lines[0]
     names = {p.name for p in out["files"]}
     assert {"results.npz", "summary.json", "sweep_envelopes.png", "sweep_paths.png"} <= names
@@ -447,8 +451,8 @@ def test_sharded_over_four_cpu_devices_equals_single_device():
 def test_variants_without_a_paper_style_get_a_full_line_style():
     """Variants of other loops (e.g. remus100's vcm3d_ilos) are not in plots.STYLE: the fallback
     style carries every key the figures read (the REMUS sweep died on a missing 'ls')."""
-    from vcjax import sweep_plots
     from vcjax.plots import STYLE
+    from vcjax.plots import sweep as sweep_plots
 
     keys = set().union(*(set(s) for s in STYLE.values()))
     for v in ("vcm3d_ilos", "alos3d", "decoupled"):

@@ -20,8 +20,9 @@ from tuning.loss import TuningProblem, aggregate, objective, problem_data
 from tuning.optim import forward_mode, run_gradient_tuner
 from tuning.params import FRAC_MAX, GainSpace, rh_bound
 from tuning.scenarios import sample_scenarios
-from vcjax import cli, sim1
+from vcjax import cli
 from vcjax.control.vcm import pm_gains
+from vcjax.experiments import sim1
 
 TINY = TuningProblem(num_steps=40, integrator="euler", timing="sampled")
 

@@ -37,8 +37,8 @@ from tuning.params import GainSpace
 from tuning.report import ProgressBar, plot_before_after, plot_loss_curve, plot_loss_terms
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from vcjax import distributed, loops, paths
-from vcjax._config import ConfigError
-from vcjax.loops.config import ScenarioChoice
+from vcjax.config import ConfigError, Current
+from vcjax.config.scenario import ScenarioChoice
 from vcjax.outputs import stop_requested_everywhere, write_json_atomic
 
 __all__ = ["build", "run_tune_config", "main"]
@@ -46,11 +46,7 @@ __all__ = ["build", "run_tune_config", "main"]
 
 def _loop(cfg: dict) -> tuple[loops.Loop, ScenarioChoice]:
     choice = ScenarioChoice.from_dict(cfg["scenario"])
-    cls = loops.loop_class(choice.vehicle)
-    opts = {}
-    if "edd" in {f.name for f in dataclasses.fields(cls)} and "edd" not in dict(choice.options):
-        opts["edd"] = cfg["problem"]["edd"]
-    return choice.loop(cfg["problem"]["variant"], **opts), choice
+    return choice.loop(cfg["problem"]["variant"]), choice
 
 
 def build(cfg: dict):
@@ -89,6 +85,14 @@ def build(cfg: dict):
     extra = {"initial": tuple((k, tuple(v)) for k, v in cfg.get("initial", {}).items())}
     if cfg["disturbance"]["force"]:
         extra["disturbance"] = tuple(tuple(r) for r in cfg["disturbance"]["force"])
+    if cfg.get("simulation", {}).get("u_d") is not None:
+        extra["u_d"] = tuple(cfg["simulation"]["u_d"])
+    cur = cfg.get("current", {})
+    for key, field in (("speed", "current_speed"), ("direction_deg", "current_direction_deg")):
+        if key in cur:
+            extra[field] = tuple(cur[key])
+        elif cur:  # [current] replaces current_max: a key not given takes the section default
+            extra[field] = getattr(Current(), key)
     me = cfg["model_error"]
     if me["relative"] > 0:
         extra["model_error"] = me["relative"]
@@ -178,7 +182,7 @@ def distribute(train, data, theta0):
     return distributed.shard_batch(train, mesh, SCENARIO_AXES), data, theta0
 
 
-def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
+def run_tune_config(config_path, out_dir, progress=sys.stderr, cfg: dict | None = None) -> dict:
     """Run the tuning described by the TOML file ``config_path``; write results into ``out_dir``.
 
     Args:
@@ -186,6 +190,8 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
         out_dir: output folder (created).
         progress: text stream for the progress bar and messages (default ``sys.stderr``);
             ``None`` for silence.
+        cfg: the file already parsed by :func:`tuning.config.load_config` (the CLI parses it
+            once and records it); default: parse ``config_path``.
 
     Returns:
         dict: ``{"summary": <summary.json content>, "files": [Path, ...]}``.
@@ -202,7 +208,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr) -> dict:
     writer = jax.process_index() == 0
     progress = progress if writer else None
     say = (lambda msg: print(msg, file=progress, flush=True)) if progress else (lambda m: None)
-    cfg = load_config(config_path)
+    cfg = load_config(config_path) if cfg is None else cfg
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()

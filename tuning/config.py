@@ -1,10 +1,10 @@
 """TOML configuration of a tuning run (``vcjax tune CONFIG.toml``), validated with clear errors.
 
 Every section and key is optional (defaults below); unknown sections or keys, wrong types and
-out-of-range values raise :class:`vcjax._config.ConfigError` (the one error class of every
+out-of-range values raise :class:`vcjax.config.ConfigError` (the one error class of every
 command) naming the file and the offending ``section.key``::
 
-    [scenario]                      # what is tuned (vcjax.loops.config; shared with sweeps):
+    [scenario]                      # what is tuned (vcjax.config.scenario; shared with sweeps):
     vehicle = "infante"             # a registered vehicle; default: Simulation 1
     controller = "vcm_integral"     # one of its controllers
     params = "model.json"           # optional parameter overrides (plant and design model)
@@ -12,6 +12,14 @@ command) naming the file and the offending ``section.key``::
     [scenario.path]                 # optional; default: the vehicle's default path
     kind = "circle"
     radius = 40.0
+
+    [simulation]                    # shared with sweeps (vcjax.config.schema.Simulation); the
+    horizon = 80.0                  # keys horizon, dt, integrator, timing, smooth, edd may
+    u_d = [1.0, 1.5]                # instead be written under [problem] (the older spelling)
+
+    [current]                       # shared with sweeps (constant model only): replaces
+    speed = [0.0, 1.0]              # [scenarios] current_max = 1.0, which means exactly this
+    direction_deg = [0.0, 360.0]    # speed and direction range
 
     [problem]                       # what is tuned and how a rollout is simulated
     variant = ""                    # the controller ("" = [scenario] controller, else the
@@ -84,13 +92,14 @@ command) naming the file and the offending ``section.key``::
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any
 
 from vcjax import loops
-from vcjax._config import ConfigError, as_range, read_toml
-from vcjax.loops.config import parse_scenario
+from vcjax.config import ConfigError, Current, Simulation, as_range, parse_section, read_toml
+from vcjax.config.scenario import loop_options, parse_scenario
 
 __all__ = ["ConfigError", "DEFAULTS", "load_config", "validate_config"]
 
@@ -140,8 +149,11 @@ DEFAULTS: dict[str, dict[str, Any]] = {
     "disturbance": {"force": []},
     "model_error": {"relative": 0.0, "fields": []},
 }
-#: sections parsed on their own: [scenario] (vcjax.loops.config), [initial] (vehicle keys)
-_SPECIAL = ("scenario", "initial")
+#: sections parsed on their own: [scenario] (vcjax.config.scenario), [initial] (vehicle keys),
+#: the shared [simulation] and [current] (vcjax.config.schema)
+_SPECIAL = ("scenario", "initial", "simulation", "current")
+#: [simulation] keys that tune configs may also write under [problem] (the older spelling)
+_SIM_IN_PROBLEM = ("horizon", "dt", "integrator", "timing", "smooth", "edd")
 
 _CHOICES = {
     ("problem", "integrator"): ("euler", "heun", "rk4"),
@@ -219,6 +231,39 @@ def _check_value(sec: str, key: str, v, default):
     raise AssertionError(where)  # pragma: no cover
 
 
+def _shared_sections(raw: dict, cfg: dict) -> None:
+    """Fold the shared ``[simulation]`` and ``[current]`` (vcjax.config.schema) into ``cfg``.
+
+    ``[simulation] horizon/dt/integrator/timing/smooth/edd`` land in ``cfg["problem"]`` (the
+    older spelling; both at once is refused), ``[simulation] u_d`` in ``cfg["simulation"]``;
+    ``[current]`` replaces ``[scenarios] current_max`` (``cfg["current"]``: the keys given).
+    """
+    sim_raw = raw.get("simulation", {})
+    if not isinstance(sim_raw, dict):
+        raise ConfigError(f"simulation: expected a table ([simulation]), got {sim_raw!r}")
+    edd = sim_raw.get("edd")
+    sim = parse_section(Simulation, {k: v for k, v in sim_raw.items() if k != "edd"}, "simulation")
+    for k in sim_raw:
+        if k in raw.get("problem", {}) and k in _SIM_IN_PROBLEM:
+            raise ConfigError(f"simulation.{k}: also given as problem.{k}; write it once")
+        if k == "edd":
+            cfg["problem"]["edd"] = _check_value("simulation", "edd", edd, "paper")
+        elif k in _SIM_IN_PROBLEM:
+            cfg["problem"][k] = getattr(sim, k)
+    cfg["simulation"] = {"u_d": None if sim.u_d is None else list(sim.u_d)}
+    cur_raw = raw.get("current", {})
+    cur = parse_section(Current, cur_raw, "current")
+    if cur_raw and "current_max" in raw.get("scenarios", {}):
+        raise ConfigError("current: give [current] or [scenarios] current_max, not both")
+    if cur.model != "constant":
+        raise ConfigError("[current] model: vcjax tune samples constant currents only")
+    cfg["current"] = {
+        k: list(v) if isinstance(v, tuple) else v
+        for k, v in dataclasses.asdict(cur).items()
+        if k in cur_raw
+    }
+
+
 def validate_config(raw: dict, config_path=None) -> dict:
     """Defaults filled in, every value checked; returns a new nested (plain-JSON) dict.
 
@@ -250,6 +295,7 @@ def validate_config(raw: dict, config_path=None) -> dict:
         for key, v in table.items():
             cfg[sec][key] = _check_value(sec, key, v, DEFAULTS[sec][key])
     p = cfg["problem"]
+    _shared_sections(raw, cfg)
     if p["horizon"] / p["dt"] < 1:
         raise ConfigError(f"problem.horizon: must be >= problem.dt, got {p['horizon']}")
     choice = parse_scenario(raw.get("scenario"), "scenario", config_path or Path("config"))
@@ -266,6 +312,14 @@ def validate_config(raw: dict, config_path=None) -> dict:
             f"{choice.controller!r}"
         )
     p["variant"] = ctrl
+    if "edd" in loop_options(cls):  # [problem] edd: the older spelling of [scenario] edd
+        given = dict(choice.options)
+        if "edd" in given and "edd" in raw.get("problem", {}) and given["edd"] != p["edd"]:
+            raise ConfigError(
+                f"problem.edd: {p['edd']!r} contradicts [scenario] edd {given['edd']!r}"
+            )
+        if "edd" not in given:
+            choice = dataclasses.replace(choice, options=(*choice.options, ("edd", p["edd"])))
     loop = choice.loop(ctrl)
     names = [g.name for g in loop.gain_specs()]
     bad = [t for t in p["tune"] if t not in names]

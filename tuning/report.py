@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from vcjax.outputs import savefig_atomic
-from vcjax.plots import _plt
+from vcjax.plots import pyplot
 from vcjax.progress import ProgressBar as _Bar
 
 __all__ = ["ProgressBar", "plot_loss_curve", "plot_before_after", "plot_loss_terms"]
@@ -31,7 +31,7 @@ class ProgressBar(_Bar):
 
 def plot_loss_curve(history: list, path, title: str = "gain tuning") -> Path:
     """Training loss and gradient norm per iteration (log scale); rejected steps marked."""
-    plt = _plt()
+    plt = pyplot()
     it = np.array([h["iter"] for h in history])
     loss = np.array([np.nan if h["loss"] is None else h["loss"] for h in history])
     gn = np.array([np.nan if h["grad_norm"] is None else h["grad_norm"] for h in history])
@@ -61,7 +61,7 @@ def plot_before_after(t, before, after, currents, out_dir, path_xy=None) -> list
             and ``e`` (S, N) cross-track errors; currents: (S, 2 or 3) NED currents [m/s];
         out_dir: folder; path_xy: (P, 2) points of the path [north, east] (drawn if given).
     """
-    plt = _plt()
+    plt = pyplot()
     out_dir = Path(out_dir)
     S = before["xy"].shape[0]
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
@@ -128,7 +128,7 @@ def plot_loss_terms(t, before, after, terms, weights, actuators, path) -> Path:
             terms_after)``, dicts name -> held-out mean; weights: dict name -> weight;
         actuators: A names of the actuators (or ``None``); path: the PNG to write.
     """
-    plt = _plt()
+    plt = pyplot()
     tt = np.asarray(t)[:-1]
     S = before["eps"].shape[0]
     A = before["cmd_ratio"].shape[-1]

@@ -52,7 +52,8 @@ def scenario_spec(
     extra: dict | None = None,
 ) -> sweep.ScenarioSpec:
     """The :class:`~vcjax.sweep.ScenarioSpec` of a tuning batch (module docstring); ``extra``:
-    further ScenarioSpec fields (its ``initial`` entries override the offsets)."""
+    further ScenarioSpec fields (its ``initial`` entries override the offsets, its
+    ``current_speed``/``current_direction_deg`` the ``current_max`` distribution)."""
     for name, v in (
         ("current_max", current_max),
         ("position_offset", position_offset),
@@ -69,12 +70,8 @@ def scenario_spec(
             init[k] = (v0 - h, v0 + h)
     extra = dict(extra or {})
     init |= dict(extra.pop("initial", ()))
-    return sweep.ScenarioSpec(
-        current_speed=(0.0, float(current_max)),
-        current_direction_deg=(0.0, 360.0),
-        initial=tuple(init.items()),
-        **extra,
-    )
+    current = {"current_speed": (0.0, float(current_max)), "current_direction_deg": (0.0, 360.0)}
+    return sweep.ScenarioSpec(initial=tuple(init.items()), **(current | extra))
 
 
 def sample_scenarios(

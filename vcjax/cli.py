@@ -75,14 +75,12 @@ def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
 
 
 def _cmd_demo(args) -> int:
-    from vcjax.demos import ARM_DT
+    from vcjax.experiments import ARM
 
-    _time_grid(args.horizon, ARM_DT)
+    _time_grid(args.horizon, ARM.dt)
     out = _prepare(args, args.out, "demo")
     _enable_x64(args.x64)
-    from vcjax.demos import arm_demo
-
-    files = arm_demo(out, horizon=args.horizon)
+    files = ARM.load().arm_demo(out, horizon=args.horizon)
     for f in files:
         print(f"wrote {f}")
     _record(out, "demo", args)
@@ -94,127 +92,70 @@ def _fail(msg: str) -> int:
     return 2
 
 
-#: Per-experiment defaults of ``vcjax simulate`` (horizon [s], RK4 step [s]).
-_SIM_DEFAULTS = {"sim1": (150.0, 0.05), "sim2": (300.0, 0.05), "remus100": (880.0, 0.05)}
+#: options of ``vcjax simulate`` that only some experiments take (Experiment.options)
+_OWN_OPTIONS = ("edd", "timing", "actuation", "diverge_e")
 
 
 def _cmd_simulate(args) -> int:
-    _enable_x64(args.x64)
-    horizon, dt = _SIM_DEFAULTS[args.experiment]
-    horizon = horizon if args.horizon is None else args.horizon
-    dt = dt if args.dt is None else args.dt
+    """``vcjax simulate NAME``: one experiment of the registry (:mod:`vcjax.experiments`)."""
+    import json
+
+    from vcjax.experiments import get
+
+    exp = get(args.experiment)
+    where = f"simulate {exp.name}"
+    own = dict(exp.options)
+    for opt in _OWN_OPTIONS:
+        if getattr(args, opt) is not None and opt not in own:
+            takes = ", ".join("--" + o.replace("_", "-") for o in own) or "none"
+            flag = "--" + opt.replace("_", "-")
+            return _fail(f"{where}: {flag} does not apply to {exp.name} (its own options: {takes})")
+    if args.current is not None and exp.current is None:
+        return _fail(f"{where}: --current is not supported for {exp.name} (no ocean current)")
+    if args.gains is not None and not exp.gains:
+        return _fail(f"{where}: --gains is not supported for {exp.name}")
+    current = None if exp.current is None else tuple(args.current or exp.current)
+    if current is not None and not all(math.isfinite(c) for c in current):
+        return _fail(f"{where}: --current: contains NaN or inf, got {list(current)}")
+    horizon = exp.horizon if args.horizon is None else args.horizon
+    dt = exp.dt if args.dt is None else args.dt
     if args.max_steps is not None and args.max_steps < 1:
         raise _CLIError(f"--max-steps: expected an integer >= 1, got {args.max_steps}")
     _time_grid(horizon, dt, args.max_steps or 10_000_000)
     if args.diverge_e is not None and not (math.isfinite(args.diverge_e) and args.diverge_e > 0):
         raise _CLIError(f"--diverge-e: expected a finite bound > 0 [m], got {args.diverge_e:g}")
-    out = _prepare(args, args.out or f"out/{args.experiment}", f"simulate {args.experiment}")
-    if args.experiment == "sim2":
-        return _simulate_sim2(args, out, horizon, dt)
-    if args.experiment == "remus100":
-        return _simulate_remus100(args, out, horizon, dt)
-    return _simulate_sim1(args, out, horizon, dt)
-
-
-def _simulate_sim1(args, out: Path, horizon: float, dt: float) -> int:
-    import json
-
-    from vcjax import sim1
-
+    out = _prepare(args, args.out or f"out/{exp.name}", where)
+    _enable_x64(args.x64)
+    options = {
+        k: default if getattr(args, k) is None else getattr(args, k) for k, default in own.items()
+    }
+    mod = exp.load()
     gains = None
     if args.gains:
         try:
-            gains = sim1.gains_from_json(json.loads(Path(args.gains).read_text()))
+            gains = mod.load_gains(json.loads(Path(args.gains).read_text()), **options)
         except (OSError, json.JSONDecodeError, ValueError) as err:
-            return _fail(f"simulate: cannot use gains file {args.gains}: {err}")
-    try:
-        scenario = sim1.sim1_scenario(current=args.current or (0.0, 0.5))
-    except ValueError as err:
-        return _fail(f"simulate: {err}")
-    result = sim1.run_sim1(
-        out, gains, horizon=horizon, dt=dt, edd=args.edd, timing=args.timing, scenario=scenario,
-        **_diverge(args),
-    )  # fmt: skip
-    _print_metrics(result["metrics"])
+            return _fail(f"{where}: cannot use gains file {args.gains}: {err}")
+    result = mod.run_experiment(out, gains, horizon=horizon, dt=dt, current=current, **options)
+    _print_metrics(result["printed"])
     for f in result["files"]:
         print(f"wrote {f}")
-    config = {**vars(args), "horizon": horizon, "dt": dt, "scenario": scenario, "gains": gains}
-    config.pop("func")
-    _record(out, "simulate sim1", args, config=config)
-    return _report_unhealthy(result["unhealthy"], dt)
-
-
-def _diverge(args) -> dict:
-    """``diverge_e`` of ``--diverge-e`` (when given)."""
-    return {} if args.diverge_e is None else {"diverge_e": args.diverge_e}
-
-
-def _report_unhealthy(unhealthy: dict, dt: float) -> int:
-    """Print one line per unhealthy run (stderr); exit code 1 if there is any, else 0."""
-    for variant, (k, t) in unhealthy.items():
-        print(
-            f"vcjax: UNHEALTHY RUN: {variant} diverged at step {k} (t = {t:g} s, dt {dt:g} s): "
-            "its state became non-finite or left the divergence bound (then frozen there), or "
-            "it left the path-error bound (--diverge-e); its metrics and figures after that "
-            "time are not meaningful",
-            file=sys.stderr,
-        )
-    return 1 if unhealthy else 0
-
-
-def _simulate_sim2(args, out: Path, horizon: float, dt: float) -> int:
-    import json
-
-    from vcjax import sim2
-
-    if args.current:
-        return _fail("simulate sim2: --current is not supported for Simulation 2")
-    gains = None
-    if args.gains:
-        try:
-            gains = sim2.gains_from_json(json.loads(Path(args.gains).read_text()), args.actuation)
-        except (OSError, json.JSONDecodeError, ValueError) as err:
-            return _fail(f"simulate sim2: cannot use gains file {args.gains}: {err}")
-    result = sim2.run_sim2(
-        out, gains, horizon=horizon, dt=dt, actuation=args.actuation, **_diverge(args)
-    )
-    by_mode = result["metrics"]["by_actuation"]
-    _print_metrics(
-        {mode: {k: v for k, v in m.items() if _is_number(v)} for mode, m in by_mode.items()}
-    )
-    for f in result["files"]:
-        print(f"wrote {f}")
-    _record(out, "simulate sim2", args, config={**vars(args), "horizon": horizon, "dt": dt})
-    unhealthy = {f"sim2 {mode}": m for mode, m in by_mode.items() if not m.get("healthy", True)}
-    for name in unhealthy:
-        print(f"vcjax: UNHEALTHY RUN: {name} diverged (see metrics.json)", file=sys.stderr)
-    return 1 if unhealthy else 0
-
-
-def _simulate_remus100(args, out: Path, horizon: float, dt: float) -> int:
-    from vcjax import sim_remus100
-
-    if args.gains:
-        return _fail("simulate remus100: --gains is not supported (tune through `vcjax tune`)")
-    if args.diverge_e is not None:
-        return _fail("simulate remus100: --diverge-e is not supported (its bound is 25 m)")
-    current = tuple(args.current) if args.current else (0.0, 0.3)
-    if not all(math.isfinite(c) for c in current):
-        return _fail(f"simulate remus100: --current must be finite, got {current}")
-    result = sim_remus100.run_remus100(out, horizon=horizon, dt=dt, current=current)
-    _print_metrics(result["metrics"])
-    for f in result["files"]:
-        print(f"wrote {f}")
-    config = {**vars(args), "horizon": horizon, "dt": dt, "current": current}
-    _record(out, "simulate remus100", args, config=config)
-    unhealthy = [name for name, m in result["metrics"].items() if not m.get("healthy", True)]
-    for name in unhealthy:
-        print(
-            f"vcjax: UNHEALTHY RUN: remus100 {name}: a non-finite or runaway state, or more "
-            "than 25 m off the path (see metrics.json)",
-            file=sys.stderr,
-        )
-    return 1 if unhealthy else 0
+    config = {
+        "experiment": exp.name,
+        "horizon": horizon,
+        "dt": dt,
+        "current": current,
+        "gains": args.gains,
+        "gains_values": gains,
+        "out": str(out),
+        "x64": args.x64,
+        **options,
+        **result.get("config", {}),
+    }
+    _record(out, where, args, config=config)
+    for line in result["unhealthy"]:
+        print(f"vcjax: UNHEALTHY RUN: {line}", file=sys.stderr)
+    return 1 if result["unhealthy"] else 0
 
 
 def _is_number(v) -> bool:
@@ -239,13 +180,16 @@ def _cmd_sweep(args) -> int:
     if (rc := _use_cores(args, "sweep")) is not None:
         return rc
     _enable_x64(args.x64)
+    from vcjax.plots.sweep import sweep_figures as draw
     from vcjax.sweep import load_config, run_sweep_config
 
     try:
-        spec, extras = load_config(args.config)
+        spec, extras = loaded = load_config(args.config)  # parsed once, recorded in run.json
         _size_check(args, "sweep", spec=spec)
         with _interruptible():
-            result = run_sweep_config(args.config, args.out, progress=True, netcdf=args.netcdf)
+            result = run_sweep_config(
+                args.config, args.out, progress=True, netcdf=args.netcdf, loaded=loaded, draw=draw
+            )
     except (OSError, ValueError, ImportError) as err:
         return _fail(f"sweep: {err}")
     summary = result["summary"]
@@ -343,10 +287,10 @@ def _cmd_tune(args) -> int:
     from tuning.config import load_config
 
     try:
-        cfg = load_config(args.config)
+        cfg = load_config(args.config)  # parsed once, recorded in run.json
         _size_check(args, "tune", cfg=cfg)
         with _interruptible():
-            result = run_tune_config(args.config, args.out)
+            result = run_tune_config(args.config, args.out, cfg=cfg)
     except (OSError, ValueError) as err:
         return _fail(f"tune: {err}")
     for f in result["files"]:
@@ -381,13 +325,18 @@ def _cmd_fit(args) -> int:
     except ValueError as err:
         raise _CLIError(str(err)) from None
     _enable_x64(args.x64)
-    from vcjax.identify import run_fit_config
+    from vcjax.identify import load_fit_config, run_fit_config
 
     print(f"fit: {args.config} (compiling the multiple-shooting Jacobian first)")
     try:
+        cfg = load_fit_config(args.config)  # parsed once, recorded in run.json
         with _interruptible():
             result = run_fit_config(
-                args.config, args.out, progress=not args.quiet, max_memory_gb=args.max_memory_gb
+                args.config,
+                args.out,
+                progress=not args.quiet,
+                cfg=cfg,
+                max_memory_gb=args.max_memory_gb,
             )
     except (OSError, ValueError) as err:
         return _fail(f"fit: {err}")
@@ -411,9 +360,7 @@ def _cmd_fit(args) -> int:
         )
     for f in result["files"]:
         print(f"wrote {f}")
-    from vcjax.identify.config import load_fit_config
-
-    _record(args.out, "fit", args, config={"file": args.config, **load_fit_config(args.config)})
+    _record(args.out, "fit", args, config={"file": args.config, **cfg})
     if fit["reason"] == "interrupted":
         return _interrupted(
             "fit",
@@ -514,20 +461,25 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
+    from vcjax.experiments import EXPERIMENTS
+
     s = sub.add_parser("simulate", help="run one of the paper's experiments and write figures")
     s.add_argument(
         "experiment",
-        choices=sorted(_SIM_DEFAULTS),
-        help="sim1: Simulation 1 (INFANTE-class, line, Figs. 4-5); "
-        "sim2: Simulation 2 (ODIN-class, helix, Figs. 6-7); "
-        "remus100: 3-D survey mission of the PVS REMUS 100 under a cross current",
+        choices=sorted(EXPERIMENTS),
+        help="; ".join(f"{e.name}: {e.summary}" for e in EXPERIMENTS.values()),
     )
     s.add_argument("--out", help="output directory (default: out/EXPERIMENT)")
     s.add_argument(
-        "--gains", help="sim1/sim2: JSON file of gains (e.g. the gains.json `vcjax tune` writes)"
+        "--gains",
+        help="JSON file of gains (e.g. the gains.json `vcjax tune` writes for the vehicle)",
     )
     s.add_argument(
-        "--horizon", type=float, help="simulated time [s] (sim1: 150, sim2: 300, remus100: 880)"
+        "--horizon",
+        type=float,
+        help="simulated time [s] ("
+        + ", ".join(f"{e.name}: {e.horizon:g}" for e in EXPERIMENTS.values())
+        + ")",
     )
     s.add_argument("--dt", type=float, help="RK4 step [s] (default 0.05)")
     s.add_argument(
@@ -535,26 +487,30 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         nargs=2,
         metavar=("V_N", "V_E"),
-        help="sim1/remus100: ocean current, north and east [m/s] (sim1: 0 0.5, along the path; "
-        "remus100: 0 0.3, across the legs)",
+        help="ocean current, north and east [m/s] ("
+        + ", ".join(
+            f"{e.name}: {e.current[0]:g} {e.current[1]:g}"
+            for e in EXPERIMENTS.values()
+            if e.current
+        )
+        + "); not for experiments without a current",
     )
     s.add_argument(
         "--edd",
         choices=["paper", "implied"],
-        default="paper",
-        help="sim1: which e_ddot enters psi_d_ddot (SPEC §3; paper = reference mode)",
+        help="sim1 only: which e_ddot enters psi_d_ddot (paper = reference mode; default paper)",
     )
     s.add_argument(
         "--timing",
         choices=["continuous", "sampled"],
-        default="continuous",
-        help="sim1: controller evaluated at every RK4 stage, or once per step and held",
+        help="sim1 only: controller evaluated at every RK4 stage, or once per step and held "
+        "(default continuous)",
     )
     s.add_argument(
         "--actuation",
         choices=["underactuated", "full"],
-        default="underactuated",
-        help="sim2: headline mode (the paper: underactuated); the other is run for comparison",
+        help="sim2 only: headline mode (the paper: underactuated, the default); the other is "
+        "run for comparison",
     )
     s.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
     s.add_argument(

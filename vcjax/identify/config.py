@@ -17,7 +17,7 @@ segment_steps = 50
 max_iters = 50
 ```
 
-Every error is a :class:`vcjax._config.ConfigError` (the one error class of every command) naming
+Every error is a :class:`vcjax.config.ConfigError` (the one error class of every command) naming
 the config file, the section and the key; a log's errors name the log file and the column.
 Unknown sections and keys are rejected.
 """
@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from vcjax._config import (
+from vcjax.config import (
     ConfigError,
     as_bool,
     as_int,
@@ -73,7 +73,7 @@ def load_fit_config(path) -> FitConfig:
     """Parse and check a ``vcjax fit`` config (nothing is loaded or compiled).
 
     Raises:
-        vcjax._config.ConfigError (a ``ValueError``): ``"CONFIG: [section] key: ..."`` for the
+        vcjax.config.ConfigError (a ``ValueError``): ``"CONFIG: [section] key: ..."`` for the
             first problem found (unknown sections and keys included).
     """
     path = Path(path)
@@ -138,7 +138,13 @@ def _check_values(path: Path, cfg: FitConfig) -> None:
     f["max_iters"] = as_int(w("fit", "max_iters"), f["max_iters"], lo=1)
 
 
-def run_fit_config(config_path, out, progress: bool = False, max_memory_gb=None) -> dict:
+def run_fit_config(
+    config_path,
+    out,
+    progress: bool = False,
+    cfg: FitConfig | None = None,
+    max_memory_gb=None,
+) -> dict:
     """Run ``vcjax fit``: load the logs, fit, write ``fit.json`` and the figures into ``out``.
 
     Returns:
@@ -147,7 +153,7 @@ def run_fit_config(config_path, out, progress: bool = False, max_memory_gb=None)
     Raises:
         ValueError: for a bad config or log (naming file, section, key or column); OSError.
     """
-    cfg = load_fit_config(config_path)
+    cfg = load_fit_config(config_path) if cfg is None else cfg  # parsed once by the CLI
     m, f = cfg["model"], cfg["fit"]
     model = get_fit_model(m["vehicle"])
     base = Path(config_path).parent

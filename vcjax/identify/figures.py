@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vcjax.plots import _plt
+from vcjax.plots import pyplot
 
 __all__ = ["prediction_figure", "cost_history_figure"]
 
@@ -16,7 +16,7 @@ __all__ = ["prediction_figure", "cost_history_figure"]
 def prediction_figure(result, log, pred_initial, pred_fitted, path, index: int = 0) -> Path:
     """Every state channel of one log: measured, and the free simulation from the first sample
     with the initial and with the fitted parameters (angles in degrees)."""
-    plt = _plt()
+    plt = pyplot()
     model = result.problem.model
     cols, units = model.state_columns, model.units
     n = len(cols)
@@ -49,7 +49,7 @@ def prediction_figure(result, log, pred_initial, pred_fitted, path, index: int =
 
 def cost_history_figure(result, path) -> Path:
     """The multiple-shooting cost per Levenberg–Marquardt iteration, both stages."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     h = np.asarray(result.cost_history)
     k = 0
@@ -81,7 +81,7 @@ def _save_fit(fig, path: Path, result) -> Path:
     bottom = _warnings_text(fig, result)
     fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0))
     savefig_atomic(fig, path, dpi=120)
-    _plt().close(fig)
+    pyplot().close(fig)
     return path
 
 

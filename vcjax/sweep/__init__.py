@@ -41,7 +41,7 @@ Modules, by job:
 TOML schema (every key optional unless marked; a value written ``range`` is either a number
 (fixed) or a two-element list ``[lo, hi]`` sampled uniformly)::
 
-    [scenario]                  # what is simulated (vcjax.loops.config); default: Simulation 1
+    [scenario]                  # what is simulated (vcjax.config.scenario); default: Simulation 1
     vehicle = "infante"         # "infante" | "odin" | "arm" | any registered vehicle
     controller = "vcm_integral" # optional: one controller (else [sweep] variants)
     params = "model.json"       # optional: parameter overrides, plant and design model
@@ -111,7 +111,7 @@ Summaries use the runs that did not diverge.
 Precision follows JAX's default float (the CLI enables float64 unless told otherwise).
 """
 
-from vcjax._config import ConfigError
+from vcjax.config import ConfigError
 from vcjax.metrics import FLAGS, METRICS
 from vcjax.sweep.config import load_config, run_sweep_config
 from vcjax.sweep.results import (

@@ -3,6 +3,7 @@ and :func:`run_sweep_config`."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -11,17 +12,22 @@ from typing import Any
 import jax
 
 from vcjax import loops
-from vcjax._config import (
+from vcjax.config import (
     ConfigError,
+    Current,
+    Disturbance,
+    Initial,
+    ModelError,
+    SensorNoise,
+    Simulation,
     as_bool,
-    as_number,
-    as_range,
     as_str_list,
     check_schema,
+    parse_section,
     read_toml,
     resolve_file,
 )
-from vcjax.loops.config import SCENARIO_KEYS, parse_scenario
+from vcjax.config.scenario import parse_scenario
 from vcjax.sweep.results import load_results, merge_results, save_results, summarize
 from vcjax.sweep.run import run_sweep
 from vcjax.sweep.spec import ScenarioSpec, SweepSpec
@@ -30,15 +36,14 @@ __all__ = ["SCHEMA", "load_config", "run_sweep_config"]
 
 #: section -> keys ([initial] and [sensor_noise] keys depend on the vehicle)
 SCHEMA: dict[str, tuple[str, ...] | None] = {
-    "scenario": SCENARIO_KEYS,
-    "scenario.path": (),
+    "scenario": None,  # vcjax.config.scenario checks it (the options depend on the loop)
     "sweep": ("num_scenarios", "seed", "variants", "chunk_size"),
-    "simulation": ("horizon", "dt", "integrator", "timing", "edd", "u_d", "gains"),
-    "current": ("model", "speed", "direction_deg", "sigma", "tau", "max_speed"),
+    "simulation": (*(f.name for f in dataclasses.fields(Simulation)), "edd", "gains"),
+    "current": tuple(f.name for f in dataclasses.fields(Current)),
     "initial": None,
-    "model_error": ("relative", "fields"),
+    "model_error": tuple(f.name for f in dataclasses.fields(ModelError)),
     "sensor_noise": None,
-    "disturbance": ("force",),
+    "disturbance": tuple(f.name for f in dataclasses.fields(Disturbance)),
     "metrics": ("tail", "diverge_e"),
     "output": ("record_points", "figures"),
 }
@@ -82,6 +87,23 @@ def _toml_name(msg: str) -> str:
     return msg
 
 
+def _sections(raw: dict, where: str) -> dict:
+    """The shared sections (:mod:`vcjax.config.schema`) of a sweep config, parsed."""
+    kinds = {
+        "simulation": Simulation,
+        "current": Current,
+        "initial": Initial,
+        "model_error": ModelError,
+        "sensor_noise": SensorNoise,
+        "disturbance": Disturbance,
+    }
+    out = {}
+    for sec, cls in kinds.items():
+        table = {k: v for k, v in raw.get(sec, {}).items() if k not in ("edd", "gains")}
+        out[sec] = parse_section(cls, table, sec)
+    return out
+
+
 def load_config(config_path) -> tuple[SweepSpec, dict]:
     """Read and validate a sweep TOML file (schema: :mod:`vcjax.sweep`).
 
@@ -112,6 +134,11 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
 
     spec_kw, sc_kw = {}, {}
     try:
+        sections = _sections(raw, where)
+        if "smooth" in raw.get("simulation", {}) and sections["simulation"].smooth:
+            raise ConfigError(
+                "[simulation] smooth: a sweep simulates the hard-clipped plant (smooth = false)"
+            )
         for (sec, key), field in _SPEC_KEYS.items():
             if key in raw.get(sec, {}):
                 v = raw[sec][key]
@@ -124,22 +151,11 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
                 spec_kw["variants"] = cls.controllers
         for (sec, key), field in _SCENARIO_KEYS.items():
             if key in raw.get(sec, {}):
-                v = raw[sec][key]
-                if field == "model_fields":
-                    v = as_str_list(f"[{sec}] {key}", v)
-                sc_kw[field] = v
-        sc_kw["initial"] = tuple(
-            (k, as_range(f"[initial] {k}", v)) for k, v in raw.get("initial", {}).items()
-        )
-        sc_kw["noise"] = tuple(
-            (k, as_number(f"[sensor_noise] {k}", v, lo=0.0))
-            for k, v in raw.get("sensor_noise", {}).items()
-        )
+                sc_kw[field] = getattr(sections[sec], key)
+        sc_kw["initial"] = sections["initial"].values
+        sc_kw["noise"] = sections["sensor_noise"].values
         if "force" in raw.get("disturbance", {}):
-            f = raw["disturbance"]["force"]
-            if not isinstance(f, list):
-                raise ConfigError(f"[disturbance] force: expected a list, got {f!r}")
-            sc_kw["disturbance"] = tuple(as_range("[disturbance] force", r) for r in f)
+            sc_kw["disturbance"] = sections["disturbance"].force
         gains = raw.get("simulation", {}).get("gains")
         figures = as_bool("[output] figures", raw.get("output", {}).get("figures", True))
         spec = SweepSpec(scenario=ScenarioSpec(**sc_kw), choice=choice, **spec_kw)
@@ -156,12 +172,14 @@ def run_sweep_config(
     out_dir,
     progress: bool | Callable[[str], Any] = True,
     netcdf: bool = False,
+    loaded: tuple[SweepSpec, dict] | None = None,
+    draw: Callable[[Any, Path], list[Path]] | None = None,
 ) -> dict:
     """Run the sweep described by a TOML file and write its results (the ``vcjax sweep`` CLI).
 
     Writes into ``out_dir``: ``summary.json`` (:func:`~vcjax.sweep.results.summarize`),
-    ``results.npz`` (:func:`~vcjax.sweep.results.save_results`) and, unless ``[output] figures
-    = false``, the figures of :func:`vcjax.sweep_plots.sweep_figures`. In a multi-process run
+    ``results.npz`` (:func:`~vcjax.sweep.results.save_results`) and, with ``draw`` and unless
+    ``[output] figures = false``, the figures ``draw`` writes. In a multi-process run
     (after ``jax.distributed.initialize``) every process runs its share of chunks and writes
     ``results.part<p>-of-<P>.npz`` into the (shared) ``out_dir``; process 0 waits for the others,
     merges the parts and writes the outputs. With ``netcdf``, also ``results.nc``
@@ -171,14 +189,19 @@ def run_sweep_config(
         config_path: the TOML file; out_dir: output folder (created).
         progress: True: a bar on stderr; a callable: one line per chunk; False: silent.
         netcdf: also write ``results.nc``.
+        loaded: the file already parsed by :func:`load_config` (the CLI parses it once and
+            records it); default: parse ``config_path``.
+        draw: ``draw(result, out_dir) -> [Path, ...]`` writes the figures (the CLI passes
+            :func:`vcjax.plots.sweep.sweep_figures`; the sweep itself draws nothing), called
+            unless ``[output] figures = false``.
 
     Returns:
-        ``{"summary": dict, "files": [Path, ...]}`` (on processes other than 0: the part file
-        only, and ``summary`` None).
+        ``{"summary": dict, "files": [Path, ...], "result": SweepResult, "figures": bool}``
+        (on processes other than 0: the part file only, and ``summary`` None).
     """
     from vcjax.outputs import write_json_atomic
 
-    spec, extras = load_config(config_path)
+    spec, extras = load_config(config_path) if loaded is None else loaded
     if netcdf:
         from vcjax.sweep.labelled import _xr
 
@@ -215,8 +238,6 @@ def run_sweep_config(
         from vcjax.sweep.labelled import write_netcdf
 
         files.append(write_netcdf(result, out / "results.nc"))
-    if extras["figures"]:
-        from vcjax import sweep_plots
-
-        files += sweep_plots.sweep_figures(result, out)
-    return {"summary": summary, "files": files}
+    if extras["figures"] and draw is not None:
+        files += draw(result, out)
+    return {"summary": summary, "files": files, "result": result, "figures": extras["figures"]}

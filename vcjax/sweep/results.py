@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vcjax.loops.config import ScenarioChoice
+from vcjax.config.scenario import ScenarioChoice
 from vcjax.metrics import FLAGS
 from vcjax.sweep.spec import ScenarioSpec, SweepSpec
 

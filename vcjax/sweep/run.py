@@ -15,7 +15,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from vcjax import loops
-from vcjax._config import ConfigError
+from vcjax.config import ConfigError
 from vcjax.loops.base import DisturbanceParams, Disturbances, gauss_markov_params
 from vcjax.metrics import (
     metrics_finalize,

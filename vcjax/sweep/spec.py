@@ -17,9 +17,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops
-from vcjax._config import ConfigError, as_choice, as_int, as_number, as_range
+from vcjax.config import ConfigError, as_choice, as_int, as_number, as_range
+from vcjax.config.scenario import ScenarioChoice
 from vcjax.currents import current_ned
-from vcjax.loops.config import ScenarioChoice
 
 __all__ = ["ScenarioSpec", "SweepSpec", "MCScenario", "MCConfig", "sample_scenarios"]
 

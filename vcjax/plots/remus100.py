@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import paths
-from vcjax.plots import _plt, _save
+from vcjax.plots import pyplot, save
 from vcjax.vehicles.remus100 import remus100_params
 
 __all__ = ["remus100_figures"]
@@ -24,7 +24,7 @@ def _path_points(path, coeffs, num=3000):
 
 def remus100_figures(trajs: dict, path, coeffs, out: Path, labels: dict) -> list[Path]:
     """3-D path, plan view, errors ``s, e, h`` and 3-D distance, fins and rpm vs limits."""
-    plt = _plt()
+    plt = pyplot()
     out = Path(out)
     pp = _path_points(path, coeffs)
     files = []
@@ -40,7 +40,7 @@ def remus100_figures(trajs: dict, path, coeffs, out: Path, labels: dict) -> list
     ax.set_zlabel("height (-depth) [m]")
     ax.set_title("REMUS 100 survey, 0.3 m/s current towards east")
     ax.legend(fontsize=7)
-    files.append(_save(fig, out / "remus100_path3d.png"))
+    files.append(save(fig, out / "remus100_path3d.png"))
 
     fig, ax = plt.subplots(figsize=(7, 7))
     ax.plot(pp[:, 1], pp[:, 0], "k--", lw=1, label="path")
@@ -54,7 +54,7 @@ def remus100_figures(trajs: dict, path, coeffs, out: Path, labels: dict) -> list
     ax.set_aspect("equal")
     ax.set_title("plan view")
     ax.legend(fontsize=7)
-    files.append(_save(fig, out / "remus100_plan.png"))
+    files.append(save(fig, out / "remus100_plan.png"))
 
     fig, axs = plt.subplots(4, 1, figsize=(9, 9), sharex=True)
     names = ("along-track s [m]", "cross-track e [m]", "vertical h [m]", "distance |eps| [m]")
@@ -72,7 +72,7 @@ def remus100_figures(trajs: dict, path, coeffs, out: Path, labels: dict) -> list
     axs[0].legend(fontsize=7, ncol=2)
     axs[-1].set_xlabel("t [s]")
     axs[0].set_title("path-frame errors at each law's path particle")
-    files.append(_save(fig, out / "remus100_errors.png"))
+    files.append(save(fig, out / "remus100_errors.png"))
 
     fig, axs = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
     for v, tr in trajs.items():
@@ -96,5 +96,5 @@ def remus100_figures(trajs: dict, path, coeffs, out: Path, labels: dict) -> list
     axs[0].legend(fontsize=7, ncol=2)
     axs[0].set_title("actuators (limits dotted)")
     axs[-1].set_xlabel("t [s]")
-    files.append(_save(fig, out / "remus100_actuators.png"))
+    files.append(save(fig, out / "remus100_actuators.png"))
     return files

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from vcjax.paths import path_point
-from vcjax.plots import _plt, _save
+from vcjax.plots import pyplot, save
 
 __all__ = ["sim2_figures", "STYLE"]
 
@@ -39,7 +39,7 @@ def sim2_figures(trajs: dict, scenario, path, out: Path) -> list[Path]:
     * ``sim2_thrusters.png``: thruster forces of the headline mode and the commanded vs
       allocated generalised forces.
     """
-    plt = _plt()
+    plt = pyplot()
     out = Path(out)
     files = []
     order = [m for m in STYLE if m in trajs]
@@ -60,7 +60,7 @@ def sim2_figures(trajs: dict, scenario, path, out: Path) -> list[Path]:
     ax.invert_zaxis()
     ax.set_title("Simulation 2: ODIN-class AUV on the helix")
     ax.legend(fontsize=8, loc="upper left")
-    files.append(_save(fig, out / "sim2_path_3d.png"))
+    files.append(save(fig, out / "sim2_path_3d.png"))
 
     # Fig. 7 (left): horizontal plane
     fig, ax = plt.subplots(figsize=(7, 7))
@@ -78,7 +78,7 @@ def sim2_figures(trajs: dict, scenario, path, out: Path) -> list[Path]:
     ax.set_aspect("equal")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    files.append(_save(fig, out / "sim2_horizontal.png"))
+    files.append(save(fig, out / "sim2_horizontal.png"))
 
     # Fig. 7 (right): distance-error components
     fig, ax = plt.subplots(4, 1, figsize=(8, 9), sharex=True)
@@ -98,7 +98,7 @@ def sim2_figures(trajs: dict, scenario, path, out: Path) -> list[Path]:
     ax[0].legend(fontsize=8)
     for a in ax:
         a.grid(alpha=0.3)
-    files.append(_save(fig, out / "sim2_errors.png"))
+    files.append(save(fig, out / "sim2_errors.png"))
 
     fig, ax = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
     for m in order:
@@ -115,7 +115,7 @@ def sim2_figures(trajs: dict, scenario, path, out: Path) -> list[Path]:
     ax[0].legend(fontsize=8)
     for a in ax:
         a.grid(alpha=0.3)
-    files.append(_save(fig, out / "sim2_path_errors.png"))
+    files.append(save(fig, out / "sim2_path_errors.png"))
 
     # thrusters of the headline mode
     m = order[0]
@@ -144,5 +144,5 @@ def sim2_figures(trajs: dict, scenario, path, out: Path) -> list[Path]:
     ax[0].set_title(f"thrusters ({m})")
     for a in ax:
         a.grid(alpha=0.3)
-    files.append(_save(fig, out / "sim2_thrusters.png"))
+    files.append(save(fig, out / "sim2_thrusters.png"))
     return files

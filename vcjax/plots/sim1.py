@@ -1,4 +1,4 @@
-"""Matplotlib figures written by the CLI (Agg backend; files, never windows)."""
+"""Figures of Simulation 1 (:mod:`vcjax.experiments.sim1`): the paper's Figs. 4-5."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vcjax.outputs import savefig_atomic
+import vcjax.plots as vplots
 
 __all__ = ["sim1_figures", "STYLE"]
 
@@ -22,25 +22,9 @@ STYLE = {
 }
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    savefig_atomic(fig, path, dpi=120)
-    _plt().close(fig)
-    return path
-
-
 def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
     """Figures like the paper's Figs. 4–5 for every variant in ``trajs`` (name -> Trajectory)."""
-    plt = _plt()
+    plt = vplots.pyplot()
     out = Path(out)
     files = []
     order = [v for v in STYLE if v in trajs]
@@ -72,7 +56,7 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
     axes[1].set_aspect("equal", adjustable="box")
     axes[1].set_title("the approach (same scale on both axes)", fontsize=10)
     axes[1].legend(fontsize=8, loc="lower right")
-    files.append(_save(fig, out / "sim1_paths.png"))
+    files.append(vplots.save(fig, out / "sim1_paths.png"))
 
     def two_panel(name, series, ylabels, t_slice, hlines=((), ())):
         """Two stacked time plots; ``series[i](traj)`` gives panel i's samples; ``hlines[i]``
@@ -98,7 +82,7 @@ def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:
             elif refs:
                 ax[i].legend(handles=refs, fontsize=8, loc="upper right")
         ax[1].set_xlabel("t [s]")
-        return _save(fig, out / name)
+        return vplots.save(fig, out / name)
 
     vehicle = scenario.plant
     thrust_max = float(vehicle.thrust_max)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vcjax.plots import STYLE, _plt, _save
+from vcjax.plots import STYLE, pyplot, save
 
 __all__ = ["sweep_figures"]
 
@@ -66,7 +66,7 @@ def _binned_median(x, y, edges):
 
 
 def _error_vs_current(result, out: Path) -> Path:
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharey=True)
     speed = np.asarray(result.scenarios["current_speed"], dtype=np.float64)
     direction = np.degrees(np.asarray(result.scenarios["current_direction"], np.float64)) % 360
@@ -99,11 +99,11 @@ def _error_vs_current(result, out: Path) -> Path:
     axes[0].set_title("against the current's speed", fontsize=10)
     axes[1].set_title("against the current's direction", fontsize=10)
     axes[0].legend(fontsize=8)
-    return _save(fig, out / "sweep_error_vs_current.png")
+    return save(fig, out / "sweep_error_vs_current.png")
 
 
 def _metric_boxes(result, out: Path) -> Path:
-    plt = _plt()
+    plt = pyplot()
     panels = [
         ("ss_abs_e", "steady-state |e| [m]", True),
         ("ss_abs_u_err", "steady-state |u - u_d| [m/s]", True),
@@ -129,7 +129,7 @@ def _metric_boxes(result, out: Path) -> Path:
             ax.set_yscale("log")
         ax.grid(True, axis="y", alpha=0.3)
     fig.suptitle("Sweep metrics per variant (boxes: quartiles; whiskers: 5-95 %)")
-    return _save(fig, out / "sweep_metrics.png")
+    return save(fig, out / "sweep_metrics.png")
 
 
 def _actuator_key(result) -> str:
@@ -149,7 +149,7 @@ def _grid(plt, n, sharey=False):
 
 
 def _envelopes(result, out: Path) -> Path:
-    plt = _plt()
+    plt = pyplot()
     vs = _variants(result)
     fig, axes = _grid(plt, len(vs), sharey=True)  # one y scale: the variants compare by eye
     t = np.asarray(result.trace_t)
@@ -172,11 +172,11 @@ def _envelopes(result, out: Path) -> Path:
     for ax in axes[len(vs) :]:
         ax.set_visible(False)
     fig.suptitle("Cross-track error envelopes (shared y-axis)", fontsize=11)
-    return _save(fig, out / "sweep_envelopes.png")
+    return save(fig, out / "sweep_envelopes.png")
 
 
 def _paths(result, out: Path, max_paths: int = 60) -> Path:
-    plt = _plt()
+    plt = pyplot()
     vs = _variants(result)
     path_xy = _path_xy(result)
     fig, axes = _grid(plt, len(vs))
@@ -199,7 +199,7 @@ def _paths(result, out: Path, max_paths: int = 60) -> Path:
         ax.legend(fontsize=8)
     for ax in axes[len(vs) :]:
         ax.set_visible(False)
-    return _save(fig, out / "sweep_paths.png")
+    return save(fig, out / "sweep_paths.png")
 
 
 def sweep_figures(result, out: Path) -> list[Path]:

@@ -7,7 +7,10 @@
     controller = "vcm_integral"  # one of that vehicle's controllers (errors list them)
     params = "model.json"        # optional: parameter overrides of plant AND design model
     plant_params = "plant.json"  # optional: overrides of the plant only (after params)
-    edd = "paper"                # optional static loop options (VCM loops: "paper" | "implied")
+    edd = "paper"                # optional static options of the loop class: any of its
+                                 # dataclass fields but controller, path and smooth
+                                 # (INFANTE-class: edd = "paper" | "implied"; ODIN: also
+                                 # integral, polish)
     [scenario.path]
     kind = "circle"              # "line" | "circle" | "helix" | "waypoints" | "lawnmower"
     center = [0.0, 0.0]          # kind-specific keys (vcjax.paths constructors):
@@ -16,7 +19,8 @@
                                  #   waypoints: points, extend; lawnmower: start, leg,
                                  #   radius, n_legs, depth, descent
 
-Without ``[scenario]`` a config means Simulation 1 (INFANTE-class on the line ``[10, w]``).
+Without ``[scenario]`` a config means :data:`vcjax.config.schema.DEFAULT_SCENARIO` (Simulation 1:
+INFANTE-class on the line ``[10, w]``).
 Parameter files (paths relative to the config file) are JSON: a flat ``{name: value}`` map, or a
 ``vcjax fit`` output whose ``"estimates"`` map is used; names are the vehicle's parameter names
 (``loop.param_names()``), unknown ones are rejected with the valid ones listed.
@@ -31,9 +35,25 @@ from pathlib import Path
 from typing import Any
 
 from vcjax import loops, paths
-from vcjax._config import ConfigError, as_choice, as_str, resolve_file
+from vcjax.config.schema import DEFAULT_SCENARIO, key
+from vcjax.config.values import (
+    ConfigError,
+    as_bool,
+    as_choice,
+    as_int,
+    as_number,
+    as_str,
+    resolve_file,
+)
 
-__all__ = ["PATH_KINDS", "PathSpec", "ScenarioChoice", "parse_scenario", "SCENARIO_KEYS"]
+__all__ = [
+    "PATH_KINDS",
+    "PathSpec",
+    "ScenarioChoice",
+    "parse_scenario",
+    "SCENARIO_KEYS",
+    "loop_options",
+]
 
 #: kind -> (constructor, its keyword arguments)
 PATH_KINDS = {
@@ -43,8 +63,42 @@ PATH_KINDS = {
     "waypoints": (paths.waypoints, ("points", "extend")),
     "lawnmower": (paths.lawnmower, ("start", "leg", "radius", "n_legs", "depth", "descent")),
 }
-#: keys of [scenario] (besides the [scenario.path] table)
-SCENARIO_KEYS = ("module", "vehicle", "controller", "params", "plant_params", "edd")
+#: fixed keys of [scenario] (besides the [scenario.path] table and the loop's options)
+SCENARIO_KEYS = ("module", "vehicle", "controller", "params", "plant_params")
+#: loop dataclass fields that are not [scenario] options
+_NOT_OPTIONS = ("controller", "path", "smooth")
+
+
+def loop_options(cls) -> dict[str, dict]:
+    """The static options of a loop class that ``[scenario]`` accepts: its dataclass fields
+    but controller, path and smooth, as ``{name: {"type", "default", "choices"}}``."""
+    out = {}
+    for f in dataclasses.fields(cls):
+        if f.name in _NOT_OPTIONS:
+            continue
+        t = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
+        choices = ()
+        if t.startswith("Literal["):
+            choices = tuple(a.strip().strip("'\"") for a in t[len("Literal[") : -1].split(","))
+            t = "str"
+        elif t not in ("bool", "int", "float", "str"):
+            t = type(f.default).__name__
+        out[f.name] = {"type": t, "default": f.default, "choices": choices}
+    return out
+
+
+def _option(name: str, v, opt: dict):
+    t = opt["type"]
+    if t == "bool":
+        return as_bool(name, v)
+    if t == "int":
+        return as_int(name, v, 0)
+    if t == "float":
+        return as_number(name, v)
+    if t == "str":
+        v = as_str(name, v)
+        return as_choice(name, v, opt["choices"]) if opt["choices"] else v
+    raise ConfigError(f"{name}: the option's type {t} cannot be given in a config")
 
 
 def import_module_file(path) -> None:
@@ -113,17 +167,43 @@ def path_spec(d: dict, where: str) -> PathSpec:
 
 @dataclasses.dataclass(frozen=True)
 class ScenarioChoice:
-    """What a config simulates (hashable): vehicle, controller (``None``: not given), path
-    (``None``: the vehicle's default), parameter overrides (name, value) of plant and design
-    (``params``) and of the plant only (``plant_params``), static loop options."""
+    """``[scenario]``: what a config simulates (hashable): vehicle, controller (``None``: not
+    given), path (``[scenario.path]``; ``None``: the vehicle's default), parameter overrides
+    (name, value) of plant and design (``params``) and of the plant only (``plant_params``), and
+    the static options of the loop class, written as keys of ``[scenario]`` named like its
+    dataclass fields (e.g. ``edd``; ODIN: ``integral``, ``polish``). Without ``[scenario]``:
+    Simulation 1 (:data:`~vcjax.config.schema.DEFAULT_SCENARIO`)."""
 
-    vehicle: str = "infante"
-    controller: str | None = None
-    module: str | None = None
-    path: PathSpec | None = None
-    params: tuple[tuple[str, Any], ...] = ()
-    plant_params: tuple[tuple[str, Any], ...] = ()
-    options: tuple[tuple[str, Any], ...] = ()
+    vehicle: str = key(
+        DEFAULT_SCENARIO["vehicle"], "str", "", "a registered vehicle (vcjax.loops.vehicles())"
+    )
+    controller: str | None = key(
+        DEFAULT_SCENARIO["controller"],
+        "str",
+        "",
+        "one of the vehicle's controllers (default: all of them in a sweep, its default "
+        "controller in tune)",
+        aliases=("[problem] variant", "[sweep] variants"),
+    )
+    module: str | None = key(
+        None, "file", "", "a Python file that registers your own loops, imported first"
+    )
+    path: PathSpec | None = key(
+        DEFAULT_SCENARIO["path"], "table", "", "[scenario.path]: kind and its constructor's keys"
+    )
+    params: tuple[tuple[str, Any], ...] = key(
+        (), "file", "", "JSON parameter overrides of plant and design model"
+    )
+    plant_params: tuple[tuple[str, Any], ...] = key(
+        (), "file", "", "JSON parameter overrides of the plant only (after params)"
+    )
+    options: tuple[tuple[str, Any], ...] = key(
+        (),
+        "options",
+        "",
+        "static options of the loop class (its dataclass fields but controller, path, smooth)",
+        open_keys="the loop class's options",
+    )
 
     def loop(self, controller: str | None = None, **options) -> loops.Loop:
         """The loop of ``controller`` (default :attr:`controller`) with this path and options."""
@@ -185,11 +265,6 @@ def parse_scenario(raw: dict | None, where: str, config_path) -> ScenarioChoice:
     """
     if raw is None:
         return ScenarioChoice()
-    for k in raw:
-        if k not in SCENARIO_KEYS and k != "path":
-            raise ConfigError(
-                f"{where}: unknown key [scenario] {k!r}; expected one of {list(SCENARIO_KEYS)}"
-            )
     module = None
     if "module" in raw:
         module = str(resolve_file(f"{where}: [scenario] module", raw["module"], Path(config_path)))
@@ -197,39 +272,42 @@ def parse_scenario(raw: dict | None, where: str, config_path) -> ScenarioChoice:
             import_module_file(module)
         except Exception as err:  # the user's file: report whatever it raised, in one line
             raise ConfigError(f"{where}: [scenario] module: {module}: {err!r}") from None
-    vehicle = raw.get("vehicle", "infante")
+    vehicle = raw.get("vehicle", DEFAULT_SCENARIO["vehicle"])
     try:
         cls = loops.loop_class(as_str("vehicle", vehicle))
     except ValueError as err:
         raise ConfigError(f"{where}: [scenario] {err}") from None
+    opts = loop_options(cls)
+    for k in raw:
+        if k not in SCENARIO_KEYS and k != "path" and k not in opts:
+            if any(k in loop_options(loops.loop_class(v)) for v in loops.vehicles()):
+                raise ConfigError(f"{where}: [scenario] {k}: not an option of the {vehicle} loop")
+            raise ConfigError(
+                f"{where}: unknown key [scenario] {k!r}; expected one of {[*SCENARIO_KEYS, *opts]}"
+            )
     controller = raw.get("controller")
     if controller is not None and controller not in cls.controllers:
         raise ConfigError(
             f"{where}: [scenario] controller: vehicle {vehicle!r} supports "
             f"{list(cls.controllers)}, got {controller!r}"
         )
-    options = ()
-    if "edd" in raw:
-        fields = {f.name for f in dataclasses.fields(cls)}
-        if "edd" not in fields:
-            raise ConfigError(f"{where}: [scenario] edd: not an option of the {vehicle} loop")
-        options = (
-            ("edd", as_choice(f"{where}: [scenario] edd", raw["edd"], ("paper", "implied"))),
-        )
+    options = tuple(
+        (k, _option(f"{where}: [scenario] {k}", raw[k], opts[k])) for k in opts if k in raw
+    )
     path = None if "path" not in raw else path_spec(raw["path"], where)
     choice = ScenarioChoice(
         vehicle=vehicle, controller=controller, module=module, path=path, options=options
     )
     probe = choice.loop(controller or cls.controllers[0])
     over = {}
-    for key in ("params", "plant_params"):
-        if key in raw:
-            f = resolve_file(f"{where}: [scenario] {key}", raw[key], Path(config_path))
+    for name in ("params", "plant_params"):
+        if name in raw:
+            f = resolve_file(f"{where}: [scenario] {name}", raw[name], Path(config_path))
             try:
-                vals = loops.read_param_file(f, probe, where=f"[scenario] {key}")
+                vals = loops.read_param_file(f, probe, where=f"[scenario] {name}")
             except ValueError as err:
                 raise ConfigError(f"{where}: {err}") from None
-            over[key] = tuple((k, _freeze(v)) for k, v in vals.items())
+            over[name] = tuple((k, _freeze(v)) for k, v in vals.items())
     choice = dataclasses.replace(choice, **over)
     try:
         choice.nominal(probe)

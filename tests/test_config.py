@@ -1,0 +1,131 @@
+"""The shared configuration system (vcjax.config): schema metadata, older spellings as aliases of
+the shared keys (same parsed values, same sampled scenarios), loop options read from the loop
+class, one error per bad key naming section and key."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from tuning.config import validate_config
+from vcjax import config, loops
+from vcjax.config import ConfigError
+from vcjax.config.scenario import ScenarioChoice, parse_scenario
+from vcjax.sweep import load_config
+
+
+def test_schema_lists_every_shared_section_with_metadata():
+    s = config.schema()
+    assert set(s) == {
+        "scenario",
+        "simulation",
+        "current",
+        "initial",
+        "model_error",
+        "sensor_noise",
+        "disturbance",
+    }
+    for name, sec in s.items():
+        assert sec["doc"], name
+        for key, meta in sec["keys"].items():
+            assert {"type", "unit", "doc", "default"} <= set(meta), (name, key)
+            assert meta["doc"], (name, key)
+    sim = s["simulation"]["keys"]
+    assert sim["horizon"]["unit"] == "s" and "[problem] horizon" in sim["horizon"]["aliases"]
+    assert s["current"]["keys"]["speed"]["aliases"] == ("[scenarios] current_max",)
+    # the default scenario is declared once and is what a config without [scenario] means
+    assert ScenarioChoice().vehicle == config.DEFAULT_SCENARIO["vehicle"] == "infante"
+    assert parse_scenario(None, "x", "x.toml") == ScenarioChoice()
+
+
+def test_parse_section_checks_types_and_names_the_key():
+    cur = config.parse_section(config.Current, {"speed": [0.1, 0.3]}, "current", "f.toml")
+    assert cur.speed == (0.1, 0.3) and cur.direction_deg == (90.0, 90.0)
+    assert dataclasses.is_dataclass(cur)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cur.speed = (0.0, 0.0)
+    with pytest.raises(ConfigError, match=r"f.toml: \[current\] speed: values must be >= 0"):
+        config.parse_section(config.Current, {"speed": [-1.0, 0.3]}, "current", "f.toml")
+    with pytest.raises(ConfigError, match=r"unknown key \[current\] 'sped'"):
+        config.parse_section(config.Current, {"sped": 1.0}, "current", "f.toml")
+    with pytest.raises(ConfigError, match=r"\[simulation\] timing: expected one of"):
+        config.parse_section(config.Simulation, {"timing": "often"}, "simulation")
+
+
+def test_tune_simulation_section_equals_problem_spelling():
+    old = validate_config({"problem": {"horizon": 4.0, "dt": 0.2, "timing": "sampled"}})
+    new = validate_config({"simulation": {"horizon": 4.0, "dt": 0.2, "timing": "sampled"}})
+    assert old["problem"] == new["problem"]
+    with pytest.raises(ConfigError, match="simulation.dt: also given as problem.dt"):
+        validate_config({"simulation": {"dt": 0.2}, "problem": {"dt": 0.1}})
+    with pytest.raises(ConfigError, match="current_max, not both"):
+        validate_config({"current": {"speed": 1.0}, "scenarios": {"current_max": 1.0}})
+    with pytest.raises(ConfigError, match=r"\[current\] model"):
+        validate_config({"current": {"model": "gauss_markov"}})
+
+
+def test_tune_current_section_samples_the_current_max_scenarios():
+    from tuning.cli import build
+
+    base = {"problem": {"horizon": 1.0, "dt": 0.5}, "train": {"size": 4}, "heldout": {"size": 3}}
+    old = build(validate_config({**base, "scenarios": {"current_max": 0.7}}))
+    new = build(
+        validate_config({**base, "current": {"speed": [0.0, 0.7], "direction_deg": [0, 360]}})
+    )
+    for a, b in zip(old[3:], new[3:], strict=True):  # train and held-out batches
+        np.testing.assert_array_equal(a.current, b.current)
+        np.testing.assert_array_equal(a.eta0, b.eta0)
+    other = build(validate_config({**base, "current": {"speed": 0.3}}))
+    assert not np.array_equal(other[3].current, old[3].current)
+
+
+def test_scenario_options_come_from_the_loop_dataclass(tmp_path):
+    f = tmp_path / "s.toml"
+    f.write_text(
+        '[scenario]\nvehicle = "odin"\ncontroller = "vcm"\npolish = 7\nintegral = false\n'
+        "[sweep]\nnum_scenarios = 2\n"
+    )
+    spec, _ = load_config(f)
+    loop = spec.loop("vcm")
+    assert loop.polish == 7 and loop.integral is False
+    assert isinstance(loop, loops.loop_class("odin"))
+    f.write_text('[scenario]\nvehicle = "odin"\npolish = "many"\n[sweep]\nnum_scenarios = 2\n')
+    with pytest.raises(ConfigError, match=r"\[scenario\] polish: expected an integer"):
+        load_config(f)
+    f.write_text('[scenario]\nvehicle = "arm"\nedd = "paper"\n[sweep]\nnum_scenarios = 2\n')
+    with pytest.raises(ConfigError, match=r"\[scenario\] edd: not an option of the arm loop"):
+        load_config(f)
+    f.write_text('[scenario]\nvehicle = "arm"\nfoo = 1\n[sweep]\nnum_scenarios = 2\n')
+    with pytest.raises(ConfigError, match=r"unknown key \[scenario\] 'foo'"):
+        load_config(f)
+
+
+def test_sweep_refuses_smooth_plant(tmp_path):
+    f = tmp_path / "s.toml"
+    f.write_text("[simulation]\nsmooth = true\n[sweep]\nnum_scenarios = 2\n")
+    with pytest.raises(ConfigError, match=r"s.toml: \[simulation\] smooth: a sweep simulates"):
+        load_config(f)
+    f.write_text("[simulation]\nsmooth = false\nu_d = [1.0, 1.2]\n[sweep]\nnum_scenarios = 2\n")
+    spec, _ = load_config(f)
+    assert spec.scenario.u_d == (1.0, 1.2)
+
+
+def test_reference_markdown_has_one_row_per_key():
+    md = config.reference_markdown()
+    for name, sec in config.schema().items():
+        assert f"### [{name}]" in md
+        rows = [ln for ln in md.split(f"### [{name}]")[1].split("###")[0].splitlines()]
+        assert len([r for r in rows if r.startswith("| ") and not r.startswith("| key")]) == len(
+            sec["keys"]
+        )
+    assert "| horizon | float | None | s |" in md and "[problem] horizon" in md
+
+
+def test_tune_simulation_u_d_reaches_the_scenarios():
+    from tuning.cli import build
+
+    base = {"problem": {"horizon": 1.0, "dt": 0.5}, "train": {"size": 3}, "heldout": {"size": 2}}
+    train = build(validate_config({**base, "simulation": {"u_d": 1.25}}))[3]
+    np.testing.assert_array_equal(np.asarray(train.u_d), 1.25)
+    default = build(validate_config(base))[3]
+    assert not np.any(np.asarray(default.u_d) == 1.25)

@@ -1,0 +1,77 @@
+"""One configuration system for ``vcjax sweep``, ``vcjax tune`` and ``vcjax fit``.
+
+* :mod:`vcjax.config.values` -- :class:`ConfigError` (the one error class of every command; its
+  message names the file, the section and the key), :func:`read_toml` and one checker per value.
+* :mod:`vcjax.config.schema` -- the shared sections as typed, frozen objects, each key with its
+  type, default, unit, description and older spellings: ``[simulation]`` (horizon, dt,
+  integrator, timing, u_d, smooth), ``[current]``, ``[initial]``, ``[model_error]``,
+  ``[sensor_noise]``, ``[disturbance]``; :func:`schema` returns them for a reference table and
+  :data:`DEFAULT_SCENARIO` is the scenario of a config without ``[scenario]`` (Simulation 1);
+  :func:`reference_markdown` renders the reference tables.
+* :mod:`vcjax.config.scenario` -- ``[scenario]`` (:class:`ScenarioChoice`: vehicle,
+  controller, path, parameter files, a module of your own loops, and any static option of the
+  loop class read from its dataclass fields).
+
+Older spellings stay accepted: in tune configs ``[problem] horizon/dt/integrator/timing/smooth``
+(= ``[simulation]``), ``[problem] variant`` (= ``[scenario] controller``), ``[scenarios]
+current_max`` (= ``[current] speed = [0, m]`` in every direction), ``[scenarios]
+position_offset/heading_offset_deg`` (ranges of ``[initial]`` about the default start); in sweep
+configs ``[sweep] variants`` (several controllers on the same scenarios) and ``[simulation]
+edd`` (= ``[scenario] edd``). A key given under both spellings is refused.
+
+Layering: this package sits just above :mod:`vcjax.loops` (``[scenario]`` reads the loop
+registry and the loop classes' dataclass fields); ``values`` and ``schema`` import nothing of
+vcjax, and :mod:`vcjax.loops` never imports this package.
+"""
+
+from vcjax.config.schema import (
+    DEFAULT_SCENARIO,
+    SECTIONS,
+    Current,
+    Disturbance,
+    Initial,
+    ModelError,
+    SensorNoise,
+    Simulation,
+    parse_section,
+    reference_markdown,
+    schema,
+)
+from vcjax.config.values import (
+    ConfigError,
+    as_bool,
+    as_choice,
+    as_int,
+    as_number,
+    as_range,
+    as_str,
+    as_str_list,
+    check_schema,
+    read_toml,
+    resolve_file,
+)
+
+__all__ = [
+    "ConfigError",
+    "read_toml",
+    "check_schema",
+    "as_range",
+    "as_number",
+    "as_int",
+    "as_choice",
+    "as_bool",
+    "as_str",
+    "as_str_list",
+    "resolve_file",
+    "DEFAULT_SCENARIO",
+    "SECTIONS",
+    "Simulation",
+    "Current",
+    "Initial",
+    "ModelError",
+    "SensorNoise",
+    "Disturbance",
+    "parse_section",
+    "schema",
+    "reference_markdown",
+]

@@ -1,0 +1,273 @@
+"""The shared sections of ``vcjax sweep`` and ``vcjax tune`` configs, declared once.
+
+Every section is a frozen dataclass; each of its fields carries, in its ``metadata``, the key's
+``type`` (``"float"``, ``"int"``, ``"bool"``, ``"str"``, ``"range"`` = a number or ``[lo, hi]``
+sampled uniformly, ``"str_list"``, ``"range_list"``), ``unit``, ``doc`` (one line), ``choices``,
+bounds and the older spellings still accepted (``aliases``, as ``"[section] key"``). The field's
+default is the key's default. :func:`schema` lists them for a reference table;
+:func:`parse_section` turns one TOML table into a section object (eager checks, errors name the
+file, section and key).
+
+The ``[scenario]`` section (what is simulated) is :class:`vcjax.config.scenario.ScenarioChoice`:
+its loop options are read from the loop class's dataclass fields, so it lives beside the loop
+registry. The scenario of a config without ``[scenario]`` is :data:`DEFAULT_SCENARIO`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from vcjax.config.values import (
+    ConfigError,
+    as_bool,
+    as_choice,
+    as_int,
+    as_number,
+    as_range,
+    as_str,
+    as_str_list,
+)
+
+__all__ = [
+    "DEFAULT_SCENARIO",
+    "Simulation",
+    "Current",
+    "Initial",
+    "ModelError",
+    "SensorNoise",
+    "Disturbance",
+    "SECTIONS",
+    "schema",
+    "reference_markdown",
+    "parse_section",
+]
+
+#: the scenario of a config without ``[scenario]``: Simulation 1 of the paper (the
+#: INFANTE-class craft on the line ``[10, w]``, its default controller)
+DEFAULT_SCENARIO: dict[str, Any] = {"vehicle": "infante", "controller": None, "path": None}
+
+
+def key(default, type_: str, unit: str = "", doc: str = "", **meta):
+    """A section field with its metadata (``choices``, ``lo``/``lo_open``/``hi``/``hi_open``,
+    ``aliases``)."""
+    return dataclasses.field(
+        default=default, metadata={"type": type_, "unit": unit, "doc": doc, **meta}
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class Simulation:
+    """``[simulation]``: how one rollout is integrated.
+
+    ``horizon`` and ``dt`` default per command (``None`` here): ``vcjax sweep`` 60 s / 0.05 s,
+    ``vcjax tune`` 80 s / 0.1 s. ``smooth`` (tanh actuator saturation, gradients pass) is what
+    ``vcjax tune`` trains with; a sweep always simulates the hard-clipped plant. Tune configs
+    may still write these keys under ``[problem]``.
+    """
+
+    horizon: float | None = key(
+        None, "float", "s", "simulated time", lo=0.0, lo_open=True, aliases=("[problem] horizon",)
+    )
+    dt: float | None = key(
+        None, "float", "s", "integration step", lo=0.0, lo_open=True, aliases=("[problem] dt",)
+    )
+    integrator: str = key(
+        "rk4",
+        "str",
+        "",
+        "fixed-step integrator",
+        choices=("euler", "heun", "rk4"),
+        aliases=("[problem] integrator",),
+    )
+    timing: str = key(
+        "continuous",
+        "str",
+        "",
+        "controller evaluated inside every stage, or sampled once per step (zero-order hold)",
+        choices=("continuous", "sampled"),
+        aliases=("[problem] timing",),
+    )
+    u_d: tuple[float, float] | None = key(
+        None, "range", "m/s", "desired speed (default: the loop's)", positive=True
+    )
+    smooth: bool = key(
+        True, "bool", "", "smooth (tanh) saturation while training", aliases=("[problem] smooth",)
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class Current:
+    """``[current]``: the ocean current of every scenario (NED; the direction is the one the
+    water flows towards, clockwise from north).
+
+    ``model = "gauss_markov"`` lets the speed wander around the sampled one (``sigma``, ``tau``,
+    clipped to ``[0, max_speed]``). In tune configs ``[scenarios] current_max = m`` is the older
+    spelling of ``speed = [0, m]``, ``direction_deg = [0, 360]``.
+    """
+
+    model: str = key("constant", "str", "", "current model", choices=("constant", "gauss_markov"))
+    speed: tuple[float, float] = key(
+        (0.5, 0.5),
+        "range",
+        "m/s",
+        "mean current speed",
+        lo=0.0,
+        aliases=("[scenarios] current_max",),
+    )
+    direction_deg: tuple[float, float] = key(
+        (90.0, 90.0), "range", "deg", "direction the water flows towards"
+    )
+    sigma: float = key(0.05, "float", "m/s", "Gauss-Markov speed standard deviation", lo=0.0)
+    tau: float = key(300.0, "float", "s", "Gauss-Markov time constant", lo=0.0, lo_open=True)
+    max_speed: float = key(2.0, "float", "m/s", "Gauss-Markov speed bound", lo=0.0, lo_open=True)
+
+
+@dataclasses.dataclass(frozen=True)
+class Initial:
+    """``[initial]``: ranges of the vehicle's initial keys (``loop.initial_keys``, e.g. ``x``,
+    ``y``, ``heading_deg``; missing keys: the loop's defaults). The keys depend on the vehicle.
+    In tune configs ``[scenarios] position_offset`` (m, on ``x`` and ``y``) and
+    ``heading_offset_deg`` (deg, on ``heading_deg``) are the older spellings of ranges about the
+    default start; keys given here override them."""
+
+    values: tuple[tuple[str, tuple[float, float]], ...] = key(
+        (),
+        "range",
+        "m, deg",
+        "one range per initial key of the vehicle",
+        open_keys="the vehicle's initial keys",
+        aliases=("[scenarios] position_offset", "[scenarios] heading_offset_deg"),
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelError:
+    """``[model_error]``: plant-only multiplicative parameter errors, each field scaled by
+    ``1 + relative * U(-1, 1)`` (the controller keeps the nominal model)."""
+
+    relative: float = key(0.0, "float", "", "relative error bound", lo=0.0, hi=1.0, hi_open=True)
+    fields: tuple[str, ...] | None = key(
+        None, "str_list", "", "the vehicle's parameter names (default: its default set)"
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class SensorNoise:
+    """``[sensor_noise]``: standard deviation of the Gaussian noise added to what the
+    controller measures, per channel of the vehicle (``loop.noise_channels``; ``*_deg``
+    channels in degrees or deg/s). Sweeps only."""
+
+    values: tuple[tuple[str, float], ...] = key(
+        (),
+        "float",
+        "SI, deg",
+        "one standard deviation per noise channel",
+        lo=0.0,
+        open_keys="the vehicle's noise channels",
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class Disturbance:
+    """``[disturbance]``: a constant generalised force on the plant, one range per component
+    (N, N m; empty: none)."""
+
+    force: tuple[tuple[float, float], ...] = key(
+        (), "range_list", "N, N m", "one range per generalised force component"
+    )
+
+
+#: TOML section name -> section class (``[scenario]``: :mod:`vcjax.config.scenario`)
+SECTIONS: dict[str, type] = {
+    "simulation": Simulation,
+    "current": Current,
+    "initial": Initial,
+    "model_error": ModelError,
+    "sensor_noise": SensorNoise,
+    "disturbance": Disturbance,
+}
+
+
+def schema() -> dict[str, dict]:
+    """Every shared section: ``{name: {"doc": str, "keys": {key: {"type", "default", "unit",
+    "doc", ...}}}}`` (``[scenario]`` included), for a reference table."""
+    from vcjax.config.scenario import ScenarioChoice
+
+    out = {}
+    for name, cls in {"scenario": ScenarioChoice, **SECTIONS}.items():
+        keys = {}
+        for f in dataclasses.fields(cls):
+            if "type" not in f.metadata:
+                continue
+            keys[f.name] = {"default": f.default, **dict(f.metadata)}
+        out[name] = {"doc": (cls.__doc__ or "").strip(), "keys": keys}
+    return out
+
+
+def reference_markdown() -> str:
+    """The shared sections as Markdown: per section its docstring and a table of its keys
+    (type, default, unit, description, older spellings), rendered from :func:`schema`."""
+    out = []
+    for name, sec in schema().items():
+        out += [f"### [{name}]", "", " ".join(sec["doc"].split()), ""]
+        out += ["| key | type | default | unit | description | older spellings |"]
+        out += ["|---|---|---|---|---|---|"]
+        for key, m in sec["keys"].items():
+            key = f"*{m['open_keys']}*" if "open_keys" in m else key
+            choices = f" (one of {', '.join(m['choices'])})" if m.get("choices") else ""
+            out.append(
+                f"| {key} | {m['type']} | {m['default']!r} | {m['unit']} | {m['doc']}{choices} "
+                f"| {', '.join(m.get('aliases', ()))} |"
+            )
+        out.append("")
+    return "\n".join(out)
+
+
+def check_value(name: str, v, meta) -> Any:
+    """``v`` checked against a field's metadata (``ConfigError`` naming ``name``)."""
+    t = meta["type"]
+    bounds = {k: meta[k] for k in ("lo", "lo_open", "hi", "hi_open") if k in meta}
+    if t == "float":
+        return as_number(name, v, **bounds)
+    if t == "int":
+        return as_int(name, v, meta.get("lo", 0))
+    if t == "bool":
+        return as_bool(name, v)
+    if t == "str":
+        v = as_str(name, v)
+        return as_choice(name, v, meta["choices"]) if meta.get("choices") else v
+    if t == "range":
+        return as_range(name, v, lo_min=meta.get("lo"), positive=meta.get("positive", False))
+    if t == "str_list":
+        return as_str_list(name, v)
+    if t == "range_list":
+        if not isinstance(v, list | tuple):
+            raise ConfigError(f"{name}: expected a list, got {v!r}")
+        return tuple(as_range(name, r) for r in v)
+    raise AssertionError(t)  # pragma: no cover
+
+
+def parse_section(cls: type, table: dict | None, section: str, where: str = ""):
+    """The section object of one TOML table (missing keys: defaults).
+
+    Sections with an open key set (``[initial]``, ``[sensor_noise]``) take any key; the
+    vehicle checks those names. Errors read ``"WHERE: [section] key: ..."``.
+    """
+    table = {} if table is None else table
+    pre = f"{where}: " if where else ""
+    if not isinstance(table, dict):
+        raise ConfigError(f"{pre}[{section}] must be a table, got {table!r}")
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    if len(fields) == 1 and "open_keys" in next(iter(fields.values())).metadata:
+        (f,) = fields.values()
+        vals = tuple(
+            (k, check_value(f"{pre}[{section}] {k}", v, f.metadata)) for k, v in table.items()
+        )
+        return cls(**{f.name: vals})
+    kw = {}
+    for k, v in table.items():
+        if k not in fields:
+            raise ConfigError(f"{pre}unknown key [{section}] {k!r}; expected one of {list(fields)}")
+        kw[k] = check_value(f"{pre}[{section}] {k}", v, fields[k].metadata)
+    return cls(**kw)

@@ -1,0 +1,45 @@
+"""Figures (Matplotlib, Agg backend: files, never windows): public helpers and one module per
+experiment and one for sweeps.
+
+* :func:`pyplot` -- ``matplotlib.pyplot`` with the Agg backend selected;
+* :func:`save` -- lay a figure out, write it (PNG, 120 dpi), close it; returns the path;
+* :mod:`vcjax.plots.sim1`, :mod:`vcjax.plots.sim2`, :mod:`vcjax.plots.remus100`,
+  :mod:`vcjax.plots.arm` -- the figures of each experiment (:mod:`vcjax.experiments`);
+* :mod:`vcjax.plots.sweep` -- the figures of a Monte-Carlo sweep (the CLI draws them from the
+  result :func:`vcjax.sweep.run_sweep_config` returns).
+
+Layering: figures sit above loops, sweep and tuning; they read results (trajectories, sweep
+results) and never run a simulation. Only experiments, the CLI and the tuning/fit reports import
+them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["pyplot", "save", "STYLE"]
+
+
+def pyplot():
+    """``matplotlib.pyplot`` with the non-interactive Agg backend."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save(fig, path) -> Path:
+    """Lay ``fig`` out, write it to ``path`` (120 dpi; atomically: a temporary file renamed, so
+    an interrupted run never leaves half a PNG) and close it; returns ``Path(path)``."""
+    from vcjax.outputs import savefig_atomic
+
+    path = Path(path)
+    fig.tight_layout()
+    savefig_atomic(fig, path, dpi=120)
+    pyplot().close(fig)
+    return path
+
+
+from vcjax.plots.sim1 import STYLE  # noqa: E402  (Simulation 1's styles, used by sweeps too)
