@@ -44,7 +44,12 @@ def test_registry_declares_every_experiment_and_its_options():
         mod = e.load()
         assert callable(mod.run_experiment) and callable(mod.load_gains)
         assert e.horizon > 0 and e.dt > 0
-    assert dict(experiments.get("sim1").options) == {"edd": "paper", "timing": "continuous"}
+    assert dict(experiments.get("sim1").options) == {
+        "edd": "paper",
+        "timing": "continuous",
+        "diverge_e": None,
+    }
+    assert "diverge_e" not in dict(experiments.get("remus100").options)
     assert experiments.get("sim2").current is None
     with pytest.raises(ValueError, match="expected one of"):
         experiments.get("sim3")
