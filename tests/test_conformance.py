@@ -22,7 +22,7 @@ import_module_file(ROOT / "examples" / "loops" / "puck.py")  # a user's loop, re
 
 BUILTIN = ("infante", "odin", "remus100", "arm")
 CASES = [(v, c) for v in (*BUILTIN, "puck") for c in loops.controllers(v)]
-STEPS = 4
+STEPS = 3
 DT = 0.05
 
 
@@ -113,27 +113,54 @@ def _case(vehicle, controller):
 
 
 @pytest.mark.parametrize("vehicle, controller", CASES)
-def test_one_step_signals_and_gradient(vehicle, controller):
-    loop, sc, v0, run = _case(vehicle, controller)
-    # one control step and one plant evaluation at t = 0: finite
+def test_one_step_is_finite_and_its_gradient_matches_finite_differences(vehicle, controller):
+    """One control step and one plant evaluation at t = 0 (uncompiled: no scan to compile):
+    finite, the law's state rate shaped like its state, and the derivative of the step's
+    output in the first tuned gain equal to central finite differences."""
+    loop = _loop(vehicle, controller)
+    g = loop.default_gains()
+    cur = (0.1, -0.2, 0.0) if loop.takes_current else (0.0, 0.0, 0.0)
+    sc = loops.make_scenario(loop, current=cur, initial=_offset(loop))
+    spec = loop.gain_specs()[0]
+    v0 = spec.get(g)
     x0, z0 = loop.initial_state(sc)
-    ctrl = loop.ctrl_params(loop.default_gains(), sc)
-    u, z_dot, _ = loop.control(0.0, x0, z0, ctrl)
-    x_dot = loop.plant(0.0, x0, u, loop.plant_args(sc, sc.current, jnp.zeros(3)))
+    args = loop.plant_args(sc, sc.current, jnp.zeros(3))
+
+    def step(a):
+        ctrl = loop.ctrl_params(spec.set(g, v0.at[0].add(a)), sc)
+        u, z_dot, _ = loop.control(0.0, x0, z0, ctrl)
+        x_dot = loop.plant(0.0, x0, u, args)
+        loss = sum(jnp.sum(jnp.asarray(v) ** 2) for v in _leaves((u, x_dot)))
+        return loss, (u, z_dot, x_dot)
+
+    (val, (u, z_dot, x_dot)), d = jax.value_and_grad(step, has_aux=True)(jnp.asarray(0.0))
     assert all(np.all(np.isfinite(a)) for a in _leaves((u, z_dot, x_dot)))
     assert jax.tree_util.tree_structure(z_dot) == jax.tree_util.tree_structure(z0)
+    h = 1e-6 * max(1.0, abs(float(v0[0])))
+    fd = (float(step(jnp.asarray(h))[0]) - float(step(jnp.asarray(-h))[0])) / (2 * h)
+    assert np.isfinite(float(d))
+    np.testing.assert_allclose(float(d), fd, rtol=1e-5, atol=1e-9 * max(1.0, float(val)))
 
+
+def _offset(loop):
+    """A start off the path (so that the path-error gains act from the first step)."""
+    keys = loop.initial_keys
+    return {"y": keys["y"] + 2.0} if "y" in keys else {}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("vehicle, controller", CASES)
+def test_short_run_signals_and_gradient(vehicle, controller):
+    """A run of a few steps: finite, signals of the documented shapes, and the reverse-mode
+    gradient of a loss of its signals in the first tuned gain equal to central finite
+    differences (compiles each loop's scan once: minutes for all of them)."""
+    loop, sc, v0, run = _case(vehicle, controller)
     h = 1e-5 * max(1.0, abs(float(v0[0])))
-    grad = jax.grad(lambda a: run(a)[0])
 
-    @jax.jit
-    def everything(offsets):
-        vals, (traj, sig) = jax.vmap(run)(offsets)
-        return vals, traj, sig, grad(offsets[0])
-
-    vals, traj, sig, g0 = everything(jnp.asarray([0.0, h, -h]))
-    take = lambda t: jax.tree_util.tree_map(lambda a: a[0], t)
-    traj, sig = take(traj), take(sig)
+    # one compiled function (reverse mode) evaluated at a = 0, +h, -h
+    value_and_grad = jax.jit(jax.value_and_grad(run, has_aux=True))
+    (v_0, (traj, sig)), g0 = value_and_grad(jnp.asarray(0.0))
+    vals = [v_0] + [value_and_grad(jnp.asarray(a))[0][0] for a in (h, -h)]
     assert all(np.all(np.isfinite(a)) for a in _leaves(traj)), "a run of a few steps is finite"
     n = STEPS
     shapes = {
