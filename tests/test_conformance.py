@@ -130,7 +130,7 @@ def test_one_step_is_finite_and_its_gradient_matches_finite_differences(vehicle,
         ctrl = loop.ctrl_params(spec.set(g, v0.at[0].add(a)), sc)
         u, z_dot, _ = loop.control(0.0, x0, z0, ctrl)
         x_dot = loop.plant(0.0, x0, u, args)
-        loss = sum(jnp.sum(jnp.asarray(v) ** 2) for v in _leaves((u, x_dot)))
+        loss = sum(jnp.sum(v**2) for v in jax.tree_util.tree_leaves((u, x_dot)))
         return loss, (u, z_dot, x_dot)
 
     (val, (u, z_dot, x_dot)), d = jax.value_and_grad(step, has_aux=True)(jnp.asarray(0.0))
