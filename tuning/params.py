@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops, paths
-from vcjax.loops.infante import InfanteLoop, rh_bound
+from vcjax.loops.pm import rh_bound
 
 __all__ = ["FRAC_MAX", "GainSpace", "rh_bound", "default_loop"]
 
@@ -34,9 +34,9 @@ FRAC_MAX = 0.95
 _FRAC_CLIP = 1e-6  # bounded gains of exactly 0 are encoded as this fraction of FRAC_MAX
 
 
-def default_loop() -> InfanteLoop:
+def default_loop() -> loops.Loop:
     """Simulation 1's loop with ``vcm_integral`` (what tuning meant before any ``[scenario]``)."""
-    return InfanteLoop(controller="vcm_integral", path=paths.LINE)
+    return loops.make_loop("infante", "vcm_integral", path=paths.LINE)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 
 __all__ = [
+    "Rzyx",
     "rot2",
     "matvec",
     "skew2",
@@ -39,6 +40,24 @@ def rot2(a):
     """Planar rotation ``R(a) = [[cos a, -sin a], [sin a, cos a]]``, shape (2, 2)."""
     c, s = jnp.cos(a), jnp.sin(a)
     return jnp.stack([jnp.stack([c, -s]), jnp.stack([s, c])])
+
+
+def Rzyx(phi, theta, psi):
+    """(3, 3) body-to-NED rotation ``R = Rz(psi) Ry(theta) Rx(phi)`` (zyx Euler angles [rad])."""
+    cphi, sphi = jnp.cos(phi), jnp.sin(phi)
+    cth, sth = jnp.cos(theta), jnp.sin(theta)
+    cpsi, spsi = jnp.cos(psi), jnp.sin(psi)
+    return jnp.stack(
+        [
+            jnp.stack(
+                [cpsi * cth, -spsi * cphi + cpsi * sth * sphi, spsi * sphi + cpsi * cphi * sth]
+            ),
+            jnp.stack(
+                [spsi * cth, cpsi * cphi + sphi * sth * spsi, -cpsi * sphi + sth * spsi * cphi]
+            ),
+            jnp.stack([-sth, cth * sphi, cth * cphi]),
+        ]
+    )
 
 
 def matvec(A, x):

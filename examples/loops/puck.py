@@ -1,6 +1,8 @@
 """A loop of your own: an air-hockey puck (a planar point mass, m q'' + b q' = f + d) whose
 centre the generic engine holds on a path, with force limits. Registered as vehicle "puck";
-configs load it with [scenario] module = "../loops/puck.py" (relative to the config file)."""
+configs load it with [scenario] module = "../loops/puck.py" (relative to the config file).
+The water's current acts through the drag: EngineLoop's plant passes the velocity relative to the
+water to bias_force (see vcjax.loops.engine)."""
 
 import dataclasses
 from typing import Any, ClassVar, NamedTuple

@@ -52,8 +52,7 @@ import jax.numpy as jnp
 from vcjax._checks import check_positive
 from vcjax.control.vcm import VCMConfig, VCMState, vcm_law
 from vcjax.control.vcm3d import path_errors_3d
-from vcjax.linalg import wrap_angle
-from vcjax.vehicles.sixdof import Rzyx
+from vcjax.linalg import Rzyx, wrap_angle
 
 __all__ = [
     "AutopilotGains",

@@ -64,7 +64,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax._checks import check_array, check_positive
-from vcjax.linalg import safe_norm, solve_small, wrap_angle
+from vcjax.linalg import Rzyx, safe_norm, solve_small, wrap_angle
 from vcjax.mechanics import (
     MechanicalSystem,
     Underactuation,
@@ -74,7 +74,6 @@ from vcjax.mechanics import (
     underactuated_reaction_force,
 )
 from vcjax.paths import path_frame
-from vcjax.vehicles.sixdof import Rzyx
 
 __all__ = [
     "VCM3DGains",

@@ -67,6 +67,9 @@ class ArmLoop(EngineLoop):
     }
     noise_channels: ClassVar[dict[str, int]] = {"angle_std_deg": 2, "rate_std_deg": 2}
     default_speed: ClassVar[float] = 0.3
+    #: an arm in air: no water current
+    takes_current: ClassVar[bool] = False
+    takes_time_varying_current: ClassVar[bool] = False
 
     @classmethod
     def default_path(cls):

@@ -26,6 +26,17 @@ A subclass supplies the mechanics and the point that follows the path::
 
 (plus ``initial_keys`` / ``initial_from``); ``tests/test_loops.py`` does exactly this for a point
 mass, and :mod:`vcjax.loops.arm` for the two-link arm.
+
+**Currents.** The plant's bias force sees the velocity relative to the water,
+``n(q, qd - qd_c, p)``, where ``qd_c`` (:meth:`EngineLoop.water_velocity`) is the generalised
+velocity at which the point would move with the water: by default the solution of
+``J(q) qd_c = V_c`` with ``J = dp/dq`` (the point's Jacobian; least squares when not square)
+and ``V_c`` the current's first 2 or 3 NED components — right for a body whose drag is written on
+its velocity over ground (a puck, a craft in its own coordinates). The current's acceleration
+(added-mass force) is not modelled; a time-varying (Gauss–Markov) current is taken the same way.
+A system without water (:mod:`vcjax.loops.arm`) sets ``takes_current = False`` and
+``takes_time_varying_current = False``: configs asking for a current are then refused
+(:func:`vcjax.loops.check_disturbances`) and the plant ignores ``Scenario.current``.
 """
 
 from __future__ import annotations
@@ -40,10 +51,13 @@ import jax.numpy as jnp
 from vcjax import paths
 from vcjax._checks import check_positive
 from vcjax.linalg import rot2, saturate, smooth_saturate, spd_solve_small
-from vcjax.loops.base import GainSpec, Loop, Scenario, Signals
+from vcjax.loops.law import Law
+from vcjax.loops.loop import Loop
+from vcjax.loops.params import gain_spec
+from vcjax.loops.types import Scenario, Signals
 from vcjax.mechanics import MechanicalSystem, VCMGains, VirtualConstraints, reaction_force
 
-__all__ = ["EngineGains", "engine_gains", "EngineAux", "EngineLoop"]
+__all__ = ["EngineGains", "engine_gains", "EngineAux", "EngineArgs", "EngineLaw", "EngineLoop"]
 
 
 class EngineGains(NamedTuple):
@@ -92,13 +106,76 @@ class _Args(NamedTuple):
     sigma: Any
 
 
+class EngineArgs(NamedTuple):
+    """The plant's traced arguments: parameters, constant disturbance (n,), current (3,) NED."""
+
+    params: Any
+    disturbance: Any
+    current: Any
+
+
+@dataclasses.dataclass(frozen=True)
+class EngineLaw(Law):
+    """The generic engine's law: the reaction force (16) of the virtual constraints (module
+    docstring) on the loop's design mechanics; gains :class:`EngineGains`.
+
+    ``params(loop, gains, sc)``; ``step(loop, params, t, (q, qd), z) -> (tau, z_dot, aux)``.
+    """
+
+    def default_gains(self, loop) -> EngineGains:
+        return engine_gains()
+
+    def gain_specs(self, loop):
+        return (gain_spec("P_G", size=2), gain_spec("P_Phi", size=2), gain_spec("sigma"))
+
+    def symmetric_pairs(self, loop):
+        return (("P_G", 0, "P_Phi", 0), ("P_G", 1, "P_Phi", 1))
+
+    def validate_gains(self, gains):
+        return engine_gains(gains.P_G, gains.P_Phi, gains.sigma)
+
+    def params(self, loop, gains, sc):
+        return gains, _Args(sc.design, sc.path, sc.u_d, gains.sigma)
+
+    def initial_state(self, loop, sc):
+        return jnp.atleast_1d(sc.varpi0)
+
+    def particle(self, z):
+        return z[..., 0]
+
+    def heading_error(self, aux):
+        return jnp.zeros_like(aux.speed_err)
+
+    def step(self, loop, params, t, x, z):
+        gains, args = params
+        q, qd = x
+        vg = VCMGains(P_G=gains.P_G, P_Phi=gains.P_Phi)
+        cons = loop._constraints
+        tau, _, diag = reaction_force(loop._system, cons, vg, q, qd, t, None, args, z=z)
+        z_dot = cons.state_rate(q, t, z, args)
+        eps, frame = loop._eps(q, args, z[0])
+        v = jax.jvp(lambda q_: loop.position(q_, args.params)[:2], (q,), (qd,))[1]
+        tangent = jnp.stack([jnp.cos(frame.psi_p), jnp.sin(frame.psi_p)])
+        aux = EngineAux(
+            eps=eps,
+            speed_err=tangent @ v - args.u_d,
+            Phi=diag.Phi,
+            residual=diag.residual,
+            rank=diag.rank,
+            tau=tau,
+        )
+        return tau, z_dot, aux
+
+
 @dataclasses.dataclass(frozen=True)
 class EngineLoop(Loop):
     """A mechanical system held on a path by the generic engine (module docstring)."""
 
-    controllers: ClassVar[tuple[str, ...]] = ("vcm",)
+    laws: ClassVar[dict[str, Law]] = {"vcm": EngineLaw()}
     default_controller: ClassVar[str] = "vcm"
     takes_disturbance: ClassVar[bool] = True
+    takes_current: ClassVar[bool] = True
+    takes_time_varying_current: ClassVar[bool] = True
 
     # ---------------------------------------------------------------- what a subclass gives
     def mass_matrix(self, q, p):
@@ -109,6 +186,15 @@ class EngineLoop(Loop):
 
     def point(self, q, p):
         raise NotImplementedError
+
+    def water_velocity(self, q, current, p):
+        """(n,) generalised velocity of the water at ``q``: ``J(q) qd_c = V_c`` (module
+        docstring), ``current`` (3,) NED [m/s]. Override for another model of the current."""
+        d = jnp.shape(self.point(q, p))[0]
+        J = jax.jacfwd(lambda q_: jnp.asarray(self.point(q_, p)))(q)
+        if J.shape[0] == J.shape[1]:
+            return jnp.linalg.solve(J, current[:d])
+        return jnp.linalg.pinv(J) @ current[:d]
 
     # ---------------------------------------------------------------- engine pieces
     def position(self, eta, params):
@@ -136,64 +222,30 @@ class EngineLoop(Loop):
             holonomic=lambda q, t, a, z: self._eps(q, a, z[0])[0], state_rate=rate
         )
 
-    def default_gains(self) -> EngineGains:
-        return engine_gains()
-
-    def gain_specs(self):
-        def spec(name, size):
-            return GainSpec(
-                name,
-                size,
-                lambda g: jnp.atleast_1d(getattr(g, name)),
-                lambda g, v: g._replace(**{name: v if size > 1 else v[0]}),
-            )
-
-        return (spec("P_G", 2), spec("P_Phi", 2), spec("sigma", 1))
-
-    def symmetric_pairs(self):
-        return (("P_G", 0, "P_Phi", 0), ("P_G", 1, "P_Phi", 1))
-
-    def gains_from_json(self, d: dict, base=None):
-        g = super().gains_from_json(d, base)
-        return engine_gains(*(jnp.asarray(v).tolist() for v in g))
-
     # ---------------------------------------------------------------- the loop
-    def plant(self, t, x, u, args):
-        p, dist = args
+    def plant(self, t, x, u, args: EngineArgs):
+        p = args.params
         q, qd = x
         sat = smooth_saturate if self.smooth else saturate
-        tau = sat(u, p.tau_max) + dist
-        qdd = spd_solve_small(self.mass_matrix(q, p), tau - self.bias_force(q, qd, p))
+        tau = sat(u, p.tau_max) + args.disturbance
+        qd_r = qd - self.water_velocity(q, args.current, p) if self.takes_current else qd
+        qdd = spd_solve_small(self.mass_matrix(q, p), tau - self.bias_force(q, qd_r, p))
         return qd, qdd
 
     def control(self, t, x, z, ctrl):
-        gains, args = ctrl
-        q, qd = x
-        vg = VCMGains(P_G=gains.P_G, P_Phi=gains.P_Phi)
-        cons = self._constraints
-        tau, _, diag = reaction_force(self._system, cons, vg, q, qd, t, None, args, z=z)
-        z_dot = self._constraints.state_rate(q, t, z, args)
-        eps, frame = self._eps(q, args, z[0])
-        v = jax.jvp(lambda q_: self.position(q_, args.params)[:2], (q,), (qd,))[1]
-        tangent = jnp.stack([jnp.cos(frame.psi_p), jnp.sin(frame.psi_p)])
-        aux = EngineAux(
-            eps=eps,
-            speed_err=tangent @ v - args.u_d,
-            Phi=diag.Phi,
-            residual=diag.residual,
-            rank=diag.rank,
-            tau=tau,
-        )
-        return tau, z_dot, aux
+        return self.law.step(self, ctrl, t, x, z)
 
     def plant_args(self, sc: Scenario, current, current_dot):
-        return (sc.plant, sc.disturbance)
+        return EngineArgs(sc.plant, sc.disturbance, current)
+
+    def with_current(self, args, current, current_dot):
+        return args._replace(current=current)
 
     def ctrl_params(self, gains, sc: Scenario):
-        return gains, _Args(sc.design, sc.path, sc.u_d, gains.sigma)
+        return self.law.params(self, gains, sc)
 
     def initial_state(self, sc: Scenario):
-        return (sc.eta0, sc.nu0), jnp.atleast_1d(sc.varpi0)
+        return (sc.eta0, sc.nu0), self.law.initial_state(self, sc)
 
     def signals(self, traj, sc: Scenario) -> Signals:
         """True errors: the point of the *plant* (its parameters may differ from the design's)."""
@@ -207,7 +259,7 @@ class EngineLoop(Loop):
             tangent = jnp.stack([jnp.cos(frame.psi_p), jnp.sin(frame.psi_p)])
             return eps, pos, pos - frame.p, tangent @ v[:2] - sc.u_d
 
-        eps, pos, p_err, speed_err = jax.vmap(one)(q, qd, traj.z[:n, 0])
+        eps, pos, p_err, speed_err = jax.vmap(one)(q, qd, self.law.particle(traj.z[:n]))
         tau_max = sc.plant.tau_max
         return Signals(
             eps=eps,

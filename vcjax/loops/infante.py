@@ -1,24 +1,35 @@
 """INFANTE-class loops: the VCM law (and its integral / integral-LOS variants) and the LOS-PID /
-ILOS baselines on the underactuated INFANTE-class plant (Simulation 1's loop, any path kind).
+ILOS / ALOS baselines on the underactuated INFANTE-class plant (Simulation 1's loop, any path kind).
 
 Every controller maps its ``[tau_u, tau_r]`` to thrust and rudder commands with the *design*
 vehicle's actuator model (:func:`vcjax.vehicles.infante.actuator_commands`), using the
 *measured* velocity over ground (the current is unknown to the controllers).
 
-Controllers: ``vcm`` (31)/(38); ``vcm_integral`` (+ integral action (41)); ``vcm_ilos``
-(``vcm_integral`` with the integral-LOS approach angle inside the VCM heading row); ``ilos``
-(40), ``los_pid`` (39) and ``alos`` (Fossen's adaptive LOS, 2023) with a heading PD.
+Controllers (the laws of :attr:`InfanteLoop.laws`): ``vcm`` (31)/(38); ``vcm_integral``
+(+ integral action (41)); ``vcm_ilos`` (``vcm_integral`` with the integral-LOS approach angle
+inside the VCM heading row); ``ilos`` (40), ``los_pid`` (39) and ``alos`` (Fossen's adaptive LOS,
+2023) with a heading PD.
+
+A law of this vehicle (:class:`~vcjax.loops.law.Law`) is called with
+
+* ``params(loop, gains, sc, model, k_rudder)`` — ``model``: the design model
+  (:func:`vcjax.vehicles.infante.design_model` of ``sc.design``), ``k_rudder``: the rudder's sway
+  force per unit yaw moment (:func:`rudder_ratio`);
+* ``step(loop, params, t, x, z) -> (tau, z_dot, aux)`` — ``x``: the measured
+  :class:`~vcjax.vehicles.infante.InfanteState` (pose ``x.eta = [x, y, psi]``, velocity over
+  ground ``x.nu = [u, v, r]``), ``tau``: (3,) ``[tau_u, tau_v, tau_r]`` (``tau_v`` is not
+  actuated: ignored), ``aux``: a per-step record with the heading error ``psi_tilde``
+  (or the law's :meth:`~vcjax.loops.law.Law.heading_error`);
+* ``initial_state(loop, sc)`` — a state whose particle is ``z.varpi`` (or
+  :meth:`~vcjax.loops.law.Law.particle`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
 from typing import Any, ClassVar, Literal, NamedTuple
 
-import jax
 import jax.numpy as jnp
-import numpy as np
 
 from vcjax import paths
 from vcjax.control.baselines import (
@@ -29,15 +40,20 @@ from vcjax.control.baselines import (
     baseline_state,
 )
 from vcjax.control.vcm import VCMConfig, check_edd, pm_gains, vcm_law, vcm_params, vcm_state
-from vcjax.linalg import rot2
-from vcjax.loops.base import GainSpec, Loop, Scenario, Signals
+from vcjax.loops.geometry import path_errors, path_frames
+from vcjax.loops.law import Law
+from vcjax.loops.loop import Loop
+from vcjax.loops.params import gain_spec
+from vcjax.loops.pm import PM_PAIRS, pm_gain_specs, rh_bound
+from vcjax.loops.types import Scenario, Signals
 from vcjax.vehicles import infante
 
 __all__ = [
     "InfanteGains",
     "infante_gains",
+    "InfanteVCMLaw",
+    "InfanteBaselineLaw",
     "InfanteLoop",
-    "VCM_CONTROLLERS",
     "rh_bound",
     "rudder_ratio",
     "pm_gain_specs",
@@ -45,16 +61,14 @@ __all__ = [
     "path_errors",
 ]
 
-VCM_CONTROLLERS = ("vcm", "vcm_integral", "vcm_ilos")
-BASELINE_CONTROLLERS = ("ilos", "los_pid", "alos")
-
 
 class InfanteGains(NamedTuple):
     """Gains of the INFANTE-class controllers (traced).
 
     Attributes:
         vcm: :class:`~vcjax.control.vcm.PMGains` of ``vcm``, ``vcm_integral``, ``vcm_ilos``.
-        baseline: :class:`~vcjax.control.baselines.BaselineGains` of ``ilos`` and ``los_pid``.
+        baseline: :class:`~vcjax.control.baselines.BaselineGains` of ``ilos``, ``los_pid``,
+            ``alos``.
     """
 
     vcm: Any
@@ -74,47 +88,85 @@ def infante_gains() -> InfanteGains:
     return InfanteGains(vcm=pm_gains(P_int=(0.05, 0.0)), baseline=baseline_gains())
 
 
-def rh_bound(P_G, P_Phi):
-    """(2,) Routh–Hurwitz bound ``(P_Geps + P_Phieps) P_Geps P_Phieps`` on ``P_int`` (41)."""
-    pg, pphi = P_G[1:], P_Phi[3:]
-    return (pg + pphi) * pg * pphi
+def _validate(gains: InfanteGains) -> InfanteGains:
+    """Both sections checked by their constructors (positivity, shapes)."""
+    return InfanteGains(
+        vcm=pm_gains(**gains.vcm._asdict()), baseline=baseline_gains(**gains.baseline._asdict())
+    )
 
 
-def _pm_specs(get, put) -> dict[str, GainSpec]:
-    """Gain groups of a :class:`~vcjax.control.vcm.PMGains` reached by ``get``/``put``."""
+@dataclasses.dataclass(frozen=True)
+class _InfanteLaw(Law):
+    """What every INFANTE law shares: the two-section gains and their checks."""
 
-    def spec(name, size, bound=None):
-        def g(gains):
-            return jnp.atleast_1d(getattr(get(gains), name))
+    def default_gains(self, loop) -> InfanteGains:
+        return infante_gains()
 
-        def s(gains, value):
-            v = value if size > 1 else value[0]
-            return put(gains, get(gains)._replace(**{name: v}))
-
-        return GainSpec(name, size, g, s, bound)
-
-    def int_bound(gains):
-        pm = get(gains)
-        return rh_bound(pm.P_G, pm.P_Phi)
-
-    return {
-        "P_G": spec("P_G", 3),
-        "P_Phi": spec("P_Phi", 5),
-        "Delta": spec("Delta", 1),
-        "sigma": spec("sigma", 1),
-        "P_int": spec("P_int", 2, int_bound),
-        "sigma_i": spec("sigma_i", 1),
-    }
+    def validate_gains(self, gains):
+        return _validate(gains)
 
 
-def pm_gain_specs(controller_integral: bool, ilos: bool, get, put) -> tuple[GainSpec, ...]:
-    """The tunable groups of a VCM law: ``P_int`` only with integral action, ``sigma_i`` only
-    with the integral-LOS approach angle."""
-    specs = _pm_specs(get, put)
-    names = ["P_G", "P_Phi", "Delta", "sigma"]
-    names += ["P_int"] if controller_integral else []
-    names += ["sigma_i"] if ilos else []
-    return tuple(specs[n] for n in names)
+@dataclasses.dataclass(frozen=True)
+class InfanteVCMLaw(_InfanteLaw):
+    """The planar VCM law (:func:`vcjax.control.vcm.vcm_law`), underactuated in sway.
+
+    Attributes:
+        integral: integral action (41) (gains ``P_int``).
+        guidance: ``"los"`` or ``"ilos"`` (the integral-LOS approach angle; gain ``sigma_i``).
+    """
+
+    integral: bool = False
+    guidance: Literal["los", "ilos"] = "los"
+
+    def gain_specs(self, loop):
+        return pm_gain_specs("vcm", self.integral, self.guidance == "ilos")
+
+    def symmetric_pairs(self, loop):
+        return PM_PAIRS
+
+    def params(self, loop, gains, sc, model, k_rudder):
+        return vcm_params(gains.vcm, model, sc.path, u_d=sc.u_d, k_rudder=k_rudder)
+
+    def initial_state(self, loop, sc):
+        return vcm_state(varpi0=sc.varpi0)
+
+    def step(self, loop, params, t, x, z):
+        cfg = VCMConfig(
+            path=loop.path,
+            actuation="underactuated",
+            edd=loop.edd,
+            integral=self.integral,
+            guidance=self.guidance,
+        )
+        return vcm_law(cfg, params, t, x.eta, x.nu, z)
+
+
+@dataclasses.dataclass(frozen=True)
+class InfanteBaselineLaw(_InfanteLaw):
+    """A LOS-family baseline with a heading PD (:func:`vcjax.control.baselines.baseline_law`).
+
+    Attributes:
+        kind: the baseline (``"ilos"``, ``"los_pid"``, ``"alos"``; :class:`BaselineConfig`).
+        extra: its own tunable gains besides the shared ``Delta, sigma, k_u, k_psi_p,
+            k_psi_d``.
+    """
+
+    kind: str = "los_pid"
+    extra: tuple[str, ...] = ("k_ep", "k_ed", "k_ei")
+
+    def gain_specs(self, loop):
+        names = ("Delta", "sigma", "k_u", "k_psi_p", "k_psi_d", *self.extra)
+        return tuple(gain_spec(n, f"baseline.{n}") for n in names)
+
+    def params(self, loop, gains, sc, model, k_rudder):
+        return baseline_params(gains.baseline, model, sc.path, u_d=sc.u_d, k_rudder=k_rudder)
+
+    def initial_state(self, loop, sc):
+        return baseline_state(varpi0=sc.varpi0)
+
+    def step(self, loop, params, t, x, z):
+        cfg = BaselineConfig(path=loop.path, kind=self.kind)
+        return baseline_law(cfg, params, t, x.eta, x.nu, z)
 
 
 #: Model-error fields of the INFANTE-class plant (every scalar of InfanteParams).
@@ -134,7 +186,14 @@ class InfanteLoop(Loop):
     vehicle: ClassVar[str] = "infante"
     #: the columns of ``Signals.cmd_ratio``
     actuator_names: ClassVar[tuple[str, ...]] = ("thrust", "rudder")
-    controllers: ClassVar[tuple[str, ...]] = VCM_CONTROLLERS + BASELINE_CONTROLLERS
+    laws: ClassVar[dict[str, Law]] = {
+        "vcm": InfanteVCMLaw(),
+        "vcm_integral": InfanteVCMLaw(integral=True),
+        "vcm_ilos": InfanteVCMLaw(integral=True, guidance="ilos"),
+        "ilos": InfanteBaselineLaw("ilos", ("sigma_i",)),
+        "los_pid": InfanteBaselineLaw("los_pid"),
+        "alos": InfanteBaselineLaw("alos", ("gamma",)),
+    }
     default_controller: ClassVar[str] = "vcm_integral"
     initial_keys: ClassVar[dict[str, float]] = {
         "x": 0.0,
@@ -150,6 +209,8 @@ class InfanteLoop(Loop):
     }
 
     default_speed: ClassVar[float] = 2.0
+    takes_current: ClassVar[bool] = True
+    takes_time_varying_current: ClassVar[bool] = True
 
     def __post_init__(self):
         super().__post_init__()
@@ -176,77 +237,6 @@ class InfanteLoop(Loop):
     def default_model_fields(self):
         return infante.INERTIA_FIELDS + infante.HYDRODYNAMIC_FIELDS
 
-    def default_gains(self) -> InfanteGains:
-        return infante_gains()
-
-    @property
-    def is_vcm(self) -> bool:
-        return self.controller in VCM_CONTROLLERS
-
-    def gain_specs(self):
-        if self.is_vcm:
-            return pm_gain_specs(
-                self.controller != "vcm",
-                self.controller == "vcm_ilos",
-                lambda g: g.vcm,
-                lambda g, v: g._replace(vcm=v),
-            )
-        names = ["Delta", "sigma", "k_u", "k_psi_p", "k_psi_d"]
-        names += {"ilos": ["sigma_i"], "alos": ["gamma"]}.get(
-            self.controller, ["k_ep", "k_ed", "k_ei"]
-        )
-
-        def spec(name):
-            return GainSpec(
-                name,
-                1,
-                lambda g: jnp.atleast_1d(getattr(g.baseline, name)),
-                lambda g, v: g._replace(baseline=g.baseline._replace(**{name: v[0]})),
-            )
-
-        return tuple(spec(n) for n in names)
-
-    def symmetric_pairs(self):
-        return (("P_G", 1, "P_Phi", 3), ("P_G", 2, "P_Phi", 4)) if self.is_vcm else ()
-
-    def gains_from_json(self, d: dict, base=None):
-        """Sections ``vcm`` / ``baseline`` (the ``vcjax simulate sim1 --gains`` format),
-        validated by :func:`~vcjax.control.vcm.pm_gains` / ``baseline_gains``."""
-        base = self.default_gains() if base is None else base
-        if not isinstance(d, dict):
-            raise ValueError(f"gains file: expected an object, got {type(d).__name__}")
-        unknown = set(d) - {"vcm", "baseline"}
-        if unknown:
-            raise ValueError(f"gains file: unknown sections {sorted(unknown)}")
-        for section in ("vcm", "baseline"):
-            if not isinstance(d.get(section, {}), dict):
-                raise ValueError(
-                    f"gains file: section '{section}' must be an object of gains, "
-                    f"got {type(d[section]).__name__}"
-                )
-        cur = {k: np.asarray(v).tolist() for k, v in base.vcm._asdict().items()}
-        cur_b = {k: np.asarray(v).tolist() for k, v in base.baseline._asdict().items()}
-        try:
-            vcm = pm_gains(**(cur | d.get("vcm", {})))
-            bas = baseline_gains(**(cur_b | d.get("baseline", {})))
-        except TypeError as err:
-            raise ValueError(f"gains file: {err}") from None
-        return InfanteGains(vcm=vcm, baseline=bas)
-
-    # ---------------------------------------------------------------- the loop
-    @functools.cached_property
-    def _law(self):
-        if self.is_vcm:
-            cfg = VCMConfig(
-                path=self.path,
-                actuation="underactuated",
-                edd=self.edd,
-                integral=self.controller != "vcm",
-                guidance="ilos" if self.controller == "vcm_ilos" else "los",
-            )
-            return functools.partial(vcm_law, cfg)
-        return functools.partial(baseline_law, BaselineConfig(path=self.path, kind=self.controller))
-
     def plant(self, t, x, u, args):
         if self.smooth:
             return infante.infante_plant_smooth(t, x, u, args)
@@ -254,7 +244,7 @@ class InfanteLoop(Loop):
 
     def control(self, t, x, z, ctrl):
         law_params, vehicle = ctrl
-        tau, z_dot, aux = self._law(law_params, t, x.eta, x.nu, z)
+        tau, z_dot, aux = self.law.step(self, law_params, t, x, z)
         return infante.actuator_commands(vehicle, x.nu, tau[0], tau[2]), z_dot, aux
 
     def plant_args(self, sc: Scenario, current, current_dot):
@@ -268,16 +258,11 @@ class InfanteLoop(Loop):
         desired speed, path) and the design vehicle (actuator map)."""
         model = infante.design_model(sc.design)
         k_rudder = rudder_ratio(sc.design)
-        if self.is_vcm:
-            p = vcm_params(gains.vcm, model, sc.path, u_d=sc.u_d, k_rudder=k_rudder)
-        else:
-            p = baseline_params(gains.baseline, model, sc.path, u_d=sc.u_d, k_rudder=k_rudder)
-        return p, sc.design
+        return self.law.params(self, gains, sc, model, k_rudder), sc.design
 
     def initial_state(self, sc: Scenario):
         x0 = infante.InfanteState(eta=sc.eta0, nu=sc.nu0, act=jnp.zeros(2, sc.eta0.dtype))
-        z0 = vcm_state(varpi0=sc.varpi0) if self.is_vcm else baseline_state(varpi0=sc.varpi0)
-        return x0, z0
+        return x0, self.law.initial_state(self, sc)
 
     def initial_from(self, v: dict):
         zero = jnp.zeros_like(v["x"])
@@ -291,7 +276,7 @@ class InfanteLoop(Loop):
         the controller's own ``aux.eps`` contains, does not enter)."""
         n = traj.u.shape[0]
         eta = traj.x.eta[:n]
-        frames = path_frames(self.path, sc.path, traj.z.varpi[:n])
+        frames = path_frames(self.path, sc.path, self.law.particle(traj.z)[:n])
         eps = path_errors(frames, eta)
         p_err = jnp.concatenate([eta[:, :2] - frames.p_bar, -frames.p[:, 2:]], axis=1)
         veh = sc.plant
@@ -304,24 +289,12 @@ class InfanteLoop(Loop):
             pos=jnp.concatenate([eta[:, :2], jnp.zeros((n, 1), eta.dtype)], axis=1),
             p_err=p_err,
             u_err=traj.x.nu[:n, 0] - sc.u_d,
-            psi_err=traj.aux.psi_tilde,
+            psi_err=self.law.heading_error(traj.aux),
             depth_err=jnp.zeros(n, eta.dtype),
             cmd_ratio=cmd / limits,
             sat=sat,
             act={"tau_u": jnp.abs(act[:, 0]), "rudder_deg": jnp.degrees(jnp.abs(act[:, 1]))},
         )
-
-
-def path_frames(path, coeffs, w):
-    """:class:`~vcjax.paths.PathFrame` at every parameter of ``w`` (N,)."""
-    return jax.vmap(lambda w1: paths.path_frame(path, coeffs, w1))(w)
-
-
-def path_errors(frames, eta):
-    """(N, 2) ``[s, e]`` (23) of the poses ``eta`` (N, >=2) w.r.t. the frames (N,)."""
-    return jax.vmap(lambda psi_p, p_bar, xy: rot2(psi_p).T @ (xy - p_bar))(
-        frames.psi_p, frames.p_bar, eta[:, :2]
-    )
 
 
 def rudder_ratio(vehicle):

@@ -18,7 +18,6 @@ allocation, on any path kind.
 from __future__ import annotations
 
 import dataclasses
-import functools
 from typing import Any, ClassVar, Literal, NamedTuple
 
 import jax.numpy as jnp
@@ -38,10 +37,14 @@ from vcjax.control.vcm import (
     vcm_params,
     vcm_state,
 )
-from vcjax.loops.base import GainSpec, Loop, Scenario, Signals
-from vcjax.loops.infante import path_errors, path_frames, pm_gain_specs
+from vcjax.linalg import Rzyx
+from vcjax.loops.geometry import path_errors, path_frames
+from vcjax.loops.law import Law
+from vcjax.loops.loop import Loop
+from vcjax.loops.params import gain_spec
+from vcjax.loops.pm import PM_PAIRS, pm_gain_specs
+from vcjax.loops.types import Scenario, Signals
 from vcjax.vehicles import odin
-from vcjax.vehicles import sixdof as sd
 
 __all__ = [
     "OdinGains",
@@ -51,6 +54,7 @@ __all__ = [
     "OdinCtrlParams",
     "OdinCtrlState",
     "OdinAux",
+    "OdinLaw",
     "OdinLoop",
 ]
 
@@ -162,6 +166,70 @@ class OdinAux(NamedTuple):
     alloc_saturated: Any
 
 
+def _depth_i_bound(g):
+    return g.depth[:1] * g.depth[1:2]
+
+
+@dataclasses.dataclass(frozen=True)
+class OdinLaw(Law):
+    """The ODIN controller: the horizontal VCM law (:func:`vcjax.control.vcm.vcm_law`) and the
+    gains of the loop's depth and attitude loops (:class:`OdinGains`).
+
+    ``params(loop, gains, sc) -> OdinCtrlParams``; ``step(loop, params, t, (eta3, nu3), z) ->
+    (tau3, z_dot, aux)`` on the horizontal projection ``[x, y, psi]``, ``[u, v, r]``.
+
+    Attributes:
+        actuation: ``"underactuated"`` (``tau_v = 0``, ``v_d`` from (38)) or ``"full"`` (the
+            thrusters give the sway force the law asks for).
+    """
+
+    actuation: Literal["underactuated", "full"] = "underactuated"
+
+    def default_gains(self, loop) -> OdinGains:
+        return default_odin_gains(self.actuation)
+
+    def gain_specs(self, loop):
+        return (
+            *pm_gain_specs("vcm", loop.integral, False),
+            gain_spec("depth_pd", "depth", index=slice(0, 2)),
+            # Routh–Hurwitz: k_i < k_p k_d
+            gain_spec("depth_i", "depth", index=slice(2, 3), bound=_depth_i_bound),
+            gain_spec("attitude", "attitude", 2),
+        )
+
+    def symmetric_pairs(self, loop):
+        return PM_PAIRS
+
+    def validate_gains(self, gains):
+        return odin_gains(
+            vcm=pm_gains(**gains.vcm._asdict()),
+            depth=gains.depth,
+            attitude=gains.attitude,
+            int_z_limit=gains.int_z_limit,
+        )
+
+    def params(self, loop, gains, sc) -> OdinCtrlParams:
+        model = odin.design_model(sc.design, sc.u_d)
+        vp = vcm_params(gains.vcm, model, sc.path, u_d=sc.u_d, k_rudder=0.0)
+        return OdinCtrlParams(vcm=vp, gains=gains, vehicle=sc.design)
+
+    def initial_state(self, loop, sc):
+        return OdinCtrlState(vcm=vcm_state(varpi0=sc.varpi0), int_z=jnp.zeros_like(sc.u_d))
+
+    def step(self, loop, params, t, meas, z):
+        cfg = VCMConfig(
+            path=loop.path, actuation=self.actuation, edd=loop.edd, integral=loop.integral
+        )
+        eta3, nu3 = meas
+        return vcm_law(cfg, params.vcm, t, eta3, nu3, z.vcm)
+
+    def particle(self, z):
+        return z.vcm.varpi
+
+    def heading_error(self, aux):
+        return aux.vcm.psi_tilde
+
+
 _IDX = (0, 1, 5)  # [x, y, psi] of eta, [u, v, r] of nu
 
 
@@ -181,7 +249,7 @@ class OdinLoop(Loop):
     polish: int = 50
 
     vehicle: ClassVar[str] = "odin"
-    controllers: ClassVar[tuple[str, ...]] = ("vcm", "vcm_full")
+    laws: ClassVar[dict[str, Law]] = {"vcm": OdinLaw(), "vcm_full": OdinLaw("full")}
     default_controller: ClassVar[str] = "vcm"
     initial_keys: ClassVar[dict[str, float]] = {
         "x": 0.0,
@@ -198,6 +266,7 @@ class OdinLoop(Loop):
     }
     takes_disturbance: ClassVar[bool] = True
     default_speed: ClassVar[float] = 0.5
+    takes_current: ClassVar[bool] = True
 
     def __post_init__(self):
         super().__post_init__()
@@ -205,7 +274,7 @@ class OdinLoop(Loop):
 
     @property
     def actuation(self) -> str:
-        return "full" if self.controller == "vcm_full" else "underactuated"
+        return self.law.actuation
 
     # ---------------------------------------------------------------- parameters and gains
     @classmethod
@@ -225,60 +294,6 @@ class OdinLoop(Loop):
     def default_model_fields(self):
         return ("body.M_A", "body.D", "drag_coeff")
 
-    def default_gains(self) -> OdinGains:
-        return default_odin_gains(self.actuation)
-
-    def gain_specs(self):
-        vcm = pm_gain_specs(self.integral, False, lambda g: g.vcm, lambda g, v: g._replace(vcm=v))
-        depth_pd = GainSpec(
-            "depth_pd",
-            2,
-            lambda g: g.depth[:2],
-            lambda g, v: g._replace(depth=jnp.concatenate([v, g.depth[2:]])),
-        )
-        depth_i = GainSpec(
-            "depth_i",
-            1,
-            lambda g: g.depth[2:],
-            lambda g, v: g._replace(depth=jnp.concatenate([g.depth[:2], v])),
-            bound=lambda g: g.depth[:1] * g.depth[1:2],  # Routh–Hurwitz: k_i < k_p k_d
-        )
-        attitude = GainSpec(
-            "attitude", 2, lambda g: g.attitude, lambda g, v: g._replace(attitude=v)
-        )
-        return (*vcm, depth_pd, depth_i, attitude)
-
-    def symmetric_pairs(self):
-        return (("P_G", 1, "P_Phi", 3), ("P_G", 2, "P_Phi", 4))
-
-    def gains_from_json(self, d: dict, base=None):
-        """``{"vcm": {...}, "depth": [...], "attitude": [...], "int_z_limit": ...}`` (what
-        ``vcjax simulate sim2 --gains`` loads), validated; missing entries keep ``base``."""
-        base = self.default_gains() if base is None else base
-        if not isinstance(d, dict):
-            raise ValueError(f"gains file: expected an object, got {type(d).__name__}")
-        unknown = set(d) - set(OdinGains._fields)
-        if unknown:
-            raise ValueError(f"gains file: unknown sections {sorted(unknown)}")
-        cur = {k: jnp.asarray(v).tolist() for k, v in base.vcm._asdict().items()}
-        try:
-            vcm = pm_gains(**(cur | d.get("vcm", {})))
-        except TypeError as err:
-            raise ValueError(f"gains file: {err}") from None
-        return odin_gains(
-            vcm=vcm,
-            depth=d.get("depth", base.depth),
-            attitude=d.get("attitude", base.attitude),
-            int_z_limit=d.get("int_z_limit", base.int_z_limit),
-        )
-
-    # ---------------------------------------------------------------- the loop
-    @functools.cached_property
-    def _vcm_config(self) -> VCMConfig:
-        return VCMConfig(
-            path=self.path, actuation=self.actuation, edd=self.edd, integral=self.integral
-        )
-
     def plant(self, t, x, u, args):
         if self.smooth:
             return odin.odin_plant_smooth(t, x, u, args)
@@ -289,7 +304,7 @@ class OdinLoop(Loop):
         veh = params.vehicle
         eta, nu = x.eta, x.nu
         idx = jnp.array(_IDX)
-        tau3, zd_vcm, aux = vcm_law(self._vcm_config, params.vcm, t, eta[idx], nu[idx], z.vcm)
+        tau3, zd_vcm, aux = self.law.step(self, params, t, (eta[idx], nu[idx]), z)
 
         # depth: PID on z - z_p(w) with feed-forward through the particle rate (22)
         frame = paths.path_frame(self.path, params.vcm.path, z.vcm.varpi)
@@ -297,7 +312,7 @@ class OdinLoop(Loop):
         wdd = (params.vcm.gains.sigma * aux.eps_dot[0] - frame.dspeed_bar_dw * wd**2) / (
             frame.speed_bar
         )
-        R = sd.Rzyx(eta[3], eta[4], eta[5])
+        R = Rzyx(eta[3], eta[4], eta[5])
         M = odin.mass_matrix(veh)
         d_w = veh.body.D[2, 2] + veh.drag_coeff * params.vcm.u_d
         tau_Z, int_z_dot, ez = depth_pid(
@@ -332,14 +347,11 @@ class OdinLoop(Loop):
         return odin.OdinArgs(vehicle=sc.plant, tau_dist=sc.disturbance, v_c=current)
 
     def ctrl_params(self, gains: OdinGains, sc: Scenario) -> OdinCtrlParams:
-        model = odin.design_model(sc.design, sc.u_d)
-        vp = vcm_params(gains.vcm, model, sc.path, u_d=sc.u_d, k_rudder=0.0)
-        return OdinCtrlParams(vcm=vp, gains=gains, vehicle=sc.design)
+        return self.law.params(self, gains, sc)
 
     def initial_state(self, sc: Scenario):
         x0 = odin.OdinState(eta=sc.eta0, nu=sc.nu0, thrust=jnp.zeros(8, sc.eta0.dtype))
-        z0 = OdinCtrlState(vcm=vcm_state(varpi0=sc.varpi0), int_z=jnp.zeros_like(sc.u_d))
-        return x0, z0
+        return x0, self.law.initial_state(self, sc)
 
     def initial_from(self, v: dict):
         zero = jnp.zeros_like(v["x"])
@@ -354,14 +366,14 @@ class OdinLoop(Loop):
     def signals(self, traj, sc: Scenario) -> Signals:
         n = traj.u.shape[0]
         eta = traj.x.eta[:n]
-        frames = path_frames(self.path, sc.path, traj.z.vcm.varpi[:n])
+        frames = path_frames(self.path, sc.path, self.law.particle(traj.z)[:n])
         veh = sc.plant
         return Signals(
             eps=path_errors(frames, eta[:, :2]),
             pos=eta[:, :3],
             p_err=eta[:, :3] - frames.p,
             u_err=traj.x.nu[:n, 0] - sc.u_d,
-            psi_err=traj.aux.vcm.psi_tilde,
+            psi_err=self.law.heading_error(traj.aux),
             depth_err=eta[:, 2] - frames.z_p,
             cmd_ratio=traj.u / veh.thrust_max,
             sat=traj.aux.alloc_saturated,

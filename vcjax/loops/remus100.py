@@ -19,7 +19,6 @@ Every law's body force goes through :func:`vcjax.vehicles.remus100_design.actuat
 from __future__ import annotations
 
 import dataclasses
-import functools
 from typing import Any, ClassVar, Literal, NamedTuple
 
 import jax
@@ -47,14 +46,25 @@ from vcjax.control.vcm3d import (
     vcm3d_state,
 )
 from vcjax.linalg import wrap_angle
-from vcjax.loops.base import GainSpec, Loop, Scenario, Signals
+from vcjax.loops.law import Law
+from vcjax.loops.loop import Loop
+from vcjax.loops.params import gain_spec
+from vcjax.loops.types import Scenario, Signals
 from vcjax.vehicles import remus100 as r100
 from vcjax.vehicles import remus100_design as rd
 from vcjax.vehicles.sixdof import kinematics
 
-__all__ = ["RemusGains", "remus_gains", "Remus100Loop", "REMUS_CONTROLLERS"]
+__all__ = [
+    "RemusGains",
+    "remus_gains",
+    "RemusMeasurement",
+    "RemusVCM3DLaw",
+    "RemusDecoupledLaw",
+    "RemusAutopilotLaw",
+    "Remus100Loop",
+    "REMUS_CONTROLLERS",
+]
 
-REMUS_CONTROLLERS = ("vcm3d_ilos", "vcm3d", "decoupled", "alos3d", "pvs_pid")
 _IDX = np.asarray(rd.IDX5)
 
 
@@ -111,22 +121,134 @@ class RemusAux(NamedTuple):
     raw: Any
 
 
-def _spec(field: str, name: str, size: int):
-    def get(g):
-        return jnp.atleast_1d(getattr(getattr(g, field), name))
-
-    def put(g, v):
-        sub = getattr(g, field)
-        return g._replace(**{field: sub._replace(**{name: v if size > 1 else v[0]})})
-
-    return GainSpec(name, size, get, put)
-
-
 def _inertia_drag(dm, u_d):
     M = rd.mass_matrix5(dm)
     nu = jnp.stack([u_d, 0.0 * u_d, 0.0 * u_d, 0.0 * u_d, 0.0 * u_d])
     drag = rd.body_bias5(dm, jnp.zeros_like(nu), nu)[0]
     return jnp.stack([M[0, 0], M[3, 3], M[4, 4]]), drag
+
+
+class RemusMeasurement(NamedTuple):
+    """What a REMUS 100 law's ``step`` sees: ``q`` (5,) ``[x, y, z, theta, psi]``, ``qd`` (5,)
+    their rates, ``nu`` (5,) ``[u, v, w, q, r]`` (measured, over ground)."""
+
+    q: Any
+    qd: Any
+    nu: Any
+
+
+def _specs(field: str, names) -> tuple:
+    return tuple(gain_spec(n, f"{field}.{n}", size) for n, size in names)
+
+
+@dataclasses.dataclass(frozen=True)
+class _RemusLaw(Law):
+    def default_gains(self, loop) -> RemusGains:
+        return remus_gains()
+
+    def validate_gains(self, gains):
+        return gains._replace(
+            vcm3d=vcm3d_gains(**gains.vcm3d._asdict()),
+            horizontal=pm_gains(**gains.horizontal._asdict()),
+            autopilot=autopilot_gains(**gains.autopilot._asdict()),
+            decoupled_autopilot=autopilot_gains(**gains.decoupled_autopilot._asdict()),
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class RemusVCM3DLaw(_RemusLaw):
+    """The 3-D VCM law (:mod:`vcjax.control.vcm3d`), underactuated in sway and heave, with
+    integral action; ``guidance``: ``"ilos"`` (integral-LOS angles, gains ``sigma_i``) or
+    ``"los"`` (the paper's approach angles (24))."""
+
+    guidance: Literal["los", "ilos"] = "ilos"
+
+    def gain_specs(self, loop):
+        names = [("P_G", 5), ("P_Phi", 8), ("Delta", 2), ("sigma", 1), ("k_int", 3)]
+        names += [("sigma_i", 2)] if self.guidance == "ilos" else []
+        return _specs("vcm3d", names)
+
+    def params(self, loop, gains, sc, dm):
+        return vcm3d_params(gains.vcm3d, dm, sc.path, u_d=sc.u_d)
+
+    def initial_state(self, loop, sc):
+        return vcm3d_state(varpi0=sc.varpi0)
+
+    def step(self, loop, params, t, m, z):
+        cfg = VCM3DConfig(
+            path=loop.path,
+            system=rd.design_system(),
+            kinematics=rd.kinematics5,
+            tied_rows=rd.unactuated_rows,
+            actuation="underactuated",
+            integral=True,
+            guidance=self.guidance,
+        )
+        return vcm3d_law(cfg, params, t, m.q, m.qd, z)
+
+
+@dataclasses.dataclass(frozen=True)
+class RemusDecoupledLaw(_RemusLaw):
+    """Horizontal VCM (31)/(38) + depth through pitch (:mod:`vcjax.control.baselines3d`)."""
+
+    def gain_specs(self, loop):
+        names = [("P_G", 3), ("P_Phi", 5), ("Delta", 1), ("sigma", 1), ("sigma_i", 1)]
+        return _specs("horizontal", names) + _specs("decoupled_autopilot", [("w_theta", 1)])
+
+    def params(self, loop, gains, sc, dm):
+        inertia, drag = _inertia_drag(dm, sc.u_d)
+        horiz = vcm_params(
+            gains.horizontal, rd.horizontal_design(dm), sc.path, u_d=sc.u_d,
+            k_rudder=1.0 / sc.design.x_r,
+        )  # fmt: skip
+        ap = gains.decoupled_autopilot
+        return baseline3d_params(ap, inertia, drag, sc.path, sc.u_d, horiz, dm)
+
+    def initial_state(self, loop, sc):
+        return decoupled_state(vcm_state(varpi0=sc.varpi0))
+
+    def step(self, loop, params, t, m, z):
+        hcfg = VCMConfig(path=loop.path, actuation="underactuated", edd=loop.edd, integral=True)
+        dcfg = DecoupledConfig(dataclasses.replace(hcfg, guidance="ilos"), rd.body_bias5)
+        return decoupled_law(dcfg, params, t, m.q, m.qd, m.nu, z)
+
+    def particle(self, z):
+        return z.horizontal.varpi
+
+
+@dataclasses.dataclass(frozen=True)
+class RemusAutopilotLaw(_RemusLaw):
+    """LOS (``"los"``, ``pvs_pid``) or ALOS3D (``"alos"``, gains ``gamma``) guidance with PID
+    heading/pitch autopilots and a surge PI (:mod:`vcjax.control.baselines3d`)."""
+
+    guidance: Literal["los", "alos"] = "los"
+
+    def gain_specs(self, loop):
+        names = [("w_psi", 1), ("w_theta", 1), ("Delta", 2), ("k_u", 1)]
+        names += [("gamma", 2)] if self.guidance == "alos" else []
+        return _specs("autopilot", names)
+
+    def params(self, loop, gains, sc, dm):
+        inertia, drag = _inertia_drag(dm, sc.u_d)
+        return baseline3d_params(gains.autopilot, inertia, drag, sc.path, sc.u_d)
+
+    def initial_state(self, loop, sc):
+        return autopilot_state(sc.varpi0)
+
+    def step(self, loop, params, t, m, z):
+        acfg = AutopilotConfig(path=loop.path, guidance=self.guidance)
+        return autopilot_law(acfg, params, t, m.q, m.qd, m.nu, z)
+
+
+#: the REMUS 100 controllers, in the order of :attr:`Remus100Loop.laws`
+REMUS_LAWS = {
+    "vcm3d_ilos": RemusVCM3DLaw("ilos"),
+    "vcm3d": RemusVCM3DLaw("los"),
+    "decoupled": RemusDecoupledLaw(),
+    "alos3d": RemusAutopilotLaw("alos"),
+    "pvs_pid": RemusAutopilotLaw("los"),
+}
+REMUS_CONTROLLERS = tuple(REMUS_LAWS)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,7 +263,7 @@ class Remus100Loop(Loop):
     edd: Literal["paper", "implied"] = "paper"
 
     vehicle: ClassVar[str] = "remus100"
-    controllers: ClassVar[tuple[str, ...]] = REMUS_CONTROLLERS
+    laws: ClassVar[dict[str, Law]] = REMUS_LAWS
     default_controller: ClassVar[str] = "vcm3d_ilos"
     initial_keys: ClassVar[dict[str, float]] = {
         "x": 0.0,
@@ -152,6 +274,8 @@ class Remus100Loop(Loop):
         "speed": 1.5,
     }
     default_speed: ClassVar[float] = 1.5
+    takes_current: ClassVar[bool] = True
+    takes_time_varying_current: ClassVar[bool] = True
 
     def __post_init__(self):
         super().__post_init__()
@@ -175,61 +299,6 @@ class Remus100Loop(Loop):
     def default_model_fields(self):
         return ("body.M_A", "body.D", "CL_delta_r", "CL_delta_s")
 
-    def default_gains(self) -> RemusGains:
-        return remus_gains()
-
-    def gain_specs(self):
-        c = self.controller
-        if c.startswith("vcm3d"):
-            names = [("P_G", 5), ("P_Phi", 8), ("Delta", 2), ("sigma", 1), ("k_int", 3)]
-            names += [("sigma_i", 2)] if c == "vcm3d_ilos" else []
-            return tuple(_spec("vcm3d", n, s) for n, s in names)
-        if c == "decoupled":
-            names = [("P_G", 3), ("P_Phi", 5), ("Delta", 1), ("sigma", 1), ("sigma_i", 1)]
-            return tuple(_spec("horizontal", n, s) for n, s in names) + (
-                _spec("decoupled_autopilot", "w_theta", 1),
-            )
-        names = [("w_psi", 1), ("w_theta", 1), ("Delta", 2), ("k_u", 1)]
-        names += [("gamma", 2)] if c == "alos3d" else []
-        return tuple(_spec("autopilot", n, s) for n, s in names)
-
-    # ---------------------------------------------------------------- the loop
-    @functools.cached_property
-    def _law(self):
-        c = self.controller
-        if c.startswith("vcm3d"):
-            cfg = VCM3DConfig(
-                path=self.path,
-                system=rd.design_system(),
-                kinematics=rd.kinematics5,
-                tied_rows=rd.unactuated_rows,
-                actuation="underactuated",
-                integral=True,
-                guidance="ilos" if c == "vcm3d_ilos" else "los",
-            )
-
-            def law(t, q, qd, nu5, z, params):
-                tau, z_dot, aux = vcm3d_law(cfg, params, t, q, qd, z)
-                return tau, z_dot, aux.eps, aux.psi_d, aux.theta_d
-
-            return law
-        if c == "decoupled":
-            hcfg = VCMConfig(path=self.path, actuation="underactuated", edd=self.edd, integral=True)
-            dcfg = DecoupledConfig(dataclasses.replace(hcfg, guidance="ilos"), rd.body_bias5)
-
-            def law(t, q, qd, nu5, z, params):
-                tau, z_dot, aux = decoupled_law(dcfg, params, t, q, qd, nu5, z)
-                return tau, z_dot, aux.eps, aux.psi_d, aux.theta_d
-
-            return law
-        acfg = AutopilotConfig(path=self.path, guidance="alos" if c == "alos3d" else "los")
-
-        def law(t, q, qd, nu5, z, params):
-            tau, z_dot, aux = autopilot_law(acfg, params, t, q, qd, nu5, z)
-            return tau, z_dot, aux.eps, aux.psi_d, aux.theta_d
-
-        return law
-
     def plant(self, t, x, u, args):
         if self.smooth:
             return r100.remus100_plant_smooth(t, x, u, args)
@@ -239,9 +308,9 @@ class Remus100Loop(Loop):
         law_params, dm = ctrl
         qd = kinematics(x.eta) @ x.nu
         q, qd5, nu5 = x.eta[_IDX], qd[_IDX], x.nu[_IDX]
-        tau, z_dot, eps, psi_d, theta_d = self._law(t, q, qd5, nu5, z, law_params)
+        tau, z_dot, aux = self.law.step(self, law_params, t, RemusMeasurement(q, qd5, nu5), z)
         act = rd.actuator_map(dm, tau, x.nu)
-        return act.cmd, z_dot, RemusAux(eps, psi_d, theta_d, tau, act.raw)
+        return act.cmd, z_dot, RemusAux(aux.eps, aux.psi_d, aux.theta_d, tau, act.raw)
 
     def plant_args(self, sc: Scenario, current, current_dot):
         return r100.Remus100Args(vehicle=sc.plant, v_c=current[:2], v_c_dot=current_dot[:2])
@@ -251,30 +320,13 @@ class Remus100Loop(Loop):
 
     def ctrl_params(self, gains: RemusGains, sc: Scenario):
         dm = rd.Remus100Design(sc.design, sc.u_d, jnp.asarray(0.5, sc.u_d.dtype))
-        c = self.controller
-        if c.startswith("vcm3d"):
-            return vcm3d_params(gains.vcm3d, dm, sc.path, u_d=sc.u_d), dm
-        inertia, drag = _inertia_drag(dm, sc.u_d)
-        if c == "decoupled":
-            horiz = vcm_params(
-                gains.horizontal, rd.horizontal_design(dm), sc.path, u_d=sc.u_d,
-                k_rudder=1.0 / sc.design.x_r,
-            )  # fmt: skip
-            ap = gains.decoupled_autopilot
-            return baseline3d_params(ap, inertia, drag, sc.path, sc.u_d, horiz, dm), dm
-        return baseline3d_params(gains.autopilot, inertia, drag, sc.path, sc.u_d), dm
+        return self.law.params(self, gains, sc, dm), dm
 
     def initial_state(self, sc: Scenario):
         x0 = r100.Remus100State(
             eta=sc.eta0, nu=sc.nu0, act=jnp.asarray([0.0, 0.0, 1000.0], sc.eta0.dtype)
         )
-        c = self.controller
-        if c.startswith("vcm3d"):
-            z0 = vcm3d_state(varpi0=sc.varpi0)
-        elif c == "decoupled":
-            z0 = decoupled_state(vcm_state(varpi0=sc.varpi0))
-        else:
-            z0 = autopilot_state(sc.varpi0)
+        z0 = self.law.initial_state(self, sc)
         return x0, jax.tree_util.tree_map(lambda a: jnp.asarray(a, sc.eta0.dtype), z0)
 
     def initial_from(self, v: dict):
@@ -283,13 +335,10 @@ class Remus100Loop(Loop):
         nu0 = jnp.stack([v["speed"], zero, zero, zero, zero, zero])
         return eta0, nu0
 
-    def _varpi(self, z):
-        return z.horizontal.varpi if self.controller == "decoupled" else z.varpi
-
     def signals(self, traj, sc: Scenario) -> Signals:
         n = traj.u.shape[0]
         eta = traj.x.eta[:n]
-        w = self._varpi(traj.z)[:n]
+        w = self.law.particle(traj.z)[:n]
         frames, eps = jax.vmap(lambda w1, p: path_errors_3d(self.path, sc.path, w1, p))(
             w, eta[:, :3]
         )

@@ -42,7 +42,7 @@ from vcjax._checks import (
     is_concrete,
 )
 from vcjax.currents import current_ned  # noqa: F401 (re-exported)
-from vcjax.linalg import spd_solve_small
+from vcjax.linalg import Rzyx, spd_solve_small
 
 __all__ = [
     "Smtrx",
@@ -97,24 +97,6 @@ def Hmtrx(r):
     eye = jnp.eye(3, dtype=r.dtype)
     zero = jnp.zeros((3, 3), dtype=r.dtype)
     return jnp.block([[eye, Smtrx(r).T], [zero, eye]])
-
-
-def Rzyx(phi, theta, psi):
-    """(3, 3) body-to-NED rotation ``R = Rz(psi) Ry(theta) Rx(phi)`` (zyx Euler angles [rad])."""
-    cphi, sphi = jnp.cos(phi), jnp.sin(phi)
-    cth, sth = jnp.cos(theta), jnp.sin(theta)
-    cpsi, spsi = jnp.cos(psi), jnp.sin(psi)
-    return jnp.stack(
-        [
-            jnp.stack(
-                [cpsi * cth, -spsi * cphi + cpsi * sth * sphi, spsi * sphi + cpsi * cphi * sth]
-            ),
-            jnp.stack(
-                [spsi * cth, cpsi * cphi + sphi * sth * spsi, -cpsi * sphi + sth * spsi * cphi]
-            ),
-            jnp.stack([-sth, cth * sphi, cth * cphi]),
-        ]
-    )
 
 
 def Tzyx(phi, theta):

@@ -1,0 +1,209 @@
+"""The closed-loop abstraction, plant side: :class:`Loop`.
+
+A :class:`Loop` is *static* (a frozen, hashable dataclass: vehicle, controller, path kind and the
+static options of the law), so jitted rollouts compile once per loop; everything continuous is
+traced: the :class:`~vcjax.loops.types.Scenario` (initial state, path coefficients, current,
+desired speed, plant and design parameters) and the loop's gains (a NamedTuple pytree).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import ClassVar
+
+import numpy as np
+
+from vcjax import paths
+from vcjax.loops.law import Law, required
+from vcjax.loops.params import gains_from_json, gains_to_json, param_names
+from vcjax.loops.types import GainSpec, Scenario, Signals
+from vcjax.rollout import Trajectory
+
+__all__ = ["Loop", "REQUIRED"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Loop:
+    """A closed loop: vehicle (plant, design model, actuator map) x controller x path kind.
+
+    Static and hashable (a new gain, current or start never recompiles). Subclasses define the
+    class attributes and the methods marked *required*; see :mod:`vcjax.loops` for a walk-through.
+
+    Attributes:
+        controller: the law's name (one of :attr:`controllers`).
+        path: the static path kind (:class:`vcjax.paths.Path`); coefficients live in
+            :attr:`Scenario.path`.
+        smooth: smooth (``tanh``) actuator saturation in the plant, so gradients pass.
+    """
+
+    controller: str
+    path: paths.Path
+    smooth: bool = False
+
+    #: registry name of the vehicle ("infante", "odin", "arm", ...)
+    vehicle: ClassVar[str] = ""
+    #: the laws: controller name -> :class:`~vcjax.loops.law.Law` (the controller side)
+    laws: ClassVar[Mapping[str, Law]] = {}
+    #: the controllers this vehicle's loop supports (default: the names of :attr:`laws`)
+    controllers: ClassVar[tuple[str, ...]] = ()
+    #: the controller a config means when it names none
+    default_controller: ClassVar[str] = ""
+    #: [initial] keys of sweeps/tuning: name -> default value (sampled ranges set by configs)
+    initial_keys: ClassVar[dict[str, float]] = {}
+    #: sensor-noise channels: name -> number of entries (see :meth:`measure`)
+    noise_channels: ClassVar[dict[str, int]] = {}
+    #: True when the plant takes a constant disturbance force (:attr:`Scenario.disturbance`)
+    takes_disturbance: ClassVar[bool] = False
+    #: desired speed of the nominal scenario [m/s]
+    default_speed: ClassVar[float] = 1.0
+    #: True when the plant sees a constant current (:attr:`Scenario.current`); False: a config
+    #: with a non-zero current is refused (:func:`vcjax.loops.check_disturbances`)
+    takes_current: ClassVar[bool] = False
+    #: True when the plant sees a time-varying current (:meth:`with_current`; Gauss–Markov)
+    takes_time_varying_current: ClassVar[bool] = False
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if "laws" in cls.__dict__ and "controllers" not in cls.__dict__:
+            cls.controllers = tuple(cls.laws)
+
+    @property
+    def law(self) -> Law | None:
+        """The :class:`~vcjax.loops.law.Law` of :attr:`controller` (None for a loop that
+        implements its controller in its own methods)."""
+        return type(self).laws.get(self.controller)
+
+    def __post_init__(self):
+        if self.controller not in self.controllers:
+            raise ValueError(
+                f"controller: vehicle {self.vehicle!r} supports {list(self.controllers)}, "
+                f"got {self.controller!r}"
+            )
+        if not isinstance(self.path, paths.Path):
+            raise ValueError(f"path: expected a vcjax.paths.Path, got {type(self.path).__name__}")
+
+    # ---------------------------------------------------------------- required
+    @classmethod
+    @required
+    def default_path(cls):
+        """``(Path, coeffs)``: the vehicle's default path."""
+        raise NotImplementedError
+
+    @required
+    def position(self, eta, params):
+        """(3,) NED point that must follow the path (the craft; an end effector) [m]."""
+        raise NotImplementedError
+
+    @required
+    def default_params(self, dtype=None):
+        """The vehicle's nominal parameters (a NamedTuple of arrays)."""
+        raise NotImplementedError
+
+    def validate_params(self, params, name: str = "plant"):
+        """Eagerly check vehicle parameters however they were built (e.g. ``_replace``d);
+        raise ``ValueError`` naming ``name.field``. Default: the parameters must be of the type
+        :meth:`default_params` returns; a vehicle overrides it with its module's ``validate``."""
+        kind = type(self.default_params())
+        if not isinstance(params, kind):
+            raise ValueError(f"{name}: expected {kind.__name__}, got {type(params).__name__}")
+        return params
+
+    def default_gains(self):
+        """The controller's default gains (a NamedTuple pytree): the law's."""
+        return self._require_law("default_gains").default_gains(self)
+
+    def gain_specs(self) -> tuple[GainSpec, ...]:
+        """The tunable gain groups of :attr:`controller`: the law's."""
+        return self._require_law("gain_specs").gain_specs(self)
+
+    def _require_law(self, what):
+        if self.law is None:
+            raise NotImplementedError(f"{type(self).__name__}.{what}: no law and no override")
+        return self.law
+
+    @required
+    def plant(self, t, x, u, args):
+        """Vector field ``x_dot = f(t, x, u, args)`` (args from :meth:`plant_args`)."""
+        raise NotImplementedError
+
+    @required
+    def control(self, t, x, z, ctrl):
+        """Controller ``(u, z_dot, aux)`` (ctrl from :meth:`ctrl_params`)."""
+        raise NotImplementedError
+
+    @required
+    def plant_args(self, sc: Scenario, current, current_dot):
+        """The plant's traced arguments for plant parameters ``sc.plant`` and a current (3,)
+        NED [m/s] with its rate (3,) [m/s^2]."""
+        raise NotImplementedError
+
+    @required
+    def ctrl_params(self, gains, sc: Scenario):
+        """The controller's traced parameters (design model from ``sc.design``)."""
+        raise NotImplementedError
+
+    @required
+    def initial_state(self, sc: Scenario):
+        """``(x0, z0)``: plant and controller states at ``t = 0``."""
+        raise NotImplementedError
+
+    @required
+    def signals(self, traj: Trajectory, sc: Scenario) -> Signals:
+        """Per-step signals of a run for metrics and losses (true values)."""
+        raise NotImplementedError
+
+    @required
+    def initial_from(self, values: dict):
+        """``(eta0, nu0)`` from the :attr:`initial_keys` values (traced scalars, SI units:
+        keys ending in ``_deg`` are given here already in radians)."""
+        raise NotImplementedError
+
+    # ---------------------------------------------------------------- optional
+    def param_names(self) -> tuple[str, ...]:
+        """Plant/design parameter names accepted by ``[model_error]`` and parameter files."""
+        return param_names(self.default_params())
+
+    def default_model_fields(self) -> tuple[str, ...]:
+        """Parameters a ``[model_error]`` perturbs when it names none."""
+        return self.param_names()
+
+    def symmetric_pairs(self) -> tuple[tuple[str, int, str, int], ...]:
+        """Gain entries ``(group_a, i, group_b, j)`` the loop depends on only through their sum
+        and product (Baumgarte pairs ``p_G``, ``p_Phi`` of one holonomic row), so that a tuner
+        starting with them equal is at a critical point (see ``tuning.params``)."""
+        return () if self.law is None else self.law.symmetric_pairs(self)
+
+    def measure(self, x, noise):
+        """The state the controller sees: ``x`` with ``noise`` (concatenated
+        :attr:`noise_channels`, SI units) added. Default: no sensors modelled."""
+        raise NotImplementedError(f"{type(self).__name__}: no sensor-noise model")
+
+    def noise_std(self, stds: dict) -> np.ndarray:
+        """Concatenated standard deviations from a ``{channel: std}`` dict (SI units)."""
+        parts = [np.full(n, float(stds.get(k, 0.0))) for k, n in self.noise_channels.items()]
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def with_current(self, args, current, current_dot):
+        """``args`` with a new current (3,) and rate (3,) (time-varying currents)."""
+        raise NotImplementedError(f"{type(self).__name__}: no time-varying current")
+
+    def gains_to_json(self, gains) -> dict:
+        return gains_to_json(gains)
+
+    def gains_from_json(self, d: dict, base=None):
+        """Gains from a JSON object (entries missing keep ``base``, default the defaults): the
+        one reader (:func:`~vcjax.loops.params.gains_from_json`) with the law's checks."""
+        if self.law is not None:
+            return self.law.gains_from_json(self, d, base)
+        return gains_from_json(d, self.default_gains() if base is None else base)
+
+    def describe(self) -> str:
+        return f"{self.vehicle} / {self.controller} on a {self.path.name}"
+
+
+#: the methods a :class:`Loop` subclass must define (``default_gains``/``gain_specs`` too when
+#: it has no :attr:`Loop.laws`)
+REQUIRED = tuple(
+    n for n in dir(Loop) if getattr(getattr(Loop, n, None), "__vcjax_required__", False)
+)

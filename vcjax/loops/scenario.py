@@ -1,0 +1,157 @@
+"""Scenarios by hand and from files: :func:`make_scenario` (validated, eager), parameter files
+(:func:`read_param_file`, :func:`apply_params`), and :func:`check_disturbances` (whether a loop
+can take the current a config asks for)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path as _FsPath
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from vcjax.loops.geometry import start_parameter
+from vcjax.loops.loop import Loop
+from vcjax.loops.params import get_param, replace_params
+from vcjax.loops.types import Scenario
+
+__all__ = ["make_scenario", "read_param_file", "apply_params", "check_disturbances"]
+
+
+def check_disturbances(loop, current_nonzero: bool, gauss_markov: bool) -> None:
+    """Refuse (``ValueError``, one line naming the reason) a current the loop cannot take.
+
+    Args:
+        loop: a :class:`Loop` or a Loop subclass.
+        current_nonzero: the config asks for a non-zero (mean) current.
+        gauss_markov: the config asks for a time-varying (Gauss–Markov) current.
+    """
+    cls = loop if isinstance(loop, type) else type(loop)
+    name = cls.vehicle or cls.__name__
+    if gauss_markov and not cls.takes_time_varying_current:
+        raise ValueError(
+            f"current: the {name} loop cannot take a time-varying (Gauss-Markov) current"
+            + ("" if cls.takes_current else " (it takes no current at all)")
+        )
+    if current_nonzero and not cls.takes_current:
+        raise ValueError(f"current: the {name} loop takes no current; set the current to zero")
+
+
+def make_scenario(
+    loop: Loop,
+    coeffs=None,
+    *,
+    initial: dict | None = None,
+    current=(0.0, 0.0, 0.0),
+    u_d=None,
+    plant=None,
+    design=None,
+    disturbance=None,
+    varpi0=None,
+    dtype=None,
+) -> Scenario:
+    """A validated :class:`Scenario` for ``loop`` (eager; not for use under ``jit``).
+
+    Args:
+        coeffs: path coefficients (default: the vehicle's default path's).
+        initial: values of ``loop.initial_keys`` (``*_deg`` in degrees); missing keys take the
+            defaults.
+        current: (2,) or (3,) water velocity in NED [m/s].
+        u_d: desired speed [m/s] (default ``loop.default_speed``).
+        plant, design: parameters (default ``loop.default_params()``; ``design`` defaults to
+            ``plant``).
+        disturbance: constant generalised disturbance (default zeros).
+        varpi0: initial particle (default: the path point nearest to the start).
+    """
+    plant = loop.default_params(dtype) if plant is None else loop.validate_params(plant, "plant")
+    design = plant if design is None else loop.validate_params(design, "design")
+    dt = jnp.asarray(jax.tree_util.tree_leaves(plant)[0]).dtype
+    coeffs = type(loop).default_path()[1] if coeffs is None else coeffs
+    coeffs = _cast(coeffs, dt)
+    initial = dict(initial or {})
+    unknown = sorted(set(initial) - set(loop.initial_keys))
+    if unknown:
+        raise ValueError(f"initial: unknown keys {unknown}; expected {list(loop.initial_keys)}")
+    vals = {}
+    for k, default in loop.initial_keys.items():
+        v = float(initial.get(k, default))
+        if not np.isfinite(v):
+            raise ValueError(f"initial: {k}: not finite: {v}")
+        vals[k] = jnp.asarray(np.radians(v) if k.endswith("_deg") else v, dt)
+    eta0, nu0 = loop.initial_from(vals)
+    cur = np.asarray(current, dtype=float)
+    if cur.shape == (2,):
+        cur = np.concatenate([cur, [0.0]])
+    if cur.shape != (3,) or not np.all(np.isfinite(cur)):
+        raise ValueError(f"current: expected a finite (2,) or (3,) NED velocity, got {current!r}")
+    check_disturbances(loop, bool(np.any(cur != 0)), False)
+    u_d = loop.default_speed if u_d is None else u_d
+    if not (np.isfinite(u_d) and u_d > 0):
+        raise ValueError(f"u_d: expected a finite value > 0, got {u_d!r}")
+    n_nu = int(np.shape(nu0)[0])
+    if disturbance is None:
+        disturbance = np.zeros(n_nu)
+    disturbance = np.asarray(disturbance, dtype=float)
+    if disturbance.shape != (n_nu,) or not np.all(np.isfinite(disturbance)):
+        raise ValueError(f"disturbance: expected a finite ({n_nu},) force, got {disturbance!r}")
+    if np.any(disturbance != 0) and not loop.takes_disturbance:
+        raise ValueError(f"disturbance: the {loop.vehicle} plant takes no disturbance force")
+    if varpi0 is None:
+        varpi0 = start_parameter(loop.path, coeffs, loop.position(eta0, design))
+    return Scenario(
+        eta0=eta0,
+        nu0=nu0,
+        current=jnp.asarray(cur, dt),
+        u_d=jnp.asarray(u_d, dt),
+        varpi0=jnp.asarray(varpi0, dt),
+        path=coeffs,
+        plant=plant,
+        design=design,
+        disturbance=jnp.asarray(disturbance, dt),
+    )
+
+
+def _cast(tree, dtype):
+    def f(a):
+        a = jnp.asarray(a)
+        return a.astype(dtype) if jnp.issubdtype(a.dtype, jnp.floating) else a
+
+    return jax.tree_util.tree_map(f, tree)
+
+
+def read_param_file(path, loop: Loop, where: str = "params") -> dict:
+    """``{name: value}`` from a JSON file: a flat map, or a ``vcjax fit`` output whose
+    ``"estimates"`` map is used. Unknown names raise ``ValueError`` listing the valid ones."""
+    path = _FsPath(path)
+    try:
+        d = json.loads(path.read_text())
+    except OSError as err:
+        raise ValueError(f"{where}: cannot read {path}: {err}") from None
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{where}: {path}: not valid JSON: {err}") from None
+    if isinstance(d, dict) and isinstance(d.get("estimates"), dict):
+        d = d["estimates"]
+    if not isinstance(d, dict):
+        raise ValueError(f"{where}: {path}: expected an object of parameter values")
+    valid = loop.param_names()
+    bad = sorted(set(d) - set(valid))
+    if bad:
+        raise ValueError(
+            f"{where}: {path}: unknown {loop.vehicle} parameters {bad}; valid: {list(valid)}"
+        )
+    return d
+
+
+def apply_params(params, values: dict, where: str = "params"):
+    """``params`` with ``values`` (name -> number or nested list) replaced, shapes checked."""
+    new = {}
+    for k, v in values.items():
+        ref = get_param(params, k)
+        a = np.asarray(v, dtype=float)
+        if a.shape != np.shape(ref) or not np.all(np.isfinite(a)):
+            raise ValueError(
+                f"{where}: {k}: expected a finite value of shape {np.shape(ref)}, got {v!r}"
+            )
+        new[k] = jnp.asarray(a, jnp.asarray(ref).dtype)
+    return replace_params(params, new)

@@ -1,0 +1,88 @@
+"""The data every loop shares: :class:`Scenario` (traced data of one run), :class:`Signals`
+(what metrics and losses read from a run) and :class:`GainSpec` (one tunable gain group)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+__all__ = ["Scenario", "GainSpec", "Signals"]
+
+
+class Scenario(NamedTuple):
+    """Traced data of one run, the same container for every loop.
+
+    Attributes:
+        eta0: (n_eta,) initial generalised position (a craft's pose ``[x, y, psi]`` or
+            ``[x, y, z, phi, theta, psi]``; a manipulator's joint angles) [m, rad].
+        nu0: (n_nu,) initial generalised velocity (a craft's body velocity over ground).
+        current: (3,) the water's velocity in NED [m/s] (the one current convention of vcjax;
+            planar craft use its first two components; ignored by loops without water).
+        u_d: () desired speed along the path [m/s].
+        varpi0: () initial path-particle parameter.
+        path: coefficients of the loop's path (kind: :attr:`Loop.path`).
+        plant: parameters of the simulated plant (the vehicle's parameter NamedTuple).
+        design: parameters the *controller* believes (its design model and actuator map come
+            from them); equal to ``plant`` unless a study perturbs the plant (model error).
+        disturbance: (n_nu,) constant generalised disturbance force on the plant (body frame
+            for craft) [N, N m]; zeros where the plant takes none.
+    """
+
+    eta0: Any
+    nu0: Any
+    current: Any
+    u_d: Any
+    varpi0: Any
+    path: Any
+    plant: Any
+    design: Any
+    disturbance: Any
+
+
+class GainSpec(NamedTuple):
+    """One tunable gain group of a loop (static; :mod:`tuning` builds its parameter vector
+    from these).
+
+    Attributes:
+        name: the name configs use (``[problem] tune = [...]``), e.g. ``"P_G"``, ``"depth"``.
+        size: number of entries.
+        get: ``get(gains) -> (size,)`` the group's value (``()`` arrays are returned as (1,)).
+        set: ``set(gains, value (size,)) -> gains`` (pure; traced values allowed).
+        bound: ``None`` for a positive gain (tuned as ``exp(theta)``), or ``bound(gains) ->
+            (size,)``: an upper bound that depends on the *other* gains (e.g. a Routh–Hurwitz
+            limit on integral gains); the gain is tuned as a fraction of it in ``[0, bound)``.
+    """
+
+    name: str
+    size: int
+    get: Callable
+    set: Callable
+    bound: Callable | None = None
+
+
+class Signals(NamedTuple):
+    """What the one metrics function (:func:`vcjax.metrics.run_metrics`) and the tuning loss
+    read from a run: N per-step samples (the state at the start of each step), true values
+    (not what a noisy sensor told the controller).
+
+    Attributes:
+        eps: (N, 2) path errors ``[s, e]`` (along-, cross-track) [m].
+        pos: (N, 3) NED position of what follows the path (:meth:`Loop.position`) [m].
+        p_err: (N, 3) position minus the path particle's point ``p_p(varpi)``, NED [m].
+        u_err: (N,) speed error [m/s].
+        psi_err: (N,) heading (or attitude) error [rad]; zeros where the law has none.
+        depth_err: (N,) depth error [m]; zeros for planar loops.
+        cmd_ratio: (N, A) actuator commands divided by their limits (|.| > 1: beyond).
+        sat: (N,) bool, some actuator commanded at or beyond its limit.
+        act: dict ``name -> (M,)`` actuator magnitudes reported as ``max_abs_<name>``.
+    """
+
+    eps: Any
+    pos: Any
+    p_err: Any
+    u_err: Any
+    psi_err: Any
+    depth_err: Any
+    cmd_ratio: Any
+    sat: Any
+    act: Any
