@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from vcjax import loops, paths
-from vcjax.loops.config import import_module_file
+from vcjax.config.scenario import import_module_file
 from vcjax.rollout import RolloutConfig
 
 ROOT = Path(__file__).resolve().parents[1]

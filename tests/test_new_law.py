@@ -15,8 +15,8 @@ from tuning.optim import run_gradient_tuner
 from tuning.params import GainSpace
 from tuning.scenarios import sample_scenarios as tuning_batch
 from vcjax import loops, paths
+from vcjax.config.scenario import ScenarioChoice
 from vcjax.linalg import rot2, wrap_angle
-from vcjax.loops.config import ScenarioChoice
 from vcjax.rollout import RolloutConfig
 from vcjax.sweep import ScenarioSpec, SweepSpec, run_sweep
 
