@@ -114,3 +114,38 @@ def test_a_loop_without_water_refuses_a_current():
                 loops.gauss_markov_params(sc, *jnp.asarray([0.1, 5.0, 1.0])), None, None
             ),
         )  # fmt: skip
+
+
+def _write(tmp_path, name, text):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_a_sweep_or_tune_config_asking_a_loop_for_a_current_it_cannot_take_is_refused(tmp_path):
+    from vcjax.config import ConfigError
+    from vcjax.sweep.config import load_config
+
+    arm = '[scenario]\nvehicle = "arm"\n[sweep]\nnum_scenarios = 2\n'
+    # no [current]: the arm gets no current (the default current is Simulation 1's)
+    spec, _ = load_config(_write(tmp_path, "a.toml", arm))
+    assert max(spec.scenario.current_speed) == 0.0
+    with pytest.raises(ConfigError, match=r"\[current\] the arm loop takes no current"):
+        load_config(_write(tmp_path, "b.toml", arm + "[current]\nspeed = [0.0, 0.5]\n"))
+    gm = '[scenario]\nvehicle = "odin"\n[sweep]\nnum_scenarios = 2\n[current]\nmodel = "gauss_markov"\n'
+    with pytest.raises(ConfigError, match="cannot take a time-varying"):
+        load_config(_write(tmp_path, "c.toml", gm))
+
+
+def test_the_cli_refuses_it_with_exit_2_and_one_line(tmp_path, capsys):
+    from vcjax import cli
+
+    cfg = _write(
+        tmp_path,
+        "t.toml",
+        '[scenario]\nvehicle = "arm"\n[problem]\nhorizon = 1.0\ndt = 0.01\n'
+        "[scenarios]\ncurrent_max = 0.5\n[train]\nsize = 2\n[heldout]\nsize = 2\n",
+    )
+    assert cli.main(["tune", str(cfg), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the arm loop takes no current" in err[0]

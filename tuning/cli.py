@@ -93,6 +93,11 @@ def build(cfg: dict):
             extra[field] = tuple(cur[key])
         elif cur:  # [current] replaces current_max: a key not given takes the section default
             extra[field] = getattr(Current(), key)
+    speed = extra.get("current_speed", (0.0, sc["current_max"]))
+    try:  # a current the loop cannot take is refused, never silently ignored
+        loops.check_disturbances(loop, max(speed) > 0, False)
+    except ValueError as err:
+        raise ConfigError("[current] " + str(err).removeprefix("current: ")) from None
     me = cfg["model_error"]
     if me["relative"] > 0:
         extra["model_error"] = me["relative"]

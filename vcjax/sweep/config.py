@@ -156,6 +156,16 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
         sc_kw["noise"] = sections["sensor_noise"].values
         if "force" in raw.get("disturbance", {}):
             sc_kw["disturbance"] = sections["disturbance"].force
+        if not cls.takes_current and "current" not in raw:
+            sc_kw["current_speed"] = (0.0, 0.0)  # the default current is Simulation 1's
+        try:  # a current the loop cannot take is refused, never silently ignored
+            loops.check_disturbances(
+                cls,
+                max(sc_kw.get("current_speed", ScenarioSpec.current_speed)) > 0,
+                sc_kw.get("current_model", ScenarioSpec.current_model) == "gauss_markov",
+            )
+        except ValueError as err:
+            raise ConfigError("[current] " + str(err).removeprefix("current: ")) from None
         gains = raw.get("simulation", {}).get("gains")
         figures = as_bool("[output] figures", raw.get("output", {}).get("figures", True))
         spec = SweepSpec(scenario=ScenarioSpec(**sc_kw), choice=choice, **spec_kw)
