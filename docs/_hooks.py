@@ -156,10 +156,78 @@ def benchmark_tables() -> str:
 # ------------------------------------------------------------------------------ config reference
 
 
-def config_reference() -> str:
-    from vcjax.config import reference_markdown
+def _shared_fields() -> dict[str, set[str]]:
+    """Keys of the shared sections (``vcjax.config.schema()``: section -> {"doc", "keys"})."""
+    from vcjax.config import schema
 
-    return reference_markdown()
+    return {sec: set(spec["keys"]) for sec, spec in schema().items()}
+
+
+def _command_table(title: str, sections: dict, docs: dict, shared: dict) -> list[str]:
+    """Tables of a command's own keys: ``sections`` maps section -> {key: default or ...}."""
+    out = [f"### `{title}`", ""]
+    for sec, keys in sections.items():
+        own = {k: d for k, d in keys.items() if k not in shared.get(sec, set())}
+        if not own:
+            out += [f"`[{sec}]`: the shared section above.", ""]
+            continue
+        note = " (and the shared keys above)" if sec in shared else ""
+        out += [
+            f"`[{sec}]`{note}",
+            "",
+            "| key | default | unit | description |",
+            "|---|---|---|---|",
+        ]
+        for key, default in own.items():
+            unit, desc = docs[(sec, key)]
+            shown = "required" if default is ... else f"`{default!r}`"
+            out.append(f"| {key} | {shown} | {unit} | {desc} |")
+        out.append("")
+    return out
+
+
+def command_sections() -> dict[str, dict[str, dict]]:
+    """Each command's sections and keys with defaults, read from the parsers' own schemas."""
+    from tuning.config import DEFAULTS as TUNE
+    from vcjax.identify.config import FIT_SCHEMA
+    from vcjax.sweep import SweepSpec
+    from vcjax.sweep.config import SCHEMA as SWEEP
+    from vcjax.sweep.config import SPEC_FIELDS
+
+    spec = SweepSpec.__dataclass_fields__
+    sweep = {
+        s: {k: _spec_default(spec, SPEC_FIELDS.get((s, k))) for k in keys}
+        for s, keys in SWEEP.items()
+        if keys
+    }
+    sweep["sweep"]["num_scenarios"] = ...
+    return {"vcjax sweep": sweep, "vcjax tune": TUNE, "vcjax fit": FIT_SCHEMA}
+
+
+def _spec_default(fields, name):
+    """Default of a SweepSpec field (``None``: not a field, or set per loop)."""
+    import dataclasses
+
+    f = fields.get(name)
+    if f is None:
+        return None
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    return None
+
+
+def config_reference() -> str:
+    from tuning.config import KEY_DOCS as TUNE_DOCS
+    from vcjax.config import reference_markdown
+    from vcjax.identify.config import KEY_DOCS as FIT_DOCS
+    from vcjax.sweep.config import KEY_DOCS as SWEEP_DOCS
+
+    shared = _shared_fields()
+    docs = {"vcjax sweep": SWEEP_DOCS, "vcjax tune": TUNE_DOCS, "vcjax fit": FIT_DOCS}
+    out = ["## Shared sections", "", reference_markdown(), "", "## Each command's own keys", ""]
+    for cmd, sections in command_sections().items():
+        out += _command_table(cmd, sections, docs[cmd], shared)
+    return "\n".join(out)
 
 
 MARKERS = {

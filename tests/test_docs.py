@@ -291,6 +291,32 @@ def test_nothing_refers_outside_the_repository():
     assert not bad, f"files referring outside the repository: {bad}"
 
 
+def test_the_config_reference_lists_every_key_of_every_command():
+    """The reference is generated from the parsers' schemas: every key of every section of
+    ``sweep``, ``tune`` and ``fit`` appears, with a description (a key added without one fails)."""
+    sys.path.insert(0, str(ROOT / "docs"))
+    try:
+        import _hooks
+    finally:
+        sys.path.pop(0)
+    text = _hooks.config_reference()
+    from vcjax.config import schema
+
+    for sec, spec in schema().items():
+        assert f"[{sec}]" in text
+        for key, meta in spec["keys"].items():
+            # open keys (the vehicle's [initial] keys, a loop's options) are one row in italics
+            assert f"| {key} |" in text or meta.get("open_keys") or meta["type"] == "options", (
+                sec,
+                key,
+            )
+    for sections in _hooks.command_sections().values():
+        for sec, keys in sections.items():
+            assert f"[{sec}]" in text
+            for key in keys:
+                assert f"| {key} |" in text, (sec, key)
+
+
 # --------------------------------------------------------------------------- README and CI
 
 

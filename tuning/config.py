@@ -359,3 +359,52 @@ def load_config(path) -> dict:
         gp = Path(g)
         cfg["problem"]["initial_gains"] = str(gp if gp.is_absolute() else path.parent / gp)
     return cfg
+
+
+#: (section, key) -> (unit, description) of the tune-only keys (the shared sections are
+#: described in :mod:`vcjax.config.schema`); the configuration reference is generated from it
+KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
+    ("problem", "variant"): ("", "the controller (older spelling of [scenario] controller)"),
+    ("problem", "tune"): ("", "gain groups to tune ([] = all of the controller's)"),
+    ("problem", "initial_gains"): ("file", 'gains JSON to start from ("" = the defaults)'),
+    ("problem", "horizon"): ("s", "simulated time (older spelling of [simulation] horizon)"),
+    ("problem", "dt"): ("s", "integration step (older spelling of [simulation] dt)"),
+    ("problem", "integrator"): ("", "older spelling of [simulation] integrator"),
+    ("problem", "timing"): ("", "older spelling of [simulation] timing"),
+    ("problem", "smooth"): ("", "older spelling of [simulation] smooth"),
+    ("problem", "checkpoint"): ("", "jax.checkpoint segments of the rollout under reverse mode"),
+    ("problem", "checkpoint_every"): ("", "steps per checkpointed segment"),
+    ("problem", "edd"): ("", "VCM e_ddot mode: paper or implied"),
+    ("problem", "risk"): ("", "mean loss over the batch, or cvar (the worst alpha fraction)"),
+    ("problem", "alpha"): ("", "CVaR level: fraction of worst scenarios"),
+    ("problem", "log_box"): ("", "gains kept within e^log_box of the initial ones (penalty)"),
+    ("problem", "box_weight"): ("", "weight of that penalty"),
+    ("weights", "eps"): ("1/m^2", "weight of the path errors s^2 + e^2"),
+    ("weights", "u_tilde"): ("s^2/m^2", "weight of the speed error"),
+    ("weights", "psi_tilde"): ("1/rad^2", "weight of the heading (attitude) error"),
+    ("weights", "sat_excess"): ("", "weight of the squared command excess over the limits"),
+    ("weights", "sat_time"): ("", "weight of the (smooth) time over the limits"),
+    ("weights", "effort"): ("", "weight of the squared commands over their limits"),
+    ("weights", "unhealthy"): ("", "penalty of a run that diverged"),
+    ("weights", "sat_width"): ("", "width of the smooth step counting time over the limits"),
+    ("scenarios", "current_max"): ("m/s", "current speed ~ U(0, current_max), any direction"),
+    ("scenarios", "position_offset"): ("m", "initial x, y offsets ~ U(-o, o)"),
+    ("scenarios", "heading_offset_deg"): ("deg", "initial heading offset ~ U(-o, o)"),
+    ("train", "size"): ("", "training scenarios"),
+    ("train", "seed"): ("", "seed of the training scenarios"),
+    ("heldout", "size"): ("", "held-out scenarios (reported before and after)"),
+    ("heldout", "seed"): ("", "seed of the held-out scenarios (must differ from train's)"),
+    ("heldout", "smooth"): ("", "smooth saturation on the held-out batch (default: hard clip)"),
+    ("optimizer", "name"): ("", "lbfgs (zoom line search) or adam"),
+    ("optimizer", "steps"): ("", "optimiser iterations"),
+    ("optimizer", "learning_rate"): ("", "Adam's step size"),
+    ("optimizer", "memory_size"): ("", "L-BFGS history length"),
+    ("optimizer", "max_linesearch_steps"): ("", "L-BFGS line-search evaluations per step"),
+    ("optimizer", "grad_mode"): ("", "reverse mode, or forward (jax.jacfwd) for few gains"),
+    ("optimizer", "max_bad_steps"): ("", "non-finite steps tolerated before aborting"),
+    ("optimizer", "grad_tol"): ("", "stop when the gradient norm falls below this"),
+    ("report", "plot_scenarios"): ("", "held-out scenarios drawn in the before/after figures"),
+    ("disturbance", "force"): ("N, N m", "one range per generalised force component"),
+    ("model_error", "relative"): ("", "plant parameters scaled by 1 + relative U(-1, 1)"),
+    ("model_error", "fields"): ("", "the parameters perturbed ([] = the vehicle's default set)"),
+}

@@ -201,3 +201,19 @@ def run_fit_config(
         pred = result.problem.free_run(result.z, log)
         files.append(prediction_figure(result, log, pred0, pred, out / name, index=i))
     return {"result": result, "fit": fit, "files": files}
+
+
+#: (section, key) -> (unit, description) of every fit key; the configuration reference is
+#: generated from it and :data:`FIT_SCHEMA`
+KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
+    ("data", "files"): ("file", "logs (.csv or .npz), relative to the config file (required)"),
+    ("model", "vehicle"): ("", "the vehicle whose plant is fitted: remus100 or infante"),
+    ("model", "step"): ("", "pvs (PythonVehicleSimulator's Euler step) or euler, heun, rk4"),
+    ("model", "current_speed"): ("m/s", "known current (or the first guess with fit_current)"),
+    ("model", "current_direction_deg"): ("deg", "towards which the water flows, from north"),
+    ("fit", "params"): ("", "scalar parameters to estimate (required)"),
+    ("fit", "fit_current"): ("", "also estimate the current's speed and direction"),
+    ("fit", "initial_scale"): ("", "start from nominal x scale (studies and tests)"),
+    ("fit", "segment_steps"): ("", "steps per multiple-shooting segment"),
+    ("fit", "max_iters"): ("", "Levenberg-Marquardt iterations"),
+}

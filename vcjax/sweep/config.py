@@ -47,8 +47,8 @@ SCHEMA: dict[str, tuple[str, ...] | None] = {
     "metrics": ("tail", "diverge_e"),
     "output": ("record_points", "figures"),
 }
-# (section, key) -> SweepSpec / ScenarioSpec field
-_SPEC_KEYS = {
+#: (section, key) -> SweepSpec field
+SPEC_FIELDS = _SPEC_KEYS = {
     ("sweep", "num_scenarios"): "num_scenarios",
     ("sweep", "seed"): "seed",
     ("sweep", "variants"): "variants",
@@ -251,3 +251,19 @@ def run_sweep_config(
     if extras["figures"] and draw is not None:
         files += draw(result, out)
     return {"summary": summary, "files": files, "result": result, "figures": extras["figures"]}
+
+
+#: (section, key) -> (unit, description) of the sweep-only keys (the shared sections are
+#: described in :mod:`vcjax.config.schema`); the configuration reference is generated from it
+KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
+    ("sweep", "num_scenarios"): ("", "number of sampled scenarios (required; int >= 1)"),
+    ("sweep", "seed"): ("", "seed of the scenario draws (scenario i uses fold_in(seed, i))"),
+    ("sweep", "variants"): ("", "the controllers to compare (default: the vehicle's)"),
+    ("sweep", "chunk_size"): ("", "scenarios per compiled batch (rounded to the device count)"),
+    ("simulation", "edd"): ("", "VCM e_ddot mode: paper or implied"),
+    ("simulation", "gains"): ("file", "the vehicle's gains JSON (what vcjax tune writes)"),
+    ("metrics", "tail"): ("", "fraction of the run that is the steady-state window"),
+    ("metrics", "diverge_e"): ("m", "cross-track bound beyond which a run counts as diverged"),
+    ("output", "record_points"): ("", "decimated trace samples kept per run for figures"),
+    ("output", "figures"): ("", "draw the sweep figures"),
+}
