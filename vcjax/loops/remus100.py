@@ -206,6 +206,7 @@ class Remus100Loop(Loop):
                 actuation="underactuated",
                 integral=True,
                 guidance="ilos" if c == "vcm3d_ilos" else "los",
+                kinematics_inverse=rd.kinematics5_inverse,
             )
 
             def law(t, q, qd, nu5, z, params):
