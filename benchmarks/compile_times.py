@@ -47,7 +47,8 @@ def parse_args(argv=None):
     p.add_argument(
         "--loops",
         default=None,
-        help="comma-separated vehicle/controller names or vehicle names (default: all)",
+        help="comma-separated vehicle/controller names or vehicle names (default: all; "
+        "'none': only the tune step)",
     )
     p.add_argument("--timing", choices=("continuous", "sampled"), default="continuous")
     p.add_argument(
@@ -148,6 +149,8 @@ def select(names: str | None) -> list[tuple[str, str]]:
     every = [(v, c) for v in loops.vehicles() for c in loops.controllers(v)]
     if not names:
         return every
+    if names.strip().lower() == "none":  # only the tune step
+        return []
     out = []
     for name in [n.strip() for n in names.split(",") if n.strip()]:
         if "/" in name:
