@@ -8,7 +8,7 @@ ROOT = Path(__file__).resolve().parents[1] / "vcjax"
 
 #: layers in data-flow order; a module may import from its own layer or an earlier one
 LAYERS = [
-    {"_checks", "_config", "devices", "linalg", "integrators", "progress"},
+    {"_checks", "_config", "devices", "linalg", "integrators", "progress", "cache"},
     {"distributed", "runinfo"},
     {"mechanics", "systems", "paths", "currents"},
     {"vehicles", "guidance", "allocation", "rollout"},
