@@ -51,3 +51,26 @@ def test_convergence_order(name):
 def test_unknown_integrator_is_a_clear_error():
     with pytest.raises(ValueError, match="unknown integrator"):
         get_integrator("rk45")
+
+
+def test_rk4_stage_loop_equals_the_unrolled_stages():
+    """rk4 (the stages as a scan over the tableau) and rk4_unrolled (written out) are the same
+    method: one step of a nonlinear pytree system agrees to round-off, aux from stage 1."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from vcjax.integrators import rk4, rk4_unrolled
+
+    def f(t, y, args):
+        a, b = y
+        return (jnp.sin(t) * b - a**3, jnp.cos(a) + args * b), {"t": t, "a": a}
+
+    y = (jnp.asarray([0.3, -1.2]), jnp.asarray([2.0, 0.5]))
+    for dt in (0.01, 0.3):
+        y1, aux1 = rk4(f, 0.7, y, dt, 0.25)
+        y2, aux2 = rk4_unrolled(f, 0.7, y, dt, 0.25)
+        for u, v in zip(jax.tree_util.tree_leaves(y1), jax.tree_util.tree_leaves(y2), strict=True):
+            np.testing.assert_allclose(u, v, rtol=1e-14, atol=1e-15)
+        np.testing.assert_array_equal(aux1["a"], y[0])
+        np.testing.assert_allclose(aux1["t"], 0.7)

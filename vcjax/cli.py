@@ -617,6 +617,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     args.t_start = time.perf_counter()
+    from vcjax.cache import enable_compilation_cache
+
+    enable_compilation_cache()
     if args.command != "launch":  # a process started by `vcjax launch` joins its run first
         from vcjax import distributed
 

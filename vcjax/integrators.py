@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import jax
 
-__all__ = ["euler", "heun", "rk4", "INTEGRATORS", "get_integrator", "ORDER"]
+__all__ = ["euler", "heun", "rk4", "rk4_unrolled", "INTEGRATORS", "get_integrator", "ORDER"]
 
 
 def _axpy(a, x, y):
@@ -38,14 +38,54 @@ def heun(f: Callable, t, y, dt, args):
     return _axpy(dt, incr, y), aux
 
 
-def rk4(f: Callable, t, y, dt, args):
-    """Classical fourth-order Runge–Kutta."""
+def rk4_unrolled(f: Callable, t, y, dt, args):
+    """Classical RK4 with the four stages written out (``f`` traced four times). The rollout
+    uses it when only the plant is in the vector field (``timing="sampled"``): plants are
+    small, and XLA fuses the unrolled stages of a batch better than a loop over them."""
     half = 0.5 * dt
     k1, aux = f(t, y, args)
     k2, _ = f(t + half, _axpy(half, k1, y), args)
     k3, _ = f(t + half, _axpy(half, k2, y), args)
     k4, _ = f(t + dt, _axpy(dt, k3, y), args)
     incr = jax.tree_util.tree_map(lambda a, b, c, d: (a + 2 * b + 2 * c + d) / 6, k1, k2, k3, k4)
+    return _axpy(dt, incr, y), aux
+
+
+# Classical RK4 as a Butcher tableau: stage i evaluates f at ``t + C[i] dt`` and
+# ``y + (A[i] dt) k_{i-1}`` (the tableau is sub-diagonal); the increment is ``sum W[i] k_i / 6``.
+_RK4_C = (0.0, 0.5, 0.5, 1.0)
+_RK4_W = (1.0, 2.0, 2.0, 1.0)
+
+
+def rk4(f: Callable, t, y, dt, args):
+    """Classical fourth-order Runge–Kutta.
+
+    The four stages run as one ``lax.scan`` over the tableau, so ``f`` (a closed loop's plant
+    and, with a continuous controller, the whole control law) is traced and compiled once per
+    step instead of four times: the program is about 4x smaller and builds that much faster.
+    The arithmetic is the textbook one, in the same order: stage inputs ``y + (c dt) k`` and
+    the increment ``((k1 + 2 k2) + 2 k3) + k4) / 6``.
+    """
+    import jax.numpy as jnp
+
+    leaves = jax.tree_util.tree_leaves(y)
+    dtype = jnp.result_type(*leaves) if leaves else jnp.result_type(float)
+    dt = jnp.asarray(dt)
+    coef = jnp.asarray(_RK4_C, dtype=jnp.result_type(dtype, dt.dtype))
+    weight = jnp.asarray(_RK4_W, dtype=coef.dtype)
+    zeros = jax.tree_util.tree_map(jnp.zeros_like, y)
+
+    def stage(carry, cw):
+        k_prev, acc = carry
+        c, w = cw
+        h = c * dt
+        k, aux = f(t + h, _axpy(h, k_prev, y), args)
+        acc = jax.tree_util.tree_map(lambda s, ki: s + w * ki, acc, k)
+        return (k, acc), aux
+
+    (_, acc), auxs = jax.lax.scan(stage, (zeros, zeros), (coef, weight))
+    aux = jax.tree_util.tree_map(lambda a: a[0], auxs)  # outputs at the start of the step
+    incr = jax.tree_util.tree_map(lambda s: s / 6, acc)
     return _axpy(dt, incr, y), aux
 
 

@@ -457,7 +457,10 @@ def check_shapes(
 
 
 def from_body_frame(
-    body_mass_matrix: Callable, body_bias_force: Callable, kinematics: Callable
+    body_mass_matrix: Callable,
+    body_bias_force: Callable,
+    kinematics: Callable,
+    kinematics_inverse: Callable | None = None,
 ) -> MechanicalSystem:
     """Express a quasi-velocity model in generalised coordinates.
 
@@ -470,20 +473,29 @@ def from_body_frame(
         body_mass_matrix: ``M_b(q, args) -> (n, n)``.
         body_bias_force: ``n_b(q, nu, args) -> (n,)``.
         kinematics: ``J(q, args) -> (n, n)``.
+        kinematics_inverse: optional ``J(q, args)⁻¹`` in closed form (e.g. a rotation's
+            transpose); default: one small elimination (:func:`~vcjax.linalg.solve_small`).
     """
+
+    def inverse(q, args, J):
+        if kinematics_inverse is not None:
+            return kinematics_inverse(q, args)
+        return solve_small(J, jnp.eye(J.shape[0], dtype=J.dtype))
 
     def mass_matrix(q, args):
         J = kinematics(q, args)
-        Jinv_T = solve_small(J.T, jnp.eye(J.shape[0], dtype=J.dtype))
+        Jinv_T = inverse(q, args, J).T
         M = Jinv_T @ body_mass_matrix(q, args) @ Jinv_T.T
         return 0.5 * (M + M.T)
 
     def bias_force(q, qd, args):
         J, J_dot = jax.jvp(lambda q_: kinematics(q_, args), (q,), (qd,))
-        nu = solve_small(J, qd)
+        # one elimination for the three solves with J and Jᵀ (a third of the program)
+        Jinv = inverse(q, args, J)
+        nu = Jinv @ qd
         Mb = body_mass_matrix(q, args)
-        rhs = body_bias_force(q, nu, args) - Mb @ solve_small(J, J_dot @ nu)
-        return solve_small(J.T, rhs)
+        rhs = body_bias_force(q, nu, args) - Mb @ (Jinv @ (J_dot @ nu))
+        return Jinv.T @ rhs
 
     return MechanicalSystem(mass_matrix=mass_matrix, bias_force=bias_force)
 
@@ -583,17 +595,27 @@ def underactuated_reaction_force(
         check_spd("mass_matrix(q)", M)
     n_vec = system.bias_force(q, qd, args)
 
-    def solve(mu):
+    def terms_at(mu):
         def rate(q_, t_, z_, a_):
             return cons.state_rate(q_, t_, z_, a_).at[idx].add(mu)
 
         c = dataclasses.replace(cons, state_rate=rate)
-        terms = constraint_terms(c, gains, q, qd, t, args, z)
-        tau_c, qdd = constrained_acceleration(M, n_vec, tau, terms.W, terms.h, method)
-        return tau_c, qdd, terms
+        return constraint_terms(c, gains, q, qd, t, args, z)
 
-    out0, lin = jax.linearize(solve, jnp.zeros((r,), q.dtype))
-    slopes = jax.vmap(lin)(jnp.eye(r, dtype=q.dtype))  # leaves (r, ...)
+    # Only the constraint terms are linearised in mu; the solve (16)/(17), affine in h, then
+    # runs once on [h(0); ∂h/∂mu] (a vmap over 1 + r right-hand sides, f = 0 for the slopes)
+    # instead of being differentiated: the same numbers, a much smaller program.
+    terms0, lin = jax.linearize(terms_at, jnp.zeros((r,), q.dtype))
+    dterms = jax.vmap(lin)(jnp.eye(r, dtype=q.dtype))  # leaves (r, ...)
+    zero = jnp.zeros_like(q)
+    hs = jnp.concatenate([terms0.h[None], dterms.h])
+    ns = jnp.concatenate([n_vec[None], jnp.broadcast_to(zero, (r, zero.shape[0]))])
+    taus = jnp.concatenate([tau[None], jnp.broadcast_to(zero, (r, zero.shape[0]))])
+    tau_cs, qdds = jax.vmap(
+        lambda n_, tau_, h_: constrained_acceleration(M, n_, tau_, terms0.W, h_, method)
+    )(ns, taus, hs)
+    out0 = (tau_cs[0], qdds[0], terms0)
+    slopes = (tau_cs[1:], qdds[1:], dterms)
     A_u, b_u = under.unactuated(q, qd, t, args)
     A_u = jnp.atleast_2d(A_u)
     gap0 = A_u @ out0[0] - b_u

@@ -105,6 +105,7 @@ def run_info(
         extra: anything else worth keeping (merged in last).
     """
     import vcjax
+    from vcjax.cache import cache_dir
 
     devices = jax.devices()
     info = {
@@ -128,6 +129,7 @@ def run_info(
             "kinds": sorted({d.device_kind for d in devices}),
         },
         "processes": {"count": jax.process_count(), "index": jax.process_index()},
+        "compilation_cache": cache_dir(),
         "config": to_jsonable(config),
         "seeds": to_jsonable(seeds or {}),
         "wall_s": to_jsonable(wall_s),

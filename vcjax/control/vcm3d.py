@@ -165,6 +165,8 @@ class VCM3DConfig:
         system: the 5-DOF design model in ``q = [x, y, z, theta, psi]``
             (:class:`~vcjax.mechanics.MechanicalSystem`, ``args`` = :attr:`VCM3DParams.model`).
         kinematics: ``J5(q, model) -> (5, 5)`` with ``q̇ = J5 nu5``.
+        kinematics_inverse: optional closed-form ``J5(q, model)^-1`` (default: an
+            elimination); a smaller program, the same numbers to round-off.
         tied_rows: ``model -> (2, 5)`` body-frame rows ``A_b`` with ``A_b tau5 = 0`` for every
             fin force (used when underactuated).
         actuation: ``"underactuated"`` (sway and heave tied to the fins; ``v_d``, ``w_d`` free)
@@ -180,6 +182,7 @@ class VCM3DConfig:
     actuation: Literal["full", "underactuated"] = "underactuated"
     integral: bool = False
     guidance: Literal["los", "ilos"] = "los"
+    kinematics_inverse: Callable | None = None
 
     def __post_init__(self):
         if self.actuation not in ("full", "underactuated"):
@@ -341,9 +344,13 @@ def vcm3d_law(cfg: VCM3DConfig, params: VCM3DParams, t, q, qd, z: VCM3DState):
     f, eps = path_errors_3d(cfg.path, params.path, z.varpi, q[:3])
     psi_d, theta_d, _, _ = _angles(cfg, g, f, eps, zf)
     # nu_dot = J^-1 (q̈ - J̇ nu)
-    nu = solve_small(J, qd)
+    if cfg.kinematics_inverse is not None:
+        Jinv = cfg.kinematics_inverse(q, m)
+    else:
+        Jinv = solve_small(J, jnp.eye(J.shape[0], dtype=J.dtype))  # one elimination, two uses
+    nu = Jinv @ qd
     J_dot = jax.jvp(lambda q_: cfg.kinematics(q_, m), (q,), (qd,))[1]
-    nu_dot = solve_small(J, qdd - J_dot @ nu)
+    nu_dot = Jinv @ (qdd - J_dot @ nu)
     aux = VCM3DAux(
         eps=eps,
         dist=safe_norm(eps),

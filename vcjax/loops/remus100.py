@@ -183,6 +183,7 @@ class RemusVCM3DLaw(_RemusLaw):
             actuation="underactuated",
             integral=True,
             guidance=self.guidance,
+            kinematics_inverse=rd.kinematics5_inverse,
         )
         return vcm3d_law(cfg, params, t, m.q, m.qd, z)
 

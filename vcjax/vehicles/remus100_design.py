@@ -114,6 +114,18 @@ def kinematics5(q5, args=None):
     return J[idx][:, idx]
 
 
+def kinematics5_inverse(q5, args=None):
+    """(5, 5) ``J5(q)^-1`` in closed form: ``J5 = blkdiag(R(0, theta, psi), diag(1,
+    1/cos theta))``, so its inverse is ``blkdiag(R^T, diag(1, cos theta))`` (no elimination
+    in the traced program)."""
+    J = kinematics5(q5, args)
+    R = J[:3, :3]
+    z32 = jnp.zeros((3, 2), J.dtype)
+    low = jnp.stack([jnp.ones_like(q5[3]), jnp.zeros_like(q5[3]), jnp.cos(q5[3])])
+    T_inv = jnp.stack([low[:2], jnp.stack([low[1], low[2]])])
+    return jnp.block([[R.T, z32], [z32.T, T_inv]])
+
+
 def mass_matrix5(dm: Remus100Design):
     """(5, 5) ``M = M_RB + M_A`` without the roll row and column."""
     idx = np.asarray(IDX5)
@@ -144,6 +156,7 @@ def design_system() -> MechanicalSystem:
         lambda q, dm: mass_matrix5(dm),
         lambda q, nu, dm: body_bias5(dm, q, nu),
         kinematics5,
+        kinematics_inverse=kinematics5_inverse,
     )
 
 

@@ -1,0 +1,275 @@
+"""Compile time and graph size of every closed loop (issue 20): what a user waits for.
+
+For every registered vehicle x controller (:mod:`vcjax.loops`), two programs of one scenario
+(the loop's default, RK4, dt = 0.05 s, ``--steps`` steps, default 250):
+
+* ``forward``: the rollout reduced to a scalar (mean squared cross-track error);
+* ``gradient``: the reverse-mode gradient of that scalar w.r.t. the gains
+  (``jax.value_and_grad``).
+
+Each is built as ``jax.jit(f).trace(...)``, ``.lower()``, ``.compile()``, timed separately
+(``trace_s``, ``lower_s``, ``compile_s``), and its size is the line count of the lowered
+StableHLO text (``hlo_lines``, ``lowered.as_text()``): deterministic, unlike the times, so it is
+the number to compare under load. ``--tune CONFIG`` also builds the ``vcjax tune`` training
+step of that tuning config (L-BFGS or Adam step: loss, gradient and optimiser update in one
+program; default ``examples/tuning/remus100.toml``; ``--tune none`` skips it).
+
+    python -m benchmarks.compile_times --dtype float64
+    python -m benchmarks.compile_times --loops remus100/vcm3d,infante/vcm_integral --tune none
+
+Writes ``benchmarks/results/compile_times.json`` (``--json``): one key per loop,
+``"vehicle/controller": {"forward": {...}, "gradient": {...}}`` with ``trace_s``, ``lower_s``,
+``compile_s``, ``hlo_lines``; ``"tune:<config>"`` for the training step; and a ``machine`` block
+(CPU model, cores, jax version, dtype, load average). The persistent compilation cache is off
+in this process (``jax_enable_compilation_cache``), so every compile is a real one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+from benchmarks import _common as C
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_JSON = ROOT / "benchmarks" / "results" / "compile_times.json"
+DEFAULT_TUNE = ROOT / "examples" / "tuning" / "remus100.toml"
+
+
+def parse_args(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--dtype", choices=("float32", "float64"), default="float64")
+    p.add_argument("--steps", type=int, default=250, help="rollout steps (default 250)")
+    p.add_argument(
+        "--loops",
+        default=None,
+        help="comma-separated vehicle/controller names or vehicle names (default: all; "
+        "'none': only the tune step)",
+    )
+    p.add_argument("--timing", choices=("continuous", "sampled"), default="continuous")
+    p.add_argument(
+        "--kinds",
+        default="forward,gradient",
+        help="comma-separated programs per loop: forward, gradient",
+    )
+    p.add_argument(
+        "--tune",
+        default=str(DEFAULT_TUNE),
+        help="tuning config whose training step is built too ('none' to skip)",
+    )
+    p.add_argument("--json", type=Path, default=DEFAULT_JSON, help="output JSON file")
+    p.add_argument(
+        "--no-compile",
+        action="store_true",
+        help="trace and lower only (graph sizes; compile_s is null): a quick size check",
+    )
+    args = p.parse_args(argv)
+    if args.steps < 1:
+        p.error("--steps: expected a positive int")
+    kinds = [k for k in args.kinds.split(",") if k]
+    bad = sorted(set(kinds) - {"forward", "gradient"})
+    if bad or not kinds:
+        p.error(f"--kinds: expected forward and/or gradient, got {args.kinds!r}")
+    args.kinds = kinds
+    return args
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def machine(args) -> dict:
+    import jax
+
+    return {
+        "cpu": cpu_model(),
+        "cores": os.cpu_count(),
+        "device": C.device_str(),
+        "jax": jax.__version__,
+        "jaxlib": getattr(jax.lib, "__version__", None) or _jaxlib_version(),
+        "python": platform.python_version(),
+        "dtype": args.dtype,
+        "steps": args.steps,
+        "timing": args.timing,
+        "load_average_1min_at_start": C.load_average(),
+    }
+
+
+def _jaxlib_version():
+    try:
+        import jaxlib
+
+        return jaxlib.__version__
+    except (ImportError, AttributeError):
+        return None
+
+
+def build_times(fn, *args, compile: bool = True) -> dict:
+    """``trace_s``, ``lower_s``, ``compile_s`` and ``hlo_lines`` of ``jax.jit(fn)`` at ``args``.
+
+    Older JAX without ``jit(f).trace`` lowers directly (trace time then counts in ``lower_s``
+    and ``trace_s`` is 0).
+    """
+    import jax
+
+    jitted = fn if hasattr(fn, "lower") else jax.jit(fn)
+    t0 = time.perf_counter()
+    if hasattr(jitted, "trace"):
+        traced = jitted.trace(*args)
+        t1 = time.perf_counter()
+        lowered = traced.lower()
+    else:
+        t1 = t0
+        lowered = jitted.lower(*args)
+    t2 = time.perf_counter()
+    if compile:
+        lowered.compile()
+    t3 = time.perf_counter()
+    return {
+        "trace_s": t1 - t0,
+        "lower_s": t2 - t1,
+        "compile_s": t3 - t2 if compile else None,
+        "hlo_lines": len(lowered.as_text().splitlines()),
+    }
+
+
+def select(names: str | None) -> list[tuple[str, str]]:
+    from vcjax import loops
+
+    every = [(v, c) for v in loops.vehicles() for c in loops.controllers(v)]
+    if not names:
+        return every
+    if names.strip().lower() == "none":  # only the tune step
+        return []
+    out = []
+    for name in [n.strip() for n in names.split(",") if n.strip()]:
+        if "/" in name:
+            v, c = name.split("/", 1)
+            if (v, c) not in every:
+                raise SystemExit(
+                    f"--loops: unknown loop {name!r}; registered: "
+                    f"{', '.join(f'{a}/{b}' for a, b in every)}"
+                )
+            out.append((v, c))
+        else:
+            hits = [(v, c) for v, c in every if v == name]
+            if not hits:
+                raise SystemExit(
+                    f"--loops: unknown vehicle {name!r}; registered: {loops.vehicles()}"
+                )
+            out.extend(hits)
+    return list(dict.fromkeys(out))
+
+
+def loop_programs(vehicle: str, controller: str, steps: int, timing: str):
+    """``(forward, gradient, gains, sc)``: the two functions of one loop and their inputs."""
+    import jax
+    import jax.numpy as jnp
+
+    from vcjax import loops
+    from vcjax.rollout import RolloutConfig
+
+    loop = loops.make_loop(vehicle, controller)
+    sc = loops.make_scenario(loop, loops.default_path(vehicle)[1])
+    gains = loop.default_gains()
+    cfg = RolloutConfig(num_steps=steps, integrator="rk4", timing=timing)
+
+    def forward(gains, sc):
+        tr = loops.simulate(loop, gains, sc, cfg, C.DT)
+        eps = loop.signals(tr, sc).eps
+        return jnp.mean(eps * eps)
+
+    return forward, jax.value_and_grad(forward), gains, sc
+
+
+def tune_program(config: Path):
+    """``(step, args)``: the ``vcjax tune`` training step of ``config`` and its arguments."""
+    import jax.numpy as jnp
+
+    from tuning.cli import build, distribute
+    from tuning.config import load_config
+    from tuning.loss import objective
+    from tuning.optim import init_state, make_optimizer, make_step, replicate_like, tuner_options
+
+    cfg = load_config(config)
+    problem, _, data, train, _ = build(cfg)
+    start = data.theta_ref + problem.space.symmetry_break(data.base)
+    train_d, data_d, start = distribute(train, data, start)
+    loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
+    o = tuner_options(cfg["optimizer"])
+    opt = make_optimizer(
+        o["optimizer"], o["learning_rate"], o["memory_size"], o["max_linesearch_steps"]
+    )
+    step = make_step(loss_fn, opt, o["optimizer"], o["grad_mode"])
+    theta = jnp.asarray(start)
+    state = init_state(opt, theta)
+    args = (data_d, train_d)
+    theta, state = replicate_like(args, theta, state)
+    return step, (theta, state, jnp.asarray(1.0, theta.dtype), args)
+
+
+def _say(name: str, kind: str, r: dict) -> None:
+    comp = "-" if r["compile_s"] is None else f"{r['compile_s']:.2f}"
+    print(
+        f"  {name:28s} {kind:8s} trace {r['trace_s']:7.2f} s  lower {r['lower_s']:6.2f} s"
+        f"  compile {comp:>7s} s  {r['hlo_lines']:8d} lines",
+        flush=True,
+    )
+
+
+def main(argv=None) -> dict:
+    args = parse_args(argv)
+    C.setup(args.dtype)
+    import jax
+
+    # measure real compiles: never read a persistent cache entry
+    jax.config.update("jax_enable_compilation_cache", False)
+    mach = machine(args)
+    print(
+        f"compile times: {mach['cpu']}, {mach['cores']} cores, jax {mach['jax']}, {args.dtype}, "
+        f"{args.steps} steps, timing {args.timing}, load {mach['load_average_1min_at_start']:.2f}"
+    )
+    results: dict = {}
+    rows = []
+    for vehicle, controller in select(args.loops):
+        name = f"{vehicle}/{controller}"
+        fwd, grad, gains, sc = loop_programs(vehicle, controller, args.steps, args.timing)
+        entry = {}
+        for kind in args.kinds:
+            r = build_times(
+                fwd if kind == "forward" else grad, gains, sc, compile=not args.no_compile
+            )
+            entry[kind] = r
+            rows.append({"program": name, "kind": kind, **r, "load": C.load_average()})
+            _say(name, kind, r)
+        results[name] = entry
+    if args.tune and args.tune.lower() != "none":
+        step, step_args = tune_program(Path(args.tune))
+        r = build_times(step, *step_args, compile=not args.no_compile)
+        key = f"tune:{Path(args.tune).name}"
+        results[key] = {"step": r}
+        rows.append({"program": key, "kind": "step", **r, "load": C.load_average()})
+        _say(key, "step", r)
+    mach["load_average_1min_at_end"] = C.load_average()
+    doc = {"machine": mach, **results}
+    cols = ["program", "kind", "trace_s", "lower_s", "compile_s", "hlo_lines", "load"]
+    C.print_table(rows, cols, title="compile times (s) and StableHLO size")
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(doc, indent=2) + "\n")
+        print(f"\nwrote {args.json}")
+    return doc
+
+
+if __name__ == "__main__":
+    main()

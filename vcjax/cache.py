@@ -1,0 +1,113 @@
+"""JAX's persistent compilation cache for the ``vcjax`` command line, on by default.
+
+A closed loop's programs take seconds to minutes to compile and nothing to run; a second
+identical ``vcjax`` command reads the compiled programs back from disk instead. The folder:
+
+* ``$VCJAX_CACHE_DIR`` when set (``off``, ``none``, ``0`` or ``false`` disable the cache);
+* else ``$XDG_CACHE_HOME/vcjax/jax``;
+* else ``~/.cache/vcjax/jax``.
+
+:func:`enable_compilation_cache` is called once at the start of :func:`vcjax.cli.main`, before
+anything is compiled; the library itself never turns the cache on (``import vcjax`` changes no
+JAX setting), so tests and user programs get JAX's defaults unless they call it.
+``run.json`` records the folder used (:func:`cache_dir`; ``null`` when off).
+
+Thresholds: JAX writes an entry only for programs that took at least
+``jax_persistent_cache_min_compile_time_secs`` (default 1 s) to compile. We set 0: a CLI run
+also compiles dozens of small programs (scenario set-up, metrics, held-out evaluation pieces)
+at 10-100 ms each on a loaded 2-core machine, which add up to seconds, while reading an entry
+back costs about a millisecond; with 0 a second identical run compiles nothing at all (what the
+tests check). ``jax_persistent_cache_min_entry_size_bytes`` is set to 0 (no size floor), and the
+folder is capped at :data:`MAX_BYTES` where the JAX version supports it and the ``filelock``
+package is installed (JAX needs it to remove the least recently used entries); otherwise the
+folder is not capped. Settings a JAX version does not know are skipped.
+
+Tracing is not cached (JAX traces before it computes the cache key): the trace time of the big
+loops has to come down in the code itself (see ``benchmarks/compile_times.py``).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import jax
+
+__all__ = ["ENV", "MAX_BYTES", "default_cache_dir", "enable_compilation_cache", "cache_dir"]
+
+ENV = "VCJAX_CACHE_DIR"
+OFF = ("off", "none", "0", "false", "no")
+MAX_BYTES = 4 * 1024**3  # 4 GiB: a few hundred of the largest (6-DOF gradient) programs
+
+_ACTIVE: str | None = None
+
+
+def default_cache_dir(environ=None) -> Path | None:
+    """The folder the environment asks for (None: disabled); see the module docstring."""
+    env = os.environ if environ is None else environ
+    value = env.get(ENV)
+    if value is not None and value.strip():
+        if value.strip().lower() in OFF:
+            return None
+        return Path(value).expanduser()
+    xdg = env.get("XDG_CACHE_HOME")
+    base = Path(xdg).expanduser() if xdg and xdg.strip() else Path.home() / ".cache"
+    return base / "vcjax" / "jax"
+
+
+def _update(name: str, value) -> bool:
+    try:
+        jax.config.update(name, value)
+    except (AttributeError, KeyError, ValueError):  # a name this JAX version does not have
+        return False
+    return True
+
+
+def enable_compilation_cache(environ=None) -> str | None:
+    """Turn JAX's persistent compilation cache on in the folder of :func:`default_cache_dir`
+    (or off); returns the folder used as a string, or None when disabled or the folder cannot be
+    created (the run goes on without a cache)."""
+    global _ACTIVE
+    path = default_cache_dir(environ)
+    if path is not None:
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            path = None
+    if path is None:
+        _update("jax_enable_compilation_cache", False)
+        _ACTIVE = None
+    else:
+        _update("jax_enable_compilation_cache", True)
+        _update("jax_compilation_cache_dir", str(path))
+        _update("jax_persistent_cache_min_compile_time_secs", 0.0)
+        _update("jax_persistent_cache_min_entry_size_bytes", 0)
+        if _has_filelock():  # JAX needs it to evict entries safely
+            _update("jax_compilation_cache_max_size", MAX_BYTES)
+        _ACTIVE = str(path)
+    _reset()
+    return _ACTIVE
+
+
+def _reset() -> None:
+    """Forget a cache state JAX may have fixed already (a program compiled before this call
+    would otherwise pin "no cache" for the rest of the process)."""
+    try:
+        from jax._src import compilation_cache as cc  # no public reset in every version
+
+        cc.reset_cache()
+    except (ImportError, AttributeError):
+        pass
+
+
+def _has_filelock() -> bool:
+    try:
+        import filelock  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def cache_dir() -> str | None:
+    """The folder :func:`enable_compilation_cache` set in this process (None: none)."""
+    return _ACTIVE
