@@ -70,8 +70,8 @@ def rk4(f: Callable, t, y, dt, args):
 
     leaves = jax.tree_util.tree_leaves(y)
     dtype = jnp.result_type(*leaves) if leaves else jnp.result_type(float)
-    dt = jnp.asarray(dt)
-    coef = jnp.asarray(_RK4_C, dtype=jnp.result_type(dtype, dt.dtype))
+    # the state's dtype (a Python-float dt stays weakly typed, as in the unrolled form)
+    coef = jnp.asarray(_RK4_C, dtype=jnp.result_type(dtype, dt))
     weight = jnp.asarray(_RK4_W, dtype=coef.dtype)
     zeros = jax.tree_util.tree_map(jnp.zeros_like, y)
 
