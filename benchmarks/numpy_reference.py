@@ -230,7 +230,7 @@ def design_params(p: Plant, u_design=2.0) -> Design:
 
 
 class Gains(NamedTuple):
-    """VCM gains (SPEC §3), ``P_G = (pG1, pG2, pG3)``, ``P_Phi = (pPhi1..pPhi5)``."""
+    """VCM gains (docs/method.md), ``P_G = (pG1, pG2, pG3)``, ``P_Phi = (pPhi1..pPhi5)``."""
 
     P_G: tuple = (1.0, 0.5, 0.5)
     P_Phi: tuple = (1.0, 1.0, 2.0, 0.5, 0.5)

@@ -14,7 +14,7 @@ from vcjax.allocation import allocate, clip_allocate, pinv_allocate
 
 S = 1 / math.sqrt(2)
 RH, RV = 0.356, 0.252
-# ODIN thruster configuration matrix (vehicles.md §3.1), typed in independently of vcjax.
+# ODIN thruster configuration matrix (the vehicle data (docs/reference/vehicles.md)), typed in independently of vcjax.
 T_ODIN = np.array(
     [
         [S, -S, -S, S, 0, 0, 0, 0],

@@ -15,7 +15,7 @@ from vcjax.vehicles import infante as inf
 P = inf.infante_params()
 CALM = inf.plant_args(P)
 
-# Prime coefficients of npsauv.m (vehicles.md §2.2), typed in independently of the module.
+# Prime coefficients of npsauv.m (the vehicle data (docs/reference/vehicles.md)), typed in independently of the module.
 YDR, NDR = 2.7e-2, -1.3e-2
 
 
@@ -70,7 +70,7 @@ def test_calibration_920N_gives_5mps():
 
 def test_scaling_matches_vehicles_md_table():
     dm = inf.design_model(P, 1.0, match_coriolis=False)
-    table = {  # vehicles.md §2.2, "prime-scaled to L = 4.5 m" column
+    table = {  # the vehicle data (docs/reference/vehicles.md), "prime-scaled to L = 4.5 m" column
         "mass": (P.mass, 3331.8),
         "Iz": (P.Iz, 5995.2),
         "m11": (dm.m11, 3686.8),

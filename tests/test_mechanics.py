@@ -1,4 +1,4 @@
-"""Generic VCM engine (SPEC §2): exactness of (14)/(11), (16) vs KKT, (17) vs lstsq, gradients."""
+"""Generic VCM engine (docs/method.md): exactness of (14)/(11), (16) vs KKT, (17) vs lstsq, gradients."""
 
 import jax
 import jax.numpy as jnp

@@ -53,7 +53,7 @@ def test_numbers_from_the_sphere_formulas():
 
 
 def test_thruster_matrix_maximum_forces():
-    """vehicles.md §3.1 [DER]: 76.37 N, 108 N, 19.24 N m, 38.45 N m with 27 N per thruster."""
+    """the vehicle data (docs/reference/vehicles.md) [DER]: 76.37 N, 108 N, 19.24 N m, 38.45 N m with 27 N per thruster."""
     T = np.asarray(P.thrusters)
     reach = np.abs(T) @ np.full(8, 27.0)
     np.testing.assert_allclose(reach, [76.37, 76.37, 108.0, 19.24, 19.24, 38.45], atol=0.01)
@@ -109,7 +109,9 @@ def test_terminal_speed_from_quadratic_and_linear_drag():
     U = (-D_u + math.sqrt(D_u**2 + 4 * K_DRAG * X)) / (2 * K_DRAG)
     np.testing.assert_allclose(xs.nu[-1], [U, 0, 0, 0, 0, 0], atol=1e-9)
     U_max = (-D_u + math.sqrt(D_u**2 + 4 * K_DRAG * 76.37)) / (2 * K_DRAG)
-    assert 0.95 < U_max < 1.1  # vehicles.md: ~1.06 m/s without linear damping
+    assert (
+        0.95 < U_max < 1.1
+    )  # the vehicle data (docs/reference/vehicles.md): ~1.06 m/s without linear damping
 
 
 def test_thruster_lag_is_first_order_with_its_time_constant_and_saturates():

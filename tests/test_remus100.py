@@ -201,7 +201,7 @@ def test_continuous_plant_rk4_close_to_reference():
 
 
 def _steady_surge_speed_independent(n_rpm=1525.0):
-    """Solve the pure-surge balance with vehicles.md §1A's formulas, typed in here.
+    """Solve the pure-surge balance with the vehicle data (docs/reference/vehicles.md)'s formulas, typed in here.
 
     (1 - t) X_prop(u) = 0.5 rho S CD_0 u^2 + exp(-3u) M11 / T_surge u, with
     X_prop = rho D^4 (KT_0 n^2 + (KT_max - KT_0) / Ja_max (0.944 u / D) n), n in rps.
@@ -209,7 +209,7 @@ def _steady_surge_speed_independent(n_rpm=1525.0):
     rho, L, diam = 1026.0, 1.6, 0.19
     S = 0.7 * L * diam
     CD_0 = 0.42 * math.pi * (diam / 2) ** 2 / S
-    M11 = 31.86829  # vehicles.md: m + m k1
+    M11 = 31.86829  # the vehicle data (docs/reference/vehicles.md): m + m k1
     n, Dp = n_rpm / 60.0, 0.14
 
     def thrust(u):
@@ -225,7 +225,9 @@ def _steady_surge_speed_independent(n_rpm=1525.0):
 
 def test_steady_surge_speed_at_1525_rpm():
     u_star, K_prop = _steady_surge_speed_independent()
-    assert u_star == pytest.approx(2.55, abs=0.01)  # vehicles.md [DER]: 2.55 m/s
+    assert u_star == pytest.approx(
+        2.55, abs=0.01
+    )  # the vehicle data (docs/reference/vehicles.md) [DER]: 2.55 m/s
     # 60 s of calm water from rest at 1525 rpm (same compiled scan as the acceptance test)
     calm = rm.remus100_args(rm.remus100_params())
     cmds = jnp.tile(jnp.asarray([0.0, 0.0, 1525.0]), (3000, 1))
@@ -266,13 +268,13 @@ def test_parameters_match_vehicles_md():
     )
     assert float(p.CD_0) == pytest.approx(0.055960, rel=1e-4)
     assert rm.hoerner(0.19, 0.19) == pytest.approx(1.19773, rel=1e-5)
-    # equivalent pure-sway / pure-yaw cross-flow coefficients (vehicles.md: -196.13, -28.93)
+    # equivalent pure-sway / pure-yaw cross-flow coefficients (the vehicle data (docs/reference/vehicles.md): -196.13, -28.93)
     z = jnp.zeros(6)
     Y = rm.crossflow_drag(p, z.at[1].set(1.0))[1]
     N = rm.crossflow_drag(p, z.at[5].set(1.0))[5]
     assert float(Y) == pytest.approx(-196.13, rel=1e-4)
     assert float(N) == pytest.approx(-28.93, rel=1e-3)
-    # rudder / stern-plane gains at U = 1 m/s (vehicles.md: -3.4115, +2.7292, -4.7760, -3.8208)
+    # rudder / stern-plane gains at U = 1 m/s (the vehicle data (docs/reference/vehicles.md): -3.4115, +2.7292, -4.7760, -3.8208)
     tau = rm.control_forces(p, z, z.at[0].set(1.0), jnp.asarray([1.0, 0.0, 0.0]))
     assert float(tau[1]) == pytest.approx(-3.4115, rel=1e-4)
     assert float(tau[5]) == pytest.approx(2.7292, rel=1e-4)

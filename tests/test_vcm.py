@@ -1,4 +1,4 @@
-"""VCM path-maneuvering law (SPEC §3): (32) structure, generic-engine cross-check, (37),
+"""VCM path-maneuvering law (docs/method.md): (32) structure, generic-engine cross-check, (37),
 exponential convergence, underactuation (38), integral action (41)."""
 
 import functools
@@ -18,7 +18,7 @@ from vcjax.rollout import RolloutConfig, rollout
 from vcjax.vehicles import design3dof as d3
 
 LINE_PATH, LINE_COEFFS = paths.paper_line()  # p_p(w) = [10, w, 0] (Simulation 1)
-GAINS = pm_gains()  # SPEC §3 order-one gains
+GAINS = pm_gains()  # docs/method.md order-one gains
 Q0 = jnp.array([0.0, 0.0, np.pi / 2])
 NU0 = jnp.array([2.0, 0.0, 0.0])
 

@@ -1,5 +1,5 @@
 """Tuning loss: tracking, saturation and effort costs of closed-loop rollouts of any loop
-(SPEC §6), from the loop's :class:`~vcjax.loops.Signals`.
+(docs/guides/tuning.md), from the loop's :class:`~vcjax.loops.Signals`.
 
 Per rollout of horizon ``T = N dt`` (every integral normalised by ``T``, i.e. a time average):
 

@@ -1,4 +1,4 @@
-"""Unconstrained parametrisation of any loop's gains (SPEC §6).
+"""Unconstrained parametrisation of any loop's gains (docs/guides/tuning.md).
 
 The optimisers work on a flat vector ``theta`` (n,) of unconstrained reals. :class:`GainSpace`
 (static) says which of a loop's gain groups (:meth:`vcjax.loops.Loop.gain_specs`) are tuned and

@@ -5,7 +5,8 @@ east), the quantity :class:`~vcjax.vehicles.infante.PlantArgs` takes. A *directi
 oceanographic one: the direction the water flows **towards**, measured clockwise from north
 [rad] (the paper's current ``[0, 0.5]`` m/s has direction ``pi/2``, "towards east").
 
-Slowly varying current (SPEC §3, Sec. 4.2: "constant or slowly varying"): the mean current plus a
+Slowly varying current (docs/method.md, Sec. 4.2: "constant or slowly varying"): the mean current
+plus a
 fluctuation ``d`` (2,) whose components are independent first-order Gauss–Markov (Ornstein–
 Uhlenbeck) processes::
 

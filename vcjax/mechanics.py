@@ -1,4 +1,4 @@
-"""Generic virtually-constrained-motion (VCM) engine (paper Sections 2–3, SPEC §2).
+"""Generic virtually-constrained-motion (VCM) engine (paper Sections 2–3, docs/method.md).
 
 The engine knows nothing about marine craft. A mechanical system
 

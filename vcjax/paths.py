@@ -1,4 +1,4 @@
-"""Parametric paths ``p_p(w)`` and their frames (paper eq. (21); SPEC §3).
+"""Parametric paths ``p_p(w)`` and their frames (paper eq. (21); docs/method.md).
 
 A path is two things, kept apart like every other part of vcjax:
 

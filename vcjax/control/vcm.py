@@ -1,4 +1,4 @@
-"""VCM 2-D path-maneuvering controller (paper Section 4: (26)–(38), (41); SPEC §3).
+"""VCM 2-D path-maneuvering controller (paper Section 4: (26)–(38), (41); docs/method.md).
 
 Constraints on the horizontal 3-DOF design model (20):
 
@@ -6,7 +6,7 @@ Constraints on the horizontal 3-DOF design model (20):
     G = [psi - psi_d, s, e]                     (27)  holonomic rows, PD law
 
 ``W_b`` is 5x3 of rank 3, so the reaction force comes from the pseudo-inverse (31):
-``tau = n_b(nu) - M_b W_b^+ h``. Re-derived in closed form (SPEC §3), with
+``tau = n_b(nu) - M_b W_b^+ h``. Re-derived in closed form (docs/method.md), with
 ``W_b = [[I2, 0], [0, 0, 1], [R(gamma), 0]]`` and ``W_b^T W_b = diag(2, 2, 1)``:
 
     [u_dot, v_dot] = 1/2 (alpha_K + R(gamma)^T alpha_eps)
@@ -93,7 +93,7 @@ def pm_gains(
     P_int=(0.05, 0.05),
     sigma_i=0.4,
 ) -> PMGains:
-    """Validated :class:`PMGains` (defaults: SPEC §3's order-one gains).
+    """Validated :class:`PMGains` (defaults: docs/method.md's order-one gains).
 
     Raises ``ValueError`` for non-positive gains, wrong shapes, NaN, or integral gains that make
     the ``eps`` error dynamics (41) unstable (Routh–Hurwitz: ``P_eps2 P_eps1 > P_eps0``).

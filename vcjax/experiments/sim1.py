@@ -1,4 +1,4 @@
-"""The paper's Simulation 1 (Section 4.3, Figs. 4–5; SPEC §5) and its baselines.
+"""The paper's Simulation 1 (Section 4.3, Figs. 4–5; docs/experiments) and its baselines.
 
 INFANTE-class (NPS-AUV-derived) plant, underactuated in sway; path ``p_p(w) = [10, w]``;
 ``q0 = [0, 0, pi/2]``, ``nu0 = [2 m/s, 0, 0]``; ocean current ``[0, 0.5] m/s`` (unknown to the

@@ -1,4 +1,5 @@
-"""The paper's Simulation 2 (Section 4.3, Figs. 6–7; SPEC §5): ODIN-class AUV on a 3-D helix.
+"""The paper's Simulation 2 (Section 4.3, Figs. 6–7; docs/experiments): ODIN-class AUV on a 3-D
+helix.
 
 Scenario (paper): from rest at ``p0 = [0, 0, -102]`` (used as NED coordinates, as printed),
 constant body disturbance ``tau_dist = [0, 5, 0]`` N, helix

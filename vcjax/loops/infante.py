@@ -76,7 +76,7 @@ class InfanteGains(NamedTuple):
 
 
 def infante_gains() -> InfanteGains:
-    """SPEC §3's order-one VCM gains, with integral action on the along-track error only.
+    """docs/method.md's order-one VCM gains, with integral action on the along-track error only.
 
     In the underactuated configuration the cross-track integral of (41) can act only through
     the sway row, which the vehicle cannot actuate: ``v_d`` absorbs it (38), the resulting

@@ -107,7 +107,8 @@ def odin_gains(vcm=None, depth=(0.09, 0.6, 0.005), attitude=(10.0, 8.0), int_z_l
 def default_odin_gains(actuation: str = "underactuated") -> OdinGains:
     """Gains used for the paper's Simulation 2, per actuation mode.
 
-    Horizontal VCM: SPEC §3's order-one gains slowed down for a 174 kg (with added mass) vehicle
+    Horizontal VCM: docs/method.md's order-one gains slowed down for a 174 kg (with added mass)
+    vehicle
     whose thrusters give at most 0.44 m/s^2 of surge acceleration: ``P_G = (0.5, 0.2, 0.2)``,
     ``P_Phi = (0.5, 0.5, 1, 0.2, 0.2)`` (eps poles at 0.2/s, surge at 0.5/s), ``sigma = 0.2``;
     ``Delta = 2 m`` (a fifth of the helix radius: the sideslip-induced cross-track offset

@@ -13,7 +13,8 @@ Kinetics (2) restricted to the plane, with the paper's structure (20):
     M_b nu_r_dot + C_b(nu_r) nu_r + D_b nu_r = tau
 
 with the relative velocity ``nu_r = nu - [R(psi)^T V_c, 0]`` for an irrotational ocean current
-``V_c`` (2,) given in the inertial frame (SPEC §3). The controller uses this model; plants may be
+``V_c`` (2,) given in the inertial frame (docs/method.md). The controller uses this model; plants
+may be
 richer.
 """
 

@@ -4,7 +4,8 @@ What this model is — and is not
 -------------------------------
 The paper simulates the INFANTE AUV (IST/ISR Lisbon) with its nonlinear model; those coefficients
 are not publicly readable. This module therefore simulates an **INFANTE-class, NPS-AUV-derived**
-vehicle (SPEC §4, ``data/vehicles.md`` §2): the NPS AUV II model of Healey & Lienard (1993), as
+vehicle (sources in ``docs/reference/vehicles.md``): the NPS AUV II model of Healey & Lienard
+(1993), as
 coded in MSS ``CRAFT/AUV/models/npsauv.m``, scaled from L = 5.3 m to L = 4.5 m by geometric
 similarity and restricted to the horizontal plane. Only the paper's own facts about INFANTE are
 honoured exactly: 920 N of thrust gives 5 m/s in calm water, rudder saturation 30 deg,
@@ -29,7 +30,8 @@ Horizontal-plane model (w = p = q = 0, z = 0, phi = theta = 0), state
   ``M = M_RB + M_A`` with ``M_RB = [[m, 0, 0], [0, m, m x_g], [0, m x_g, Iz]]`` and
   ``M_A = -[[X_udot, 0, 0], [0, Y_vdot, Y_rdot], [0, N_vdot, N_rdot]]``. Only the rigid-body
   Coriolis ``C_RB`` appears: the NPS linear derivatives are *total* derivatives that already
-  contain the added-mass (Munk) terms (``vehicles.md`` note (i)). For a constant current and
+  contain the added-mass (Munk) terms (a note in the vehicle sources). For a constant
+  current and
   any ``x_g``, ``M_RB nu_dot + C_RB(nu) nu = M_RB nu_r_dot + C_RB(nu_r) nu_r`` holds exactly in
   3-DOF, so the relative form is the rigid-body law written in ``nu_r``.
 
@@ -585,7 +587,7 @@ def design_model(p: InfanteParams, u_design=2.0, match_coriolis: bool = True) ->
           d23 += (m - m11) u_d = X_udot u_d,      d32 -= (m22 - m11) u_d,
           d33 += (m x_g - m23) u_d = Y_rdot u_d.
 
-      ``match_coriolis=False`` returns the bare hydrodynamic slopes (``vehicles.md`` §2.2).
+      ``match_coriolis=False`` returns the bare hydrodynamic slopes (MSS ``npsauv.m``).
 
     Args:
         p: plant parameters; u_design: () design surge speed [m/s], > 0.

@@ -3,14 +3,14 @@
 What this model is — and is not
 -------------------------------
 The paper's Simulation 2 uses the ODIN AUV (Univ. of Hawaii) with parameters "taken from [39]",
-which is not publicly readable. This module simulates an **ODIN-class** vehicle (SPEC §4,
-``data/vehicles.md`` §3): the sphere model of §3.2 with the thruster configuration matrix of
-§3.1. Only these items are sourced: 8 thrusters (4 horizontal, 4 vertical), 27 N each, spherical,
-neutrally buoyant, first-order thruster dynamics [PAPER]; the 6x8 configuration matrix with arms
-``R_hor = 0.356 m``, ``R_ver = 0.252 m`` [SRC ODIN-N, public code, not checked against the
-primary paper]. Everything else is inferred and tagged; it is *not* ODIN's published model.
+which is not publicly readable. This module simulates an **ODIN-class** vehicle (sources in
+``docs/reference/vehicles.md``): a sphere model with the thruster configuration matrix of a public
+ODIN code base. Only these items are sourced: 8 thrusters (4 horizontal, 4 vertical), 27 N each,
+spherical, neutrally buoyant, first-order thruster dynamics [PAPER]; the 6x8 configuration matrix
+with arms ``R_hor = 0.356 m``, ``R_ver = 0.252 m`` [SRC ODIN-N, public code, not checked against
+the primary paper]. Everything else is inferred and tagged; it is *not* ODIN's published model.
 
-Parameters (defaults; tags as in ``vehicles.md``):
+Parameters (defaults; tags as in ``docs/reference/vehicles.md``):
 
 ============================  =====================================  ==========  ========
 quantity                      formula                                value       tag
@@ -55,7 +55,7 @@ with ``f`` (8,) the thruster forces (state), ``f_cmd`` (8,) the commands (input;
 in NED, with ``v_c_dot`` (3,) its time derivative when it varies (a tidal current, a sea):
 ``nu_dot = nu_r_dot + nu_c_dot`` as in :func:`vcjax.vehicles.sixdof.vector_field`, so the
 water's acceleration acts on the rigid body and, through ``M_A``, on the added mass. Thruster
-matrix (§3.1, ``s = 1/sqrt(2)``; rows ``[X Y Z K M N]``, columns
+matrix (``s = 1/sqrt(2)``; rows ``[X Y Z K M N]``, columns
 ``[H1..H4 V1..V4]``; a positive vertical thrust pushes up, i.e. ``-Z``)::
 
       X [  s    -s    -s     s     0        0        0        0      ]
@@ -166,7 +166,8 @@ class OdinArgs(NamedTuple):
 
 
 def thruster_matrix(R_hor=0.356, R_ver=0.252, dtype=None):
-    """(6, 8) ODIN thruster configuration matrix of ``vehicles.md`` §3.1 (module docstring).
+    """(6, 8) ODIN thruster configuration matrix (sources: ``docs/reference/vehicles.md``; module
+    docstring).
 
     Args:
         R_hor: yaw arm of the horizontal thrusters [m]; R_ver: arm of the vertical ones [m]
@@ -210,7 +211,7 @@ def odin_params(
         Cd: sphere drag coefficient (0.47, subcritical). z_g: CG below the CB [m] (>= 0; [INF]
             0.02). T_trans, T_rot: time constants [s] that set the linear damping
             ``D_ii = M_ii / T`` of translation and rotation ([INF] 20 s, 2 s).
-        R_hor, R_ver: thruster arms [m] (§3.1). thrust_max: per-thruster limit [N] (paper: 27).
+        R_hor, R_ver: thruster arms [m]. thrust_max: per-thruster limit [N] (paper: 27).
         T_thrust: thruster time constant [s] ([INF] 0.2).
         dtype: float dtype of every array (default: JAX's default float).
 

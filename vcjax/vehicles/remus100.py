@@ -4,7 +4,8 @@ What this model is
 ------------------
 This is T. I. Fossen's REMUS 100 model from PythonVehicleSimulator (PVS,
 ``cybergalactic/PythonVehicleSimulator``, ``src/python_vehicle_simulator/vehicles/remus100.py``
-and ``lib/gnc.py``, MIT licence; ``data/vehicles.md`` §1A), re-implemented formula by formula.
+and ``lib/gnc.py``, MIT licence; the sources in ``docs/reference/vehicles.md``), re-implemented
+formula by formula.
 It is **not** Prestero's (2001) classical-derivative REMUS model: no Prestero coefficients are
 used. Mass and added mass come from a prolate spheroid, damping from time constants plus hull
 lift/drag and cross-flow drag, the propeller from a linearised Wageningen B-series fit.
