@@ -641,3 +641,15 @@ def test_fit_estimate_hand_count():
 
     e = sizing.fit_estimate(segments=4, segment_steps=25, n_x=15, n_params=2)
     assert e["memory_bytes"] == 3 * 8 * (4 * 25 * 15) * (1 + 2 + 15)
+
+
+def test_atomic_writes_get_the_permissions_of_a_plain_write(tmp_path):
+    """A temporary file from mkstemp is private (0600); what vcjax writes must not be."""
+    plain = tmp_path / "plain.json"
+    plain.write_text("{}")
+    f = tmp_path / "a.json"
+    outputs.write_json_atomic(f, {"a": 1})
+    outputs.save_npz_atomic(tmp_path / "r.npz", x=np.arange(3.0))
+    expected = plain.stat().st_mode & 0o777
+    assert f.stat().st_mode & 0o777 == expected
+    assert (tmp_path / "r.npz").stat().st_mode & 0o777 == expected

@@ -97,9 +97,20 @@ class OutputError(ValueError):
 # --------------------------------------------------------------------------- atomic writes
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def _tmp_for(path: Path) -> Path:
+    """A temporary file beside ``path``, with the permissions a plain ``open`` would give it
+    (``mkstemp`` makes it private, 0600)."""
     fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    try:
+        os.fchmod(fd, 0o666 & ~_umask())
+    finally:
+        os.close(fd)
     return Path(name)
 
 
