@@ -48,6 +48,17 @@ def device_str() -> str:
     return f"{d.platform}:{d.device_kind} ({os.cpu_count()} cores)"
 
 
+def cpu_model() -> str:
+    """The CPU's model name (``/proc/cpuinfo`` on Linux), else the machine type."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def meta(args) -> dict:
     import jax
 
@@ -58,6 +69,7 @@ def meta(args) -> dict:
         "python": platform.python_version(),
         "device": device_str(),
         "cpu": platform.processor() or platform.machine(),
+        "cpu_model": cpu_model(),
         "load_average_1min_at_end": load_average(),
         "args": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
     }
