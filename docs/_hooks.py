@@ -15,8 +15,6 @@ import json
 import pkgutil
 from pathlib import Path
 
-from mkdocs.structure.files import File
-
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("vcjax", "tuning")
 
@@ -59,6 +57,8 @@ def on_config(config):
 
 
 def on_files(files, config):
+    from mkdocs.structure.files import File  # here, so the tests can import the generators
+
     modules = public_modules()
     files.append(File.generated(config, "api/index.md", content=_api_index(modules)))
     for m in modules:
