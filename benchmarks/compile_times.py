@@ -78,21 +78,11 @@ def parse_args(argv=None):
     return args
 
 
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
 def machine(args) -> dict:
     import jax
 
     return {
-        "cpu": cpu_model(),
+        "cpu": C.cpu_model(),
         "cores": os.cpu_count(),
         "device": C.device_str(),
         "jax": jax.__version__,
