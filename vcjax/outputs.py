@@ -124,56 +124,53 @@ def _replace(tmp: Path, path: Path) -> Path:
     return path
 
 
+def _write_atomic(path, write) -> Path:
+    """``write(tmp)`` to a temporary file beside ``path``, then rename it onto ``path``; the
+    temporary is removed if writing fails (``path`` keeps its old content)."""
+    path = Path(path)
+    tmp = _tmp_for(path)
+    try:
+        write(tmp)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    return _replace(tmp, path)
+
+
+def _synced(mode: str, write):
+    """A ``write(tmp)`` that opens ``tmp`` in ``mode``, calls ``write(f)`` and syncs to disk."""
+
+    def run(tmp):
+        with open(tmp, mode) as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+
+    return run
+
+
 def write_json_atomic(path, obj, indent: int | None = 2, newline: bool = True, **kwargs) -> Path:
     """Write ``obj`` as JSON (plus a newline unless ``newline=False``) to ``path`` atomically;
     returns the path.
 
     ``kwargs`` go to ``json.dumps`` (e.g. ``allow_nan=False``); an object that cannot be
     serialised raises before anything is written."""
-    path = Path(path)
     text = json.dumps(obj, indent=indent, **kwargs) + ("\n" if newline else "")
-    tmp = _tmp_for(path)
-    try:
-        with open(tmp, "w") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-    return _replace(tmp, path)
+    return _write_atomic(path, _synced("w", lambda f: f.write(text)))
 
 
 def save_npz_atomic(path, compressed: bool = True, **arrays) -> Path:
     """``np.savez_compressed(path, **arrays)`` (``np.savez`` unless ``compressed``), atomically."""
-    path = Path(path)
-    tmp = _tmp_for(path)
-    try:
-        with open(tmp, "wb") as f:
-            (np.savez_compressed if compressed else np.savez)(f, **arrays)
-            f.flush()
-            os.fsync(f.fileno())
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-    return _replace(tmp, path)
+    save = np.savez_compressed if compressed else np.savez
+    return _write_atomic(path, _synced("wb", lambda f: save(f, **arrays)))
 
 
 def savefig_atomic(fig, path, **kwargs) -> Path:
     """``fig.savefig(path, **kwargs)`` through a temporary file (format from ``path``'s suffix
     unless ``format`` is given), then ``os.replace``."""
-    path = Path(path)
-    kwargs.setdefault("format", path.suffix.lstrip(".") or None)
-    tmp = _tmp_for(path)
-    try:
-        fig.savefig(tmp, **kwargs)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-    return _replace(tmp, path)
+    kwargs.setdefault("format", Path(path).suffix.lstrip(".") or None)
+    return _write_atomic(path, lambda tmp: fig.savefig(tmp, **kwargs))
 
 
 # --------------------------------------------------------------------------- output folder
