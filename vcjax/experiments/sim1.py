@@ -51,7 +51,6 @@ __all__ = [
     "run_sim1",
     "tracking_metrics",
     "METRIC_KEYS",
-    "unhealthy_runs",
 ]
 
 VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos", "alos")
@@ -262,17 +261,6 @@ def run_sim1(
         if not m["healthy"]
     }
     return {"metrics": metrics, "files": [out / "metrics.json", *files], "unhealthy": unhealthy}
-
-
-def unhealthy_runs(trajs: dict) -> dict:
-    """``{variant: (k, t_k)}`` for every run with a diverged step (first such step k and its
-    end time [s]); empty when every run is healthy."""
-    bad = {}
-    for v, traj in trajs.items():
-        k = first_unhealthy_step(traj)
-        if k is not None:
-            bad[v] = (k, float(np.asarray(traj.t)[k + 1]))
-    return bad
 
 
 def load_gains(d: dict, **_options) -> InfanteGains:
