@@ -43,6 +43,7 @@ __all__ = [
     "mission_path",
     "mission_scenario",
     "simulate",
+    "mission_geometry",
     "mission_extras",
     "mission_metrics",
     "REPORTED",
@@ -108,6 +109,22 @@ REPORTED = {
 OFF_PATH_M = 25.0
 
 
+def mission_geometry(pos, path, coeffs, dw=0.25):
+    """Where positions (N, 3) are relative to the survey path, geometrically: ``(dist, w, e,
+    h)`` (N,) each — the distance to the path's polyline (sampled every ``dw`` from 20 m
+    before the start to 600 m past the end, :func:`vcjax.metrics.polyline_nearest`) [m], the
+    path parameter of the nearest point, the horizontal cross-track offset (positive to the
+    right of the path's tangent) and the depth offset (positive deeper) [m]."""
+    c = coeffs
+    total = int(c.n_legs) * float(c.leg) + (int(c.n_legs) - 1) * np.pi * float(c.radius)
+    ws = np.arange(-20.0, total + 600.0 + dw, dw)
+    pts = jax.vmap(lambda w: paths.path_point(path, coeffs, w))(jnp.asarray(ws))
+    dist, w, off, tangent = metrics.polyline_nearest(jnp.asarray(pos), pts, ws)
+    th = jnp.hypot(tangent[:, 0], tangent[:, 1])
+    right = jnp.stack([-tangent[:, 1] / th, tangent[:, 0] / th], axis=1)  # right of the path
+    return dist, w, jnp.sum(off[:, :2] * right, axis=1), off[:, 2]
+
+
 def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25) -> dict:
     """The mission's metrics as extras of :func:`vcjax.metrics.run_metrics` (jnp).
 
@@ -133,13 +150,7 @@ def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25) -> dict:
     L, R, n = float(c.leg), float(c.radius), int(c.n_legs)
     period = L + np.pi * R
     total = n * L + (n - 1) * np.pi * R
-    ws = np.arange(-20.0, total + 600.0 + dw, dw)
-    pts = jax.vmap(lambda w: paths.path_point(path, coeffs, w))(jnp.asarray(ws))
-    dist, w, off, tangent = metrics.polyline_nearest(traj.x.eta[:, :3], pts, ws)
-    th = jnp.hypot(tangent[:, 0], tangent[:, 1])
-    right = jnp.stack([-tangent[:, 1] / th, tangent[:, 0] / th], axis=1)  # right of the path
-    e = jnp.sum(off[:, :2] * right, axis=1)
-    h = off[:, 2]
+    dist, w, e, h = mission_geometry(traj.x.eta[:, :3], path, coeffs, dw)
     after_first = w > L
     k = jnp.clip(jnp.floor(w / period), 0, n - 1)
     om = w - k * period
