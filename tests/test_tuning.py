@@ -444,7 +444,7 @@ def test_example_tuning_configs_are_valid():
     assert {"sim2.toml", "arm.toml", "puck.toml", "quick.toml"} <= {f.name for f in files}
     for f in files:
         cfg = load_config(f)
-        assert cfg["problem"]["variant"] and cfg["scenario"]["vehicle"]
+        assert cfg.problem.variant and cfg.scenario.vehicle and cfg["scenario"]["vehicle"]
 
 
 def _on_two_devices(script: str) -> dict:
