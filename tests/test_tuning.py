@@ -444,7 +444,7 @@ def test_example_tuning_configs_are_valid():
     assert {"sim2.toml", "arm.toml", "puck.toml", "quick.toml"} <= {f.name for f in files}
     for f in files:
         cfg = load_config(f)
-        assert cfg["problem"]["variant"] and cfg["scenario"]["vehicle"]
+        assert cfg.problem.variant and cfg.scenario.vehicle and cfg["scenario"]["vehicle"]
 
 
 def _on_two_devices(script: str) -> dict:
@@ -504,7 +504,7 @@ import dataclasses, json
 import jax
 jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp, numpy as np
-from benchmarks.sharded_gradient import loop_allreduces
+from benchmarks.perf.sharded_gradient import loop_allreduces
 from tuning.cli import distribute
 from tuning.loss import TuningProblem, objective, problem_data
 from tuning.scenarios import sample_scenarios

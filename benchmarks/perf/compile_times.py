@@ -37,7 +37,7 @@ from pathlib import Path
 
 from benchmarks import _common as C
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_JSON = ROOT / "benchmarks" / "results" / "compile_times.json"
 DEFAULT_TUNE = ROOT / "examples" / "tuning" / "remus100.toml"
 

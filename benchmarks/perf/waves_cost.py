@@ -19,7 +19,7 @@ with two short polynomials (``waves._sincos``, ~5x cheaper than ``jnp.cos`` + ``
 XLA:CPU) and ~30 multiply-adds. Timing: best of ``--repeats`` after a warm-up; the closed
 loop's controller is not included, so the ratio here bounds a loop's sweep ratio from above.
 
-    .venv/bin/python -m benchmarks.waves_cost [--batch 1024] [--steps 600] [--components 64]
+    .venv/bin/python -m benchmarks.perf.waves_cost [--batch 1024] [--steps 600] [--components 64]
 """
 
 from __future__ import annotations
