@@ -38,7 +38,8 @@ from tuning.report import ProgressBar, plot_before_after, plot_loss_curve, plot_
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from vcjax import distributed, loops, paths
 from vcjax.config import ConfigError, Current
-from vcjax.outputs import stop_requested_everywhere, write_json_atomic
+from vcjax.interrupts import stop_requested_everywhere
+from vcjax.outputs import write_json_atomic
 
 __all__ = ["build", "run_tune_config", "main"]
 

@@ -235,15 +235,15 @@ def sweep(args) -> int:
 
 def interruptible():
     """SIGINT / SIGTERM ask the running loop to stop at its next safe point and write what is
-    done (:func:`vcjax.outputs.interrupt_guard`)."""
-    from vcjax.outputs import interrupt_guard
+    done (:func:`vcjax.interrupts.interrupt_guard`)."""
+    from vcjax.interrupts import interrupt_guard
 
     return interrupt_guard()
 
 
 def _interrupted(command: str, what: str) -> int:
     """The one line of an interrupted run; exit code 130."""
-    from vcjax.outputs import EXIT_INTERRUPTED, stop_signal
+    from vcjax.interrupts import EXIT_INTERRUPTED, stop_signal
 
     print(f"vcjax: {command}: interrupted ({stop_signal() or 'signal'}): {what}", file=sys.stderr)
     return EXIT_INTERRUPTED

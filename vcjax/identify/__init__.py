@@ -11,9 +11,9 @@
 
 from vcjax.identify.config import load_fit_config, run_fit_config
 from vcjax.identify.data import Log, load_log, save_log_csv
+from vcjax.identify.fit import FitResult, fit_logs
 from vcjax.identify.lm import levenberg_marquardt, schur_information
 from vcjax.identify.models import FIT_MODELS, FitModel, current_vector, get_fit_model
-from vcjax.identify.fit import FitResult, fit_logs
 from vcjax.identify.shooting import ShootingProblem, make_segments
 
 __all__ = [
