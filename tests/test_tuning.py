@@ -146,6 +146,36 @@ def test_symmetry_break_splits_equal_pairs_only():
     assert np.count_nonzero(space.symmetry_break(uneven)) == 2  # only the e row
 
 
+def test_symmetry_break_skips_a_pair_not_tuned_and_goes_on():
+    """A loop whose first pair is not tuned (Delta, sigma) and whose second is (P_G[1],
+    P_Phi[3], equal in Simulation 1's gains): only the second pair is split."""
+    base = GainSpace().loop
+
+    @dataclasses.dataclass(frozen=True)
+    class Pairs(type(base)):
+        def symmetric_pairs(self):
+            return (("Delta", 0, "sigma", 0), ("P_G", 1, "P_Phi", 3))
+
+    space = GainSpace(Pairs(controller=base.controller, path=base.path), tune=("P_G", "P_Phi"))
+    off = space.symmetry_break(sim1.default_gains(), eps=0.1)
+    np.testing.assert_array_equal(off, [0.0, 0.1, 0.0, 0.0, 0.0, 0.0, -0.1, 0.0])
+
+
+def test_gain_space_values_are_plain_json_numbers_and_lists():
+    """Reports and histories: one-entry groups as numbers, the others as lists (Simulation 1's
+    gains, typed in)."""
+    v = GainSpace().values(sim1.default_gains())
+    assert v == {
+        "P_G": [1.0, 0.5, 0.5],
+        "P_Phi": [1.0, 1.0, 2.0, 0.5, 0.5],
+        "Delta": 5.0,
+        "sigma": 0.5,
+        "P_int": [0.05, 0.0],
+    }
+    assert type(v["Delta"]) is float and type(v["sigma"]) is float
+    assert json.loads(json.dumps(v)) == v
+
+
 def test_forward_mode_gradient_equals_reverse():
     def f(th, a):
         return jnp.sum(jnp.sin(th) * a) + jnp.sum(th**4)
