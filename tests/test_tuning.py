@@ -146,19 +146,23 @@ def test_symmetry_break_splits_equal_pairs_only():
     assert np.count_nonzero(space.symmetry_break(uneven)) == 2  # only the e row
 
 
-def test_symmetry_break_skips_a_pair_not_tuned_and_goes_on():
-    """A loop whose first pair is not tuned (Delta, sigma) and whose second is (P_G[1],
-    P_Phi[3], equal in Simulation 1's gains): only the second pair is split."""
+def test_symmetry_break_skips_pairs_not_tuned_or_bounded_and_goes_on():
+    """A loop with three pairs: one not tuned (Delta, sigma), one with a bounded gain (P_int[0]
+    set equal to P_G[1]) and the Baumgarte pair P_G[1], P_Phi[3] (equal in Simulation 1's
+    gains): only the last is split, by the default exp(+-0.1)."""
     base = GainSpace().loop
 
     @dataclasses.dataclass(frozen=True)
     class Pairs(type(base)):
         def symmetric_pairs(self):
-            return (("Delta", 0, "sigma", 0), ("P_G", 1, "P_Phi", 3))
+            return (("Delta", 0, "sigma", 0), ("P_int", 0, "P_G", 1), ("P_G", 1, "P_Phi", 3))
 
-    space = GainSpace(Pairs(controller=base.controller, path=base.path), tune=("P_G", "P_Phi"))
-    off = space.symmetry_break(sim1.default_gains())  # the default split: exp(+-0.1)
-    np.testing.assert_array_equal(off, [0.0, 0.1, 0.0, 0.0, 0.0, 0.0, -0.1, 0.0])
+    loop = Pairs(controller=base.controller, path=base.path)
+    space = GainSpace(loop, tune=("P_G", "P_Phi", "P_int"))
+    full = sim1.default_gains()
+    full = full._replace(vcm=full.vcm._replace(P_int=jnp.asarray([0.5, 0.0])))
+    off = space.symmetry_break(full)
+    np.testing.assert_array_equal(off, [0.0, 0.1, 0.0, 0.0, 0.0, 0.0, -0.1, 0.0, 0.0, 0.0])
 
 
 def test_gain_space_values_are_plain_json_numbers_and_lists():
