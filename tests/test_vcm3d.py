@@ -118,6 +118,23 @@ def test_errors_angles_and_state_rates_by_hand():
     assert float(z_dot.v_d) == 0.0 and float(z_dot.w_d) == 0.0  # full actuation
 
 
+def test_defaults_are_the_documented_ones():
+    """The API reference shows these defaults (typed in here from it)."""
+    g = vcm3d_gains()
+    expected = {
+        "P_G": [1.0, 1.0, 0.3, 0.3, 0.3],
+        "P_Phi": [0.5, 0.5, 0.5, 2.0, 2.0, 0.5, 0.5, 0.5],
+        "Delta": [8.0, 8.0],
+        "sigma": 0.3,
+        "k_int": [0.05, 0.05, 0.05],
+        "sigma_i": [0.5, 0.5],
+    }
+    for name, value in expected.items():
+        np.testing.assert_array_equal(getattr(g, name), value, err_msg=name)
+    p = vcm3d_params(g, DM, LINE_C)
+    assert float(p.u_d) == 1.5 and float(p.int_limit) == 50.0
+
+
 def _axis(p_K, p_G, p_Phi):
     """``[y, y']`` of one cross axis: the rows ``v' = -p_K v`` and ``y'' + (p_G + p_Phi) y' +
     p_Phi p_G y = 0`` share one acceleration (``v = y'``); least squares takes their mean."""
