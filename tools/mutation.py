@@ -53,7 +53,8 @@ MODULES = {
     "vcm": ("vcjax/control/vcm.py", "tests/test_vcm.py tests/test_underactuation.py"),
     "lm": (
         "vcjax/identify/lm.py",
-        "tests/test_identify_checks.py tests/test_identify.py -k 'not cli and not infante_rk4'",
+        "tests/test_lm.py tests/test_identify_checks.py tests/test_identify.py"
+        " -k 'not cli and not infante_rk4'",
     ),
     "checks": (
         "vcjax/identify/checks.py",
