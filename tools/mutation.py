@@ -58,7 +58,8 @@ MODULES = {
     ),
     "checks": (
         "vcjax/identify/checks.py",
-        "tests/test_identify_checks.py tests/test_identify.py -k 'not infante_rk4'",
+        "tests/test_identify_checks.py tests/test_identify.py tests/test_bad_inputs_cli.py"
+        " -k 'not infante_rk4 and (not bad_inputs_cli or fit_refuses)'",
     ),
     "remus100": (
         "vcjax/vehicles/remus100.py",
