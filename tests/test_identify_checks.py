@@ -95,9 +95,12 @@ def test_trust_warnings_conditioning_and_clean_case():
     assert len(w) == 1 and f"> {MAX_CONDITION:.0e}" in w[0] and "poorly conditioned" in w[0]
     ok = trust_warnings(["a", "b"], {"a": 1, "b": 2}, {"a": 1, "b": 1}, {"a": 1, "b": 1}, np.eye(2))
     assert ok == []
-    # no information at all (eigenvalues exactly 0): an infinite condition number, not 0/0
-    w = trust_warnings(["a", "b"], {"a": 1, "b": 1}, {"a": 1, "b": 1}, {"a": 1, "b": 1}, 0 * ill)
-    assert len(w) == 1 and "condition number inf" in w[0]
+    # no information (an eigenvalue 0 or below): an infinite condition number, not 0/0 or < 0
+    for singular in (0 * ill, np.diag([1.0, -1e-12])):  # the second: round-off below zero
+        w = trust_warnings(
+            ["a", "b"], {"a": 1, "b": 1}, {"a": 1, "b": 1}, {"a": 1, "b": 1}, singular
+        )
+        assert len(w) == 1 and "condition number inf" in w[0]
 
 
 def test_product_pair_is_not_converged_and_warned_in_fit_json(tmp_path, capsys):
