@@ -146,6 +146,40 @@ def test_symmetry_break_splits_equal_pairs_only():
     assert np.count_nonzero(space.symmetry_break(uneven)) == 2  # only the e row
 
 
+def test_symmetry_break_skips_pairs_not_tuned_or_bounded_and_goes_on():
+    """A loop with three pairs: one not tuned (Delta, sigma), one with a bounded gain (P_int[0]
+    set equal to P_G[1]) and the Baumgarte pair P_G[1], P_Phi[3] (equal in Simulation 1's
+    gains): only the last is split, by the default exp(+-0.1)."""
+    base = GainSpace().loop
+
+    @dataclasses.dataclass(frozen=True)
+    class Pairs(type(base)):
+        def symmetric_pairs(self):
+            return (("Delta", 0, "sigma", 0), ("P_int", 0, "P_G", 1), ("P_G", 1, "P_Phi", 3))
+
+    loop = Pairs(controller=base.controller, path=base.path)
+    space = GainSpace(loop, tune=("P_G", "P_Phi", "P_int"))
+    full = sim1.default_gains()
+    full = full._replace(vcm=full.vcm._replace(P_int=jnp.asarray([0.5, 0.0])))
+    off = space.symmetry_break(full)
+    np.testing.assert_array_equal(off, [0.0, 0.1, 0.0, 0.0, 0.0, 0.0, -0.1, 0.0, 0.0, 0.0])
+
+
+def test_gain_space_values_are_plain_json_numbers_and_lists():
+    """Reports and histories: one-entry groups as numbers, the others as lists (Simulation 1's
+    gains, typed in)."""
+    v = GainSpace().values(sim1.default_gains())
+    assert v == {
+        "P_G": [1.0, 0.5, 0.5],
+        "P_Phi": [1.0, 1.0, 2.0, 0.5, 0.5],
+        "Delta": 5.0,
+        "sigma": 0.5,
+        "P_int": [0.05, 0.0],
+    }
+    assert type(v["Delta"]) is float and type(v["sigma"]) is float
+    assert json.loads(json.dumps(v)) == v
+
+
 def test_forward_mode_gradient_equals_reverse():
     def f(th, a):
         return jnp.sum(jnp.sin(th) * a) + jnp.sum(th**4)

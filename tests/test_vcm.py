@@ -194,6 +194,16 @@ def test_gain_validation():
         VCMConfig(path=LINE_PATH, actuation="sway")
 
 
+def test_integral_gain_bound_per_row_with_asymmetric_gains():
+    """Routh-Hurwitz of (41) row by row, (p_G + p_Phi) p_G p_Phi: s row (0.4 + 0.3) 0.4 0.3 =
+    0.084, e row (0.8 + 0.9) 0.8 0.9 = 1.224 (hand-computed; no two gains equal)."""
+    g = dict(P_G=(1.0, 0.4, 0.8), P_Phi=(1.0, 1.0, 2.0, 0.3, 0.9))
+    pm_gains(**g, P_int=(0.083, 1.223))
+    for bad in [(0.085, 0.5), (0.05, 1.225)]:
+        with pytest.raises(ValueError, match="P_int.*unstable"):
+            pm_gains(**g, P_int=bad)
+
+
 def test_ilos_guidance_keeps_37_exact_and_removes_the_cross_current_offset():
     """Extension: the ILOS approach angle inside the VCM heading row. (37) still holds exactly
     (implied mode, perfect model) for the new psi_d; under a cross current the underactuated
