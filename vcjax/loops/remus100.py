@@ -314,7 +314,12 @@ class Remus100Loop(Loop):
         return act.cmd, z_dot, RemusAux(aux.eps, aux.psi_d, aux.theta_d, tau, act.raw)
 
     def plant_args(self, sc: Scenario, current, current_dot):
-        return r100.Remus100Args(vehicle=sc.plant, v_c=current[:2], v_c_dot=current_dot[:2])
+        return r100.Remus100Args(
+            vehicle=sc.plant,
+            v_c=current[:2],
+            v_c_dot=current_dot[:2],
+            M_factor=r100.mass_factor(sc.plant),  # M is constant: factored once per scenario
+        )
 
     def with_current(self, args, current, current_dot):
         return args._replace(v_c=current[:2], v_c_dot=current_dot[:2])
