@@ -17,11 +17,16 @@ program; default ``examples/tuning/remus100.toml``; ``--tune none`` skips it).
     python -m benchmarks.compile_times --dtype float64
     python -m benchmarks.compile_times --loops remus100/vcm3d,infante/vcm_integral --tune none
 
+By default the programs compile with the XLA CPU code generator the ``vcjax`` command line
+uses (:mod:`vcjax.compiler`); ``--xla-default`` measures XLA's default one.
+
 ``--before REV`` measures in one run an older revision against this checkout: each program
 (loop x kind, and the tune step) is built in fresh processes that alternate, before then after,
 ``--rounds`` times (the revision's ``vcjax``, ``tuning`` and ``benchmarks`` packages extracted
 with ``git archive`` into a temporary folder); each side keeps its fastest round (the sizes do
-not change between rounds). On a shared machine only such same-run ratios compare.
+not change between rounds); the older revision compiles with XLA's defaults, as its command
+line did, this checkout as its command line does (``--xla-default``: XLA's defaults on both
+sides, the code's own share). On a shared machine only such same-run ratios compare.
 
     python -m benchmarks.compile_times --before ff295bc --loops remus100/vcm3d --tune none \
         --json benchmarks/results/compile_times_before_after.json
@@ -88,6 +93,12 @@ def parse_args(argv=None):
         "alternating fresh processes (writes {program: {kind: {before, after}}})",
     )
     p.add_argument("--rounds", type=int, default=2, help="alternating rounds with --before")
+    p.add_argument(
+        "--xla-default",
+        action="store_true",
+        help="XLA's default CPU code generator; by default the one the vcjax command line "
+        "uses (vcjax.compiler: --xla_cpu_use_fusion_emitters=false)",
+    )
     args = p.parse_args(argv)
     if args.steps < 1:
         p.error("--steps: expected a positive int")
@@ -113,6 +124,7 @@ def machine(args) -> dict:
         "steps": args.steps,
         "timing": args.timing,
         "load_average_1min_at_start": C.load_average(),
+        "xla_flags": os.environ.get("XLA_FLAGS", ""),
     }
 
 
@@ -246,6 +258,10 @@ def main(argv=None) -> dict:
     args = parse_args(argv)
     if args.before:
         return before_after(args)
+    if not args.xla_default:
+        from vcjax.compiler import prefer_fast_compile
+
+        prefer_fast_compile()  # what the CLI compiles with (before JAX starts)
     C.setup(args.dtype)
     import jax
 
@@ -333,6 +349,7 @@ def _one(root: Path, args, loops: str, kind: str, tune: str) -> dict:
         cmd += ["--steps", str(args.steps), "--timing", args.timing, "--loops", loops]
         cmd += ["--kinds", kind, "--tune", tune, "--json", str(out)]
         cmd += ["--no-compile"] if args.no_compile else []
+        cmd += ["--xla-default"] if args.xla_default and root == ROOT else []
         env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "PYTHONPATH")}
         env["PYTHONPATH"] = str(root)
         res = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True)

@@ -12,7 +12,9 @@ import sys
 from pathlib import Path
 
 from vcjax import distributed
+from vcjax.compiler import prefer_fast_compile
 
+prefer_fast_compile()  # as the CLI does, before JAX starts
 distributed.initialize_from_env()
 
 import jax  # noqa: E402

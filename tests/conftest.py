@@ -1,5 +1,5 @@
 """Test configuration: float64 and strict dtype promotion for every test; one persistent
-compilation cache per test session.
+compilation cache per test session; the CLI's XLA CPU code generator.
 
 The library itself never flips these switches; only the tests do.
 
@@ -21,6 +21,7 @@ from pathlib import Path
 import jax
 
 from vcjax.cache import enable_compilation_cache
+from vcjax.compiler import prefer_fast_compile
 
 _PREFIX = "vcjax-test-jax-cache-"
 
@@ -33,6 +34,10 @@ def _session_cache_dir() -> Path:
         return path
     return Path(tempfile.mkdtemp(prefix=_PREFIX))
 
+
+# XLA's faster-compiling CPU kernel generator, as the CLI uses it (vcjax.compiler); inherited by
+# the subprocesses the tests start (before JAX starts: XLA reads its flags once)
+prefer_fast_compile()
 
 if "VCJAX_TEST_CACHE_DIR" not in os.environ:  # set once, by the first process of the run
     os.environ["VCJAX_TEST_CACHE_DIR"] = str(_session_cache_dir())

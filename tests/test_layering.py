@@ -13,7 +13,8 @@ ROOT = Path(__file__).resolve().parents[1] / "vcjax"
 #: nothing; the experiments (presets of ``vcjax simulate``) sit on top, below only the CLI;
 #: ``sim1``/``sim2``/``demos``/``sim_remus100`` are the experiments' older names (aliases).
 LAYERS = [
-    {"_checks", "devices", "linalg", "integrators", "progress", "cache", "outputs", "sizing"},
+    {"_checks", "devices", "linalg", "integrators", "progress", "cache", "compiler", "outputs"}
+    | {"sizing"},
     {"distributed", "runinfo"},
     {"mechanics", "systems", "paths", "currents", "waves"},
     {"vehicles", "guidance", "allocation", "rollout"},

@@ -458,7 +458,8 @@ def _on_two_devices(script: str) -> dict:
     import sys
     from pathlib import Path
 
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
+    env = {**os.environ, "XLA_FLAGS": flags.strip()}
     env.pop("VCJAX_CPU_DEVICES", None)
     out = subprocess.run(
         [sys.executable, "-c", script],
