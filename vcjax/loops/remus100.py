@@ -39,7 +39,7 @@ from vcjax.control.baselines3d import (
 from vcjax.control.vcm import VCMConfig, check_edd, pm_gains, vcm_params, vcm_state
 from vcjax.control.vcm3d import (
     VCM3DConfig,
-    path_errors_3d,
+    pose_errors,
     vcm3d_gains,
     vcm3d_law,
     vcm3d_params,
@@ -345,9 +345,7 @@ class Remus100Loop(Loop):
         n = traj.u.shape[0]
         eta = traj.x.eta[:n]
         w = self.law.particle(traj.z)[:n]
-        frames, eps = jax.vmap(lambda w1, p: path_errors_3d(self.path, sc.path, w1, p))(
-            w, eta[:, :3]
-        )
+        frames, eps = jax.vmap(lambda w1, p: pose_errors(self.path, sc.path, w1, p))(w, eta[:, :3])
         lim = sc.plant.act_max
         ratio = traj.aux.raw / lim
         act = traj.x.act[:n]
