@@ -72,8 +72,8 @@ class LosPDLaw(loops.Law):
 
     def step(self, loop, params, t, x, z):
         g, m = params.gains, params.model
-        frame = paths.path_frame(loop.path, params.path, z.varpi)
-        s, e = rot2(frame.psi_p).T @ (x.eta[:2] - frame.p_bar)
+        frame = paths.path_pose(loop.path, params.path, z.varpi)  # no rates needed
+        s, e = rot2(frame.psi_p).T @ (x.eta[:2] - frame.p[:2])
         psi_d = frame.psi_p + jnp.arctan2(-e, g.Delta)
         psi_tilde = wrap_angle(x.eta[2] - psi_d)
         tau_u = m.m11 * g.k_u * (params.u_d - x.nu[0]) + m.d11 * x.nu[0]
