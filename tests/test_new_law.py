@@ -5,7 +5,6 @@ for ``infante``, defined entirely in this file with its own gains, registered wi
 import dataclasses
 from typing import Any, NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -131,5 +130,6 @@ def test_the_new_law_is_swept_and_tuned():
         loss, data.theta_ref, (data, train), optimizer="adam", steps=2, learning_rate=0.05
     )
     assert r.n_bad == 0 and np.isfinite(r.loss)
-    grad = jax.grad(loss)(data.theta_ref, data, train)
-    assert np.all(np.isfinite(np.asarray(grad))) and np.any(np.asarray(grad) != 0)
+    # the gradient at the start (the tuner's first step, compiled once): finite, not zero
+    g0 = r.history[0]["grad_norm"]
+    assert g0 is not None and np.isfinite(g0) and g0 > 0
