@@ -20,6 +20,7 @@ LAYERS = [
         "integrators",
         "progress",
         "cache",
+        "compiler",
         "outputs",
         "interrupts",
         "sizing",

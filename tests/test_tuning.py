@@ -34,6 +34,10 @@ def tiny():
     return data, scen
 
 
+#: the tiny problem's batch loss and gradient, compiled once for the tests that need it
+tiny_value_and_grad = jax.jit(jax.value_and_grad(lambda th, d, s: objective(th, d, s, TINY)[0]))
+
+
 # ------------------------------------------------------------------ parametrisation
 
 
@@ -82,9 +86,8 @@ def test_parametrisation_subsets_and_variant():
 def test_loss_gradient_matches_central_differences(tiny):
     data, scen = tiny
     f = jax.jit(lambda th: objective(th, data, scen, TINY)[0])
-    g = jax.jit(jax.grad(lambda th: objective(th, data, scen, TINY)[0]))
     theta = data.theta_ref + 0.1 * jnp.arange(12.0) / 12.0
-    grad = np.asarray(g(theta))
+    grad = np.asarray(tiny_value_and_grad(theta, data, scen)[1])
     h = 1e-5
     fd = np.array(
         [
@@ -127,7 +130,7 @@ def test_checkpointed_loss_gradient_is_the_same(tiny):
     data, scen = tiny
     ck = dataclasses.replace(TINY, checkpoint=True, checkpoint_every=7)
     theta = data.theta_ref + 0.05
-    a = jax.jit(jax.value_and_grad(lambda th: objective(th, data, scen, TINY)[0]))(theta)
+    a = tiny_value_and_grad(theta, data, scen)
     b = jax.jit(jax.value_and_grad(lambda th: objective(th, data, scen, ck)[0]))(theta)
     np.testing.assert_allclose(a[0], b[0], rtol=1e-12)
     np.testing.assert_allclose(a[1], b[1], rtol=1e-9, atol=1e-12)
@@ -489,7 +492,8 @@ def _on_two_devices(script: str) -> dict:
     import sys
     from pathlib import Path
 
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
+    env = {**os.environ, "XLA_FLAGS": flags.strip()}
     env.pop("VCJAX_CPU_DEVICES", None)
     out = subprocess.run(
         [sys.executable, "-c", script],
@@ -553,8 +557,9 @@ out = {}
 for tile in (False, True):
     p = dataclasses.replace(prob, tile_gains=tile)
     f = jax.jit(jax.value_and_grad(lambda th, d, s: objective(th, d, s, p)[0]))
-    v, g = f(theta_d, data_d, scen_d)
-    text = f.lower(theta_d, data_d, scen_d).compile().as_text()
+    compiled = f.lower(theta_d, data_d, scen_d).compile()  # compiled once: run and read
+    v, g = compiled(theta_d, data_d, scen_d)
+    text = compiled.as_text()
     in_loops = loop_allreduces(text)
     out[str(tile)] = {"v": float(v), "g": np.asarray(g).tolist(), "in_loops": in_loops}
 v1, g1 = jax.jit(jax.value_and_grad(lambda th: objective(th, data, scen, prob)[0]))(theta)

@@ -84,12 +84,12 @@ def test_closed_form_matches_generic_engine(gains):
     traj, params = simulate(cfg, T=20.0, dt=0.05, gains=gains)
     g = params.gains
 
-    def frame(z):
-        return paths.path_frame(LINE_PATH, LINE_COEFFS, z[0])
+    def frame(z):  # the pose: the engine differentiates these constraints twice
+        return paths.path_pose(LINE_PATH, LINE_COEFFS, z[0])
 
     def eps_of(q, z):
         f = frame(z)
-        return rot2(f.psi_p).T @ (q[:2] - f.p_bar)
+        return rot2(f.psi_p).T @ (q[:2] - f.p[:2])
 
     def G(q, t, args, z):
         eps = eps_of(q, z)

@@ -264,7 +264,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     args.t_start = time.perf_counter()
     from vcjax.cache import enable_compilation_cache
+    from vcjax.compiler import prefer_fast_compile
 
+    prefer_fast_compile()  # before JAX starts: XLA reads its flags once
     enable_compilation_cache()
     if args.command != "launch":  # a process started by `vcjax launch` joins its run first
         from vcjax import distributed
