@@ -44,6 +44,14 @@ def test_matvec_equals_matmul_for_small_shapes():
 # ---------------------------------------------------------------- unrolled small solves
 
 
+# compiled once per shape: running the unrolled routines op by op costs 3x more
+solve_small = jax.jit(linalg.solve_small)
+cholesky_small = jax.jit(linalg.cholesky_small)
+cho_solve_small = jax.jit(linalg.cho_solve_small)
+spd_solve_small = jax.jit(linalg.spd_solve_small)
+lstsq_small = jax.jit(linalg.lstsq_small)
+
+
 def _hard_matrix(rng, n):
     """A well-conditioned (n, n) matrix whose leading entry is tiny: no pivoting fails."""
     A = rng.normal(size=(n, n)) + n * np.eye(n)[::-1]
@@ -56,8 +64,8 @@ def test_solve_small_matches_lapack_with_pivoting():
     for n in (1, 2, 3, 5, 6, 8, linalg.SMALL_MAX):
         A = _hard_matrix(rng, n)
         b, B = rng.normal(size=n), rng.normal(size=(n, 3))
-        np.testing.assert_allclose(linalg.solve_small(A, b), np.linalg.solve(A, b), rtol=1e-10)
-        np.testing.assert_allclose(linalg.solve_small(A, B), np.linalg.solve(A, B), rtol=1e-10)
+        np.testing.assert_allclose(solve_small(A, b), np.linalg.solve(A, b), rtol=1e-10)
+        np.testing.assert_allclose(solve_small(A, B), np.linalg.solve(A, B), rtol=1e-10)
     # beyond SMALL_MAX it is LAPACK's solve
     n = linalg.SMALL_MAX + 1
     A, b = _hard_matrix(rng, n), rng.normal(size=n)
@@ -78,12 +86,12 @@ def test_cholesky_small_and_spd_solve_match_lapack():
     for n in (1, 2, 4, 6, 9):
         X = rng.normal(size=(n, n))
         S = X @ X.T + 0.1 * np.eye(n)
-        L = linalg.cholesky_small(S)
+        L = cholesky_small(S)
         np.testing.assert_allclose(L, np.linalg.cholesky(S), rtol=1e-10, atol=1e-13)
         assert np.all(np.triu(np.asarray(L), 1) == 0.0)
         b, B = rng.normal(size=n), rng.normal(size=(n, 2))
-        np.testing.assert_allclose(linalg.spd_solve_small(S, b), np.linalg.solve(S, b), rtol=1e-9)
-        np.testing.assert_allclose(linalg.cho_solve_small(L, B), np.linalg.solve(S, B), rtol=1e-9)
+        np.testing.assert_allclose(spd_solve_small(S, b), np.linalg.solve(S, b), rtol=1e-9)
+        np.testing.assert_allclose(cho_solve_small(L, B), np.linalg.solve(S, B), rtol=1e-9)
     # not positive definite: NaN entries (as jnp.linalg.cholesky), which the engine's
     # mass_spd health flag reads
     L = linalg.cholesky_small(np.diag([1.0, -1.0, 2.0]))
@@ -95,15 +103,15 @@ def test_lstsq_small_matches_lapack_lstsq():
     for p, n in ((1, 1), (3, 3), (5, 3), (8, 5), (6, 6), (10, 4)):
         W, h = rng.normal(size=(p, n)), rng.normal(size=p)
         ref = np.linalg.lstsq(W, h, rcond=None)[0]
-        np.testing.assert_allclose(linalg.lstsq_small(W, h), ref, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(lstsq_small(W, h), ref, rtol=1e-9, atol=1e-12)
         H = rng.normal(size=(p, 2))
         ref = np.linalg.lstsq(W, H, rcond=None)[0]
-        np.testing.assert_allclose(linalg.lstsq_small(W, H), ref, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(lstsq_small(W, H), ref, rtol=1e-9, atol=1e-12)
     # a column that is already reduced (zeros below the diagonal) is left as it is
     W = np.array([[2.0, 1.0], [0.0, 3.0], [0.0, 4.0]])
     h = np.array([1.0, 2.0, 3.0])
     ref = np.linalg.lstsq(W, h, rcond=None)[0]
-    np.testing.assert_allclose(linalg.lstsq_small(W, h), ref, rtol=1e-12)
+    np.testing.assert_allclose(lstsq_small(W, h), ref, rtol=1e-12)
     with pytest.raises(ValueError, match="p >= n"):
         linalg.lstsq_small(np.ones((2, 3)), np.ones(2))
 
@@ -124,7 +132,8 @@ def test_small_solves_gradients_match_finite_differences():
         (lambda W: jnp.sum(linalg.lstsq_small(W, h) ** 2), W0),
     ]
     for f, x0 in cases:
-        g = np.asarray(jax.grad(f)(jnp.asarray(x0)))
+        g = np.asarray(jax.jit(jax.grad(f))(jnp.asarray(x0)))
+        f = jax.jit(f)
         d = rng.normal(size=x0.shape)
         step = 1e-6
         fd = (f(x0 + step * d) - f(x0 - step * d)) / (2 * step)

@@ -134,9 +134,10 @@ def _evaluate(eval_fn, theta, data, batch) -> dict:
     }
 
 
-def _trajectories(problem, gains, batch, dt, n):
-    """Times, positions (S, N, 2) [north, east] and cross-track errors (S, N) of the first
-    ``n`` scenarios of ``batch``."""
+def _trajectories(problem, gains_list, batch, dt, n):
+    """Times, and for each gains of ``gains_list`` the positions (S, N, 2) [north, east] and
+    cross-track errors (S, N) of the first ``n`` scenarios of ``batch``: one program (the gains
+    are its argument), compiled once for all of them."""
     sub = jax.tree_util.tree_map(
         lambda ax, a: a if ax is None else jax.tree_util.tree_map(lambda x: x[:n], a),
         SCENARIO_AXES,
@@ -146,22 +147,26 @@ def _trajectories(problem, gains, batch, dt, n):
     cfg = problem.rollout_config()
     loop = problem.loop
 
-    def one(s):
+    def one(gains, s, dt):
         tr = loops.simulate(loop, gains, s, cfg, dt)
         sig = loop.signals(tr, s)
         return tr.t, sig.pos[:, :2], sig.eps, sig.u_err, sig.psi_err, sig.cmd_ratio
 
-    t, xy, eps, u_err, psi_err, ratio = jax.device_get(
-        jax.jit(jax.vmap(one, in_axes=(SCENARIO_AXES,)))(sub)
-    )
-    return np.asarray(t[0]), {
-        "xy": np.asarray(xy),
-        "e": np.asarray(eps)[..., 1],
-        "eps": np.asarray(eps),
-        "u_err": np.asarray(u_err),
-        "psi_err": np.asarray(psi_err),
-        "cmd_ratio": np.asarray(ratio),
-    }
+    run = jax.jit(jax.vmap(one, in_axes=(None, SCENARIO_AXES, None)))
+    out = []
+    for gains in gains_list:
+        t, xy, eps, u_err, psi_err, ratio = jax.device_get(run(gains, sub, dt))
+        out.append(
+            {
+                "xy": np.asarray(xy),
+                "e": np.asarray(eps)[..., 1],
+                "eps": np.asarray(eps),
+                "u_err": np.asarray(u_err),
+                "psi_err": np.asarray(psi_err),
+                "cmd_ratio": np.asarray(ratio),
+            }
+        )
+    return np.asarray(t[0]), out
 
 
 def _path_polyline(loop, batch, xy_before, xy_after):
@@ -313,8 +318,9 @@ def run_tune_config(
     n_plot = min(cfg.report.plot_scenarios, cfg.heldout.size)
     n_plot = 0 if interrupted else n_plot  # no new compiles once stopped
     if n_plot:
-        t, tr_before = _trajectories(eval_problem, data.base, heldout, data.dt, n_plot)
-        _, tr_after = _trajectories(eval_problem, tuned, heldout, data.dt, n_plot)
+        t, (tr_before, tr_after) = _trajectories(
+            eval_problem, (data.base, tuned), heldout, data.dt, n_plot
+        )
         currents = np.asarray(heldout.current)[:n_plot]
         path_xy = _path_polyline(space.loop, heldout, tr_before["xy"], tr_after["xy"])
         files += plot_before_after(t, tr_before, tr_after, currents, out, path_xy)

@@ -5,8 +5,10 @@ XLA compiles every fused kernel of a program separately. Its newer CPU kernel ge
 whose set-up dominates the compile of a closed loop, whose rollouts are thousands of small
 scalar kernels; the older generator (``--xla_cpu_use_fusion_emitters=false``) builds the same
 kernels in about half the time. Measured on the 2-core development machine (same run, fresh
-processes; ``docs/performance.md``): REMUS 100's 250-step gradient compiles in half the time
-and runs faster; the INFANTE-class batch of 1024 compiles 25 % faster and runs 4-6 % slower.
+processes, a loaded machine; ``docs/performance.md``): REMUS 100's 250-step gradient compiles
+in half the time and runs faster; the INFANTE-class batch gradient of 1024 compiles 25 % faster
+and runs 4-6 % slower; the batched sweeps of ``benchmarks/before_after.py --cli-compiler`` are
+no slower than before this round.
 
 :func:`prefer_fast_compile` (called once at the start of :func:`vcjax.cli.main`, before JAX
 creates its backend) adds that flag to ``XLA_FLAGS`` unless
