@@ -26,3 +26,14 @@ def test_an_older_jaxlib_gets_no_flag(monkeypatch):
     monkeypatch.setattr(comp, "_jaxlib_version", lambda: (0, 5))
     env = {}
     assert not prefer_fast_compile(env) and env == {}
+
+
+def test_a_jaxlib_newer_than_the_checked_one_gets_no_flag(monkeypatch):
+    """XLA may retire the flag, and an unknown flag aborts: an unchecked jaxlib gets XLA's own."""
+    for version in ((0, 11), (1, 0)):
+        monkeypatch.setattr(comp, "_jaxlib_version", lambda v=version: v)
+        env = {}
+        assert not prefer_fast_compile(env) and env == {}
+    monkeypatch.setattr(comp, "_jaxlib_version", lambda: comp.CHECKED)
+    env = {}
+    assert prefer_fast_compile(env) and env["XLA_FLAGS"] == FLAG

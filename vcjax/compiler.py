@@ -15,7 +15,9 @@ creates its backend) adds that flag to ``XLA_FLAGS`` unless
 
 * ``XLA_FLAGS`` already says ``--xla_cpu_use_fusion_emitters=...`` (yours wins), or
 * ``VCJAX_FAST_COMPILE`` is ``0``, ``off``, ``false`` or ``no``, or
-* the installed jaxlib predates the flag (before 0.6: an unknown XLA flag aborts the process).
+* the installed jaxlib predates the flag (before 0.6: an unknown XLA flag aborts the process)
+  or is newer than the newest release it was checked with (:data:`CHECKED`): XLA may retire a
+  flag, and an unknown flag aborts the process, so an untested jaxlib gets XLA's default.
 
 The library itself never sets it (``import vcjax`` changes no JAX or XLA setting); a Python
 program gets the same by exporting ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=false`` before
@@ -27,13 +29,15 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["ENV", "FLAG", "prefer_fast_compile"]
+__all__ = ["ENV", "FLAG", "CHECKED", "prefer_fast_compile"]
 
 ENV = "VCJAX_FAST_COMPILE"
 #: the XLA flag (older, faster-compiling CPU kernel generator)
 FLAG = "--xla_cpu_use_fusion_emitters=false"
 _OFF = ("0", "off", "false", "no")
 _FIRST = (0, 6)  # the first jaxlib whose XLA knows the flag
+#: the newest jaxlib (major, minor) the flag was checked with (raise it after checking a newer one)
+CHECKED = (0, 10)
 
 
 def _jaxlib_version() -> tuple[int, ...]:
@@ -53,7 +57,7 @@ def prefer_fast_compile(environ=None) -> bool:
     flags = env.get("XLA_FLAGS", "")
     if "xla_cpu_use_fusion_emitters" in flags:
         return FLAG in flags.split()
-    if env.get(ENV, "").strip().lower() in _OFF or _jaxlib_version() < _FIRST:
+    if env.get(ENV, "").strip().lower() in _OFF or not _FIRST <= _jaxlib_version() <= CHECKED:
         return False
     env["XLA_FLAGS"] = f"{flags} {FLAG}".strip()
     return True

@@ -25,9 +25,9 @@ The worker returns the best wall time of ``--repeats`` calls after a
 warm-up, the process CPU time of that call (``steps_per_cpu_s``: on a machine shared with other
 jobs, per-core efficiency is steadier than wall time; with N devices the CPU time is that of
 all N cores), and the compile time; the timed function returns only the (B,) mean |e|
-(computed in jit), as in :mod:`benchmarks.throughput`.
+(computed in jit), as in :mod:`benchmarks.perf.throughput`.
 
-    python -m benchmarks.before_after --json benchmarks/results/before_after_float32.json
+    python -m benchmarks.compare.before_after --json benchmarks/results/before_after_float32.json
 """
 
 from __future__ import annotations

@@ -14,8 +14,8 @@ the number to compare under load. ``--tune CONFIG`` also builds the ``vcjax tune
 step of that tuning config (L-BFGS or Adam step: loss, gradient and optimiser update in one
 program; default ``examples/tuning/remus100.toml``; ``--tune none`` skips it).
 
-    python -m benchmarks.compile_times --dtype float64
-    python -m benchmarks.compile_times --loops remus100/vcm3d,infante/vcm_integral --tune none
+    python -m benchmarks.perf.compile_times --dtype float64
+    python -m benchmarks.perf.compile_times --loops remus100/vcm3d,infante/vcm_integral --tune none
 
 By default the programs compile with the XLA CPU code generator the ``vcjax`` command line
 uses (:mod:`vcjax.compiler`); ``--xla-default`` measures XLA's default one.
@@ -28,7 +28,7 @@ not change between rounds); the older revision compiles with XLA's defaults, as 
 line did, this checkout as its command line does (``--xla-default``: XLA's defaults on both
 sides, the code's own share). On a shared machine only such same-run ratios compare.
 
-    python -m benchmarks.compile_times --before ff295bc --loops remus100/vcm3d --tune none \
+    python -m benchmarks.perf.compile_times --before ff295bc --loops remus100/vcm3d --tune none \
         --json benchmarks/results/compile_times_before_after.json
 
 Writes ``benchmarks/results/compile_times.json`` (``--json``): one key per loop,
@@ -345,7 +345,10 @@ def _one(root: Path, args, loops: str, kind: str, tune: str) -> dict:
     """One program built by ``root``'s own compile_times in a fresh process."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "ct.json"
-        cmd = [sys.executable, "-m", "benchmarks.compile_times", "--dtype", args.dtype]
+        # the module's place in ``root``'s tree (before the benchmarks were grouped: top level)
+        grouped = (root / "benchmarks" / "perf" / "compile_times.py").exists()
+        module = "benchmarks.perf.compile_times" if grouped else "benchmarks.compile_times"
+        cmd = [sys.executable, "-m", module, "--dtype", args.dtype]
         cmd += ["--steps", str(args.steps), "--timing", args.timing, "--loops", loops]
         cmd += ["--kinds", kind, "--tune", tune, "--json", str(out)]
         cmd += ["--no-compile"] if args.no_compile else []

@@ -11,8 +11,8 @@ Wall time is measured around the process (start-up and imports included), the be
 median of the runs are reported, with the 1-minute load average at each run (the machine may be
 shared: compare runs of one invocation). Outputs go to a temporary folder.
 
-    python -m benchmarks.cli_times --runs 3 --json benchmarks/results/cli_times.json
-    python -m benchmarks.cli_times --commands "tune examples/tuning/remus100.toml" --runs 1
+    python -m benchmarks.perf.cli_times --runs 3 --json benchmarks/results/cli_times.json
+    python -m benchmarks.perf.cli_times --commands "tune examples/tuning/remus100.toml" --runs 1
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from pathlib import Path
 
 from benchmarks import _common as C
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_JSON = ROOT / "benchmarks" / "results" / "cli_times.json"
 #: the commands of the budgets: ``vcjax tune`` cold and warm, ``vcjax sweep`` cold
 COMMANDS = ("tune examples/tuning/remus100.toml", "sweep examples/sweeps/remus100.toml")
