@@ -113,7 +113,7 @@ from vcjax.loops.registry import (
 )
 from vcjax.loops.remus100 import Remus100Loop
 from vcjax.loops.scenario import apply_params, check_disturbances, make_scenario, read_param_file
-from vcjax.loops.types import GainSpec, Scenario, Signals
+from vcjax.loops.types import GainSpec, Scenario, Signals, Water
 
 __all__ = [
     "Disturbances",
@@ -123,6 +123,7 @@ __all__ = [
     "Loop",
     "Scenario",
     "Signals",
+    "Water",
     "InfanteGains",
     "InfanteLoop",
     "infante_gains",
