@@ -4,7 +4,7 @@
   message names the file, the section and the key), :func:`read_toml` and one checker per value.
 * :mod:`vcjax.config.schema` -- the shared sections as typed, frozen objects, each key with its
   type, default, unit, description and older spellings: ``[simulation]`` (horizon, dt,
-  integrator, timing, u_d, smooth), ``[current]``, ``[initial]``, ``[model_error]``,
+  integrator, timing, u_d, smooth), ``[current]``, ``[waves]``, ``[initial]``, ``[model_error]``,
   ``[sensor_noise]``, ``[disturbance]``; :func:`schema` returns them for a reference table and
   :data:`DEFAULT_SCENARIO` is the scenario of a config without ``[scenario]`` (Simulation 1);
   :func:`reference_markdown` renders the reference tables.
@@ -33,6 +33,7 @@ from vcjax.config.schema import (
     ModelError,
     SensorNoise,
     Simulation,
+    Waves,
     parse_section,
     reference_markdown,
     schema,
@@ -67,6 +68,7 @@ __all__ = [
     "SECTIONS",
     "Simulation",
     "Current",
+    "Waves",
     "Initial",
     "ModelError",
     "SensorNoise",
