@@ -59,6 +59,11 @@ command) naming the file and the offending ``section.key``::
     [initial]                       # optional ranges of the vehicle's initial keys (override
     q1_deg = [20.0, 40.0]           # the offsets above), as in sweep configs
 
+    [waves]                         # optional, shared with sweeps (vcjax.config.schema.Waves):
+    hs = [0.5, 2.0]                 # a random sea per scenario (loops that take waves: REMUS
+    tp = [6.0, 10.0]                # 100, ODIN-class); hs, tp required, then spectrum,
+    direction_deg = [0.0, 360.0]    # gamma, spreading, components, origin_depth
+
     [disturbance]
     force = []                      # optional: one range per generalised force component
 
@@ -98,8 +103,18 @@ from pathlib import Path
 from typing import Any
 
 from vcjax import loops
-from vcjax.config import ConfigError, Current, Simulation, as_range, parse_section, read_toml
+from vcjax.config import (
+    ConfigError,
+    Current,
+    Simulation,
+    Waves,
+    as_range,
+    parse_section,
+    read_toml,
+)
 from vcjax.config.scenario import loop_options, parse_scenario
+from vcjax.sweep.config import check_waves, refusal
+from vcjax.sweep.spec import check_wave_step
 
 __all__ = ["ConfigError", "DEFAULTS", "load_config", "validate_config"]
 
@@ -151,7 +166,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
 }
 #: sections parsed on their own: [scenario] (vcjax.config.scenario), [initial] (vehicle keys),
 #: the shared [simulation] and [current] (vcjax.config.schema)
-_SPECIAL = ("scenario", "initial", "simulation", "current")
+_SPECIAL = ("scenario", "initial", "simulation", "current", "waves")
 #: [simulation] keys that tune configs may also write under [problem] (the older spelling)
 _SIM_IN_PROBLEM = ("horizon", "dt", "integrator", "timing", "smooth", "edd")
 
@@ -262,6 +277,14 @@ def _shared_sections(raw: dict, cfg: dict) -> None:
         for k, v in dataclasses.asdict(cur).items()
         if k in cur_raw
     }
+    cfg["waves"] = None
+    if "waves" in raw:
+        wav_raw = raw["waves"]
+        wav = parse_section(Waves, wav_raw, "waves")
+        check_waves(wav_raw)
+        cfg["waves"] = {
+            k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(wav).items()
+        }
 
 
 def validate_config(raw: dict, config_path=None) -> dict:
@@ -298,6 +321,8 @@ def validate_config(raw: dict, config_path=None) -> dict:
     _shared_sections(raw, cfg)
     if p["horizon"] / p["dt"] < 1:
         raise ConfigError(f"problem.horizon: must be >= problem.dt, got {p['horizon']}")
+    if cfg["waves"] is not None:
+        check_wave_step(cfg["waves"]["tp"][0], p["dt"], "[waves] tp")
     choice = parse_scenario(raw.get("scenario"), "scenario", config_path or Path("config"))
     cls = loops.loop_class(choice.vehicle)
     ctrl = p["variant"] or choice.controller or cls.default_controller or cls.controllers[0]
@@ -321,6 +346,10 @@ def validate_config(raw: dict, config_path=None) -> dict:
         if "edd" not in given:
             choice = dataclasses.replace(choice, options=(*choice.options, ("edd", p["edd"])))
     loop = choice.loop(ctrl)
+    try:  # a sea the loop cannot take is refused, never silently ignored
+        loops.check_disturbances(loop, False, False, waves=cfg["waves"] is not None)
+    except ValueError as err:
+        raise ConfigError(refusal(err)) from None
     names = [g.name for g in loop.gain_specs()]
     bad = [t for t in p["tune"] if t not in names]
     if bad:

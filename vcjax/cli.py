@@ -93,7 +93,32 @@ def _fail(msg: str) -> int:
 
 
 #: options of ``vcjax simulate`` that only some experiments take (Experiment.options)
-_OWN_OPTIONS = ("edd", "timing", "actuation", "diverge_e")
+_OWN_OPTIONS = ("edd", "timing", "actuation", "diverge_e", "waves", "wave_seed")
+
+
+def _check_waves(args, where: str, dt: float) -> None:
+    """``--waves HS TP DIR_DEG`` and ``--wave-seed`` of ``vcjax simulate`` (one line, exit 2)."""
+    from vcjax import sizing
+
+    if args.wave_seed is not None:
+        if args.waves is None:
+            raise _CLIError(f"{where}: --wave-seed needs --waves HS TP DIR_DEG")
+        try:
+            sizing.check_seed("--wave-seed", args.wave_seed, args.x64)
+        except ValueError as err:
+            raise _CLIError(f"{where}: {err}") from None
+    if args.waves is None:
+        return
+    hs, tp, direction = args.waves
+    if not all(math.isfinite(v) for v in args.waves):
+        raise _CLIError(f"{where}: --waves: contains NaN or inf, got {list(args.waves)}")
+    if hs < 0:
+        raise _CLIError(f"{where}: --waves: HS must be >= 0 [m], got {hs:g}")
+    if tp < 40.0 * dt:
+        raise _CLIError(
+            f"{where}: --waves: TP must be >= 40 dt = {40.0 * dt:g} s (the shortest component, "
+            f"TP / 4, needs 10 steps), got {tp:g}"
+        )
 
 
 def _cmd_simulate(args) -> int:
@@ -124,6 +149,7 @@ def _cmd_simulate(args) -> int:
     _time_grid(horizon, dt, args.max_steps or 10_000_000)
     if args.diverge_e is not None and not (math.isfinite(args.diverge_e) and args.diverge_e > 0):
         raise _CLIError(f"--diverge-e: expected a finite bound > 0 [m], got {args.diverge_e:g}")
+    _check_waves(args, where, dt)
     out = _prepare(args, args.out or f"out/{exp.name}", where)
     _enable_x64(args.x64)
     options = {
@@ -519,6 +545,21 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="M",
         help="sim1/sim2: a run more than M metres off the path is unhealthy (default: 25%% of "
         "u_d x horizon, at least 50 m)",
+    )
+    s.add_argument(
+        "--waves",
+        type=float,
+        nargs=3,
+        metavar=("HS", "TP", "DIR_DEG"),
+        help="remus100/sim2: a random JONSWAP sea (64 components, long-crested): significant "
+        "height HS [m], peak period TP [s], direction the waves travel towards DIR_DEG [deg, "
+        "clockwise from north]",
+    )
+    s.add_argument(
+        "--wave-seed",
+        type=int,
+        metavar="N",
+        help="with --waves: seed of the sea's frequencies and phases (default 0)",
     )
     s.add_argument(
         "--max-steps", type=int, metavar="N", help="allow up to N steps (default 10,000,000)"

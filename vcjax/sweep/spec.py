@@ -22,7 +22,14 @@ from vcjax.config import ConfigError, as_choice, as_int, as_number, as_range
 from vcjax.config.scenario import ScenarioChoice
 from vcjax.currents import current_ned
 
-__all__ = ["ScenarioSpec", "SweepSpec", "MCScenario", "MCConfig", "sample_scenarios"]
+__all__ = [
+    "ScenarioSpec",
+    "SweepSpec",
+    "MCScenario",
+    "MCConfig",
+    "sample_scenarios",
+    "check_wave_step",
+]
 
 _CURRENT_MODELS = ("constant", "gauss_markov")
 
@@ -115,14 +122,9 @@ class ScenarioSpec:
         return self.wave_spectrum is not None
 
     def check_dt(self, dt: float) -> None:
-        """The step ``dt`` [s] resolves the shortest wave component (``tp / 4``, the top of
-        :data:`vcjax.waves.BAND`) with 10 steps: ``tp >= 40 dt`` (``ConfigError`` naming
-        ``wave_tp``)."""
-        if self.waves and self.wave_tp[0] < 10.0 * waves.BAND[1] * dt:
-            raise ConfigError(
-                f"wave_tp: the shortest wave period (tp / {waves.BAND[1]:g}) needs 10 steps of "
-                f"dt = {dt:g} s: tp >= {10.0 * waves.BAND[1] * dt:g} s, got {self.wave_tp[0]:g}"
-            )
+        """With waves, :func:`check_wave_step` of the shortest ``wave_tp``."""
+        if self.waves:
+            check_wave_step(self.wave_tp[0], dt)
 
     def check_for(self, loop: loops.Loop) -> None:
         """The vehicle-specific keys are the loop's (raises naming the key and listing the
@@ -170,6 +172,17 @@ class ScenarioSpec:
     @property
     def sensor_noise(self) -> bool:
         return any(v > 0 for _, v in self.noise)
+
+
+def check_wave_step(tp: float, dt: float, name: str = "wave_tp") -> None:
+    """The step ``dt`` [s] resolves a sea of peak period ``tp`` [s]: its shortest component
+    (``tp / 4``, the top of :data:`vcjax.waves.BAND`) with 10 steps, ``tp >= 40 dt``
+    (``ConfigError`` naming ``name``)."""
+    if tp < 10.0 * waves.BAND[1] * dt:
+        raise ConfigError(
+            f"{name}: the shortest wave period (tp / {waves.BAND[1]:g}) needs 10 steps of "
+            f"dt = {dt:g} s: tp >= {10.0 * waves.BAND[1] * dt:g} s, got {tp:g}"
+        )
 
 
 def _zeros(loop):
