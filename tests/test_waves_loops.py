@@ -20,11 +20,16 @@ from vcjax import loops, sweep, waves
 from vcjax.cli import main
 from vcjax.config import ConfigError
 from vcjax.linalg import Rzyx
+from vcjax.plots.sweep import sweep_figures
 from vcjax.rollout import RolloutConfig, rollout
 from vcjax.vehicles import odin, remus100
 
 ROOT = Path(__file__).resolve().parents[1]
 KEY = jax.random.PRNGKey(7)
+#: one jitted rollout shared by the tests (same loop, config and shapes: compiled once each)
+_run = jax.jit(loops.simulate, static_argnames=("loop", "config", "dist"))
+CFG = RolloutConfig(num_steps=20, timing="sampled")
+DT = 0.1
 
 
 def _sea(hs=1.5, tp=7.0, direction=0.4, spreading=0.0, components=24):
@@ -59,9 +64,8 @@ def test_the_odin_loop_in_a_sea_is_the_plant_fed_the_water_at_its_position():
     sea = _sea()
     sc = _odin_scenario(loop, sea)
     gains = loop.default_gains()
-    cfg = RolloutConfig(num_steps=30, timing="sampled")
-    dt = 0.1
-    got = jax.jit(loops.simulate, static_argnames=("loop", "config"))(loop, gains, sc, cfg, dt)
+    cfg, dt = CFG, DT
+    got = _run(loop, gains, sc, cfg, dt)
 
     def plant(t, x, u, p):
         pos = x.eta[:3] + jnp.asarray([0.0, 0.0, 106.0])
@@ -77,80 +81,106 @@ def test_the_odin_loop_in_a_sea_is_the_plant_fed_the_water_at_its_position():
         plant, loop.control, cfg, sc.plant, loop.ctrl_params(gains, sc), x0, z0, dt
     )
     np.testing.assert_allclose(np.asarray(got.x.eta), np.asarray(want.x.eta), rtol=0, atol=1e-12)
-    # and the sea mattered: the run without it is metres away
-    calm = loops.simulate(loop, gains, sc._replace(sea=None), cfg, dt)
-    assert np.max(np.abs(np.asarray(calm.x.eta[:, :3] - got.x.eta[:, :3]))) > 0.05
 
 
-@pytest.mark.parametrize("current", [(0.0, 0.0, 0.0), (0.3, -0.2, 0.0)])
-def test_remus100_in_a_sea_is_its_plant_with_the_water_as_its_3d_current(current):
+_REMUS = loops.make_loop("remus100", "vcm3d_ilos")
+
+
+@jax.jit
+def _remus_fields(x, u, t, sea, cur, sc):
+    """``(loop's plant_in_sea, the plant given the whole water as its (3,) current)``."""
+    args = _REMUS.plant_args(sc._replace(current=cur), cur, jnp.zeros(3))
+    got = _REMUS.plant_in_sea(t, x, u, args, loops.Water(sea, 2.0, cur, None))
+    p = args.vehicle
+    v_w, a_w = waves.water_kinematics(sea, t, x.eta[:3] + jnp.asarray([0, 0, 2.0]), cur)
+    dx = remus100.remus100_plant(t, x, u, remus100.Remus100Args(p, v_w, a_w))
+    b = p.body
+    R = Rzyx(*x.eta[3:])
+    corr = waves.current_door_correction(R, a_w, b.M_RB, b.M_RB[0, 0], b.r_bb)
+    return got, dx._replace(nu=dx.nu + jnp.linalg.solve(remus100.mass_matrix(p), corr))
+
+
+def test_remus100_in_a_sea_is_its_plant_with_the_water_as_its_3d_current():
     """REMUS 100 keeps PVS's yaw-only door for the current and takes the waves through the full
-    rotation on top of it. Level (roll = pitch = 0) the two doors agree, so the loop's plant in a
-    sea must equal the plant given the whole water (current + orbital) as its (3,) current with
-    the pendulum correction solved separately — the formulation ``tests/test_waves.py`` checks
-    against particles. Tilted, without current, likewise."""
-    loop = loops.make_loop("remus100", "vcm3d_ilos")
-    p = remus100.remus100_params()
+    rotation on top of it. Level (roll = pitch = 0, not rolling or pitching) the two doors
+    agree, so the loop's plant in a sea must equal the plant given the whole water (current +
+    orbital) as its (3,) current with the pendulum correction solved separately — the
+    formulation ``tests/test_waves.py`` checks against particles. Tilted and rolling, without
+    a current, likewise."""
     sea = _sea(hs=2.5, tp=6.0, direction=1.1)
-    cur = jnp.asarray(current)
     rng = np.random.default_rng(3)
-    for tilted in (False, True):
-        if tilted and np.any(cur != 0):
-            continue
+    u = jnp.asarray([0.1, -0.1, 1200.0])
+    sc = loops.make_scenario(_REMUS)
+    for current, tilted in (((0.0, 0.0, 0.0), True), ((0.3, -0.2, 0.0), False)):
         att = rng.uniform(-0.3, 0.3, 3) if tilted else np.array([0.0, 0.0, 0.7])
         eta = jnp.asarray(np.concatenate([[3.0, -2.0, 4.0], att]))
-        nu = jnp.asarray(rng.normal(0.0, 0.3, 6) + np.array([1.5, 0, 0, 0, 0, 0]))
-        x = remus100.Remus100State(eta, nu, jnp.asarray([0.05, -0.03, 1000.0]))
-        u = jnp.asarray([0.1, -0.1, 1200.0])
-        t = 3.7
-        sc = loops.make_scenario(loop, current=current)
-        args = loop.plant_args(sc, sc.current, jnp.zeros(3))
-        water = loops.Water(sea, jnp.asarray(2.0), cur, None)
-        got = loop.plant_in_sea(t, x, u, args, water)
-
-        v_w, a_w = waves.water_kinematics(sea, t, eta[:3] + jnp.asarray([0, 0, 2.0]), cur)
-        dx = remus100.remus100_plant(t, x, u, remus100.Remus100Args(p, v_w, a_w))
-        b = p.body
-        corr = waves.current_door_correction(Rzyx(*eta[3:]), a_w, b.M_RB, b.M_RB[0, 0], b.r_bb)
-        nu_dot = dx.nu + jnp.linalg.solve(remus100.mass_matrix(p), corr)
-        np.testing.assert_allclose(np.asarray(got.nu), np.asarray(nu_dot), rtol=1e-11, atol=1e-12)
-        np.testing.assert_array_equal(np.asarray(got.eta), np.asarray(dx.eta))
+        nu = rng.normal(0.0, 0.3, 6) + np.array([1.5, 0, 0, 0, 0, 0])
+        if not tilted:  # PVS's door also drops the roll/pitch-rate term of nu_c_dot
+            nu[3:5] = 0.0
+        x = remus100.Remus100State(eta, jnp.asarray(nu), jnp.asarray([0.05, -0.03, 1000.0]))
+        got, want = _remus_fields(x, u, 3.7, sea, jnp.asarray(current), sc)
+        np.testing.assert_allclose(got.nu, want.nu, rtol=1e-11, atol=1e-12)
+        np.testing.assert_array_equal(got.eta, want.eta)
 
 
 def test_a_calm_sea_is_bit_identical_to_no_sea_through_loops_simulate():
     """``hs = 0``: every kinematic quantity is exactly 0, so the run with a sea (another
-    program) equals the run without, to the bit — with a current and sensor noise too."""
+    program) equals the run without, to the bit (with a current); a real sea, the same program
+    with other data, moves the vehicle by decimetres."""
     loop = _odin()
-    calm = _sea(hs=0.0)
     gains = loop.default_gains()
-    cfg = RolloutConfig(num_steps=25, timing="sampled")
-    run = jax.jit(loops.simulate, static_argnames=("loop", "config", "dist"))
+    sc = _odin_scenario(loop, _sea())
+    plain = _run(loop, gains, sc._replace(sea=None, origin_depth=None), CFG, DT)
+    calm = _run(loop, gains, sc._replace(sea=_sea(hs=0.0)), CFG, DT)
+    assert _same(plain, calm)
+    rough = _run(loop, gains, sc, CFG, DT)
+    assert np.max(np.abs(np.asarray(rough.x.eta[:, :3] - plain.x.eta[:, :3]))) > 0.05
+
+
+@pytest.mark.slow
+def test_a_calm_sea_is_bit_identical_with_gauss_markov_current_and_noise():
+    """REMUS 100 (its own current door, a Gauss–Markov current through the exogenous hook) and
+    ODIN-class with sensor noise: a calm sea changes no bit."""
+    cases = []
+    loop = loops.make_loop("remus100", "vcm3d_ilos")
+    sc = loops.make_scenario(loop, current=(0.2, -0.3, 0.0), initial={"pitch_deg": 8.0})
+    gm = loops.gauss_markov_params(sc, 0.05, 30.0, 1.0)
+    cases.append((loop, sc, loops.Disturbances(gauss_markov=True), gm, jnp.zeros(0), 2.0))
+    loop = _odin()
     sc = _odin_scenario(loop)
-    dist = loops.Disturbances(sensor_noise=True)
-    dp = loops.DisturbanceParams(None, jnp.full(12, 0.01), jax.random.PRNGKey(1))
-    for d, p in ((loops.Disturbances(), None), (dist, dp)):
-        a = run(loop, gains, sc, cfg, 0.1, d, p)
-        b = run(loop, gains, sc._replace(sea=calm, origin_depth=jnp.asarray(106.0)), cfg, 0.1, d, p)
+    cases.append((loop, sc, loops.Disturbances(sensor_noise=True), None, jnp.full(12, 0.01), 0))
+    for loop, sc, dist, gm, noise, depth in cases:
+        dp = loops.DisturbanceParams(gm, noise, jax.random.PRNGKey(1))
+        a = _run(loop, loop.default_gains(), sc, CFG, DT, dist, dp)
+        calm = sc._replace(sea=_sea(hs=0.0), origin_depth=jnp.asarray(106.0 + depth))
+        b = _run(loop, loop.default_gains(), calm, CFG, DT, dist, dp)
         assert _same(a, b)
 
 
-def test_gradient_with_respect_to_a_gain_through_a_sea_matches_finite_differences():
-    """d(loss)/d(depth PID gain) through a rollout in a sea: reverse mode against central
-    differences (float64)."""
-    loop = _odin(polish=2)
-    sc = _odin_scenario(loop, _sea(hs=2.0, tp=6.0, components=16), depth=-3.0)
-    g0 = loop.default_gains()
-    cfg = RolloutConfig(num_steps=15, timing="sampled")
+def _gain_loss(loop, sc, g0, steps):
+    cfg = RolloutConfig(num_steps=steps, timing="sampled")
 
     def loss(kp):
         g = g0._replace(depth=g0.depth.at[0].set(kp))
-        traj = loops.simulate(loop, g, sc, cfg, 0.1)
+        traj = loops.simulate(loop, g, sc, cfg, DT)
         sig = loop.signals(traj, sc)
         return jnp.mean(sig.depth_err**2) + jnp.mean(jnp.sum(sig.p_err**2, axis=1))
 
+    return loss
+
+
+@pytest.mark.parametrize("mode", ["forward", pytest.param("reverse", marks=pytest.mark.slow)])
+def test_gradient_with_respect_to_a_gain_through_a_sea_matches_finite_differences(mode):
+    """d(loss)/d(depth PID gain) through a rollout in a sea against central differences
+    (float64); forward mode by default (cheaper to compile), reverse mode in the slow run."""
+    loop = _odin(polish=2)
+    sc = _odin_scenario(loop, _sea(hs=2.0, tp=6.0, components=16), depth=-3.0)
+    g0 = loop.default_gains()
+    loss = _gain_loss(loop, sc, g0, 12)
     kp = g0.depth[0]
-    grad = jax.jit(jax.grad(loss))(kp)
-    f = jax.jit(loss)
+    jvp = jax.jit(lambda k: jax.jvp(loss, (k,), (jnp.ones_like(k),)))
+    f = lambda k: jvp(k)[0]  # (the value from the same program)
+    grad = jvp(kp)[1] if mode == "forward" else jax.jit(jax.grad(loss))(kp)
     h = 1e-4
     fd = (f(kp + h) - f(kp - h)) / (2 * h)
     assert abs(float(grad)) > 1e-6
@@ -265,18 +295,15 @@ def _spec(**kw):
 
 def test_each_scenario_draws_its_sea_from_its_own_key_whatever_the_chunk():
     loop = _odin()
-    spec = _spec(wave_spreading=2.0)
+    spec = _spec()
     all8 = sweep.sample_scenarios(spec, 5, np.arange(8), loop=loop)
-    part = sweep.sample_scenarios(spec, 5, np.arange(5, 8), loop=loop)
-    one = sweep.sample_scenarios(spec, 5, [6], loop=loop)
+    part = sweep.sample_scenarios(spec, 5, [6], loop=loop)  # a chunk of one: scenario 6
     for f in ("wave_hs", "wave_tp", "wave_direction_deg", "wave_origin_depth"):
-        assert _same(getattr(all8, f)[5:], getattr(part, f))
-        assert _same(getattr(all8, f)[6:7], getattr(one, f))
-    # the sea's transcendental functions (spectrum, beta sampler) may round differently with the
-    # batch's vector width: equal to round-off
-    for a, b, c in zip(all8.sea, part.sea, one.sea, strict=True):
-        np.testing.assert_allclose(np.asarray(b), np.asarray(a)[5:], rtol=1e-14, atol=1e-300)
-        np.testing.assert_allclose(np.asarray(c), np.asarray(a)[6:7], rtol=1e-14, atol=1e-300)
+        assert _same(getattr(all8, f)[6:7], getattr(part, f))
+    # the sea's transcendental functions (the spectrum) may round differently with the batch's
+    # vector width: equal to round-off
+    for a, b in zip(all8.sea, part.sea, strict=True):
+        np.testing.assert_allclose(np.asarray(b), np.asarray(a)[6:7], rtol=1e-14, atol=1e-300)
     hs = np.asarray(all8.wave_hs)
     assert np.all((hs >= 0.5) & (hs <= 3.0)) and np.unique(hs).size == 8
     # the sea is sea_state of the drawn parameters (and of the scenario's own key)
@@ -289,7 +316,44 @@ def test_each_scenario_draws_its_sea_from_its_own_key_whatever_the_chunk():
     assert _same(plain.eta0, all8.eta0) and _same(plain.key, all8.key)
 
 
-def test_a_calm_sea_is_bit_identical_through_the_sweep_and_records_the_wave_columns(tmp_path):
+def _sweep_spec(tmp_path, scenario):
+    return sweep.SweepSpec(
+        scenario=scenario,
+        num_scenarios=3,
+        variants=("vcm",),
+        horizon=0.5,
+        dt=0.1,
+        timing="sampled",
+        chunk_size=3,
+        record_points=3,
+        choice=sweep.load_config(_sweep_toml(tmp_path))[0].choice,
+    )
+
+
+def test_a_sweep_with_waves_records_the_wave_columns(tmp_path):
+    spec = _sweep_spec(tmp_path, _spec(wave_origin_depth=(106.0, 110.0)))
+    r = sweep.run_sweep(spec, progress=False)
+    for k in ("wave_hs", "wave_tp", "wave_direction_deg", "wave_origin_depth"):
+        assert r.scenarios[k].shape == (3,) and np.all(np.isfinite(r.scenarios[k]))
+    assert np.all((r.scenarios["wave_tp"] >= 5.0) & (r.scenarios["wave_tp"] <= 12.0))
+    assert not np.any(r.metrics["vcm"]["diverged"])
+    back = sweep.load_results(sweep.save_results(r, tmp_path / "r.npz"))
+    assert back.spec == r.spec
+    np.testing.assert_array_equal(back.scenarios["wave_hs"], r.scenarios["wave_hs"])
+    table = sweep.summarize(r)["waves"]
+    assert sum(map(sum, table["variants"]["vcm"]["count"])) == 3
+    assert len(table["hs_edges"]) == 4 and len(table["origin_depth_edges"]) == 4
+    files = [f.name for f in sweep_figures(r, tmp_path)]
+    assert "sweep_error_vs_waves.png" in files
+    try:
+        ds = r.to_xarray()
+    except ImportError:
+        return
+    assert ds["wave_hs"].attrs["units"] == "m" and ds["wave_direction_deg"].attrs["units"] == "deg"
+
+
+@pytest.mark.slow
+def test_a_calm_sea_is_bit_identical_through_the_sweep(tmp_path):
     loop_spec = dict(
         num_scenarios=3,
         variants=("vcm",),
@@ -308,31 +372,37 @@ def test_a_calm_sea_is_bit_identical_through_the_sweep_and_records_the_wave_colu
     for k in ("wave_hs", "wave_tp", "wave_direction_deg", "wave_origin_depth"):
         assert r_calm.scenarios[k].shape == (3,) and k not in r_none.scenarios
     np.testing.assert_array_equal(r_calm.scenarios["wave_hs"], 0.0)
-    path = sweep.save_results(r_calm, tmp_path / "r.npz")
-    back = sweep.load_results(path)
-    assert back.spec == r_calm.spec
-    np.testing.assert_array_equal(back.scenarios["wave_tp"], r_calm.scenarios["wave_tp"])
-    table = sweep.summarize(r_calm)["waves"]
-    assert table["variants"]["vcm"]["count"][0][0] + table["variants"]["vcm"]["count"][0][1] >= 1
-    try:
-        ds = r_calm.to_xarray()
-    except ImportError:
-        return
-    assert ds["wave_hs"].attrs["units"] == "m" and ds["wave_direction_deg"].attrs["units"] == "deg"
 
 
-def test_a_calm_sea_is_bit_identical_through_the_tuning_loss():
-    from tuning.loss import TuningProblem, problem_data, scenario_losses
-    from tuning.params import GainSpace
+def _tuning_batches():
     from tuning.scenarios import sample_scenarios
 
     loop = _odin(polish=2)
     kw = dict(loop=loop, current_max=0.2, position_offset=1.0, heading_offset=0.1)
     plain = sample_scenarios(3, 2, **kw)
-    calm = sample_scenarios(
-        3, 2, **kw, extra=dict(wave_spectrum="pm", wave_hs=(0.0, 0.0), wave_components=8)
-    )
-    assert calm.sea.amplitude.shape == (2, 8) and _same(plain.eta0, calm.eta0)
+    extra = dict(wave_spectrum="pm", wave_hs=(0.0, 0.0), wave_components=8)
+    calm = sample_scenarios(3, 2, **kw, extra=extra | dict(wave_origin_depth=(106.0, 108.0)))
+    return loop, plain, calm
+
+
+def test_tuning_batches_carry_their_seas():
+    from tuning.scenarios import SCENARIO_AXES, scenario_at
+
+    loop, plain, calm = _tuning_batches()
+    assert plain.sea is None and plain.origin_depth is None
+    assert calm.sea.amplitude.shape == (2, 8) and calm.origin_depth.shape == (2,)
+    for f in loops.Scenario._fields[:9]:
+        assert _same(getattr(plain, f), getattr(calm, f))
+    one = scenario_at(calm, 1)
+    assert one.sea.omega.shape == (8,) and SCENARIO_AXES.sea == 0
+
+
+@pytest.mark.slow
+def test_a_calm_sea_is_bit_identical_through_the_tuning_loss():
+    from tuning.loss import TuningProblem, problem_data, scenario_losses
+    from tuning.params import GainSpace
+
+    loop, plain, calm = _tuning_batches()
     problem = TuningProblem(space=GainSpace(loop=loop, tune=("depth_pd",)), num_steps=8)
     data = problem_data(problem, dt=0.1)
     f = jax.jit(scenario_losses, static_argnames=("problem",))

@@ -50,6 +50,7 @@ command) naming the file and the offending ``section.key``::
     effort = 0.0
     unhealthy = 1000.0
     sat_width = 0.05
+    depth = 0.0                     # the depth error of 3-D loops (1/m^2)
 
     [scenarios]                     # distribution of the random scenarios
     current_max = 1.0               # [m/s], uniform speed, uniform direction
@@ -146,6 +147,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
         "effort": 0.0,
         "unhealthy": 1000.0,
         "sat_width": 0.05,
+        "depth": 0.0,
     },
     "scenarios": {"current_max": 1.0, "position_offset": 5.0, "heading_offset_deg": 45.0},
     "train": {"size": 16, "seed": 0},
@@ -416,6 +418,7 @@ KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     ("weights", "effort"): ("", "weight of the squared commands over their limits"),
     ("weights", "unhealthy"): ("", "penalty of a run that diverged"),
     ("weights", "sat_width"): ("", "width of the smooth step counting time over the limits"),
+    ("weights", "depth"): ("1/m^2", "weight of the depth error (3-D loops; e.g. in waves)"),
     ("scenarios", "current_max"): ("m/s", "current speed ~ U(0, current_max), any direction"),
     ("scenarios", "position_offset"): ("m", "initial x, y offsets ~ U(-o, o)"),
     ("scenarios", "heading_offset_deg"): ("deg", "initial heading offset ~ U(-o, o)"),

@@ -121,7 +121,7 @@ def _error_vs_waves(result, out: Path) -> Path:
         2, len(columns), figsize=(6 * len(columns), 8), squeeze=False, sharey="row"
     )
     n = hs.size
-    alpha = float(np.clip(30.0 / max(n, 1), 0.05, 0.6))
+    alpha = float(np.clip(60.0 / max(n, 1), 0.2, 0.6))
     for j, (x, xlabel) in enumerate(columns):
         edges = np.linspace(x.min(), x.max() + 1e-12, 7) if n else np.linspace(0.0, 1.0, 7)
         for i, (key, ylabel) in enumerate(rows):
