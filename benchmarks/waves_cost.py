@@ -208,7 +208,7 @@ def main(argv=None):
     title = f"closed-loop REMUS 100 sweep, {args.components}-component sea, {args.dtype}, "
     C.print_table(sweep_rows, cols, title + C.device_str())
     if args.no_plant:
-        C.write_json(args.json, args, [], sweep=sweep_rows)
+        C.write_json(args.json, args, sweep_rows)
         return
     inputs = _inputs(batch)
     rows = []
@@ -230,7 +230,7 @@ def main(argv=None):
     C.print_table(
         rows, cols, f"plant only, {args.components}-component sea, {args.dtype}, {C.device_str()}"
     )
-    C.write_json(args.json, args, rows, sweep=sweep_rows)
+    C.write_json(args.json, args, sweep_rows + rows)  # the closed-loop sweep rows first
 
 
 if __name__ == "__main__":
