@@ -151,7 +151,7 @@ def base_inputs():
 
 def current_field(sc) -> str:
     """The scenario's current field: ``current`` (3,) NED since the scenario layer (issue 9),
-    ``V_c`` (2,) before it (``benchmarks.before_after`` runs older revisions too)."""
+    ``V_c`` (2,) before it (``benchmarks.compare.before_after`` runs older revisions too)."""
     return "current" if "current" in sc._fields else "V_c"
 
 

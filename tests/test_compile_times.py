@@ -1,9 +1,9 @@
-"""benchmarks/compile_times.py runs end to end on one small loop and writes its JSON (no timing
+"""benchmarks/perf/compile_times.py runs end to end on one small loop and writes its JSON (no timing
 assertions: the machine's load decides the times; the graph size is deterministic)."""
 
 import json
 
-from benchmarks import compile_times
+from benchmarks.perf import compile_times
 
 
 def test_compile_times_writes_json(tmp_path):

@@ -3,6 +3,7 @@ the shared keys (same parsed values, same sampled scenarios), loop options read 
 class, one error per bad key naming section and key."""
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -130,3 +131,66 @@ def test_tune_simulation_u_d_reaches_the_scenarios():
     np.testing.assert_array_equal(np.asarray(train.u_d), 1.25)
     default = build(validate_config(base))[3]
     assert not np.any(np.asarray(default.u_d) == 1.25)
+
+
+# ------------------------------------------------------------------ tune and fit: frozen objects
+
+
+def test_tune_config_is_frozen_hashable_and_reads_as_before():
+    from tuning.config import TuneConfig
+
+    cfg = validate_config(
+        {
+            "problem": {"tune": ["P_G", "sigma"], "horizon": 4.0, "dt": 0.2},
+            "initial": {"x": [0.0, 1.0]},
+            "disturbance": {"force": [[0.0, 1.0], [-2.0, 2.0], 0.0]},
+            "current": {"speed": [0.0, 0.3]},
+        }
+    )
+    assert isinstance(cfg, TuneConfig) and hash(cfg) == hash(TuneConfig.from_dict(cfg.to_dict()))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.problem.horizon = 8.0
+    # attribute and mapping reads agree; lists are stored as tuples
+    assert cfg.problem.tune == ("P_G", "sigma") and cfg["problem"]["tune"] == ("P_G", "sigma")
+    assert cfg.disturbance.force == ((0.0, 1.0), (-2.0, 2.0), (0.0, 0.0))
+    assert {**cfg["weights"]} == dict(cfg.weights.to_dict())
+    # the older dict form: [scenario], [initial], [current] as plain dicts, defaults filled in
+    assert cfg["scenario"]["vehicle"] == "infante" and cfg.scenario.vehicle == "infante"
+    assert cfg["initial"] == {"x": [0.0, 1.0]} and cfg["current"] == {"speed": [0.0, 0.3]}
+    d = json.loads(json.dumps(cfg.to_dict()))  # what run.json records
+    assert d["problem"]["tune"] == ["P_G", "sigma"] and d["simulation"] == {"u_d": None}
+    assert TuneConfig.from_dict(d) == cfg
+    # the older [problem] spelling and the shared [simulation] give the same object
+    old = validate_config({"problem": {"horizon": 4.0, "dt": 0.2, "timing": "sampled"}})
+    new = validate_config({"simulation": {"horizon": 4.0, "dt": 0.2, "timing": "sampled"}})
+    assert old == new and hash(old) == hash(new)
+
+
+def test_tune_config_files_resolve_initial_gains_next_to_the_config(tmp_path):
+    from tuning.config import load_config as load_tune
+
+    (tmp_path / "sub").mkdir()
+    f = tmp_path / "sub" / "t.toml"
+    f.write_text('[problem]\ninitial_gains = "g.json"\nhorizon = 1.0\ndt = 0.5\n')
+    cfg = load_tune(f)
+    assert cfg.problem.initial_gains == str(tmp_path / "sub" / "g.json")
+
+
+def test_fit_config_is_frozen_hashable_and_round_trips(tmp_path):
+    from vcjax.identify import load_fit_config
+    from vcjax.identify.config import FitConfig
+
+    f = tmp_path / "fit.toml"
+    f.write_text(
+        '[data]\nfiles = ["a.csv"]\n[model]\nvehicle = "infante"\n'
+        '[fit]\nparams = ["X_uu", "N_ur"]\nsegment_steps = 25\n'
+    )
+    cfg = load_fit_config(f)
+    assert isinstance(cfg, FitConfig) and cfg.path == f and hash(cfg)
+    assert cfg.fit.params == ("X_uu", "N_ur") and cfg["fit"]["segment_steps"] == 25
+    assert cfg.model.step == "rk4" and cfg["model"]["current_speed"] == 0.0  # defaults
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.fit.max_iters = 3
+    d = json.loads(json.dumps(cfg.to_dict()))
+    assert set(d) == {"data", "model", "fit"} and d["data"]["files"] == ["a.csv"]
+    assert FitConfig.from_dict(d) == dataclasses.replace(cfg, path=FitConfig().path)

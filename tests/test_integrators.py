@@ -74,3 +74,29 @@ def test_rk4_stage_loop_equals_the_unrolled_stages():
             np.testing.assert_allclose(u, v, rtol=1e-14, atol=1e-15)
         np.testing.assert_array_equal(aux1["a"], y[0])
         np.testing.assert_allclose(aux1["t"], 0.7)
+
+
+def test_dense_tangent_is_the_identity_in_value_and_derivatives():
+    """dense_tangent only changes how a scan's linearisation starts, never a number: its
+    value, forward and reverse derivatives are the identity's, also when the marked value
+    does not depend on what is differentiated (then its derivative is exactly zero)."""
+    from vcjax.integrators import dense_tangent
+
+    x = (jnp.array([1.0, -2.0]), jnp.array(3, dtype=jnp.int32))
+
+    def f(p):  # x depends on p through its first leaf only after marking
+        y = dense_tangent(x, (p, jnp.array(7, dtype=jnp.int32)))
+        return y[0] * p[0] + p[1] ** 2, y[1]
+
+    p = jnp.array([0.5, -1.5])
+    val, ints = f(p)
+    np.testing.assert_array_equal(val, x[0] * p[0] + p[1] ** 2)
+    assert int(ints) == 3
+    J = jax.jacrev(lambda p: f(p)[0])(p)
+    J_fwd = jax.jacfwd(lambda p: f(p)[0])(p)
+    want = np.array([[1.0, 2 * -1.5], [-2.0, 2 * -1.5]])
+    np.testing.assert_array_equal(J, want)
+    np.testing.assert_array_equal(J_fwd, want)
+    # differentiating the marked value itself: the identity's Jacobian
+    g = jax.jacrev(lambda a: dense_tangent(a, p))(x[0])
+    np.testing.assert_array_equal(g, np.eye(2))

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from vcjax.loops import Signals
-from vcjax.metrics import metric_names, run_metrics, window_start
+from vcjax.metrics import first_true, metric_names, polyline_nearest, run_metrics, window_start
 
 DT = 0.5
 #           step:   0     1     2     3      4
@@ -86,3 +86,46 @@ def test_window_start_moves_the_window(start, k0):
     assert window_start(5, start) == k0
     m = run_metrics(signals(), jnp.ones(5, bool), DT, start=start)
     np.testing.assert_allclose(float(m["ss_abs_e"]), np.mean(np.abs(E[k0:])), rtol=1e-12)
+
+
+def test_extras_are_computed_in_the_same_call_on_the_window():
+    # an experiment's extra sees the signals and the window mask (steps 3 and 4 at start 0.6)
+    extras = {
+        "last_e": lambda sig, win: sig.eps[-1, 1],
+        "window_steps": lambda sig, win: jnp.sum(win.astype(sig.eps.dtype)),
+        "peak_tau_in_window": lambda sig, win: jnp.max(jnp.where(win, sig.act["tau"], 0.0)),
+    }
+    m = run_metrics(signals(), jnp.ones(5, bool), DT, start=0.6, extras=extras)
+    assert float(m["last_e"]) == 0.25
+    assert float(m["window_steps"]) == 2.0
+    assert float(m["peak_tau_in_window"]) == 2.0  # TAU[3], TAU[4] = 2, 0.5
+    np.testing.assert_allclose(float(m["ss_abs_e"]), EXPECTED["ss_abs_e"], rtol=1e-12)
+    with pytest.raises(ValueError, match=r"extras: \['ss_abs_e'\] are generic metrics"):
+        run_metrics(signals(), jnp.ones(5, bool), DT, extras={"ss_abs_e": extras["last_e"]})
+
+
+def test_first_true():
+    assert int(first_true(jnp.array([False, False, True, True]))) == 2
+    assert int(first_true(jnp.array([True, False]))) == 0
+    assert int(first_true(jnp.zeros(4, bool))) == -1
+
+
+def test_polyline_nearest_against_hand_computation():
+    # an L-shaped polyline sampled at w = 0, 1, 2, 3, 4: (0,0,0) -> (2,0,0) -> (2,2,0)
+    ws = np.arange(5.0)
+    pts = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [2, 1, 0], [2, 2, 0]], float)
+    pos = np.array(
+        [
+            [0.5, 1.0, 0.0],  # above the first leg: nearest (0.5, 0, 0), w = 0.5, distance 1
+            [3.0, 1.5, 2.0],  # beside the second leg: nearest (2, 1.5, 0), w = 3.5
+            [3.0, -1.0, 0.0],  # outside the corner: nearest the vertex (2, 0, 0), w = 2
+            [-1.0, 0.0, 0.0],  # before the start: nearest (0, 0, 0), w = 0
+        ]
+    )
+    dist, w, off, tangent = polyline_nearest(pos, pts, ws, batch=2)
+    np.testing.assert_allclose(dist, [1.0, math.sqrt(5.0), math.sqrt(2.0), 1.0], rtol=1e-14)
+    np.testing.assert_allclose(w, [0.5, 3.5, 2.0, 0.0], atol=1e-14)
+    np.testing.assert_allclose(off, [[0, 1, 0], [1, 0, 2], [1, -1, 0], [-1, 0, 0]], atol=1e-14)
+    # the tangent of the segment the nearest parameter falls in; at the vertex w = 2 the one
+    # before it (searchsorted left), at the start the first
+    np.testing.assert_allclose(tangent, [[1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 0, 0]], atol=1e-14)

@@ -1,5 +1,5 @@
 """Independent cross-check of Simulation 1's ``vcm_integral`` closed loop against the plain
-NumPy model in ``benchmarks/numpy_reference.py`` (written from the equations, not from the JAX
+NumPy model in ``tests/reference/numpy_reference.py`` (written from the equations, not from the JAX
 code: closed-form line frame, closed-form underactuation condition, precomputed ``M^-1``).
 
 Tolerance: every state entry at every step within ``1e-10 (1 + |x|)`` over 20 s (400 RK4 steps,
@@ -16,7 +16,7 @@ from vcjax.experiments import sim1
 from vcjax.vehicles import infante
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks import numpy_reference as nr  # noqa: E402
+from tests.reference import numpy_reference as nr  # noqa: E402
 
 RTOL = 1e-10
 HORIZON, DT = 20.0, 0.05
@@ -75,12 +75,12 @@ def test_batched_numpy_matches_scalar_numpy():
 
 
 def test_numpy_remus100_step_reproduces_pvs_and_vcjax():
-    """The plain-NumPy PVS step (``benchmarks/numpy_remus100.py``, the REMUS 100 speed baseline)
+    """The plain-NumPy PVS step (``tests/reference/numpy_remus100.py``, the oracle of the REMUS 100 speed baseline ``benchmarks/perf/numpy_remus100.py``)
     replays the recorded PythonVehicleSimulator run to the CSV's digits, like vcjax does, and
     agrees with ``remus100.pvs_rollout`` to round-off (3000 steps, float64)."""
     import jax
 
-    from benchmarks import numpy_remus100 as nrm
+    from tests.reference import numpy_remus100 as nrm
     from vcjax.vehicles import remus100 as rm
 
     ref = nrm.reference()

@@ -146,3 +146,46 @@ def test_float32_frames():
     assert f.psi_p.dtype == jnp.float32
     f64 = paths.path_frame(path, c, 3.0)
     assert float(f.dpsi_dw) == pytest.approx(float(f64.dpsi_dw), rel=1e-5)
+
+
+def test_path_pose_derivatives_equal_the_frames_at_every_order():
+    """path_pose's derivative rule (the Taylor tower one order up) against a second
+    derivation: autodiff *through* path_frame's own autodiff (first and second order, forward
+    over reverse), its central difference (third order), and path_frame's own fields; the
+    coefficients' derivative against path_frame's."""
+    # on a turn during the descent's curved part: every component varies
+    path, c = paths.lawnmower((0.0, 0.0, 1.0), 120.0, 30.0, 4, 15.0, 150.0)
+    w = 140.0
+
+    def pose(w_, cc):
+        f = paths.path_pose(path, cc, w_)
+        return jnp.concatenate([f.p, jnp.stack([f.psi_p, f.theta_p, f.speed_bar])])
+
+    def frame(w_, cc):
+        f = paths.path_frame(path, cc, w_)
+        return jnp.concatenate([f.p, jnp.stack([f.psi_p, f.theta_p, f.speed_bar])])
+
+    @jax.jit
+    def both(w_, cc):
+        d2 = lambda fn: jax.jacfwd(jax.jacrev(fn))(w_, cc)
+        dc = lambda fn: jax.jacrev(lambda c_: jax.jacfwd(fn)(w_, c_))(cc)
+        d3 = jax.jacfwd(jax.jacfwd(jax.jacrev(pose)))(w_, cc)
+        return (pose(w_, cc), jax.jacrev(pose)(w_, cc), d2(pose), dc(pose), d3), (
+            frame(w_, cc),
+            jax.jacrev(frame)(w_, cc),
+            d2(frame),
+            dc(frame),
+        )
+
+    got, want = both(w, c)
+    np.testing.assert_array_equal(got[0], want[0])  # the same values, bit for bit
+    leaves = jax.tree_util.tree_leaves
+    for a, b in zip(leaves(got[1:4]), leaves(want[1:]), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-14)
+    h = 1e-3
+    fd3 = (both(w + h, c)[1][2] - both(w - h, c)[1][2]) / (2 * h)
+    np.testing.assert_allclose(got[4], fd3, rtol=1e-5, atol=1e-9)
+    assert np.any(np.abs(got[4][3:]) > 1e-6)  # a third derivative that is not trivially zero
+    f = paths.path_frame(path, c, w)  # and the frame's own fields
+    np.testing.assert_allclose(got[1][3:], [f.dpsi_dw, f.dtheta_dw, f.dspeed_bar_dw], rtol=1e-12)
+    assert float(got[2][3]) == pytest.approx(float(f.d2psi_dw2), rel=1e-12)

@@ -45,8 +45,8 @@ def test_metrics_distance_is_geometric():
     # the first turn's centre is (L, R); a point 1 m outside the arc
     a = 0.7
     p_turn = np.array([[L + (R + 1.0) * np.sin(a), R - (R + 1.0) * np.cos(a), 16.0]])
-    dist, w, e, h = sr._nearest_on_path(
-        np.concatenate([p_leg, p_turn]), path, c, (-20.0, 4 * L + 3 * np.pi * R)
+    dist, w, e, h = (
+        np.asarray(a) for a in sr.mission_geometry(np.concatenate([p_leg, p_turn]), path, c)
     )
     np.testing.assert_allclose(dist, [np.hypot(0.3, 0.2), 1.0], atol=1e-3)
     np.testing.assert_allclose(h[0], 0.2, atol=1e-9)

@@ -444,7 +444,7 @@ def test_example_tuning_configs_are_valid():
     assert {"sim2.toml", "arm.toml", "puck.toml", "quick.toml"} <= {f.name for f in files}
     for f in files:
         cfg = load_config(f)
-        assert cfg["problem"]["variant"] and cfg["scenario"]["vehicle"]
+        assert cfg.problem.variant and cfg.scenario.vehicle and cfg["scenario"]["vehicle"]
 
 
 def _on_two_devices(script: str) -> dict:
@@ -504,7 +504,7 @@ import dataclasses, json
 import jax
 jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp, numpy as np
-from benchmarks.sharded_gradient import loop_allreduces
+from benchmarks.perf.sharded_gradient import loop_allreduces
 from tuning.cli import distribute
 from tuning.loss import TuningProblem, objective, problem_data
 from tuning.scenarios import sample_scenarios
@@ -547,3 +547,45 @@ def test_tiled_gains_on_a_sharded_batch_reduce_once_with_the_same_gradient():
 def test_tile_gains_must_be_a_bool():
     with pytest.raises(ValueError, match="tile_gains"):
         TuningProblem(tile_gains="yes")
+
+
+def test_host_driven_lbfgs_takes_optax_steps():
+    """The L-BFGS step drives optax's zoom line search from the host around one compiled
+    value_and_grad; its iterates, losses and evaluation counts are those of ``optax.lbfgs``
+    run in one jitted step (the line search in its while_loop), on a function whose line
+    searches both extend and zoom (Rosenbrock's, from its classic start)."""
+    import optax
+
+    from tuning.optim import LBFGSStep, init_state, make_optimizer, make_step
+
+    def loss(th, a):
+        return jnp.sum(a * (th[1:] - th[:-1] ** 2) ** 2 + (1.0 - th[:-1]) ** 2)
+
+    a = jnp.asarray([100.0, 80.0, 120.0])
+    opt = make_optimizer("lbfgs", memory_size=5, max_linesearch_steps=12)
+    step = make_step(loss, opt, "lbfgs")
+    assert isinstance(step, LBFGSStep)
+
+    @jax.jit
+    def optax_step(theta, state):  # the jitted optax way
+        f = lambda p: loss(p, a)
+        with jax.numpy_dtype_promotion("standard"):  # optax's arithmetic, as in the tuner
+            value, grad = optax.value_and_grad_from_state(f)(theta, state=state)
+            upd, new = opt.update(grad, state, theta, value=value, grad=grad, value_fn=f)
+        return theta + upd, new, value
+
+    th0 = jnp.asarray([-1.2, 1.0, -0.5, 0.8])
+    th_a, st_a = th0, init_state(opt, th0)
+    th_b, st_b = th0, init_state(opt, th0)
+    counts = []
+    for _ in range(12):
+        th_a, st_a, info = step(th_a, st_a, jnp.asarray(1.0), (a,))
+        th_b, st_b, value_b = optax_step(th_b, st_b)
+        assert bool(info.ok)
+        assert float(info.loss) == pytest.approx(float(value_b), rel=1e-13, abs=1e-300)
+        np.testing.assert_allclose(th_a, th_b, rtol=1e-12, atol=1e-14)
+        counts.append(int(optax.tree.get(st_b, "info").num_linesearch_steps))
+        assert int(info.evals) == counts[-1] + (len(counts) == 1)
+    assert max(counts) > 1  # some line searches took more than one evaluation
+    assert float(loss(th_a, a)) < 0.05 * float(loss(th0, a))
+    assert step._cache_size() == 1  # the one value_and_grad compiled once

@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from tuning.config import load_config
+from tuning.config import TuneConfig, load_config
 from tuning.loss import TERMS, TuningProblem, objective, problem_data
 from tuning.loss import loss_weights as make_weights
 from tuning.optim import run_gradient_tuner, tuner_options
@@ -39,88 +39,89 @@ from tuning.report import ProgressBar, plot_before_after, plot_loss_curve, plot_
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from vcjax import distributed, loops, paths
 from vcjax.config import ConfigError, Current
-from vcjax.config.scenario import ScenarioChoice
 from vcjax.outputs import stop_requested_everywhere, write_json_atomic
 
 __all__ = ["build", "run_tune_config", "main"]
 
 
-def _loop(cfg: dict) -> tuple[loops.Loop, ScenarioChoice]:
-    choice = ScenarioChoice.from_dict(cfg["scenario"])
-    return choice.loop(cfg["problem"]["variant"]), choice
+def _config(cfg) -> TuneConfig:
+    """The frozen config (a plain dict of the older form, e.g. a ``run.json`` record, is read
+    with :meth:`TuneConfig.from_dict`)."""
+    return cfg if isinstance(cfg, TuneConfig) else TuneConfig.from_dict(cfg)
 
 
-def build(cfg: dict):
+def build(cfg: TuneConfig):
     """Objects of a validated config: ``(problem, eval_problem, data, train, heldout)``."""
-    p, sc = cfg["problem"], cfg["scenarios"]
-    loop, choice = _loop(cfg)
-    if p["initial_gains"]:
+    cfg = _config(cfg)
+    p, sc, choice = cfg.problem, cfg.scenarios, cfg.scenario
+    loop = choice.loop(p.variant)
+    if p.initial_gains:
         try:
-            base = loop.gains_from_json(json.loads(Path(p["initial_gains"]).read_text()))
+            base = loop.gains_from_json(json.loads(Path(p.initial_gains).read_text()))
         except (OSError, json.JSONDecodeError, ValueError) as err:
             raise ConfigError(
-                f"problem.initial_gains: cannot use {p['initial_gains']}: {err}"
+                f"problem.initial_gains: cannot use {p.initial_gains}: {err}"
             ) from None
     else:
         base = loop.default_gains()
-    space = GainSpace(loop=loop, tune=tuple(p["tune"]) or None)
-    num_steps = int(round(p["horizon"] / p["dt"]))
+    space = GainSpace(loop=loop, tune=p.tune or None)
+    num_steps = int(round(p.horizon / p.dt))
     problem = TuningProblem(
         space=space,
         num_steps=num_steps,
-        integrator=p["integrator"],
-        timing=p["timing"],
-        checkpoint=p["checkpoint"],
-        checkpoint_every=p["checkpoint_every"],
-        smooth=p["smooth"],
-        risk=p["risk"],
-        alpha=p["alpha"],
+        integrator=p.integrator,
+        timing=p.timing,
+        checkpoint=p.checkpoint,
+        checkpoint_every=p.checkpoint_every,
+        smooth=p.smooth,
+        risk=p.risk,
+        alpha=p.alpha,
     )
-    eval_problem = dataclasses.replace(problem, smooth=cfg["heldout"]["smooth"], checkpoint=False)
+    eval_problem = dataclasses.replace(problem, smooth=cfg.heldout.smooth, checkpoint=False)
     dtype = jnp.asarray(jax.tree_util.tree_leaves(base)[0]).dtype
-    weights = make_weights(**cfg["weights"], dtype=dtype)
-    data = problem_data(problem, base, weights, p["dt"], p["log_box"], p["box_weight"])
-    if cfg["train"]["seed"] == cfg["heldout"]["seed"]:
+    weights = make_weights(**cfg.weights, dtype=dtype)
+    data = problem_data(problem, base, weights, p.dt, p.log_box, p.box_weight)
+    if cfg.train.seed == cfg.heldout.seed:
         raise ConfigError("heldout.seed: must differ from train.seed (held-out scenarios)")
     plant, design = choice.nominal(loop, dtype)
-    extra = {"initial": tuple((k, tuple(v)) for k, v in cfg.get("initial", {}).items())}
-    if cfg["disturbance"]["force"]:
-        extra["disturbance"] = tuple(tuple(r) for r in cfg["disturbance"]["force"])
-    if cfg.get("simulation", {}).get("u_d") is not None:
-        extra["u_d"] = tuple(cfg["simulation"]["u_d"])
-    cur = cfg.get("current", {})
+    extra = {"initial": cfg.initial}
+    if cfg.disturbance.force:
+        extra["disturbance"] = cfg.disturbance.force
+    if cfg.simulation.u_d is not None:
+        extra["u_d"] = cfg.simulation.u_d
+    cur = dict(cfg.current)
     for key, field in (("speed", "current_speed"), ("direction_deg", "current_direction_deg")):
         if key in cur:
             extra[field] = tuple(cur[key])
         elif cur:  # [current] replaces current_max: a key not given takes the section default
             extra[field] = getattr(Current(), key)
-    speed = extra.get("current_speed", (0.0, sc["current_max"]))
+    speed = extra.get("current_speed", (0.0, sc.current_max))
     try:  # a current the loop cannot take is refused, never silently ignored
         loops.check_disturbances(loop, max(speed) > 0, False)
     except ValueError as err:
         raise ConfigError("[current] " + str(err).removeprefix("current: ")) from None
-    wav = cfg.get("waves")
+    wav = cfg["waves"]
     if wav is not None:  # a random sea per scenario, as in sweeps (checked by validate_config)
         extra["wave_spectrum"] = wav["spectrum"]
         for k in ("hs", "tp", "direction_deg", "origin_depth", "gamma", "spreading", "components"):
             extra[f"wave_{k}"] = tuple(wav[k]) if isinstance(wav[k], list) else wav[k]
-    me = cfg["model_error"]
-    if me["relative"] > 0:
-        extra["model_error"] = me["relative"]
-        extra["model_fields"] = tuple(me["fields"]) or None
+    me = cfg.model_error
+    if me.relative > 0:
+        extra["model_error"] = me.relative
+        extra["model_fields"] = me.fields or None
     kw = dict(
         loop=loop,
-        current_max=sc["current_max"],
-        position_offset=sc["position_offset"],
-        heading_offset=math.radians(sc["heading_offset_deg"]),
+        current_max=sc.current_max,
+        position_offset=sc.position_offset,
+        heading_offset=math.radians(sc.heading_offset_deg),
         extra=extra,
         plant=plant,
         design=design,
         coeffs=choice.coeffs(),
     )
     try:
-        train = sample_scenarios(cfg["train"]["seed"], cfg["train"]["size"], **kw)
-        heldout = sample_scenarios(cfg["heldout"]["seed"], cfg["heldout"]["size"], **kw)
+        train = sample_scenarios(cfg.train.seed, cfg.train.size, **kw)
+        heldout = sample_scenarios(cfg.heldout.seed, cfg.heldout.size, **kw)
     except ValueError as err:
         raise ConfigError(f"scenarios: {err}") from None
     return problem, eval_problem, data, train, heldout
@@ -199,7 +200,9 @@ def distribute(train, data, theta0):
     return distributed.shard_batch(train, mesh, SCENARIO_AXES), data, theta0
 
 
-def run_tune_config(config_path, out_dir, progress=sys.stderr, cfg: dict | None = None) -> dict:
+def run_tune_config(
+    config_path, out_dir, progress=sys.stderr, cfg: TuneConfig | None = None
+) -> dict:
     """Run the tuning described by the TOML file ``config_path``; write results into ``out_dir``.
 
     Args:
@@ -225,7 +228,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr, cfg: dict | None 
     writer = jax.process_index() == 0
     progress = progress if writer else None
     say = (lambda msg: print(msg, file=progress, flush=True)) if progress else (lambda m: None)
-    cfg = load_config(config_path) if cfg is None else cfg
+    cfg = load_config(config_path) if cfg is None else _config(cfg)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
@@ -235,19 +238,19 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr, cfg: dict | None 
     heldout, _ = shard_scenarios(heldout)
     n_dev = jax.device_count() if int(train.eta0.shape[0]) % jax.device_count() == 0 else 1
     space = problem.space
-    o = cfg["optimizer"]
-    B = cfg["train"]["size"]
+    o = cfg.optimizer
+    B = cfg.train.size
     say(
         f"tuning {space.loop.describe()}: {space.size} parameters ({', '.join(space.tune)}), "
-        f"{B} training / {cfg['heldout']['size']} held-out scenarios, "
-        f"horizon {cfg['problem']['horizon']:g} s, {o['name']} x {o['steps']} steps "
+        f"{B} training / {cfg.heldout.size} held-out scenarios, "
+        f"horizon {cfg.problem.horizon:g} s, {o.name} x {o.steps} steps "
         f"({o['grad_mode']} mode); training batch on {n_dev} device(s)"
     )
     eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
     theta0 = data.theta_ref  # the default gains: what 'before' means
     N = problem.num_steps
     say(
-        f"compiling the held-out evaluation ({cfg['heldout']['size']} rollouts x {N} steps) "
+        f"compiling the held-out evaluation ({cfg.heldout.size} rollouts x {N} steps) "
         "and evaluating the initial gains ..."
     )
     t0 = time.perf_counter()
@@ -304,7 +307,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr, cfg: dict | None 
     files.append(f)
     f = out / "history.json"
     hist = {
-        "config": cfg,
+        "config": cfg.to_dict(),
         "labels": space.labels(),
         "initial_gains": space.loop.gains_to_json(data.base),
         "iterations": res.history,
@@ -317,7 +320,7 @@ def run_tune_config(config_path, out_dir, progress=sys.stderr, cfg: dict | None 
     write_json_atomic(f, hist, indent=1)
     files.append(f)
     files.append(plot_loss_curve(res.history, out / "loss_curve.png", f"{o['name']} tuning"))
-    n_plot = min(cfg["report"]["plot_scenarios"], cfg["heldout"]["size"])
+    n_plot = min(cfg.report.plot_scenarios, cfg.heldout.size)
     n_plot = 0 if interrupted else n_plot  # no new compiles once stopped
     if n_plot:
         t, tr_before = _trajectories(eval_problem, data.base, heldout, data.dt, n_plot)

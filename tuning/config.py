@@ -113,59 +113,212 @@ from vcjax.config import (
     parse_section,
     read_toml,
 )
-from vcjax.config.scenario import loop_options, parse_scenario
+from vcjax.config.frozen import FrozenSection, freeze, thaw
+from vcjax.config.scenario import ScenarioChoice, loop_options, parse_scenario
 from vcjax.sweep.config import check_waves, refusal
 from vcjax.sweep.spec import check_wave_step
 
-__all__ = ["ConfigError", "DEFAULTS", "load_config", "validate_config"]
+__all__ = [
+    "ConfigError",
+    "DEFAULTS",
+    "TuneConfig",
+    "Problem",
+    "Weights",
+    "ScenarioOffsets",
+    "Train",
+    "Heldout",
+    "Optimizer",
+    "Report",
+    "ForceRanges",
+    "PlantError",
+    "TuneSimulation",
+    "load_config",
+    "validate_config",
+]
 
 
-DEFAULTS: dict[str, dict[str, Any]] = {
-    "problem": {
-        "variant": "",
-        "tune": [],
-        "initial_gains": "",
-        "horizon": 80.0,
-        "dt": 0.1,
-        "integrator": "rk4",
-        "timing": "continuous",
-        "smooth": True,
-        "checkpoint": False,
-        "checkpoint_every": 10,
-        "edd": "paper",
-        "risk": "mean",
-        "alpha": 0.2,
-        "log_box": 3.0,
-        "box_weight": 10.0,
-    },
-    "weights": {
-        "eps": 1.0,
-        "u_tilde": 1.0,
-        "psi_tilde": 1.0,
-        "sat_excess": 1.0,
-        "sat_time": 5.0,
-        "effort": 0.0,
-        "unhealthy": 1000.0,
-        "sat_width": 0.05,
-        "depth": 0.0,
-    },
-    "scenarios": {"current_max": 1.0, "position_offset": 5.0, "heading_offset_deg": 45.0},
-    "train": {"size": 16, "seed": 0},
-    "heldout": {"size": 64, "seed": 1001, "smooth": False},
-    "optimizer": {
-        "name": "lbfgs",
-        "steps": 40,
-        "learning_rate": 0.05,
-        "memory_size": 10,
-        "max_linesearch_steps": 15,
-        "grad_mode": "reverse",
-        "max_bad_steps": 5,
-        "grad_tol": 1e-8,
-    },
-    "report": {"plot_scenarios": 4},
-    "disturbance": {"force": []},
-    "model_error": {"relative": 0.0, "fields": []},
+# ------------------------------------------------------------------ the parsed config (frozen)
+
+
+@dataclasses.dataclass(frozen=True)
+class Problem(FrozenSection):
+    """``[problem]``: what is tuned and how a rollout is simulated (module docstring)."""
+
+    variant: str = ""
+    tune: tuple[str, ...] = ()
+    initial_gains: str = ""
+    horizon: float = 80.0
+    dt: float = 0.1
+    integrator: str = "rk4"
+    timing: str = "continuous"
+    smooth: bool = True
+    checkpoint: bool = False
+    checkpoint_every: int = 10
+    edd: str = "paper"
+    risk: str = "mean"
+    alpha: float = 0.2
+    log_box: float = 3.0
+    box_weight: float = 10.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Weights(FrozenSection):
+    """``[weights]``: the loss weights (:mod:`tuning.loss`)."""
+
+    eps: float = 1.0
+    u_tilde: float = 1.0
+    psi_tilde: float = 1.0
+    sat_excess: float = 1.0
+    sat_time: float = 5.0
+    effort: float = 0.0
+    unhealthy: float = 1000.0
+    sat_width: float = 0.05
+    depth: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class ScenarioOffsets(FrozenSection):
+    """``[scenarios]``: the older distribution keys (current speed bound, start offsets)."""
+
+    current_max: float = 1.0
+    position_offset: float = 5.0
+    heading_offset_deg: float = 45.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Train(FrozenSection):
+    """``[train]``: the training batch."""
+
+    size: int = 16
+    seed: int = 0
+
+
+@dataclasses.dataclass(frozen=True)
+class Heldout(FrozenSection):
+    """``[heldout]``: the held-out batch (hard-clipped plant unless ``smooth``)."""
+
+    size: int = 64
+    seed: int = 1001
+    smooth: bool = False
+
+
+@dataclasses.dataclass(frozen=True)
+class Optimizer(FrozenSection):
+    """``[optimizer]`` (:func:`tuning.optim.tuner_options`)."""
+
+    name: str = "lbfgs"
+    steps: int = 40
+    learning_rate: float = 0.05
+    memory_size: int = 10
+    max_linesearch_steps: int = 15
+    grad_mode: str = "reverse"
+    max_bad_steps: int = 5
+    grad_tol: float = 1e-8
+
+
+@dataclasses.dataclass(frozen=True)
+class Report(FrozenSection):
+    """``[report]``."""
+
+    plot_scenarios: int = 4
+
+
+@dataclasses.dataclass(frozen=True)
+class ForceRanges(FrozenSection):
+    """``[disturbance]``: one ``(lo, hi)`` range per generalised force component."""
+
+    force: tuple[tuple[float, float], ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class PlantError(FrozenSection):
+    """``[model_error]``: plant parameters scaled by ``1 + relative U(-1, 1)``."""
+
+    relative: float = 0.0
+    fields: tuple[str, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class TuneSimulation(FrozenSection):
+    """What ``[simulation]`` adds to ``[problem]``: the desired-speed range [m/s]."""
+
+    u_d: tuple[float, float] | None = None
+
+
+#: the sections of :class:`TuneConfig` read from a table of their own name (and their keys)
+_SECTIONS = {
+    "problem": Problem,
+    "weights": Weights,
+    "scenarios": ScenarioOffsets,
+    "train": Train,
+    "heldout": Heldout,
+    "optimizer": Optimizer,
+    "report": Report,
+    "disturbance": ForceRanges,
+    "model_error": PlantError,
 }
+
+
+@dataclasses.dataclass(frozen=True)
+class TuneConfig(FrozenSection):
+    """A tuning config, parsed once (:func:`load_config`), frozen and hashable.
+
+    Attributes are the sections (``cfg.problem.horizon``; ``cfg["problem"]["horizon"]`` reads
+    the same); ``scenario`` is the parsed ``[scenario]``
+    (:class:`~vcjax.config.scenario.ScenarioChoice`), ``initial`` the ``[initial]`` ranges and
+    ``current`` the ``[current]`` keys given, as ``(key, value)`` pairs. Read as a mapping,
+    ``current``, ``initial`` and ``scenario`` are plain dicts (as the older dict result had
+    them); :meth:`to_dict` is what ``run.json`` records and :meth:`from_dict` reads it back.
+    """
+
+    problem: Problem = Problem()
+    weights: Weights = Weights()
+    scenarios: ScenarioOffsets = ScenarioOffsets()
+    train: Train = Train()
+    heldout: Heldout = Heldout()
+    optimizer: Optimizer = Optimizer()
+    report: Report = Report()
+    disturbance: ForceRanges = ForceRanges()
+    model_error: PlantError = PlantError()
+    simulation: TuneSimulation = TuneSimulation()
+    current: tuple[tuple[str, Any], ...] = ()
+    waves: tuple[tuple[str, Any], ...] | None = None
+    initial: tuple[tuple[str, tuple[float, float]], ...] = ()
+    scenario: ScenarioChoice = ScenarioChoice()
+
+    def __getitem__(self, key: str) -> Any:
+        if key in _PLAIN:
+            return self.to_dict()[key]
+        return super().__getitem__(key)
+
+    def to_dict(self) -> dict:
+        out = {k: thaw(getattr(self, k)) for k in self._keys() if k not in _PLAIN}
+        out["current"] = {k: thaw(v) for k, v in self.current}
+        out["waves"] = None if self.waves is None else {k: thaw(v) for k, v in self.waves}
+        out["initial"] = {k: thaw(v) for k, v in self.initial}
+        out["scenario"] = self.scenario.to_dict()
+        return out
+
+    @classmethod
+    def from_dict(cls, d) -> TuneConfig:
+        d = dict(d)
+        plain = {
+            "current": freeze(dict(d.pop("current", {}))),
+            "waves": None if d.get("waves") is None else freeze(dict(d.pop("waves"))),
+            "initial": freeze(dict(d.pop("initial", {}))),
+            "scenario": ScenarioChoice.from_dict(d.pop("scenario", ScenarioChoice().to_dict())),
+        }
+        d.pop("waves", None)
+        return dataclasses.replace(super().from_dict(d), **plain)
+
+
+#: the fields of :class:`TuneConfig` that read as plain dicts
+_PLAIN = ("current", "waves", "initial", "scenario")
+
+#: section -> key -> default (lists where the frozen sections hold tuples); the configuration
+#: reference is generated from it
+DEFAULTS: dict[str, dict[str, Any]] = {name: cls().to_dict() for name, cls in _SECTIONS.items()}
+
 #: sections parsed on their own: [scenario] (vcjax.config.scenario), [initial] (vehicle keys),
 #: the shared [simulation] and [current] (vcjax.config.schema)
 _SPECIAL = ("scenario", "initial", "simulation", "current", "waves")
@@ -280,7 +433,7 @@ def _shared_sections(raw: dict, cfg: dict) -> None:
         if k in cur_raw
     }
     cfg["waves"] = None
-    if "waves" in raw:
+    if "waves" in raw:  # every key, the defaults filled in (the section's presence is the switch)
         wav_raw = raw["waves"]
         wav = parse_section(Waves, wav_raw, "waves")
         check_waves(wav_raw)
@@ -289,12 +442,11 @@ def _shared_sections(raw: dict, cfg: dict) -> None:
         }
 
 
-def validate_config(raw: dict, config_path=None) -> dict:
-    """Defaults filled in, every value checked; returns a new nested (plain-JSON) dict.
+def validate_config(raw: dict, config_path=None) -> TuneConfig:
+    """Defaults filled in, every value checked; returns the frozen :class:`TuneConfig`.
 
-    ``cfg["scenario"]`` is the parsed ``[scenario]`` (:meth:`ScenarioChoice.to_dict`),
-    ``cfg["initial"]`` the ``[initial]`` ranges; ``config_path`` resolves the files a config
-    names (default: the working directory).
+    ``cfg.scenario`` is the parsed ``[scenario]``, ``cfg.initial`` the ``[initial]`` ranges;
+    ``config_path`` resolves the files a config names (default: the working directory).
 
     Raises:
         ConfigError: unknown section/key, wrong type, value out of range, a controller or gain
@@ -374,21 +526,23 @@ def validate_config(raw: dict, config_path=None) -> dict:
         init[k] = list(as_range(f"initial.{k}", v))
     cfg["initial"] = dict(init)
     cfg["scenario"] = choice.to_dict()
-    return cfg
+    return TuneConfig.from_dict(cfg)
 
 
-def load_config(path) -> dict:
-    """Read and validate a TOML file; files it names are resolved against its folder."""
+def load_config(path) -> TuneConfig:
+    """Read and validate a TOML file (the frozen :class:`TuneConfig`); files it names are
+    resolved against its folder."""
     path = Path(path)
     raw = read_toml(path)
     try:
         cfg = validate_config(raw, path)
     except ConfigError as err:
         raise ConfigError(f"{path}: {err}") from None
-    g = cfg["problem"]["initial_gains"]
+    g = cfg.problem.initial_gains
     if g:
         gp = Path(g)
-        cfg["problem"]["initial_gains"] = str(gp if gp.is_absolute() else path.parent / gp)
+        g = str(gp if gp.is_absolute() else path.parent / gp)
+        cfg = dataclasses.replace(cfg, problem=dataclasses.replace(cfg.problem, initial_gains=g))
     return cfg
 
 

@@ -143,8 +143,8 @@ class TuningProblem:
             over several devices): the gradient w.r.t. the gains is then accumulated per
             scenario and reduced across devices once, instead of by an all-reduce at every step
             of the backward scan (18x slower measured, 48 scenarios on 2 CPU devices,
-            ``benchmarks/sharded_gradient.py``); on one device it brings nothing (measured equal
-            to 1.5x slower), so ``vcjax tune`` sets it only when it shards the batch.
+            ``benchmarks/perf/sharded_gradient.py``); on one device it brings nothing (measured
+            equal to 1.5x slower), so ``vcjax tune`` sets it only when it shards the batch.
     """
 
     space: GainSpace = GainSpace()

@@ -1,8 +1,14 @@
 """Gradient-based tuning loop: optax Adam or L-BFGS (zoom line search), guarded against NaN/inf.
 
-One ``jax.jit`` wraps loss + gradient + optimiser update (:func:`make_step`). Every step reports
-its loss, gradient norm, whether it was accepted, and how many batch ``value_and_grad``
-evaluations it used (L-BFGS's line search evaluates more than once).
+One step (:func:`make_step`) is loss + gradient + optimiser update. Adam's is one ``jax.jit``.
+L-BFGS's line search evaluates the loss and gradient a variable number of times: run as optax
+runs it, inside one jitted step, the gradient is traced and compiled three times (before the
+search and in both branches of its loop body), the largest program of the tuner by far. Here
+the search is driven from the host instead (:class:`LBFGSStep`): one compiled
+``value_and_grad`` program, called at every point the search asks for, and small jitted
+programs for optax's own L-BFGS direction and zoom line-search steps (the same arithmetic, so
+the same iterates). Every step reports its loss, gradient norm, whether it was accepted, and how
+many batch ``value_and_grad`` evaluations it used.
 
 Guard: a step whose loss, gradient or update is not finite is *rejected*: the parameters and the
 optimiser state go back to those of the last accepted step's input and the step size is halved
@@ -32,9 +38,11 @@ from vcjax import distributed
 __all__ = [
     "OPTIMIZERS",
     "GRAD_MODES",
+    "LBFGS",
     "make_optimizer",
     "forward_mode",
     "StepInfo",
+    "LBFGSStep",
     "make_step",
     "init_state",
     "TuneResult",
@@ -46,18 +54,34 @@ OPTIMIZERS = ("lbfgs", "adam")
 GRAD_MODES = ("reverse", "forward")
 
 
+class LBFGS(NamedTuple):
+    """optax's L-BFGS with a zoom line search (``optax.lbfgs``), and its settings.
+
+    ``init`` and ``update`` are those of the optax transformation (an optax optimiser in every
+    respect); :func:`make_step` reads ``memory_size`` and ``max_linesearch_steps`` to run the
+    line search from the host (:class:`LBFGSStep`).
+    """
+
+    init: Callable
+    update: Callable
+    memory_size: int
+    max_linesearch_steps: int
+
+
 def make_optimizer(
     name: str = "lbfgs",
     learning_rate: float = 0.05,
     memory_size: int = 10,
     max_linesearch_steps: int = 15,
-) -> optax.GradientTransformationExtraArgs:
-    """optax optimiser: ``"lbfgs"`` (zoom line search; ``learning_rate`` unused) or ``"adam"``."""
+):
+    """optax optimiser: ``"lbfgs"`` (:class:`LBFGS`: zoom line search; ``learning_rate``
+    unused) or ``"adam"``."""
     if name == "lbfgs":
         ls = optax.scale_by_zoom_linesearch(
             max_linesearch_steps=max_linesearch_steps, initial_guess_strategy="one"
         )
-        return optax.lbfgs(memory_size=memory_size, linesearch=ls)
+        opt = optax.lbfgs(memory_size=memory_size, linesearch=ls)
+        return LBFGS(opt.init, opt.update, int(memory_size), int(max_linesearch_steps))
     if name == "adam":
         return optax.adam(learning_rate)
     raise ValueError(f"optimizer: expected one of {OPTIMIZERS}, got {name!r}")
@@ -146,56 +170,192 @@ def _finite(tree):
 
 
 def make_step(loss_fn: Callable, opt, optimizer: str = "lbfgs", grad_mode: str = "reverse"):
-    """Jitted ``step(theta, opt_state, scale, args) -> (theta, opt_state, StepInfo)``.
+    """``step(theta, opt_state, scale, args) -> (theta, opt_state, StepInfo)``.
 
     Args:
         loss_fn: ``loss_fn(theta, *args) -> ()`` (pure, differentiable).
-        opt: the optax transformation (from :func:`make_optimizer`).
+        opt: the optimiser (from :func:`make_optimizer`).
         optimizer: ``"lbfgs"`` or ``"adam"`` (how the step calls ``opt``).
         grad_mode: ``"reverse"`` or ``"forward"``.
 
     ``scale`` () multiplies the update (the guard's backtracking factor; 1 normally); ``args``
     is a tuple of traced arguments of ``loss_fn`` (e.g. problem data and scenarios), so a new
-    batch does not recompile.
+    batch does not recompile. Adam: one ``jax.jit`` of loss, gradient and update. L-BFGS: an
+    :class:`LBFGSStep` (one compiled ``value_and_grad``, the line search driven from the host).
     """
     if optimizer not in OPTIMIZERS:
         raise ValueError(f"optimizer: expected one of {OPTIMIZERS}, got {optimizer!r}")
     if grad_mode not in GRAD_MODES:
         raise ValueError(f"grad_mode: expected one of {GRAD_MODES}, got {grad_mode!r}")
     f = forward_mode(loss_fn) if grad_mode == "forward" else loss_fn
+    if optimizer == "lbfgs":
+        if not isinstance(opt, LBFGS):
+            raise ValueError("opt: L-BFGS steps need make_optimizer('lbfgs', ...)")
+        return LBFGSStep(f, opt.memory_size, opt.max_linesearch_steps)
 
     def step(theta, state, scale, args):
         # optax's own arithmetic (e.g. Adam's bias correction, float ** int32 count) is not
         # written for strict dtype promotion: allow standard promotion inside the update only
         with jax.numpy_dtype_promotion("standard"):
-            return _step(theta, state, scale, args)
-
-    def _step(theta, state, scale, args):
-        value_fn = lambda p: f(p, *args)
-        if optimizer == "lbfgs":
-            stored = optax.tree.get(state, "value")
-            value, grad = optax.value_and_grad_from_state(value_fn)(theta, state=state)
-            ok = jnp.isfinite(value) & _finite(grad)
-            updates, new_state = opt.update(
-                grad, state, theta, value=value, grad=grad, value_fn=value_fn
-            )
-            info = optax.tree.get(new_state, "info")
-            evals = info.num_linesearch_steps + (~jnp.isfinite(stored)).astype(jnp.int32)
-        else:
-            value, grad = jax.value_and_grad(value_fn)(theta)
+            value, grad = jax.value_and_grad(lambda p: f(p, *args))(theta)
             ok = jnp.isfinite(value) & _finite(grad)
             safe = jnp.where(ok, grad, jnp.zeros_like(grad))
             updates, new_state = opt.update(safe, state, theta)
-            updates = scale * updates
-            evals = jnp.ones((), jnp.int32)
-        ok = ok & _finite(updates)
-        new_theta = theta + jnp.where(ok, updates, jnp.zeros_like(updates))
-        new_state = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_state, state)
-        gnorm = jnp.sqrt(jnp.sum(grad * grad))
-        unorm = jnp.where(ok, jnp.sqrt(jnp.sum(updates * updates)), jnp.zeros_like(gnorm))
-        return new_theta, new_state, StepInfo(value, gnorm, ok, evals.astype(jnp.int32), unorm)
+            return _accept(theta, state, value, grad, scale * updates, new_state, ok, 1)
 
     return jax.jit(step)
+
+
+def _accept(theta, state, value, grad, updates, new_state, ok, evals):
+    """The guard: apply ``updates`` and take ``new_state`` only when everything is finite."""
+    ok = ok & _finite(updates)
+    new_theta = theta + jnp.where(ok, updates, jnp.zeros_like(updates))
+    new_state = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_state, state)
+    gnorm = jnp.sqrt(jnp.sum(grad * grad))
+    unorm = jnp.where(ok, jnp.sqrt(jnp.sum(updates * updates)), jnp.zeros_like(gnorm))
+    evals = jnp.asarray(evals, jnp.int32)
+    return new_theta, new_state, StepInfo(value, gnorm, ok, evals, unorm)
+
+
+def _zoom(max_linesearch_steps: int):
+    """optax's zoom line search as ``(init, step, cond)`` with the settings of
+    ``optax.scale_by_zoom_linesearch(max_linesearch_steps, initial_guess_strategy="one")``
+    (its defaults). optax runs ``step`` in a ``while_loop``; :class:`LBFGSStep` runs it from
+    the host. (``zoom_linesearch`` is optax's own building block of that transformation.)"""
+    from optax._src.linesearch import zoom_linesearch
+
+    return zoom_linesearch(
+        max_linesearch_steps=max_linesearch_steps,
+        max_stepsize=None,
+        tol=0.0,
+        increase_factor=2.0,
+        slope_rtol=1e-4,
+        curv_rtol=0.9,
+        approx_dec_rtol=1e-6,
+        interval_threshold=1e-5,
+        verbose=False,
+    )
+
+
+class LBFGSStep:
+    """One L-BFGS step (:func:`make_step`), the line search driven from the host.
+
+    The step is optax's ``lbfgs`` update (:class:`LBFGS`): the two-loop direction, then the
+    zoom line search (Nocedal and Wright's algorithms 3.5 and 3.6) along it. Each round of the
+    search evaluates the loss and gradient once, at a step size its state decides. optax runs
+    the rounds in a ``while_loop`` in the jitted step, whose two branches (search an interval,
+    zoom into it) each hold the whole batch ``value_and_grad``, besides the one before the
+    search: three copies of the largest program. Here the rounds run on the host: a jitted
+    *probe* (the round with a stand-in evaluation that ends the search, so the state records
+    the step size the round asks for) gives the point, the one compiled ``value_and_grad``
+    evaluates it, and the jitted round proper consumes that evaluation. optax's own ``init``
+    and ``step`` functions do the arithmetic, so the iterates are optax's (tested against
+    ``optax.lbfgs`` run in one ``jax.jit``).
+
+    Call it as the jitted Adam step: ``step(theta, state, scale, args)``; ``state`` is
+    ``LBFGS.init``'s. ``scale`` is not used (the line search already backtracks).
+    """
+
+    def __init__(self, f: Callable, memory_size: int, max_linesearch_steps: int):
+        self._f = f
+        self._vg = jax.jit(lambda theta, args: jax.value_and_grad(lambda p: f(p, *args))(theta))
+        init_ls, step_ls, cond_ls = _zoom(max_linesearch_steps)
+        direction = optax.chain(
+            optax.scale_by_lbfgs(memory_size=memory_size, scale_init_precond=True),
+            optax.scale(-1.0),
+        )
+
+        def start(theta, state, value, grad):
+            """The direction, and the line search's first probe."""
+            with jax.numpy_dtype_promotion("standard"):
+                d, dir_state = direction.update(grad, state[:2], theta)
+                ls = init_ls(
+                    d,
+                    theta,
+                    value=value,
+                    grad=grad,
+                    prev_stepsize=state[2].learning_rate,
+                    initial_guess_strategy="one",
+                )
+                return d, dir_state, ls, probe(ls), cond_ls(ls)
+
+        def probe(ls):
+            # a stand-in evaluation (value -inf, zero gradient) meets both Wolfe conditions,
+            # so the round ends without replacing its step size: the point it evaluates
+            fake = lambda p: (
+                jnp.asarray(-jnp.inf, ls.value.dtype),
+                jax.tree.map(jnp.zeros_like, p),
+            )
+            stepsize = step_ls(ls, value_and_grad_fn=fake, fn_kwargs={}).stepsize
+            return optax.tree.add_scale(ls.params, stepsize, ls.updates)
+
+        def advance(ls, value, grad):
+            """The round that evaluated ``(value, grad)`` at the probed point; the next probe."""
+            with jax.numpy_dtype_promotion("standard"):
+                ls = step_ls(ls, value_and_grad_fn=lambda p: (value, grad), fn_kwargs={})
+                return ls, probe(ls), cond_ls(ls)
+
+        def finish(theta, state, value, grad, d, dir_state, ls, evals):
+            """``scale_by_zoom_linesearch``'s update from the search's final state; the guard."""
+            with jax.numpy_dtype_promotion("standard"):
+                lr = ls.stepsize
+                info = optax.ZoomLinesearchInfo(
+                    num_linesearch_steps=ls.count,
+                    decrease_error=ls.decrease_error,
+                    curvature_error=ls.curvature_error,
+                )
+                ls_state = optax.ScaleByZoomLinesearchState(
+                    learning_rate=lr, value=ls.value, grad=ls.grad, info=info
+                )
+                ls_state = optax.tree.cast_like(ls_state, other_tree=state[2])
+                new_state = (*dir_state, ls_state)
+                ok = jnp.isfinite(value) & _finite(grad)
+                updates = optax.tree.scale(lr, d)
+                return _accept(theta, state, value, grad, updates, new_state, ok, evals)
+
+        self._start = jax.jit(start)
+        self._advance = jax.jit(advance)
+        self._finish = jax.jit(finish)
+
+    def value_and_grad(self, theta, args):
+        """The batch loss and its gradient at ``theta`` (the one compiled program)."""
+        return self._vg(theta, args)
+
+    def programs(self, theta, state, args) -> dict:
+        """``{name: (jitted, arguments)}`` of every program a step runs (compile-time budgets:
+        ``benchmarks/compile_times.py``); the line-search ones at a stand-in state."""
+        value, grad = jnp.zeros((), theta.dtype), jnp.zeros_like(theta)  # (not tracing _vg)
+        d, dir_state, ls, _, _ = jax.eval_shape(self._start, theta, state, value, grad)
+        zeros = lambda t: jax.tree.map(lambda a: jnp.zeros(a.shape, a.dtype), t)
+        d, dir_state, ls = zeros(d), zeros(dir_state), zeros(ls)
+        return {
+            "value_and_grad": (self._vg, (theta, args)),
+            "start": (self._start, (theta, state, value, grad)),
+            "advance": (self._advance, (ls, value, grad)),
+            "finish": (
+                self._finish,
+                (theta, state, value, grad, d, dir_state, ls, jnp.zeros((), jnp.int32)),
+            ),
+        }
+
+    def _cache_size(self) -> int:
+        """How often the largest program (the batch ``value_and_grad``) compiled."""
+        return self._vg._cache_size()
+
+    def __call__(self, theta, state, scale, args):
+        stored = state[2].value
+        evals = 0
+        if np.isfinite(float(jax.device_get(stored))):
+            value, grad = stored, state[2].grad  # where the last line search ended
+        else:
+            value, grad = self._vg(theta, args)
+            evals += 1
+        d, dir_state, ls, point, go = self._start(theta, state, value, grad)
+        while bool(jax.device_get(go)):
+            v, g = self._vg(point, args)
+            ls, point, go = self._advance(ls, v, g)
+        evals += int(jax.device_get(ls.count))
+        return self._finish(theta, state, value, grad, d, dir_state, ls, evals)
 
 
 class TuneResult(NamedTuple):

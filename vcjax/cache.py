@@ -23,7 +23,7 @@ package is installed (JAX needs it to remove the least recently used entries); o
 folder is not capped. Settings a JAX version does not know are skipped.
 
 Tracing is not cached (JAX traces before it computes the cache key): the trace time of the big
-loops has to come down in the code itself (see ``benchmarks/compile_times.py``).
+loops has to come down in the code itself (see ``benchmarks/perf/compile_times.py``).
 """
 
 from __future__ import annotations

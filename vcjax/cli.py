@@ -321,8 +321,8 @@ def _cmd_tune(args) -> int:
         return _fail(f"tune: {err}")
     for f in result["files"]:
         print(f"wrote {f}")
-    seeds = {"train": cfg["train"]["seed"], "heldout": cfg["heldout"]["seed"]}
-    _record(args.out, "tune", args, config={"file": args.config, **cfg}, seeds=seeds)
+    seeds = {"train": cfg.train.seed, "heldout": cfg.heldout.seed}
+    _record(args.out, "tune", args, config={"file": args.config, **cfg.to_dict()}, seeds=seeds)
     summary = result["summary"]
     if summary is None:  # processes other than 0 of a multi-process run
         return 0
@@ -386,7 +386,7 @@ def _cmd_fit(args) -> int:
         )
     for f in result["files"]:
         print(f"wrote {f}")
-    _record(args.out, "fit", args, config={"file": args.config, **cfg})
+    _record(args.out, "fit", args, config={"file": args.config, **cfg.to_dict()})
     if fit["reason"] == "interrupted":
         return _interrupted(
             "fit",

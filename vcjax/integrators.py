@@ -16,7 +16,62 @@ from collections.abc import Callable
 
 import jax
 
-__all__ = ["euler", "heun", "rk4", "rk4_unrolled", "INTEGRATORS", "get_integrator", "ORDER"]
+__all__ = [
+    "euler",
+    "heun",
+    "rk4",
+    "rk4_unrolled",
+    "INTEGRATORS",
+    "get_integrator",
+    "ORDER",
+    "dense_tangent",
+]
+
+
+def dense_tangent(x, like):
+    """``x`` unchanged, with a tangent that is never a *symbolic* zero when ``like`` has one.
+
+    Values and derivatives are those of ``x`` (its tangent is ``x``'s own plus ``0 x`` a linear
+    function of ``like``'s tangent). What changes is how much JAX traces: linearising a
+    ``lax.scan`` is a fixpoint over which carries have non-zero tangents, one full
+    linearisation of the loop body per round. A carry that starts from constants (a rollout's
+    initial state, RK4's zero stage accumulators) starts the fixpoint at "zero" and pays a
+    round per dependency level (gains -> command -> velocity -> pose), nested scans
+    multiplying: six linearisations of a closed loop's RK4 stage instead of one. Marked
+    non-zero from the start, it settles in one round: the same gradient, a fraction of the
+    tracing. ``like`` is anything the carry's later values depend on (the parameters).
+
+    Args:
+        x: pytree of arrays (a scan's initial carry; integer leaves pass unchanged).
+        like: pytree of arrays whose tangents the carry will pick up (integer leaves ignored).
+    """
+    return _dense(x, like)
+
+
+@jax.custom_jvp
+def _dense(x, like):
+    return x
+
+
+@_dense.defjvp
+def _dense_jvp(primals, tangents):
+    import jax.numpy as jnp
+
+    x, _ = primals
+    t_x, t_like = tangents
+    # custom_jvp materialises symbolic zeros: every leaf of t_like is an array here, traced
+    # (unknown) where ``like`` has a real tangent; 0 x their sum makes t_x's rows depend on it
+    parts = [
+        jnp.sum(t)
+        for t in jax.tree_util.tree_leaves(t_like)
+        if jnp.issubdtype(t.dtype, jnp.inexact) and t.size
+    ]
+    if not parts:
+        return x, t_x
+    zero = 0.0 * sum(parts[1:], parts[0])
+    return x, jax.tree_util.tree_map(
+        lambda t: t + zero.astype(t.dtype) if jnp.issubdtype(t.dtype, jnp.inexact) else t, t_x
+    )
 
 
 def _axpy(a, x, y):
@@ -73,7 +128,7 @@ def rk4(f: Callable, t, y, dt, args):
     # the state's dtype (a Python-float dt stays weakly typed, as in the unrolled form)
     coef = jnp.asarray(_RK4_C, dtype=jnp.result_type(dtype, dt))
     weight = jnp.asarray(_RK4_W, dtype=coef.dtype)
-    zeros = jax.tree_util.tree_map(jnp.zeros_like, y)
+    zeros = dense_tangent(jax.tree_util.tree_map(jnp.zeros_like, y), y)
 
     def stage(carry, cw):
         k_prev, acc = carry

@@ -18,6 +18,13 @@ was commanded at or beyond its limit.
 * flags: ``nonfinite`` (a step produced NaN/inf: the rollout froze the state) and ``diverged``
   (``nonfinite`` or ``max_abs_e > diverge_e``; NaN counts as diverged).
 
+Experiments add their own metrics *to* this one function, not beside it: ``run_metrics(...,
+extras={name: fn})`` computes each ``fn(sig, win)`` (jnp, from the signals, the steady-state
+window ``win`` and whatever the experiment closes over: its trajectory, its path) in the same call
+and returns them with the generic ones. Helpers for extras: :func:`first_true` (the first step a
+condition holds, e.g. a run's first unhealthy step), :func:`polyline_nearest` (the geometric
+distance of positions to a path's dense polyline, independent of any law's own error signals).
+
 Path-error bound of single runs (``vcjax simulate``; :func:`path_bound`): a run whose largest
 cross-track error (or 3-D distance to the path) exceeds it is *diverged* and never
 ``healthy: true``, even when every state stays finite (a vehicle swept kilometres off the path by
@@ -32,6 +39,7 @@ from __future__ import annotations
 
 import math
 
+import jax
 import jax.numpy as jnp
 
 __all__ = [
@@ -47,6 +55,8 @@ __all__ = [
     "PATH_BOUND_MIN_M",
     "path_bound",
     "first_excursion",
+    "first_true",
+    "polyline_nearest",
 ]
 
 #: Default path-error bound: this fraction of ``u_d x horizon`` ...
@@ -189,8 +199,8 @@ def metrics_finalize(acc: dict, n: int, k0: int, dt, diverge_e=jnp.inf) -> dict:
     return m
 
 
-def run_metrics(sig, finite, dt, start: float = 0.8, diverge_e=jnp.inf) -> dict:
-    """Metrics and health flags of one run.
+def run_metrics(sig, finite, dt, start: float = 0.8, diverge_e=jnp.inf, extras=None) -> dict:
+    """Metrics and health flags of one run, with an experiment's own metrics added.
 
     Args:
         sig: :class:`~vcjax.loops.base.Signals` (N steps).
@@ -198,13 +208,68 @@ def run_metrics(sig, finite, dt, start: float = 0.8, diverge_e=jnp.inf) -> dict:
         dt: () step [s].
         start: static fraction of the run where the steady-state window begins.
         diverge_e: () cross-track bound [m] of the ``diverged`` flag.
+        extras: ``{name: fn}``: metrics of an experiment, each ``fn(sig, win) -> ()`` array
+            with ``win`` the (N,) bool mask of the steady-state window (jnp; jit/vmap-safe when
+            ``fn`` is). A name of the generic metrics or flags is refused (``ValueError``).
 
     Returns:
-        dict name -> () array: :func:`metric_names` and :data:`FLAGS`. The same accumulator
-        as a streamed run (:func:`metrics_update` segment by segment), folded in one go.
+        dict name -> () array: :func:`metric_names`, :data:`FLAGS` and the extras. The generic
+        ones: the same accumulator as a streamed run (:func:`metrics_update` segment by
+        segment), folded in one go.
     """
     n = sig.eps.shape[0]
     k0 = window_start(n, start)
     acc = metrics_init(sig.act, sig.eps.dtype)
     acc = metrics_update(acc, sig, finite, jnp.arange(n), k0)
-    return metrics_finalize(acc, n, k0, dt, diverge_e)
+    m = metrics_finalize(acc, n, k0, dt, diverge_e)
+    extras = dict(extras or {})
+    taken = sorted(set(extras) & set(m))
+    if taken:
+        raise ValueError(f"extras: {taken} are generic metrics; name the experiment's own apart")
+    win = jnp.arange(n) >= k0
+    for name, fn in extras.items():
+        m[name] = fn(sig, win)
+    return m
+
+
+def first_true(mask):
+    """() int: the index of the first True entry of ``mask`` (N,), or -1 if none (jnp)."""
+    mask = jnp.asarray(mask, bool)
+    return jnp.where(jnp.any(mask), jnp.argmax(mask), -1)
+
+
+def polyline_nearest(pos, pts, ws, batch: int = 512):
+    """The nearest point of a polyline to each of ``pos`` (jnp; point-to-segment).
+
+    Args:
+        pos: (N, 3) positions.
+        pts: (S+1, 3) vertices of the polyline, ``pts[j] = p(ws[j])`` of a path sampled at the
+            parameters ``ws`` (S+1,), equally spaced.
+        batch: positions per block (the (block, S) distance table is what is held in memory).
+
+    Returns:
+        ``(dist (N,), w (N,), offset (N, 3), tangent (N, 3))``: the distance to the polyline
+        [m]; the path parameter of the nearest point (``ws[j] + a dw`` on segment ``j`` at
+        fraction ``a``); the offset ``pos - nearest point``; the unit tangent of the segment the
+        nearest point's parameter falls in (the segment before a vertex when it is one).
+        Ties go to the first segment.
+    """
+    pos = jnp.asarray(pos)
+    pts = jnp.asarray(pts, pos.dtype)
+    ws = jnp.asarray(ws, pos.dtype)
+    dw = ws[1] - ws[0]
+    seg = jnp.diff(pts, axis=0)
+    seg_len2 = jnp.maximum(jnp.sum(seg * seg, axis=1), 1e-12)
+
+    def one(p):
+        d = p[None, :] - pts[:-1]
+        a = jnp.clip(jnp.einsum("jk,jk->j", d, seg) / seg_len2, 0.0, 1.0)
+        r = p[None, :] - (pts[:-1] + a[:, None] * seg)
+        d2 = jnp.sum(r * r, axis=1)
+        j = jnp.argmin(d2)
+        return jnp.sqrt(d2[j]), ws[j] + a[j] * dw, r[j]
+
+    dist, w, off = jax.lax.map(one, pos, batch_size=batch)
+    jn = jnp.clip(jnp.searchsorted(ws, w) - 1, 0, seg.shape[0] - 1)
+    tangent = seg[jn] / jnp.sqrt(seg_len2)[jn][:, None]
+    return dist, w, off, tangent

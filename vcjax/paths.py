@@ -30,12 +30,14 @@ reports it as data.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.custom_derivatives import SymbolicZero
 
 from vcjax._checks import check_array, check_positive
 
@@ -47,6 +49,8 @@ __all__ = [
     "SplineCoeffs",
     "PathFrame",
     "path_frame",
+    "PathPose",
+    "path_pose",
     "path_point",
     "validate_path",
     "line",
@@ -126,11 +130,32 @@ def path_point(path: Path, coeffs, w):
     return p
 
 
-def path_frame(path: Path, coeffs, w) -> PathFrame:
-    """Evaluate the path and its frame (21) at ``w`` by autodiff (jit/vmap/grad-safe)."""
+def _float_w(w):
     w = jnp.asarray(w)
     if not jnp.issubdtype(w.dtype, jnp.floating):
         w = w.astype(jnp.result_type(float))
+    return w
+
+
+def _angles(d, tiny):
+    """``([psi_p, speed_bar, theta_p], regular)`` (21) from a tangent ``d = p_p'(w)`` (3,)."""
+    hx, hy = d[0], d[1]
+    sq = hx * hx + hy * hy
+    ok = sq > tiny * tiny
+    # double-where: atan2/sqrt are never evaluated at the zero vector (no NaN gradients)
+    hx_s = jnp.where(ok, hx, jnp.ones_like(hx))
+    hy_s = jnp.where(ok, hy, jnp.zeros_like(hy))
+    sb = jnp.sqrt(jnp.where(ok, sq, tiny * tiny))
+    return jnp.stack([jnp.arctan2(hy_s, hx_s), sb, jnp.arctan2(-d[2], sb)]), ok
+
+
+def path_frame(path: Path, coeffs, w) -> PathFrame:
+    """Evaluate the path and its frame (21) at ``w`` by autodiff (jit/vmap/grad-safe).
+
+    For laws that differentiate the path *again* (the generic engine's constraints), use
+    :func:`path_pose`: the same values, and derivatives at any order without nested autodiff
+    through this function's own."""
+    w = _float_w(w)
 
     def tangent(w_):
         return jax.jvp(lambda a: path_point(path, coeffs, a), (w_,), (jnp.ones_like(w_),))
@@ -139,15 +164,7 @@ def path_frame(path: Path, coeffs, w) -> PathFrame:
     tiny = jnp.asarray(MIN_TANGENT, w.dtype)
 
     def angles(w_):
-        _, d = tangent(w_)
-        hx, hy = d[0], d[1]
-        sq = hx * hx + hy * hy
-        ok = sq > tiny * tiny
-        # double-where: atan2/sqrt are never evaluated at the zero vector (no NaN gradients)
-        hx_s = jnp.where(ok, hx, jnp.ones_like(hx))
-        hy_s = jnp.where(ok, hy, jnp.zeros_like(hy))
-        sb = jnp.sqrt(jnp.where(ok, sq, tiny * tiny))
-        return jnp.stack([jnp.arctan2(hy_s, hx_s), sb, jnp.arctan2(-d[2], sb)]), ok
+        return _angles(tangent(w_)[1], tiny)
 
     def angles_d(w_):
         return jax.jvp(lambda a: angles(a)[0], (w_,), (jnp.ones_like(w_),))
@@ -171,6 +188,91 @@ def path_frame(path: Path, coeffs, w) -> PathFrame:
         d2z_dw2=d2p[2],
         regular=ok,
     )
+
+
+class PathPose(NamedTuple):
+    """The path at one parameter value ``w``, without its rates (scalars unless noted).
+
+    Attributes:
+        p: (3,) position ``p_p(w)`` [m].
+        psi_p, theta_p: azimuth and elevation (21) [rad].
+        speed_bar: ``||p_bar'(w)||`` (floored as in :class:`PathFrame`).
+    """
+
+    p: Any
+    psi_p: Any
+    theta_p: Any
+    speed_bar: Any
+
+
+def path_pose(path: Path, coeffs, w) -> PathPose:
+    """:class:`PathPose` at ``w``: the values of :func:`path_frame`'s ``p``, ``psi_p``,
+    ``theta_p``, ``speed_bar``, for code that differentiates them (e.g. constraints handed to
+    the engine, :mod:`vcjax.mechanics`, which takes their first and second time derivatives).
+
+    Its derivative in ``w`` is defined by a rule (``jax.custom_jvp``): differentiating the
+    order-k Taylor tower of the pose gives the order-(k+1) tower, computed directly by k + 1
+    nested ``jvp`` of the path. Differentiating :func:`path_frame` instead differentiates its
+    own nested autodiff (every field, used or not): a doubly differentiated constraint traces
+    the path about ten times less this way. Derivatives in ``coeffs`` are ordinary autodiff.
+    """
+    row = _pose_tower(path, 0)(_float_w(w), coeffs)[0]
+    return PathPose(p=row[:3], psi_p=row[3], theta_p=row[5], speed_bar=row[4])
+
+
+def _pose_direct(path: Path, coeffs, w, order: int):
+    """(order + 1, 6) rows ``d^k/dw^k [p (3), psi_p, speed_bar, theta_p]``, k = 0..order, by
+    nested ``jvp`` (each level: value and derivative of the level below)."""
+    tiny = jnp.asarray(MIN_TANGENT, w.dtype)
+
+    def base(w_):
+        p, d = jax.jvp(lambda a: path_point(path, coeffs, a), (w_,), (jnp.ones_like(w_),))
+        return jnp.concatenate([p, _angles(d, tiny)[0]])[None]
+
+    fn = base
+    for _ in range(order):
+
+        def fn(w_, lower=fn):
+            rows, d = jax.jvp(lower, (w_,), (jnp.ones_like(w_),))
+            return jnp.concatenate([rows, d[-1:]])
+
+    return fn(w)
+
+
+def _materialise(t, primal):
+    if isinstance(t, SymbolicZero):
+        return jnp.zeros_like(primal) if jnp.issubdtype(primal.dtype, jnp.inexact) else t
+    return t
+
+
+@functools.cache
+def _pose_tower(path: Path, order: int):
+    """``tower(w, coeffs) -> (order + 1, 6)`` (:func:`_pose_direct`) whose ``w``-tangent is
+    the next order's rows 1.. times the tangent of ``w`` (the tower one order up)."""
+
+    @jax.custom_jvp
+    def tower(w, coeffs):
+        return _pose_direct(path, coeffs, w, order)
+
+    def rule(primals, tangents):
+        w, coeffs = primals
+        t_w, t_c = tangents
+        leaves_c = jax.tree_util.tree_leaves(t_c, is_leaf=lambda x: isinstance(x, SymbolicZero))
+        if isinstance(t_w, SymbolicZero):
+            out = tower(w, coeffs)
+            t_out = jnp.zeros_like(out)
+        else:
+            up = _pose_tower(path, order + 1)(w, coeffs)
+            out, t_out = up[:-1], up[1:] * t_w
+        if not all(isinstance(t, SymbolicZero) for t in leaves_c):
+            t_c = jax.tree_util.tree_map(
+                _materialise, t_c, coeffs, is_leaf=lambda x: isinstance(x, SymbolicZero)
+            )
+            t_out = t_out + jax.jvp(lambda c: _pose_direct(path, c, w, order), (coeffs,), (t_c,))[1]
+        return out, t_out
+
+    tower.defjvp(rule, symbolic_zeros=True)
+    return tower
 
 
 def validate_path(path: Path, coeffs, w_range=(-50.0, 50.0), num: int = 401) -> None:

@@ -49,7 +49,7 @@ import jax
 import jax.numpy as jnp
 
 from vcjax._checks import is_concrete
-from vcjax.integrators import get_integrator, rk4, rk4_unrolled
+from vcjax.integrators import dense_tangent, get_integrator, rk4, rk4_unrolled
 
 __all__ = [
     "RolloutConfig",
@@ -199,6 +199,13 @@ def _stack0(first, rest):
     return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b], axis=0), first, rest)
 
 
+def _dense_carry(init, like):
+    """The scan's initial carry through :func:`~vcjax.integrators.dense_tangent`: it starts
+    from constants but picks up the tangents of ``like`` (parameters, ``dt``), so linearising
+    the scan settles in one round instead of one per dependency level."""
+    return dense_tangent(init, like)
+
+
 def _check_args(dt, bound) -> None:
     _check_dt(dt)
     if is_concrete(bound) and not float(bound) > 0:
@@ -299,10 +306,11 @@ def rollout(
     dtype = t0.dtype
     ks = jnp.arange(config.num_steps, dtype=jnp.int32)
     K = min(config.checkpoint_every, config.num_steps)
+    init = _dense_carry(((x0, z0), s0), (plant_params, ctrl_params, dt))
     if not config.checkpoint:
-        _, (ys, us, auxs, oks) = jax.lax.scan(step, ((x0, z0), s0), ks, unroll=config.unroll)
+        _, (ys, us, auxs, oks) = jax.lax.scan(step, init, ks, unroll=config.unroll)
     elif K == 1:
-        _, (ys, us, auxs, oks) = jax.lax.scan(jax.checkpoint(step), ((x0, z0), s0), ks)
+        _, (ys, us, auxs, oks) = jax.lax.scan(jax.checkpoint(step), init, ks)
     else:
         # Segments of K steps, each rematerialised as a whole in the backward pass: the forward
         # keeps one carry per segment, the backward the residuals of one segment at a time.
@@ -311,7 +319,7 @@ def rollout(
             return jax.lax.scan(step, carry, ks_seg)
 
         n_seg, rest = divmod(config.num_steps, K)
-        carry, out = jax.lax.scan(segment, ((x0, z0), s0), ks[: n_seg * K].reshape(n_seg, K))
+        carry, out = jax.lax.scan(segment, init, ks[: n_seg * K].reshape(n_seg, K))
         out = jax.tree_util.tree_map(lambda a: a.reshape((n_seg * K,) + a.shape[2:]), out)
         if rest:
             _, out_rest = segment(carry, ks[n_seg * K :])
@@ -409,9 +417,8 @@ def rollout_reduce(
     L = min(L, N)
     n_seg, rest = divmod(N, L)
     ks = jnp.arange(N, dtype=jnp.int32)
-    state, outs = jax.lax.scan(
-        segment, (((x0, z0), s0), reduction.init), ks[: n_seg * L].reshape(n_seg, L)
-    )
+    init = _dense_carry((((x0, z0), s0), reduction.init), (plant_params, ctrl_params, dt))
+    state, outs = jax.lax.scan(segment, init, ks[: n_seg * L].reshape(n_seg, L))
     if rest:
         state, out_rest = segment(state, ks[n_seg * L :])
         outs = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b[None]]), outs, out_rest)

@@ -73,7 +73,7 @@ from vcjax.mechanics import (
     reaction_force,
     underactuated_reaction_force,
 )
-from vcjax.paths import path_frame
+from vcjax.paths import path_frame, path_pose
 
 __all__ = [
     "VCM3DGains",
@@ -263,6 +263,23 @@ def path_errors_3d(path, coeffs, varpi, p):
     return f, R_p.T @ (p - f.p)
 
 
+def _zy_transpose(theta, psi, v):
+    """``(Rz(psi) Ry(theta))^T v`` for a (3,) ``v``: ``R(0, theta, psi)^T v`` as two planar
+    rotations (no 3 x 3 matrix; a fraction of the operations under nested autodiff)."""
+    c, s = jnp.cos(psi), jnp.sin(psi)
+    x = c * v[0] + s * v[1]
+    y = c * v[1] - s * v[0]
+    ct, st = jnp.cos(theta), jnp.sin(theta)
+    return jnp.stack([ct * x - st * v[2], y, st * x + ct * v[2]])
+
+
+def _pose_errors(path, coeffs, varpi, p):
+    """``(pose, eps)``: :func:`path_errors_3d` from :func:`~vcjax.paths.path_pose` (the same
+    ``eps`` to round-off), for the engine's constraints that it differentiates twice."""
+    f = path_pose(path, coeffs, varpi)
+    return f, _zy_transpose(f.theta_p, f.psi_p, p - f.p)
+
+
 def _angles(cfg: VCM3DConfig, g: VCM3DGains, f, eps, zf):
     """``(psi_d, theta_d, e_int_dot, h_int_dot)`` from the path angles and the errors."""
     e, h = eps[1], eps[2]
@@ -283,18 +300,17 @@ def _constraints(cfg: VCM3DConfig, params: VCM3DParams) -> VirtualConstraints:
     g = params.gains
 
     def G(q, t, args, zf):
-        f, eps = path_errors_3d(cfg.path, params.path, zf[0], q[:3])
+        f, eps = _pose_errors(cfg.path, params.path, zf[0], q[:3])
         psi_d, theta_d, _, _ = _angles(cfg, g, f, eps, zf)
         pos = eps + g.k_int * zf[3:6] if cfg.integral else eps
         att = jnp.stack([wrap_angle(q[4] - psi_d), q[3] - theta_d])
         return jnp.concatenate([att, pos])
 
     def K(q, qd, t, args, zf):
-        R = Rzyx(jnp.zeros_like(q[3]), q[3], q[4])
-        return R.T @ qd[:3] - jnp.stack([params.u_d, zf[1], zf[2]])
+        return _zy_transpose(q[3], q[4], qd[:3]) - jnp.stack([params.u_d, zf[1], zf[2]])
 
     def rate(q, t, zf, args):
-        f, eps = path_errors_3d(cfg.path, params.path, zf[0], q[:3])
+        f, eps = _pose_errors(cfg.path, params.path, zf[0], q[:3])
         varpi_dot = (params.u_d + g.sigma * eps[0]) * jnp.cos(f.theta_p) / f.speed_bar
         _, _, e_int_dot, h_int_dot = _angles(cfg, g, f, eps, zf)
         if cfg.integral:
@@ -341,7 +357,7 @@ def vcm3d_law(cfg: VCM3DConfig, params: VCM3DParams, t, q, qd, z: VCM3DState):
     else:
         tau_c, qdd, diag = reaction_force(cfg.system, cons, gains, q, qd, t, None, m, "column", zf)
     tau_b = J.T @ tau_c
-    f, eps = path_errors_3d(cfg.path, params.path, z.varpi, q[:3])
+    f, eps = _pose_errors(cfg.path, params.path, z.varpi, q[:3])
     psi_d, theta_d, _, _ = _angles(cfg, g, f, eps, zf)
     # nu_dot = J^-1 (q̈ - J̇ nu)
     if cfg.kinematics_inverse is not None:

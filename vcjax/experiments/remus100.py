@@ -19,9 +19,10 @@ Variants (:data:`VARIANTS`):
 * ``alos3d``: ALOS3D guidance (Fossen & Aguiar 2024) + PID heading/pitch autopilots + surge PI;
 * ``pvs_pid``: heading/depth PID autopilots with plain LOS angles (PVS-like sanity run).
 
-Metrics (:func:`mission_metrics`, numpy, from the trajectory alone): the 3-D distance to the
-path is measured geometrically (nearest point of a dense polyline of the path), independent of
-each law's own error signals.
+Metrics (:func:`mission_metrics`): :func:`vcjax.metrics.run_metrics` with the mission's extras
+(:func:`mission_extras`): the 3-D distance to the path is measured geometrically (nearest point
+of a dense polyline of the path, :func:`vcjax.metrics.polyline_nearest`), independent of each
+law's own error signals.
 """
 
 from __future__ import annotations
@@ -32,12 +33,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax import loops, paths
+from vcjax import loops, metrics, paths
 from vcjax import waves as wv
 from vcjax.loops.remus100 import REMUS_CONTROLLERS
 from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig
-from vcjax.vehicles import remus100 as r100
 
 __all__ = [
     "VARIANTS",
@@ -46,7 +46,10 @@ __all__ = [
     "mission_scenario",
     "mission_sea",
     "simulate",
+    "mission_geometry",
+    "mission_extras",
     "mission_metrics",
+    "REPORTED",
     "run_remus100",
 ]
 
@@ -115,79 +118,105 @@ def simulate(
 
 # ---------------------------------------------------------------------------------- metrics
 
-
-def _nearest_on_path(pos, path, coeffs, w_range, dw=0.25):
-    """For each position (N, 3): ``(dist (N,), w (N,), e (N,), h (N,))``: the distance to the
-    path's dense polyline (point-to-segment), the parameter of the nearest point, and the
-    horizontal cross-track and depth components of the offset."""
-    ws = np.arange(w_range[0], w_range[1] + dw, dw)
-    pts = np.asarray(jax.vmap(lambda w: paths.path_point(path, coeffs, w))(jnp.asarray(ws)))
-    seg = np.diff(pts, axis=0)
-    seg_len2 = np.maximum(np.sum(seg * seg, axis=1), 1e-12)
-    dist = np.empty(len(pos))
-    w_near = np.empty(len(pos))
-    off = np.empty((len(pos), 3))
-    for i0 in range(0, len(pos), 512):
-        P = pos[i0 : i0 + 512]
-        d = P[:, None, :] - pts[None, :-1, :]
-        a = np.clip(np.einsum("ijk,jk->ij", d, seg) / seg_len2, 0.0, 1.0)
-        proj = pts[None, :-1, :] + a[..., None] * seg[None]
-        r = P[:, None, :] - proj
-        d2 = np.sum(r * r, axis=2)
-        j = np.argmin(d2, axis=1)
-        k = np.arange(len(P))
-        dist[i0 : i0 + 512] = np.sqrt(d2[k, j])
-        w_near[i0 : i0 + 512] = ws[j] + a[k, j] * dw
-        off[i0 : i0 + 512] = r[k, j]
-    tang = seg / np.sqrt(seg_len2)[:, None]
-    jn = np.clip(np.searchsorted(ws, w_near) - 1, 0, len(seg) - 1)
-    t = tang[jn]
-    th = np.hypot(t[:, 0], t[:, 1])
-    lateral = np.stack([-t[:, 1] / th, t[:, 0] / th], axis=1)  # right of the path (NED)
-    e = np.sum(off[:, :2] * lateral, axis=1)
-    return dist, w_near, e, off[:, 2]
+#: ``metrics.json`` per variant: its name -> the name in :func:`vcjax.metrics.run_metrics`'s
+#: result (the mission's extras, :func:`mission_extras`, and the generic ``sat_fraction``)
+REPORTED = {
+    "rms_dist_3d": "rms_geo_dist_3d",
+    "max_dist_3d": "max_geo_dist_3d",
+    "ss_cross_track": "ss_cross_track",
+    "ss_depth_err": "ss_depth_err",
+    "ss_dist_3d": "ss_geo_dist_3d",
+    "sat_fraction": "sat_fraction",
+    "healthy": "mission_healthy",
+    "end_w": "end_w",
+}
+#: a run further than this from the path, anywhere, is unhealthy [m]
+OFF_PATH_M = 25.0
 
 
-def mission_metrics(traj, path, coeffs, settle=150.0) -> dict:
-    """The mission's metrics from a trajectory (numpy; module docstring).
+def mission_geometry(pos, path, coeffs, dw=0.25):
+    """Where positions (N, 3) are relative to the survey path, geometrically: ``(dist, w, e,
+    h)`` (N,) each — the distance to the path's polyline (sampled every ``dw`` from 20 m
+    before the start to 600 m past the end, :func:`vcjax.metrics.polyline_nearest`) [m], the
+    path parameter of the nearest point, the horizontal cross-track offset (positive to the
+    right of the path's tangent) and the depth offset (positive deeper) [m]."""
+    c = coeffs
+    total = int(c.n_legs) * float(c.leg) + (int(c.n_legs) - 1) * np.pi * float(c.radius)
+    ws = np.arange(-20.0, total + 600.0 + dw, dw)
+    pts = jax.vmap(lambda w: paths.path_point(path, coeffs, w))(jnp.asarray(ws))
+    dist, w, off, tangent = metrics.polyline_nearest(jnp.asarray(pos), pts, ws)
+    th = jnp.hypot(tangent[:, 0], tangent[:, 1])
+    right = jnp.stack([-tangent[:, 1] / th, tangent[:, 0] / th], axis=1)  # right of the path
+    return dist, w, jnp.sum(off[:, :2] * right, axis=1), off[:, 2]
 
-    * ``rms_dist_3d``, ``max_dist_3d`` [m]: distance to the path once the first leg is done;
-    * ``ss_cross_track``, ``ss_depth_err`` [m]: max |horizontal cross-track| and |depth error| on
-      the straight legs after the first, ``settle`` metres after each turn;
-    * ``ss_dist_3d`` [m]: max 3-D distance there;
-    * ``sat_fraction``: fraction of steps with any actuator command beyond its limit;
-    * ``healthy``: every step finite and the vehicle within 25 m of the path throughout.
+
+def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25) -> dict:
+    """The mission's metrics as extras of :func:`vcjax.metrics.run_metrics` (jnp).
+
+    The distance to the path is geometric: every state's position against a polyline of the
+    path sampled every ``dw`` parameter units (:func:`vcjax.metrics.polyline_nearest`),
+    independent of each law's own error signals and particle.
+
+    * ``rms_geo_dist_3d``, ``max_geo_dist_3d`` [m]: distance once the first leg is done;
+    * ``ss_cross_track``, ``ss_depth_err`` [m]: max |horizontal cross-track| (the offset's
+      component to the right of the path's tangent) and |depth error| on the straight legs
+      after the first, ``settle`` metres after each turn; ``ss_geo_dist_3d`` [m]: max 3-D
+      distance there;
+    * ``mission_healthy``: every step finite and within the rollout's bound
+      (:attr:`~vcjax.rollout.Trajectory.healthy`), and the vehicle within :data:`OFF_PATH_M`
+      of the path throughout;
+    * ``end_w``: the path parameter nearest to the final position.
+
+    Args:
+        traj: the run (every state's position is measured, the final one included).
+        path, coeffs: the survey path (:func:`mission_path`).
     """
     c = coeffs
     L, R, n = float(c.leg), float(c.radius), int(c.n_legs)
     period = L + np.pi * R
     total = n * L + (n - 1) * np.pi * R
-    pos = np.asarray(traj.x.eta[:, :3])
-    dist, w, e, h = _nearest_on_path(pos, path, coeffs, (-20.0, total + 600.0))
+    dist, w, e, h = mission_geometry(traj.x.eta[:, :3], path, coeffs, dw)
     after_first = w > L
-    k = np.clip(np.floor(w / period), 0, n - 1)
+    k = jnp.clip(jnp.floor(w / period), 0, n - 1)
     om = w - k * period
     straight = (k >= 1) & (om >= settle) & (om <= L) & (w <= total)
-    raw = np.asarray(traj.aux.raw)
-    lim = np.asarray(r100.remus100_params().act_max)
-    sat = np.any(np.abs(raw) > lim, axis=1)
-    finite = bool(np.asarray(traj.healthy))  # every state finite and within the bound
+    nan = jnp.asarray(jnp.nan, dist.dtype)
 
-    def mx(a, m):
-        return float(np.max(np.abs(a[m]))) if np.any(m) else float("nan")
+    def max_abs(a, m):
+        return jnp.where(jnp.any(m), jnp.max(jnp.where(m, jnp.abs(a), -jnp.inf)), nan)
 
+    def rms(a, m):
+        mean = jnp.sum(jnp.where(m, a**2, 0.0)) / jnp.sum(m.astype(a.dtype))
+        return jnp.where(jnp.any(m), jnp.sqrt(mean), nan)
+
+    healthy = traj.healthy & (jnp.max(dist) < OFF_PATH_M)
     return {
-        "rms_dist_3d": float(np.sqrt(np.mean(dist[after_first] ** 2)))
-        if np.any(after_first)
-        else float("nan"),
-        "max_dist_3d": mx(dist, after_first),
-        "ss_cross_track": mx(e, straight),
-        "ss_depth_err": mx(h, straight),
-        "ss_dist_3d": mx(dist, straight),
-        "sat_fraction": float(np.mean(sat)),
-        "healthy": bool(finite and np.max(dist) < 25.0),
-        "end_w": float(w[-1]),
+        "rms_geo_dist_3d": lambda sig, win: rms(dist, after_first),
+        "max_geo_dist_3d": lambda sig, win: max_abs(dist, after_first),
+        "ss_cross_track": lambda sig, win: max_abs(e, straight),
+        "ss_depth_err": lambda sig, win: max_abs(h, straight),
+        "ss_geo_dist_3d": lambda sig, win: max_abs(dist, straight),
+        "mission_healthy": lambda sig, win: healthy,
+        "end_w": lambda sig, win: w[-1],
     }
+
+
+def mission_metrics(traj, path, coeffs, settle=150.0, loop=None, scenario=None) -> dict:
+    """The mission's metrics of one run (``metrics.json``'s entry per variant, :data:`REPORTED`)
+    as Python values: :func:`vcjax.metrics.run_metrics` of the loop's signals with the
+    mission's extras (:func:`mission_extras`). ``loop``, ``scenario``: the run's (default: the
+    mission's ``vcm3d_ilos`` loop and scenario on ``coeffs``; only the actuator limits and the
+    path matter for what is reported)."""
+    if loop is None or scenario is None:
+        loop, scenario = mission_scenario(VARIANTS[0], coeffs=coeffs)
+    sig = loop.signals(traj, scenario)
+    dt = traj.t[1] - traj.t[0]
+    m = metrics.run_metrics(sig, traj.finite, dt, extras=mission_extras(traj, path, coeffs, settle))
+    out = {}
+    for ours, theirs in REPORTED.items():
+        v = np.asarray(m[theirs])
+        out[ours] = bool(v) if v.dtype == bool else float(v)
+    return out
 
 
 def run_remus100(
@@ -207,13 +236,14 @@ def run_remus100(
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    trajs, metrics = {}, {}
+    trajs, results = {}, {}
     for v in variants:
+        loop, sc = mission_scenario(v, current, waves=waves, wave_seed=wave_seed)
         traj, (path, coeffs) = simulate(
             v, horizon, dt, current, gains=gains, waves=waves, wave_seed=wave_seed
         )
         trajs[v] = jax.device_get(traj)
-        metrics[v] = mission_metrics(trajs[v], path, coeffs)
+        results[v] = mission_metrics(trajs[v], path, coeffs, loop=loop, scenario=sc)
     meta = {"horizon": horizon, "dt": dt, "current_ned": [float(c) for c in current]}
     if waves is not None:
         hs, tp, direction = (float(x) for x in waves)
@@ -228,11 +258,11 @@ def run_remus100(
             "origin_depth": 0.0,
         }
     clean = {v: {k: (None if isinstance(x, float) and not np.isfinite(x) else x)
-                 for k, x in m.items()} for v, m in metrics.items()}  # fmt: skip
+                 for k, x in m.items()} for v, m in results.items()}  # fmt: skip
     write_json_atomic(out / "metrics.json", {"config": meta, "variants": clean}, newline=False)
     files = [out / "metrics.json"]
     files += remus100_figures(trajs, path, coeffs, out, LABELS)
-    return {"metrics": metrics, "files": files}
+    return {"metrics": results, "files": files}
 
 
 def load_gains(d: dict, **_options):

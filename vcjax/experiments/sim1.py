@@ -28,12 +28,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax import loops, paths
+from vcjax import loops, metrics, paths
 from vcjax._checks import check_array, check_positive
-from vcjax.loops.infante import InfanteGains, InfanteLoop, infante_gains
-from vcjax.metrics import first_excursion, path_bound, run_metrics
+from vcjax.loops import InfanteGains, InfanteLoop, infante_gains
 from vcjax.outputs import write_json_atomic
-from vcjax.rollout import RolloutConfig, first_unhealthy_step
+from vcjax.rollout import RolloutConfig
 from vcjax.vehicles import infante
 
 __all__ = [
@@ -50,6 +49,7 @@ __all__ = [
     "PATH",
     "run_sim1",
     "tracking_metrics",
+    "health_extras",
     "METRIC_KEYS",
 ]
 
@@ -100,8 +100,9 @@ def sim1_scenario(
         design_vehicle: the controller's belief (default: ``vehicle``).
 
     Returns:
-        :class:`~vcjax.loops.Scenario`; the particle starts abreast of the vehicle
-        (``varpi0 = y0``, the nearest point of the line).
+        :class:`~vcjax.loops.Scenario` (:func:`vcjax.loops.make_scenario` of the ``infante``
+        loop); the particle starts abreast of the vehicle (``varpi0 = y0``, the nearest point
+        of the line).
     """
     check_array("eta0", eta0, (3,))
     check_array("nu0", nu0, (3,))
@@ -114,22 +115,16 @@ def sim1_scenario(
     for name, v in (("vehicle", vehicle), ("design_vehicle", design_vehicle)):
         infante.validate(v, name)
     dtype = jnp.asarray(vehicle.mass).dtype
-    f = lambda x: jnp.asarray(x, dtype=dtype)
-    current = f(current)
-    if current.shape == (2,):
-        current = jnp.concatenate([current, jnp.zeros(1, dtype)])
-    eta0 = f(eta0)
-    return loops.Scenario(
+    return loops.make_scenario(
+        closed_loop("vcm"),
+        path_coeffs(dtype),
         eta0=eta0,
-        nu0=f(nu0),
+        nu0=nu0,
         current=current,
-        u_d=f(u_d),
-        varpi0=eta0[1],  # the point of the line x = 10 nearest to the start
-        path=path_coeffs(dtype),
+        u_d=u_d,
         plant=vehicle,
         design=design_vehicle,
-        disturbance=jnp.zeros(3, dtype),
-    )
+    )  # the particle starts abreast of the vehicle: the point of the line x = 10 nearest to it
 
 
 def default_gains() -> InfanteGains:
@@ -152,7 +147,7 @@ def closed_loop(variant: str, edd: str = "paper", smooth: bool = False) -> Infan
     """The :class:`~vcjax.loops.infante.InfanteLoop` of one variant on Simulation 1's line."""
     if variant not in VARIANTS:
         raise ValueError(f"variant: expected one of {VARIANTS}, got {variant!r}")
-    return InfanteLoop(controller=variant, path=PATH, edd=edd, smooth=smooth)
+    return loops.make_loop("infante", variant, path=PATH, edd=edd, smooth=smooth)
 
 
 def simulate(
@@ -203,25 +198,40 @@ def run_variant(
     return _run(variant, gains, sc, cfg, dt, edd, smooth)
 
 
+def health_extras(traj, bound: float) -> dict:
+    """Simulation 1's health as extras of :func:`vcjax.metrics.run_metrics` (jnp):
+    ``unhealthy_step``, the first step whose state diverged (non-finite or beyond the rollout's
+    bound, :attr:`vcjax.rollout.Trajectory.diverged`) or whose cross-track error left ``bound``
+    [m] (NaN counts), -1 if none; ``healthy``, whether there is none."""
+
+    def bad(sig):
+        return traj.diverged | ~(jnp.abs(sig.eps[:, 1]) <= bound)
+
+    return {
+        "unhealthy_step": lambda sig, win: metrics.first_true(bad(sig)),
+        "healthy": lambda sig, win: ~jnp.any(bad(sig)),
+    }
+
+
 def tracking_metrics(
     variant: str, traj, scenario: loops.Scenario, tail: float = 0.2, diverge_e=None
 ) -> dict:
     """Simulation 1's metrics of one run (:func:`vcjax.metrics.run_metrics`, steady-state
-    window the last ``tail`` of the run), as Python floats, plus ``healthy`` (no step diverged:
-    every state finite and within the rollout's bound, :attr:`vcjax.rollout.Trajectory.diverged`,
-    and the cross-track error within the path bound :func:`vcjax.metrics.path_bound`, default
-    scaled to ``u_d x horizon``, or ``diverge_e`` [m]) and ``unhealthy_step`` (the first such
-    step, or ``None``)."""
+    window the last ``tail`` of the run, with :func:`health_extras` added), as Python values:
+    :data:`METRIC_KEYS`, ``healthy`` (no step diverged: every state finite and within the
+    rollout's bound, and the cross-track error within the path bound
+    :func:`vcjax.metrics.path_bound`, default scaled to ``u_d x horizon``, or ``diverge_e``
+    [m]) and ``unhealthy_step`` (the first such step, or ``None``)."""
     loop = closed_loop(variant)
     sig = loop.signals(traj, scenario)
-    m = run_metrics(sig, traj.finite, traj.t[1] - traj.t[0], start=1.0 - tail)
-    out = {k: float(m[k]) for k in METRIC_KEYS}
     t = np.asarray(traj.t)
-    bound = path_bound(float(np.asarray(scenario.u_d)), t[-1] - t[0], diverge_e)
-    steps = [first_unhealthy_step(traj), first_excursion(np.asarray(sig.eps)[:, 1], bound)]
-    steps = [k for k in steps if k is not None]
-    out["healthy"] = not steps
-    out["unhealthy_step"] = min(steps) if steps else None
+    bound = metrics.path_bound(float(np.asarray(scenario.u_d)), t[-1] - t[0], diverge_e)
+    extras = health_extras(traj, bound)
+    m = metrics.run_metrics(sig, traj.finite, traj.t[1] - traj.t[0], 1.0 - tail, extras=extras)
+    out = {k: float(m[k]) for k in METRIC_KEYS}
+    out["healthy"] = bool(m["healthy"])
+    k = int(m["unhealthy_step"])
+    out["unhealthy_step"] = None if k < 0 else k
     return out
 
 
@@ -247,20 +257,20 @@ def run_sim1(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     sc = sim1_scenario() if scenario is None else scenario
-    trajs, metrics = {}, {}
+    trajs, results = {}, {}
     for i, v in enumerate(VARIANTS):
         progress(f"[{i + 1}/{len(VARIANTS)}] simulating {v} ({horizon:g} s, dt {dt:g} s)")
         trajs[v] = jax.device_get(run_variant(v, gains, sc, horizon, dt, edd, timing))
-        metrics[v] = tracking_metrics(v, trajs[v], sc, diverge_e=diverge_e)
-    write_json_atomic(out / "metrics.json", metrics)
+        results[v] = tracking_metrics(v, trajs[v], sc, diverge_e=diverge_e)
+    write_json_atomic(out / "metrics.json", results)
     files = sim1_figures(trajs, sc, out)
     t = {v: np.asarray(tr.t) for v, tr in trajs.items()}
     unhealthy = {
         v: (m["unhealthy_step"], float(t[v][m["unhealthy_step"] + 1]))
-        for v, m in metrics.items()
+        for v, m in results.items()
         if not m["healthy"]
     }
-    return {"metrics": metrics, "files": [out / "metrics.json", *files], "unhealthy": unhealthy}
+    return {"metrics": results, "files": [out / "metrics.json", *files], "unhealthy": unhealthy}
 
 
 def load_gains(d: dict, **_options) -> InfanteGains:

@@ -21,7 +21,6 @@ which at least one thruster is commanded at its limit, whole run).
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 from typing import Any, Literal
 
@@ -33,7 +32,7 @@ from vcjax import loops, paths
 from vcjax import waves as wv
 from vcjax._checks import check_array, check_positive
 from vcjax.loops.odin import OdinGains, OdinLoop, default_odin_gains, odin_gains
-from vcjax.metrics import first_excursion, path_bound, run_metrics
+from vcjax.metrics import path_bound, run_metrics
 from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig
 from vcjax.vehicles import odin
@@ -47,7 +46,9 @@ __all__ = [
     "gains_from_json",
     "Sim2Config",
     "run_variant",
+    "sim2_extras",
     "sim2_metrics",
+    "REPORTED",
     "run_sim2",
     "sim2_sea",
     "WAVE_ORIGIN_DEPTH",
@@ -78,27 +79,28 @@ def sim2_scenario(
         :class:`Sim2Config` used (default: the paper's helix).
 
     Returns:
-        :class:`~vcjax.loops.Scenario` (``plant`` and ``design`` both ``vehicle``).
+        :class:`~vcjax.loops.Scenario` (:func:`vcjax.loops.make_scenario` of the ``odin``
+        loop; ``plant`` and ``design`` both ``vehicle``).
     """
     check_array("p0", p0, (3,))
     check_array("psi0", psi0, ())
     check_positive("u_d", u_d, ())
     check_array("varpi0", varpi0, ())
     vehicle = odin.odin_params() if vehicle is None else odin.validate(vehicle)
-    args = odin.odin_args(vehicle, tau_dist, current)
+    args = odin.odin_args(vehicle, tau_dist, current)  # tau_dist (3,) -> (6,), both validated
     dtype = args.tau_dist.dtype
-    f = lambda x: jnp.asarray(x, dtype=dtype)
-    eta0 = jnp.concatenate([f(p0), jnp.zeros(2, dtype), f(psi0)[None]])
-    return loops.Scenario(
+    eta0 = np.concatenate([np.asarray(p0, float), [0.0, 0.0], [float(psi0)]])
+    return loops.make_scenario(
+        Sim2Config().loop(),  # the scenario is the same for every Simulation 2 loop
+        _PATH_COEFFS if path_coeffs is None else path_coeffs,
         eta0=eta0,
-        nu0=jnp.zeros(6, dtype),
+        nu0=np.zeros(6),
         current=args.v_c,
-        u_d=f(u_d),
-        varpi0=f(varpi0),
-        path=_PATH_COEFFS if path_coeffs is None else path_coeffs,
+        u_d=u_d,
         plant=vehicle,
-        design=vehicle,
         disturbance=args.tau_dist,
+        varpi0=varpi0,
+        dtype=dtype,
     )
 
 
@@ -146,12 +148,8 @@ class Sim2Config:
 
     def loop(self) -> OdinLoop:
         ctrl = "vcm" if self.actuation == "underactuated" else "vcm_full"
-        return OdinLoop(
-            controller=ctrl,
-            path=self.path,
-            integral=self.integral,
-            edd=self.edd,
-            polish=self.polish,
+        return loops.make_loop(
+            "odin", ctrl, path=self.path, integral=self.integral, edd=self.edd, polish=self.polish
         )
 
 
@@ -181,51 +179,89 @@ def run_variant(
     return _run(config.loop(), gains, sc, rc, dt)
 
 
-#: what :func:`sim2_metrics` takes from :func:`vcjax.metrics.run_metrics`: its name -> ours
-_GENERIC = {
+#: ``metrics.json`` per actuation mode: its name -> the name in
+#: :func:`vcjax.metrics.run_metrics`'s result (generic metrics and :func:`sim2_extras`)
+REPORTED = {
     "rms_dist_3d": "rms_dist_3d",
     "max_dist_3d": "max_dist_3d",
     "rms_depth_err": "rms_depth_err",
-    "sat_fraction": "thruster_sat_fraction",
+    "thruster_sat_fraction": "sat_fraction",
     "rms_along_track_s": "rms_along_track_s",
     "rms_cross_track_e": "rms_cross_track_e",
+    "mean_abs_sideslip_deg": "mean_abs_sideslip_deg",
+    "mean_speed": "mean_speed",
+    "max_abs_roll_pitch_deg": "max_abs_roll_pitch_deg",
+    "alloc_infeasible_fraction": "alloc_infeasible_fraction",
+    "max_alloc_residual": "max_alloc_residual",
+    "final_varpi": "final_varpi",
+    "settled_from_s": "settled_from_s",
+    "horizon_s": "horizon_s",
+    "healthy": "run_healthy",
 }
+
+
+def sim2_extras(traj, bound: float) -> dict:
+    """Simulation 2's own metrics as extras of :func:`vcjax.metrics.run_metrics` (jnp): the
+    ODIN-class diagnostics over the steady-state window ``win`` (states before each step) —
+    ``mean_abs_sideslip_deg`` (``atan2(v, u)``), ``mean_speed`` (of the linear velocity),
+    ``max_abs_roll_pitch_deg`` (the window's states and the final one); over the whole run —
+    ``alloc_infeasible_fraction``, ``max_alloc_residual`` (the thruster allocation),
+    ``final_varpi``; the window's start ``settled_from_s`` and the run's ``horizon_s`` [s]; and
+    ``run_healthy``: no step diverged and the vehicle never further than ``bound`` [m] from the
+    path particle's point (:func:`vcjax.metrics.path_bound`)."""
+    nu = traj.x.nu[:-1]
+    t = traj.t[:-1]
+
+    def mean(a, win):
+        return jnp.sum(jnp.where(win, a, 0.0)) / jnp.sum(win.astype(a.dtype))
+
+    def roll_pitch(sig, win):
+        win1 = jnp.concatenate([win, jnp.ones(1, bool)])  # and the final state
+        rp = jnp.where(win1[:, None], jnp.abs(traj.x.eta[:, 3:5]), -jnp.inf)
+        return jnp.degrees(jnp.max(rp))
+
+    def healthy(sig, win):
+        dist = jnp.sqrt(jnp.sum(sig.p_err**2, axis=1))
+        return ~jnp.any(traj.diverged) & ~jnp.any(~(dist <= bound))
+
+    infeasible = (~traj.aux.alloc_feasible).astype(nu.dtype)
+    return {
+        "mean_abs_sideslip_deg": lambda sig, win: jnp.degrees(
+            mean(jnp.abs(jnp.arctan2(nu[:, 1], nu[:, 0])), win)
+        ),
+        "mean_speed": lambda sig, win: mean(jnp.sqrt(jnp.sum(nu[:, :3] ** 2, axis=1)), win),
+        "max_abs_roll_pitch_deg": roll_pitch,
+        "alloc_infeasible_fraction": lambda sig, win: jnp.mean(infeasible),
+        "max_alloc_residual": lambda sig, win: jnp.max(traj.aux.alloc_residual),
+        "final_varpi": lambda sig, win: traj.z.vcm.varpi[-1],
+        "settled_from_s": lambda sig, win: t[jnp.argmax(win)],
+        "horizon_s": lambda sig, win: t[-1] + (t[1] - t[0]),
+        "run_healthy": healthy,
+    }
 
 
 def sim2_metrics(
     traj, scenario: loops.Scenario | None = None, skip: float = 0.2, config=None, diverge_e=None
 ) -> dict:
-    """Metrics of one run (module docstring); ``skip``: fraction of the run left out.
+    """Metrics of one run (module docstring; :data:`REPORTED`) as Python values; ``skip``:
+    fraction of the run left out.
 
-    The tracking metrics are :func:`vcjax.metrics.run_metrics` from :math:`0.2 T` on
-    (``thruster_sat_fraction`` is its ``sat_fraction``, whole run); the rest are ODIN-specific
-    diagnostics of this experiment.
+    :func:`vcjax.metrics.run_metrics` from :math:`0.2 T` on (``thruster_sat_fraction`` is its
+    ``sat_fraction``, whole run) with the ODIN-specific diagnostics of this experiment added
+    (:func:`sim2_extras`); ``healthy`` also needs the vehicle within the path-error bound
+    (:func:`vcjax.metrics.path_bound`, scaled to ``u_d x horizon``, or ``diverge_e`` [m]).
     """
     sc = sim2_scenario() if scenario is None else scenario
     loop = (Sim2Config() if config is None else config).loop()
     sig = loop.signals(traj, sc)
-    m = run_metrics(sig, traj.finite, traj.t[1] - traj.t[0], start=skip)
-    out = {ours: float(m[k]) for k, ours in _GENERIC.items()}
-    t = np.asarray(traj.t[:-1])
-    n = t.size
-    k0 = int(math.floor(skip * n))
-    nu = np.asarray(traj.x.nu[:-1])[k0:]
-    beta = np.arctan2(nu[:, 1], nu[:, 0])
-    out |= {
-        "mean_abs_sideslip_deg": float(np.degrees(np.mean(np.abs(beta)))),
-        "mean_speed": float(np.mean(np.linalg.norm(nu[:, :3], axis=1))),
-        "max_abs_roll_pitch_deg": float(np.degrees(np.max(np.abs(traj.x.eta[k0:, 3:5])))),
-        "alloc_infeasible_fraction": float(np.mean(~np.asarray(traj.aux.alloc_feasible))),
-        "max_alloc_residual": float(np.max(np.asarray(traj.aux.alloc_residual))),
-        "final_varpi": float(np.asarray(traj.z.vcm.varpi)[-1]),
-        "settled_from_s": float(t[k0]),
-        "horizon_s": float(t[-1] + (t[1] - t[0])),
-        "healthy": not bool(np.any(np.asarray(traj.diverged))),
-    }
-    # and never further from the path than its bound (vcjax.metrics.path_bound), whole run
-    bound = path_bound(float(np.asarray(sc.u_d)), out["horizon_s"], diverge_e)
-    dist = np.linalg.norm(np.asarray(sig.p_err), axis=1)
-    out["healthy"] = out["healthy"] and first_excursion(dist, bound) is None
+    t = np.asarray(traj.t)
+    bound = path_bound(float(np.asarray(sc.u_d)), float(t[-2] + (t[1] - t[0])), diverge_e)
+    dt = traj.t[1] - traj.t[0]
+    m = run_metrics(sig, traj.finite, dt, start=skip, extras=sim2_extras(traj, bound))
+    out = {}
+    for ours, theirs in REPORTED.items():
+        v = np.asarray(m[theirs])
+        out[ours] = bool(v) if v.dtype == bool else float(v)
     return out
 
 
@@ -239,7 +275,7 @@ def sim2_sea(waves, seed=0):
     JONSWAP sea (``gamma = 3.3``, 64 components) drawn from ``PRNGKey(seed)``
     (:func:`vcjax.waves.sea_state`), and :data:`WAVE_ORIGIN_DEPTH`."""
     hs, tp, direction_deg = (float(v) for v in waves)
-    sea = wv.sea_state(jax.random.PRNGKey(seed), hs, tp, math.radians(direction_deg))
+    sea = wv.sea_state(jax.random.PRNGKey(seed), hs, tp, np.radians(direction_deg))
     return sea, WAVE_ORIGIN_DEPTH
 
 

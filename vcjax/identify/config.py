@@ -24,6 +24,7 @@ Unknown sections and keys are rejected.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -37,12 +38,21 @@ from vcjax.config import (
     check_schema,
     read_toml,
 )
+from vcjax.config.frozen import FrozenSection
 from vcjax.identify.data import load_log
 from vcjax.identify.models import get_fit_model, scalar_fields
 from vcjax.identify.shooting import FitResult, fit_logs
 from vcjax.outputs import write_json_atomic
 
-__all__ = ["FitConfig", "load_fit_config", "run_fit_config", "FIT_SCHEMA"]
+__all__ = [
+    "FitConfig",
+    "FitData",
+    "FitModel",
+    "FitOptions",
+    "load_fit_config",
+    "run_fit_config",
+    "FIT_SCHEMA",
+]
 
 #: section -> key -> default (``...`` = required)
 FIT_SCHEMA: dict[str, dict[str, object]] = {
@@ -63,10 +73,47 @@ FIT_SCHEMA: dict[str, dict[str, object]] = {
 }
 
 
-class FitConfig(dict):
-    """The parsed config: ``cfg[section][key]`` with defaults filled in, plus ``cfg.path``."""
+@dataclasses.dataclass(frozen=True)
+class FitData(FrozenSection):
+    """``[data]``: the logs, relative to the config file's folder."""
 
-    path: Path
+    files: tuple[str, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class FitModel(FrozenSection):
+    """``[model]``: the vehicle, its step, and the known (or first-guess) current."""
+
+    vehicle: str = ""
+    step: str = "rk4"
+    current_speed: float = 0.0
+    current_direction_deg: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class FitOptions(FrozenSection):
+    """``[fit]``: what is estimated and how."""
+
+    params: tuple[str, ...] = ()
+    fit_current: bool = False
+    initial_scale: float = 1.0
+    segment_steps: int = 50
+    max_iters: int = 50
+
+
+@dataclasses.dataclass(frozen=True)
+class FitConfig(FrozenSection):
+    """A ``vcjax fit`` config, parsed once (:func:`load_fit_config`), frozen and hashable:
+    ``cfg.model.vehicle`` (or ``cfg["model"]["vehicle"]``); ``path``: the file it was read
+    from (not a section: :meth:`to_dict` holds the sections, ``run.json`` records the file)."""
+
+    data: FitData = FitData()
+    model: FitModel = FitModel()
+    fit: FitOptions = FitOptions()
+    path: Path = dataclasses.field(default=Path("config.toml"), metadata={"record": False})
+
+
+_SECTION_TYPES = {"data": FitData, "model": FitModel, "fit": FitOptions}
 
 
 def load_fit_config(path) -> FitConfig:
@@ -79,8 +126,7 @@ def load_fit_config(path) -> FitConfig:
     path = Path(path)
     raw = read_toml(path)
     check_schema(raw, {sec: tuple(keys) for sec, keys in FIT_SCHEMA.items()}, str(path))
-    cfg = FitConfig()
-    cfg.path = path
+    cfg: dict[str, dict] = {}
     for section, keys in FIT_SCHEMA.items():
         given = raw.get(section, {})
         cfg[section] = {}
@@ -89,10 +135,11 @@ def load_fit_config(path) -> FitConfig:
                 raise ConfigError(f"{path}: [{section}] {key}: required key is missing")
             cfg[section][key] = given.get(key, default)
     _check_values(path, cfg)
-    return cfg
+    sections = {sec: _SECTION_TYPES[sec](**vals) for sec, vals in cfg.items()}
+    return FitConfig(**sections, path=path)
 
 
-def _check_values(path: Path, cfg: FitConfig) -> None:
+def _check_values(path: Path, cfg: dict) -> None:
     """Types and ranges, then the names against the vehicle (``ConfigError`` naming the key)."""
     d, m, f = cfg["data"], cfg["model"], cfg["fit"]
     w = lambda sec, key: f"{path}: [{sec}] {key}"
@@ -154,12 +201,13 @@ def run_fit_config(
         ValueError: for a bad config or log (naming file, section, key or column); OSError.
     """
     cfg = load_fit_config(config_path) if cfg is None else cfg  # parsed once by the CLI
-    m, f = cfg["model"], cfg["fit"]
-    model = get_fit_model(m["vehicle"])
+    if not isinstance(cfg, FitConfig):  # the older dict form (e.g. a run.json record)
+        cfg = FitConfig.from_dict(cfg)
+    m, f = cfg.model, cfg.fit
+    model = get_fit_model(m.vehicle)
     base = Path(config_path).parent
     logs = [
-        load_log(base / name, model.state_columns, model.command_columns)
-        for name in cfg["data"]["files"]
+        load_log(base / name, model.state_columns, model.command_columns) for name in cfg.data.files
     ]
     out = Path(out)
     if out.exists() and not out.is_dir():
@@ -173,20 +221,20 @@ def run_fit_config(
     result: FitResult = fit_logs(
         model,
         logs,
-        f["params"],
-        step=m["step"],
-        fit_current=f["fit_current"],
-        current_speed=float(m["current_speed"]),
-        current_direction=math.radians(m["current_direction_deg"]),
-        initial_scale=float(f["initial_scale"]),
-        segment_steps=f["segment_steps"],
-        max_iters=f["max_iters"],
+        list(f.params),
+        step=m.step,
+        fit_current=f.fit_current,
+        current_speed=float(m.current_speed),
+        current_direction=math.radians(m.current_direction_deg),
+        initial_scale=float(f.initial_scale),
+        segment_steps=f.segment_steps,
+        max_iters=f.max_iters,
         callback=callback,
         max_memory_gb=max_memory_gb,
     )
     fit = result.to_json()
-    fit["files"] = [str(x) for x in cfg["data"]["files"]]
-    fit["config"] = {k: dict(v) for k, v in cfg.items()}
+    fit["files"] = [str(x) for x in cfg.data.files]
+    fit["config"] = cfg.to_dict()
     files = [out / "fit.json"]
     write_json_atomic(out / "fit.json", fit, allow_nan=False)
     from vcjax.identify.figures import cost_history_figure, prediction_figure

@@ -209,8 +209,9 @@ class EngineLoop(Loop):
         return x if x.shape == (3,) else jnp.concatenate([x, jnp.zeros(1, x.dtype)])
 
     def _eps(self, q, args: _Args, varpi):
-        frame = paths.path_frame(self.path, args.path, varpi)
-        return rot2(frame.psi_p).T @ (self.position(q, args.params)[:2] - frame.p_bar), frame
+        # path_pose: the engine differentiates these constraints twice
+        frame = paths.path_pose(self.path, args.path, varpi)
+        return rot2(frame.psi_p).T @ (self.position(q, args.params)[:2] - frame.p[:2]), frame
 
     @functools.cached_property
     def _system(self) -> MechanicalSystem:

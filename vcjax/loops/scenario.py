@@ -51,6 +51,8 @@ def make_scenario(
     coeffs=None,
     *,
     initial: dict | None = None,
+    eta0=None,
+    nu0=None,
     current=(0.0, 0.0, 0.0),
     u_d=None,
     plant=None,
@@ -67,6 +69,8 @@ def make_scenario(
         coeffs: path coefficients (default: the vehicle's default path's).
         initial: values of ``loop.initial_keys`` (``*_deg`` in degrees); missing keys take the
             defaults.
+        eta0, nu0: the initial pose and velocity themselves (the shapes ``initial`` would
+            give, ``eta0`` in radians), instead of ``initial`` (an experiment's exact start).
         current: (2,) or (3,) water velocity in NED [m/s].
         u_d: desired speed [m/s] (default ``loop.default_speed``).
         plant, design: parameters (default ``loop.default_params()``; ``design`` defaults to
@@ -92,7 +96,11 @@ def make_scenario(
         if not np.isfinite(v):
             raise ValueError(f"initial: {k}: not finite: {v}")
         vals[k] = jnp.asarray(np.radians(v) if k.endswith("_deg") else v, dt)
-    eta0, nu0 = loop.initial_from(vals)
+    eta_i, nu_i = loop.initial_from(vals)
+    if (eta0 is not None or nu0 is not None) and initial:
+        raise ValueError("initial: give the initial keys or eta0/nu0, not both")
+    eta0 = eta_i if eta0 is None else _state("eta0", eta0, np.shape(eta_i), dt)
+    nu0 = nu_i if nu0 is None else _state("nu0", nu0, np.shape(nu_i), dt)
     cur = np.asarray(current, dtype=float)
     if cur.shape == (2,):
         cur = np.concatenate([cur, [0.0]])
@@ -145,6 +153,14 @@ def _check_sea(sea, dtype):
     ):
         raise ValueError("sea: expected five finite (N,) arrays (omega, amplitude, ...)")
     return waves.Sea(*(jnp.asarray(a, dtype) for a in arrs))
+
+
+def _state(name: str, value, shape, dtype):
+    """``value`` as a finite array of ``shape`` and ``dtype`` (``ValueError`` naming it)."""
+    a = np.asarray(value, dtype=float)
+    if a.shape != tuple(shape) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: expected a finite array of shape {tuple(shape)}, got {value!r}")
+    return jnp.asarray(a, dtype)
 
 
 def _cast(tree, dtype):

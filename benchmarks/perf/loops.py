@@ -11,7 +11,7 @@ axis, as ``vcjax sweep`` does); ``cores_used`` says which. RK4, dt = 0.05 s, the
 default scenario with random position offsets (N(0, 5 m)) and currents (|V_c| ~ U(0, 0.5) m/s).
 Each timed function returns only a (B,) reduction of the trajectory (computed in jit).
 
-    python -m benchmarks.loops --json benchmarks/results/loops_float32.json
+    python -m benchmarks.perf.loops --json benchmarks/results/loops_float32.json
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ Each timed function returns only the (B,) mean cross-track error |e| over the ru
 inside jit (returning the full Trajectory for 16384 x N steps would be memory-bound, not
 compute-bound); the rest of the Trajectory is dead code that XLA removes.
 
-    python -m benchmarks.throughput --dtype float32 --json results/throughput_f32.json
+    python -m benchmarks.perf.throughput --dtype float32 --json results/throughput_f32.json
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ The three give identical states (checked). The ratio ``batch last / vmap`` is wh
 plant and the law on ``(n, B)`` arrays could gain over ``vmap`` (see ``benchmarks/README.md``,
 "What limits the rest").
 
-    python -m benchmarks.layout --batch 4096 --steps 500
+    python -m benchmarks.perf.layout --batch 4096 --steps 500
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ and currents), differentiated w.r.t. every field of the VCM gains (:class:`PMGai
    ``ShapeDtypeStruct``\\ s), then a measured peak RSS, in a fresh process each, only for the
    configurations whose static peak is below ``--mem-limit-gb``.
 
-    python -m benchmarks.gradient_cost --dtype float32 --json results/gradient_f32.json
+    python -m benchmarks.perf.gradient_cost --dtype float32 --json results/gradient_f32.json
 """
 
 from __future__ import annotations
@@ -248,7 +248,7 @@ def _worker_measure(args, name):
 
 
 def _spawn(args, worker):
-    cmd = [sys.executable, "-m", "benchmarks.gradient_cost", "--dtype", "float64"]
+    cmd = [sys.executable, "-m", "benchmarks.perf.gradient_cost", "--dtype", "float64"]
     cmd += ["--mem-batch", str(args.mem_batch), "--mem-steps", str(args.mem_steps)]
     cmd += ["--mem-run-batch", str(args.mem_run_batch), "--mem-run-steps", str(args.mem_run_steps)]
     cmd += ["--_worker", worker]

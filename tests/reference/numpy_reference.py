@@ -4,7 +4,7 @@ What a user without JAX would write: the INFANTE-class plant, the underactuated 
 integral action and classical RK4, written from the equations in the docstrings of
 ``vcjax/vehicles/infante.py``, ``vcjax/vehicles/design3dof.py``, ``vcjax/guidance.py`` and
 ``vcjax/control/vcm.py`` (paper eqs. (20)-(41)), not by translating the JAX code. It is the
-baseline of ``benchmarks/numpy_baseline.py`` and an independent cross-check of vcjax
+baseline of ``benchmarks/perf/numpy_baseline.py`` and an independent cross-check of vcjax
 (``tests/test_numpy_reference.py``).
 
 Derived independently where the JAX code takes another route:

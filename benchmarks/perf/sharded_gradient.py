@@ -9,7 +9,7 @@ accumulates per scenario and the reduction happens once. For each case: ``value_
 continuous controller), the best wall time of ``--repeats`` after a warm-up, and the number of
 ``all-reduce`` instructions inside ``while`` bodies of the compiled program.
 
-    python -m benchmarks.sharded_gradient --json benchmarks/results/sharded_gradient.json
+    python -m benchmarks.perf.sharded_gradient --json benchmarks/results/sharded_gradient.json
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 
 from benchmarks import _common as C
-from benchmarks.cost_analysis import while_bodies
+from benchmarks.perf.cost_analysis import while_bodies
 
 COLUMNS = ["gains", "devices", "batch", "steps", "dtype", "run_s", "compile_s", "loop_allreduce"]
 

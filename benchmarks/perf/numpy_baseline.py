@@ -1,5 +1,5 @@
-"""NumPy baseline: the same closed loop (``benchmarks/numpy_reference.py``: INFANTE-class plant,
-underactuated VCM law with integral action, RK4) stepped from Python, against vcjax.
+"""NumPy baseline: the same closed loop (``tests/reference/numpy_reference.py``: INFANTE-class
+plant, underactuated VCM law with integral action, RK4) stepped from Python, against vcjax.
 
 * NumPy scalar: one trajectory, Python floats + ``math`` per step (what a user without JAX would
   write for one run);
@@ -8,7 +8,7 @@ underactuated VCM law with integral action, RK4) stepped from Python, against vc
 
 NumPy always runs in float64. Reported: trajectory-steps per second and the speed ratios.
 
-    python -m benchmarks.numpy_baseline --dtype float32 --json results/numpy_f32.json
+    python -m benchmarks.perf.numpy_baseline --dtype float32 --json results/numpy_f32.json
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from benchmarks import _common as C
-from benchmarks import numpy_reference as nr
+from tests.reference import numpy_reference as nr
 
 COLUMNS = ["impl", "batch", "steps", "dtype", "device", "run_s", "steps_per_s", "cpu_s", "load"]
 
@@ -95,7 +95,7 @@ def numpy_rows(args):
 def main(argv=None):
     args = parse_args(argv)
     C.setup(args.dtype)
-    from benchmarks import throughput as T
+    from benchmarks.perf import throughput as T
 
     rows = numpy_rows(args)
     for r in (

@@ -1,9 +1,9 @@
 """Figure of the throughput benchmark: trajectory-steps/s against batch size, one curve per
 file (dtype, controller timing, cores used).
 
-Reads the ``--json`` files written by :mod:`benchmarks.throughput` and writes a PNG::
+Reads the ``--json`` files written by :mod:`benchmarks.perf.throughput` and writes a PNG::
 
-    python -m benchmarks.plot_throughput benchmarks/results/throughput_*.json \
+    python -m benchmarks.perf.plot_throughput benchmarks/results/throughput_*.json \
         --out benchmarks/results/throughput.png
 """
 

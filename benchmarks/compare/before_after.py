@@ -46,7 +46,7 @@ from benchmarks import _common as C
 #: The last commit before throughput round 2 (issue 12): 11-station cross-flow strip sum,
 #: batched ``dot`` kernels for the small rotations and inertia products.
 BEFORE = "381cf435d3e3a97f795be04438b148187557f901"
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SWEEP_CONFIG = ROOT / "benchmarks" / "configs" / "sweep_8192x3000.toml"
 
 
@@ -188,7 +188,7 @@ def run_worker(case: dict, lib_path: Path | None) -> dict:
     env.pop("XLA_FLAGS", None)
     env.pop("VCJAX_CPU_DEVICES", None)
     case = {**case, "lib": str(lib_path) if lib_path else None}
-    cmd = [sys.executable, "-m", "benchmarks.before_after", "--worker", json.dumps(case)]
+    cmd = [sys.executable, "-m", "benchmarks.compare.before_after", "--worker", json.dumps(case)]
     res = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=ROOT)
     if res.returncode != 0:
         raise RuntimeError(f"worker failed for {case}:\n{res.stderr[-3000:]}")

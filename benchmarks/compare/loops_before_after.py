@@ -1,14 +1,14 @@
-"""Before/after of every loop (:mod:`benchmarks.loops`) between an older vcjax revision and this
-checkout, in alternating fresh processes.
+"""Before/after of every loop (:mod:`benchmarks.perf.loops`) between an older vcjax revision
+and this checkout, in alternating fresh processes.
 
-``--before REV``'s ``vcjax/`` is extracted into a temporary folder; ``benchmarks.loops`` runs
+``--before REV``'s ``vcjax/`` is extracted into a temporary folder; ``benchmarks.perf.loops`` runs
 ``--rounds`` times for each side, alternating (before, after, before, after, ...), each in a
 fresh process whose ``vcjax`` is the extracted one or this checkout's (checked: the worker prints
 the file it imported). For every (loop, kind) the best run of each side is kept and the ratio is
 reported. The default revision is the last commit before the unrolled small solves
 (``linalg.solve_small`` & co. replacing per-trajectory LAPACK calls in the 6-DOF loops).
 
-    python -m benchmarks.loops_before_after --loops odin remus100 \\
+    python -m benchmarks.compare.loops_before_after --loops odin remus100 \\
         --json benchmarks/results/loops_linalg_before_after.json
 """
 
@@ -23,11 +23,11 @@ import tempfile
 from pathlib import Path
 
 from benchmarks import _common as C
-from benchmarks.before_after import extract
+from benchmarks.compare.before_after import extract
 
 #: last commit before the unrolled small dense solves (throughput round 2, issue 12)
 BEFORE = "9855731"
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def parse_args(argv=None):
@@ -44,7 +44,7 @@ def parse_args(argv=None):
 
 
 def run_side(args, lib: Path | None, out: Path) -> list[dict]:
-    """``benchmarks.loops`` in a fresh process (cwd outside the checkout, so that ``lib`` comes
+    """``benchmarks.perf.loops`` in a fresh process (cwd outside the checkout, so that ``lib`` comes
     first on the path)."""
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(lib), str(ROOT)] if lib else [str(ROOT)])
@@ -61,7 +61,7 @@ def run_side(args, lib: Path | None, out: Path) -> list[dict]:
     want = (lib / "vcjax") if lib else (ROOT / "vcjax")
     if Path(probe).parent.resolve() != want.resolve():
         raise RuntimeError(f"expected vcjax from {want}, the worker imports {probe}")
-    cmd = [sys.executable, "-m", "benchmarks.loops", "--loops", *args.loops]
+    cmd = [sys.executable, "-m", "benchmarks.perf.loops", "--loops", *args.loops]
     cmd += ["--batch", str(args.batch), "--steps", str(args.steps)]
     cmd += ["--single-steps", str(args.single_steps), "--dtype", args.dtype, "--json", str(out)]
     subprocess.run(cmd, env=env, cwd=out.parent, check=True, stdout=subprocess.DEVNULL)

@@ -16,7 +16,7 @@
    3x3 ``jnp.linalg.solve`` against a precomputed inverse. A full RK4 step evaluates plant and
    controller 4 times each.
 
-    python -m benchmarks.cost_analysis --dtype float32 --json results/cost_f32.json
+    python -m benchmarks.perf.cost_analysis --dtype float32 --json results/cost_f32.json
 """
 
 from __future__ import annotations
@@ -238,7 +238,7 @@ def components(batch: int, iters: int, repeats: int) -> list[dict]:
 def main(argv=None):
     args = parse_args(argv)
     C.setup(args.dtype)
-    from benchmarks import throughput as T
+    from benchmarks.perf import throughput as T
 
     mm = matmul_rate(args.matmul_n, args.repeats)
     print(f"float32 matmul {args.matmul_n}: {mm['flops_per_s'] / 1e9:.1f} GFLOP/s", flush=True)

@@ -1,6 +1,6 @@
 """Gradient tuning vs black-box tuners at equal rollout budgets (issue 6).
 
-    python -m benchmarks.tuners CONFIG.toml [--budget ROLLOUTS] [--out DIR] [--json FILE]
+    python -m benchmarks.studies.tuners CONFIG.toml [--budget ROLLOUTS] [--out DIR] [--json FILE]
 
 The tuning problem (loss, scenario distribution, training and held-out batches) comes from a
 ``vcjax tune`` TOML file. Tuners: the gradient tuner of the config (``[optimizer]``, L-BFGS by
@@ -276,7 +276,7 @@ def _figure(rep: dict, path: Path) -> Path:
 
 def main(argv=None) -> int:
     doc = __doc__.split("\n")[0]
-    ap = argparse.ArgumentParser(prog="python -m benchmarks.tuners", description=doc)
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.studies.tuners", description=doc)
     ap.add_argument("config", help="vcjax tune TOML file (problem, batches, gradient optimiser)")
     ap.add_argument("--budget", type=int, help="rollouts per tuner (default: 3x the gradient's)")
     ap.add_argument("--sigma0", type=float, default=0.5, help="CMA-ES initial step (log-gains)")

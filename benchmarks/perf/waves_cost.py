@@ -27,7 +27,7 @@ sea costs one ``exp`` (the depth attenuation), one shared sin/cos range reductio
 with two short polynomials (``waves._sincos``, ~5x cheaper than ``jnp.cos`` + ``jnp.sin`` on
 XLA:CPU) and ~30 multiply-adds. Timing: best of ``--repeats`` after a warm-up.
 
-    .venv/bin/python -m benchmarks.waves_cost [--batch 1024] [--steps 600] [--components 64]
+    .venv/bin/python -m benchmarks.perf.waves_cost [--batch 1024] [--steps 600] [--components 64]
         [--sweep-batch 256] [--sweep-steps 1200] [--json benchmarks/results/waves_cost.json]
 """
 
@@ -61,7 +61,7 @@ def _sweep_rows(args, batch: int, steps: int, repeats: int) -> list[dict]:
 
     from vcjax import sweep
 
-    cfg = Path(__file__).resolve().parents[1] / "examples" / "sweeps" / "remus100_waves.toml"
+    cfg = Path(__file__).resolve().parents[2] / "examples" / "sweeps" / "remus100_waves.toml"
     spec, _ = sweep.load_config(cfg)
     dt = spec.dt
     base = dataclasses.replace(
