@@ -3,13 +3,16 @@
 section of sweep and tune configs, the recorded wave columns, ``vcjax simulate --waves`` and the
 refusals of loops whose plant cannot feel a sea.
 
-Cheap by design: ODIN-class on a few steps (its loop compiles in seconds); REMUS 100 through the
-loops only where its plant's own door is checked (one plant evaluation, no rollout) and in the
-slow tests.
+Cheap by design: the plumbing (sweeps, tuning, gradients) on a loop defined here, a drifter (the
+puck of ``examples/loops/puck.py`` whose drag sees the water's orbital motion: a loop of your own
+that takes waves through the public API, compiled in seconds); ODIN-class's and REMUS 100's own
+seams on a few steps or one plant evaluation; the rest in the slow tests.
 """
 
+import dataclasses
 import json
 from pathlib import Path
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -19,6 +22,7 @@ import pytest
 from vcjax import loops, sweep, waves
 from vcjax.cli import main
 from vcjax.config import ConfigError
+from vcjax.config.scenario import ScenarioChoice, import_module_file
 from vcjax.linalg import Rzyx
 from vcjax.plots.sweep import sweep_figures
 from vcjax.rollout import RolloutConfig, rollout
@@ -30,6 +34,31 @@ KEY = jax.random.PRNGKey(7)
 _run = jax.jit(loops.simulate, static_argnames=("loop", "config", "dist"))
 CFG = RolloutConfig(num_steps=20, timing="sampled")
 DT = 0.1
+
+
+import_module_file(ROOT / "examples" / "loops" / "puck.py")
+
+
+@dataclasses.dataclass(frozen=True)
+class DrifterLoop(loops.loop_class("puck")):
+    """The puck as a drag-only body at depth ``origin_depth``: its drag sees the velocity
+    relative to the water, the current plus the sea's orbital velocity at the puck (the
+    horizontal part: the puck moves in a plane). No added mass or Froude–Krylov force: a loop
+    for the plumbing, not a vehicle."""
+
+    vehicle: ClassVar[str] = "test_wave_drifter"
+    takes_waves: ClassVar[bool] = True
+
+    def plant_in_sea(self, t, x, u, args, water):
+        v_w, _ = water.at(t, self.position(x[0], args.params))
+        return self.plant(t, x, u, args._replace(current=v_w))
+
+
+loops.register(DrifterLoop, replace=True)
+
+
+def _drifter():
+    return loops.make_loop("test_wave_drifter", "vcm")
 
 
 def _sea(hs=1.5, tp=7.0, direction=0.4, spreading=0.0, components=24):
@@ -55,7 +84,7 @@ def _same(a, b):
 # ------------------------------------------------------------------------------------ the seam
 
 
-def test_the_odin_loop_in_a_sea_is_the_plant_fed_the_water_at_its_position():
+def test_the_odin_loop_in_a_sea_is_the_plant_fed_the_water_and_a_calm_sea_changes_no_bit():
     """The rollout of ``loops.simulate`` with a sea against a rollout written here from the
     plant and :mod:`vcjax.waves` directly: the water (current + orbital motion) evaluated at the
     vehicle's NED position shifted by ``origin_depth``, at each integrator stage's own time,
@@ -81,6 +110,14 @@ def test_the_odin_loop_in_a_sea_is_the_plant_fed_the_water_at_its_position():
         plant, loop.control, cfg, sc.plant, loop.ctrl_params(gains, sc), x0, z0, dt
     )
     np.testing.assert_allclose(np.asarray(got.x.eta), np.asarray(want.x.eta), rtol=0, atol=1e-12)
+
+    # hs = 0: every kinematic quantity is exactly 0, so the run in a calm sea (this program,
+    # other data) equals the run without a sea (another program) to the bit, current included;
+    # the sea above moved the vehicle by decimetres
+    plain = _run(loop, gains, sc._replace(sea=None, origin_depth=None), cfg, dt)
+    calm = _run(loop, gains, sc._replace(sea=_sea(hs=0.0)), cfg, dt)
+    assert _same(plain, calm)
+    assert np.max(np.abs(np.asarray(got.x.eta[:, :3] - plain.x.eta[:, :3]))) > 0.05
 
 
 _REMUS = loops.make_loop("remus100", "vcm3d_ilos")
@@ -123,20 +160,6 @@ def test_remus100_in_a_sea_is_its_plant_with_the_water_as_its_3d_current():
         np.testing.assert_array_equal(got.eta, want.eta)
 
 
-def test_a_calm_sea_is_bit_identical_to_no_sea_through_loops_simulate():
-    """``hs = 0``: every kinematic quantity is exactly 0, so the run with a sea (another
-    program) equals the run without, to the bit (with a current); a real sea, the same program
-    with other data, moves the vehicle by decimetres."""
-    loop = _odin()
-    gains = loop.default_gains()
-    sc = _odin_scenario(loop, _sea())
-    plain = _run(loop, gains, sc._replace(sea=None, origin_depth=None), CFG, DT)
-    calm = _run(loop, gains, sc._replace(sea=_sea(hs=0.0)), CFG, DT)
-    assert _same(plain, calm)
-    rough = _run(loop, gains, sc, CFG, DT)
-    assert np.max(np.abs(np.asarray(rough.x.eta[:, :3] - plain.x.eta[:, :3]))) > 0.05
-
-
 @pytest.mark.slow
 def test_a_calm_sea_is_bit_identical_with_gauss_markov_current_and_noise():
     """REMUS 100 (its own current door, a Gauss–Markov current through the exogenous hook) and
@@ -157,34 +180,55 @@ def test_a_calm_sea_is_bit_identical_with_gauss_markov_current_and_noise():
         assert _same(a, b)
 
 
-def _gain_loss(loop, sc, g0, steps):
-    cfg = RolloutConfig(num_steps=steps, timing="sampled")
-
-    def loss(kp):
-        g = g0._replace(depth=g0.depth.at[0].set(kp))
-        traj = loops.simulate(loop, g, sc, cfg, DT)
-        sig = loop.signals(traj, sc)
-        return jnp.mean(sig.depth_err**2) + jnp.mean(jnp.sum(sig.p_err**2, axis=1))
-
-    return loss
+def _value_and_derivative(loss, mode):
+    """One jitted program ``(k, sc) -> (loss, d loss / d k)`` (forward or reverse mode)."""
+    if mode == "forward":
+        return jax.jit(lambda k, sc: jax.jvp(lambda k_: loss(k_, sc), (k,), (jnp.ones_like(k),)))
+    return jax.jit(jax.value_and_grad(loss))
 
 
-@pytest.mark.parametrize("mode", ["forward", pytest.param("reverse", marks=pytest.mark.slow)])
-def test_gradient_with_respect_to_a_gain_through_a_sea_matches_finite_differences(mode):
-    """d(loss)/d(depth PID gain) through a rollout in a sea against central differences
-    (float64); forward mode by default (cheaper to compile), reverse mode in the slow run."""
+def _check_gradient(vd, k, sc):
+    """The derivative against central differences of the value (the same program)."""
+    h = 1e-4
+    fd = (vd(k + h, sc)[0] - vd(k - h, sc)[0]) / (2 * h)
+    grad = vd(k, sc)[1]
+    assert abs(float(grad)) > 1e-6
+    np.testing.assert_allclose(float(grad), float(fd), rtol=1e-5)
+
+
+def test_gradient_with_respect_to_a_gain_through_a_sea_matches_finite_differences():
+    """d(loss)/d(P_G) of the drifter through a rollout in a sea, reverse mode against central
+    differences (float64); the drifter's path error depends on the sea (checked)."""
+    loop = _drifter()
+    sc = loops.make_scenario(loop, current=(0.05, 0.0, 0.0), sea=_sea(hs=2.0, tp=5.0))
+    g0 = loop.default_gains()
+    cfg = RolloutConfig(num_steps=40)
+
+    def loss(kp, sc):
+        traj = loops.simulate(loop, g0._replace(P_G=g0.P_G.at[0].set(kp)), sc, cfg, 0.02)
+        return jnp.mean(jnp.sum(loop.signals(traj, sc).eps ** 2, axis=1))
+
+    vd = _value_and_derivative(loss, "reverse")
+    _check_gradient(vd, g0.P_G[0], sc)
+    calm = sc._replace(sea=_sea(hs=0.0))
+    assert abs(float(vd(g0.P_G[0], sc)[0]) - float(vd(g0.P_G[0], calm)[0])) > 1e-6
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mode", ["forward", "reverse"])
+def test_gradient_through_the_odin_loop_in_a_sea_matches_finite_differences(mode):
+    """d(loss)/d(depth PID gain) through ODIN-class in a sea, both modes (float64)."""
     loop = _odin(polish=2)
     sc = _odin_scenario(loop, _sea(hs=2.0, tp=6.0, components=16), depth=-3.0)
     g0 = loop.default_gains()
-    loss = _gain_loss(loop, sc, g0, 12)
-    kp = g0.depth[0]
-    jvp = jax.jit(lambda k: jax.jvp(loss, (k,), (jnp.ones_like(k),)))
-    f = lambda k: jvp(k)[0]  # (the value from the same program)
-    grad = jvp(kp)[1] if mode == "forward" else jax.jit(jax.grad(loss))(kp)
-    h = 1e-4
-    fd = (f(kp + h) - f(kp - h)) / (2 * h)
-    assert abs(float(grad)) > 1e-6
-    np.testing.assert_allclose(float(grad), float(fd), rtol=1e-5)
+    cfg = RolloutConfig(num_steps=12, timing="sampled")
+
+    def loss(kp, sc):
+        traj = loops.simulate(loop, g0._replace(depth=g0.depth.at[0].set(kp)), sc, cfg, DT)
+        sig = loop.signals(traj, sc)
+        return jnp.mean(sig.depth_err**2) + jnp.mean(jnp.sum(sig.p_err**2, axis=1))
+
+    _check_gradient(_value_and_derivative(loss, mode), g0.depth[0], sc)
 
 
 # --------------------------------------------------------------------------------- refusals
@@ -294,7 +338,7 @@ def _spec(**kw):
 
 
 def test_each_scenario_draws_its_sea_from_its_own_key_whatever_the_chunk():
-    loop = _odin()
+    loop = _drifter()
     spec = _spec()
     all8 = sweep.sample_scenarios(spec, 5, np.arange(8), loop=loop)
     part = sweep.sample_scenarios(spec, 5, [6], loop=loop)  # a chunk of one: scenario 6
@@ -316,26 +360,25 @@ def test_each_scenario_draws_its_sea_from_its_own_key_whatever_the_chunk():
     assert _same(plain.eta0, all8.eta0) and _same(plain.key, all8.key)
 
 
-def _sweep_spec(tmp_path, scenario):
+def _sweep_spec(scenario, chunk_size=3):
     return sweep.SweepSpec(
         scenario=scenario,
         num_scenarios=3,
         variants=("vcm",),
-        horizon=0.5,
-        dt=0.1,
-        timing="sampled",
-        chunk_size=3,
-        record_points=3,
-        choice=sweep.load_config(_sweep_toml(tmp_path))[0].choice,
+        horizon=1.0,
+        dt=0.02,
+        chunk_size=chunk_size,
+        record_points=5,
+        choice=ScenarioChoice(vehicle="test_wave_drifter"),
     )
 
 
 def test_a_sweep_with_waves_records_the_wave_columns(tmp_path):
-    spec = _sweep_spec(tmp_path, _spec(wave_origin_depth=(106.0, 110.0)))
+    spec = _sweep_spec(_spec(wave_tp=(1.0, 3.0)))
     r = sweep.run_sweep(spec, progress=False)
     for k in ("wave_hs", "wave_tp", "wave_direction_deg", "wave_origin_depth"):
         assert r.scenarios[k].shape == (3,) and np.all(np.isfinite(r.scenarios[k]))
-    assert np.all((r.scenarios["wave_tp"] >= 5.0) & (r.scenarios["wave_tp"] <= 12.0))
+    assert np.all((r.scenarios["wave_tp"] >= 1.0) & (r.scenarios["wave_tp"] <= 3.0))
     assert not np.any(r.metrics["vcm"]["diverged"])
     back = sweep.load_results(sweep.save_results(r, tmp_path / "r.npz"))
     assert back.spec == r.spec
@@ -352,22 +395,13 @@ def test_a_sweep_with_waves_records_the_wave_columns(tmp_path):
     assert ds["wave_hs"].attrs["units"] == "m" and ds["wave_direction_deg"].attrs["units"] == "deg"
 
 
-@pytest.mark.slow
-def test_a_calm_sea_is_bit_identical_through_the_sweep(tmp_path):
-    loop_spec = dict(
-        num_scenarios=3,
-        variants=("vcm",),
-        horizon=0.5,
-        dt=0.1,
-        timing="sampled",
-        chunk_size=2,
-        record_points=3,
-        choice=sweep.load_config(_sweep_toml(tmp_path))[0].choice,
-    )
-    calm = _spec(wave_hs=(0.0, 0.0), wave_origin_depth=(106.0, 110.0))
+def test_a_calm_sea_is_bit_identical_through_the_sweep():
+    """The same scenarios (chunks of 2: one padded) with a calm sea and without one: every
+    metric and trace equal to the bit; the calm sweep records its (zero) wave heights."""
+    calm = _spec(wave_hs=(0.0, 0.0), wave_tp=(1.0, 3.0))
     none = sweep.ScenarioSpec(current_speed=(0.0, 0.0))
-    r_calm = sweep.run_sweep(sweep.SweepSpec(scenario=calm, **loop_spec), progress=False)
-    r_none = sweep.run_sweep(sweep.SweepSpec(scenario=none, **loop_spec), progress=False)
+    r_calm = sweep.run_sweep(_sweep_spec(calm, 2), progress=False)
+    r_none = sweep.run_sweep(_sweep_spec(none, 2), progress=False)
     assert _same(r_calm.metrics, r_none.metrics) and _same(r_calm.traces, r_none.traces)
     for k in ("wave_hs", "wave_tp", "wave_direction_deg", "wave_origin_depth"):
         assert r_calm.scenarios[k].shape == (3,) and k not in r_none.scenarios
@@ -377,11 +411,11 @@ def test_a_calm_sea_is_bit_identical_through_the_sweep(tmp_path):
 def _tuning_batches():
     from tuning.scenarios import sample_scenarios
 
-    loop = _odin(polish=2)
-    kw = dict(loop=loop, current_max=0.2, position_offset=1.0, heading_offset=0.1)
+    loop = _drifter()
+    kw = dict(loop=loop, current_max=0.2, position_offset=0.1, heading_offset=0.1)
     plain = sample_scenarios(3, 2, **kw)
-    extra = dict(wave_spectrum="pm", wave_hs=(0.0, 0.0), wave_components=8)
-    calm = sample_scenarios(3, 2, **kw, extra=extra | dict(wave_origin_depth=(106.0, 108.0)))
+    extra = dict(wave_spectrum="pm", wave_hs=(0.0, 0.0), wave_tp=(1.0, 1.0), wave_components=8)
+    calm = sample_scenarios(3, 2, **kw, extra=extra | dict(wave_origin_depth=(1.0, 2.0)))
     return loop, plain, calm
 
 
@@ -397,14 +431,13 @@ def test_tuning_batches_carry_their_seas():
     assert one.sea.omega.shape == (8,) and SCENARIO_AXES.sea == 0
 
 
-@pytest.mark.slow
 def test_a_calm_sea_is_bit_identical_through_the_tuning_loss():
     from tuning.loss import TuningProblem, problem_data, scenario_losses
     from tuning.params import GainSpace
 
     loop, plain, calm = _tuning_batches()
-    problem = TuningProblem(space=GainSpace(loop=loop, tune=("depth_pd",)), num_steps=8)
-    data = problem_data(problem, dt=0.1)
+    problem = TuningProblem(space=GainSpace(loop=loop, tune=("P_G",)), num_steps=20)
+    data = problem_data(problem, dt=0.02)
     f = jax.jit(scenario_losses, static_argnames=("problem",))
     assert _same(f(data.theta_ref, data, plain, problem), f(data.theta_ref, data, calm, problem))
 
