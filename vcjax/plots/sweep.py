@@ -126,9 +126,11 @@ def _error_vs_waves(result, out: Path) -> Path:
         edges = np.linspace(x.min(), x.max() + 1e-12, 7) if n else np.linspace(0.0, 1.0, 7)
         for i, (key, ylabel) in enumerate(rows):
             ax = axes[i, j]
+            ys = []
             for v in _variants(result):
                 ok = _ok(result, v)
                 y = np.maximum(np.asarray(result.metrics[v][key], np.float64)[ok], _FLOOR)
+                ys.append(y)
                 st = _style(v)
                 ax.scatter(x[ok], y, s=6, color=st["color"], alpha=alpha, lw=0)
                 if np.ptp(x) > 0 and ok.any():
@@ -136,7 +138,8 @@ def _error_vs_waves(result, out: Path) -> Path:
                     ax.plot(mx, my, color=st["color"], ls=st["ls"], lw=2, label=st["label"])
                 else:
                     ax.plot([], [], color=st["color"], ls=st["ls"], lw=2, label=st["label"])
-            if any(_ok(result, v).any() for v in _variants(result)):
+            y_all = np.concatenate(ys)
+            if y_all.size and np.ptp(y_all) > 0:  # no data, or one value (planar: no depth)
                 ax.set_yscale("log")
             ax.set_xlabel(xlabel)
             ax.set_ylabel(ylabel)
