@@ -483,13 +483,21 @@ def orbital_kinematics(sea: Sea, t, p_ned, current=None):
         ``(u (3,), a (3,))``: ``u`` = :func:`orbital_velocity` [m/s] and ``a = du/dt + G (current +
         u)`` [m/s^2], so that ``water_kinematics(sea, t, p, current, current_dot) == (current + u,
         current_dot + a)``. Both exactly 0 for a calm sea.
+
+    ``G v`` is summed per component with ``du/dt`` (not as the matrix of
+    :func:`orbital_velocity_gradient` times ``v``): with ``w_i = cos(beta_i) v_n + sin(beta_i)
+    v_e``, ``q_i = omega_i - k_i w_i`` and ``r_i = k_i v_d`` (0 above the mean surface),
+    ``a = sum_i [cos(beta_i) A_i, sin(beta_i) A_i, c_i q_i + r_i s_i]``, ``A_i = s_i q_i - r_i
+    c_i`` (a quarter fewer operations per component).
     """
     c, s, cb, sb, below = _components(sea, t, p_ned)
     u = jnp.stack([jnp.sum(c * cb), jnp.sum(c * sb), -jnp.sum(s)])
-    ws, wc = sea.omega * s, sea.omega * c
-    du_dt = jnp.stack([jnp.sum(ws * cb), jnp.sum(ws * sb), jnp.sum(wc)])
     v = u if current is None else u + current
-    return u, du_dt + _gradient(c, s, cb, sb, below, sea.wavenumber) @ v
+    k = sea.wavenumber
+    q = sea.omega - k * (cb * v[0] + sb * v[1])
+    r = k * jnp.where(below, v[2], jnp.zeros_like(v[2]))
+    A = s * q - r * c
+    return u, jnp.stack([jnp.sum(cb * A), jnp.sum(sb * A), jnp.sum(c * q + r * s)])
 
 
 def water_kinematics(sea: Sea, t, p_ned, current=None, current_dot=None):
