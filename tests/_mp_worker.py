@@ -12,7 +12,9 @@ import sys
 from pathlib import Path
 
 from vcjax import distributed
+from vcjax.compiler import prefer_fast_compile
 
+prefer_fast_compile()  # as the CLI does, before JAX starts
 distributed.initialize_from_env()
 
 import jax  # noqa: E402
@@ -47,8 +49,8 @@ def main(config, out):
     # what ``vcjax tune`` runs on a sharded batch: tiled gains, the jitted step compiled once
     tiled = dataclasses.replace(problem, tile_gains=True)
     lf = lambda th, d, s: objective(th, d, s, tiled)[0]
-    loss_t, grad_t = jax.jit(jax.value_and_grad(lf))(theta, data, train)
     step = make_step(lf, make_optimizer("lbfgs", 0.05, 10, 15), "lbfgs")
+    loss_t, grad_t = step.value_and_grad(theta, (data, train))  # the step's own program
     res = run_gradient_tuner(lf, theta, (data, train), steps=3, step_fn=step)
     rec.update(
         loss_tiled=float(np.asarray(loss_t)),

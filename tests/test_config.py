@@ -137,7 +137,7 @@ def test_tune_simulation_u_d_reaches_the_scenarios():
 
 
 def test_tune_config_is_frozen_hashable_and_reads_as_before():
-    from tuning.config import TuneConfig
+    from tuning.spec import TuneConfig
 
     cfg = validate_config(
         {

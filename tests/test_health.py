@@ -12,7 +12,7 @@ import pytest
 
 from vcjax import cli, sim1
 from vcjax.mechanics import MechanicalSystem, VirtualConstraints, reaction_force, vcm_gains
-from vcjax.metrics import PATH_BOUND_MIN_M, first_excursion, path_bound
+from vcjax.metrics import first_excursion, path_bound
 from vcjax.rollout import RolloutConfig, controller_ok, first_unhealthy_step, rollout
 
 _HOLD = VirtualConstraints(holonomic=lambda q, t, a: jnp.atleast_1d(q[0] - 1.0))
@@ -96,8 +96,10 @@ def test_controller_ok_finds_ok_anywhere_in_aux(aux, expected):
     "u_d, horizon, bound, expected",
     [
         (2.0, 150.0, None, 75.0),  # Simulation 1: 25 % of 300 m
-        (2.0, 30.0, None, PATH_BOUND_MIN_M),  # short runs: at least 50 m
-        (0.5, 300.0, None, PATH_BOUND_MIN_M),  # Simulation 2's ODIN: 37.5 -> 50 m
+        (2.0, 30.0, None, 50.0),  # short runs: at least 50 m (PATH_BOUND_MIN_M)
+        (0.5, 300.0, None, 50.0),  # Simulation 2's ODIN: 37.5 -> 50 m
+        (2.0, 100.0, None, 50.0),  # exactly at the floor: 25 % of 200 m
+        (2.0, 101.0, None, 50.5),  # just above it
         (2.0, 150.0, 10.0, 10.0),  # explicit
     ],
 )

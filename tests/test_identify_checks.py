@@ -18,7 +18,9 @@ from vcjax.cli import main
 from vcjax.identify import fit_logs, get_fit_model, load_log, make_segments, save_log_csv
 from vcjax.identify.checks import (
     MAX_CONDITION,
+    MIN_PAIR_CORRELATION,
     check_excitation,
+    check_logs,
     sensitivities,
     trust_warnings,
 )
@@ -31,6 +33,26 @@ CURRENT = dict(current_speed=0.5, current_direction=math.radians(170.0))
 def _log(n):
     log = load_log(CSV, REMUS.state_columns, REMUS.command_columns)
     return dataclasses.replace(log, t=log.t[:n], x=log.x[:n], u=log.u[:n])
+
+
+def test_a_pair_that_does_not_move_together_gives_no_evidence_of_degrees():
+    """A rudder command 57.3 x the rudder plus 1.3 times as much noise: the regression ratio is
+    180/pi but the two hardly move together (correlation about zero ~0.6), so the pair says
+    nothing about units and the log passes; the same command without the noise is refused."""
+    log = _log(600)
+    i, j = REMUS.state_columns.index("delta_r"), REMUS.command_columns.index("delta_r_cmd")
+    xa = log.x[1:, i]  # the actuator follows the previous sample's command
+    scale = 57.3 * np.sqrt(np.mean(xa**2))
+    noise = 1.3 * scale * np.random.default_rng(0).standard_normal(xa.size)
+    u = log.u.copy()
+    u[:-1, j] = 57.3 * xa + noise
+    xb = u[:-1, j]
+    corr, k = xa @ xb / np.sqrt((xa @ xa) * (xb @ xb)), xa @ xb / (xa @ xa)
+    assert corr < MIN_PAIR_CORRELATION and 90.0 / np.pi < k < 360.0 / np.pi, (corr, k)
+    check_logs(REMUS, [dataclasses.replace(log, u=u)])
+    u[:-1, j] = 57.3 * xa
+    with pytest.raises(ValueError, match="'delta_r_cmd' is in degrees"):
+        check_logs(REMUS, [dataclasses.replace(log, u=u)])
 
 
 # ------------------------------------------------------------------ excitation (before fitting)
@@ -95,6 +117,12 @@ def test_trust_warnings_conditioning_and_clean_case():
     assert len(w) == 1 and f"> {MAX_CONDITION:.0e}" in w[0] and "poorly conditioned" in w[0]
     ok = trust_warnings(["a", "b"], {"a": 1, "b": 2}, {"a": 1, "b": 1}, {"a": 1, "b": 1}, np.eye(2))
     assert ok == []
+    # no information (an eigenvalue 0 or below): an infinite condition number, not 0/0 or < 0
+    for singular in (0 * ill, np.diag([1.0, -1e-12])):  # the second: round-off below zero
+        w = trust_warnings(
+            ["a", "b"], {"a": 1, "b": 1}, {"a": 1, "b": 1}, {"a": 1, "b": 1}, singular
+        )
+        assert len(w) == 1 and "condition number inf" in w[0]
 
 
 def test_product_pair_is_not_converged_and_warned_in_fit_json(tmp_path, capsys):

@@ -13,7 +13,18 @@ ROOT = Path(__file__).resolve().parents[1] / "vcjax"
 #: nothing; the experiments (presets of ``vcjax simulate``) sit on top, below only the CLI;
 #: ``sim1``/``sim2``/``demos``/``sim_remus100`` are the experiments' older names (aliases).
 LAYERS = [
-    {"_checks", "devices", "linalg", "integrators", "progress", "cache", "outputs", "sizing"},
+    {
+        "_checks",
+        "devices",
+        "linalg",
+        "integrators",
+        "progress",
+        "cache",
+        "compiler",
+        "outputs",
+        "interrupts",
+        "sizing",
+    },
     {"distributed", "runinfo"},
     {"mechanics", "systems", "paths", "currents", "waves"},
     {"vehicles", "guidance", "allocation", "rollout"},
@@ -25,10 +36,10 @@ LAYERS = [
     {"plots"},
     {"experiments", "identify"},
     {"sim1", "sim2", "demos", "sim_remus100"},
-    {"cli"},
+    {"cli", "commands"},
 ]
 #: the only modules of vcjax that may import vcjax.experiments (besides itself)
-EXPERIMENT_IMPORTERS = {"cli", "sim1", "sim2", "demos", "sim_remus100"}
+EXPERIMENT_IMPORTERS = {"cli", "commands", "sim1", "sim2", "demos", "sim_remus100"}
 LAYER_OF = {name: i for i, names in enumerate(LAYERS) for name in names}
 
 
@@ -70,7 +81,7 @@ def test_imports_follow_the_data_flow():
 
 TUNING = Path(__file__).resolve().parents[1] / "tuning"
 #: what the tuner may not import: the experiments and the CLI sit above it
-ABOVE_TUNING = {"sim1", "sim2", "demos", "sim_remus100", "experiments", "cli"}
+ABOVE_TUNING = {"sim1", "sim2", "demos", "sim_remus100", "experiments", "cli", "commands"}
 
 
 def test_tuning_imports_the_layer_never_an_experiment_and_vcjax_never_imports_tuning():
@@ -81,7 +92,7 @@ def test_tuning_imports_the_layer_never_an_experiment_and_vcjax_never_imports_tu
                 bad.append(f"tuning/{path.name} imports vcjax.{dep}")
     for path in ROOT.rglob("*.py"):
         rel = path.relative_to(ROOT)
-        if rel.parts[0] == "cli.py":
+        if rel.parts[0] in ("cli.py", "commands.py"):
             continue  # the CLI calls tuning's public entry point
         tree = ast.parse(path.read_text())
         for node in ast.walk(tree):
@@ -127,3 +138,66 @@ def test_no_private_figure_helpers_across_modules():
                     f"{path.name}: {node.module}.{a.name}" for a in node.names if a.name[0] == "_"
                 ]
     assert not bad, bad
+
+
+# ------------------------------------------------------------------ the import graph
+
+
+def _module_name(path: Path, base: Path) -> str:
+    parts = list(path.relative_to(base).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def import_graph() -> dict[str, set[str]]:
+    """``{module: modules of vcjax and tuning it imports}``, every import counted (those inside
+    functions too: an import deferred to call time is still a dependency)."""
+    base = ROOT.parent
+    files = {_module_name(p, base): p for pkg in (ROOT, TUNING) for p in pkg.rglob("*.py")}
+    graph = {}
+    for name, path in files.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        deps = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                mod = node.module or ""
+                if node.level:  # relative: resolved against the package
+                    head = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    mod = ".".join(head + ([mod] if mod else []))
+                for a in node.names:  # "from pkg import submodule" depends on the submodule
+                    deps.add(f"{mod}.{a.name}" if f"{mod}.{a.name}" in files else mod)
+            elif isinstance(node, ast.Import):
+                deps.update(a.name for a in node.names)
+        graph[name] = {d for d in deps if d in files and d != name}
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One cycle of ``graph`` as ``[a, b, ..., a]``, or None (depth-first search)."""
+    done, on_path = set(), []
+
+    def visit(v):
+        if v in on_path:
+            return [*on_path[on_path.index(v) :], v]
+        if v in done:
+            return None
+        on_path.append(v)
+        for w in sorted(graph.get(v, ())):
+            if cycle := visit(w):
+                return cycle
+        on_path.pop()
+        done.add(v)
+        return None
+
+    for v in sorted(graph):
+        if cycle := visit(v):
+            return cycle
+    return None
+
+
+def test_the_import_graph_has_no_cycles():
+    graph = import_graph()
+    assert {"vcjax.loops.registry", "vcjax.commands", "tuning.spec"} <= set(graph)
+    assert "vcjax.loops.registry" in graph["vcjax.loops"]  # the graph sees the imports
+    assert find_cycle(graph) is None, " -> ".join(find_cycle(graph))
+    # and the check finds one when there is one
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}) == ["a", "b", "c", "a"]

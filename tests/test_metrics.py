@@ -68,6 +68,26 @@ def test_every_metric_against_a_hand_computation():
     assert not bool(m["nonfinite"]) and not bool(m["diverged"])
 
 
+def test_metric_names_order():
+    """The column order of sweep tables and metrics files: the run-wide error metrics, one
+    ``max_abs_`` per actuator in the loop's order, then the windowed RMS and distance metrics."""
+    assert metric_names(["tau_u", "rudder_deg"]) == (
+        "ss_abs_e",
+        "ss_abs_s",
+        "ss_abs_u_err",
+        "iae_e",
+        "max_abs_e",
+        "max_abs_tau_u",
+        "max_abs_rudder_deg",
+        "rms_along_track_s",
+        "rms_cross_track_e",
+        "rms_dist_3d",
+        "max_dist_3d",
+        "rms_depth_err",
+        "sat_fraction",
+    )
+
+
 def test_health_flags():
     finite = jnp.array([True, True, True, False, True])
     m = run_metrics(signals(), finite, DT, start=0.6)

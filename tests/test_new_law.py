@@ -5,7 +5,6 @@ for ``infante``, defined entirely in this file with its own gains, registered wi
 import dataclasses
 from typing import Any, NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -72,8 +71,8 @@ class LosPDLaw(loops.Law):
 
     def step(self, loop, params, t, x, z):
         g, m = params.gains, params.model
-        frame = paths.path_frame(loop.path, params.path, z.varpi)
-        s, e = rot2(frame.psi_p).T @ (x.eta[:2] - frame.p_bar)
+        frame = paths.path_pose(loop.path, params.path, z.varpi)  # no rates needed
+        s, e = rot2(frame.psi_p).T @ (x.eta[:2] - frame.p[:2])
         psi_d = frame.psi_p + jnp.arctan2(-e, g.Delta)
         psi_tilde = wrap_angle(x.eta[2] - psi_d)
         tau_u = m.m11 * g.k_u * (params.u_d - x.nu[0]) + m.d11 * x.nu[0]
@@ -131,5 +130,6 @@ def test_the_new_law_is_swept_and_tuned():
         loss, data.theta_ref, (data, train), optimizer="adam", steps=2, learning_rate=0.05
     )
     assert r.n_bad == 0 and np.isfinite(r.loss)
-    grad = jax.grad(loss)(data.theta_ref, data, train)
-    assert np.all(np.isfinite(np.asarray(grad))) and np.any(np.asarray(grad) != 0)
+    # the gradient at the start (the tuner's first step, compiled once): finite, not zero
+    g0 = r.history[0]["grad_norm"]
+    assert g0 is not None and np.isfinite(g0) and g0 > 0

@@ -138,7 +138,15 @@ def test_committed_figures_reproduce(name, tmp_path):
     assert not bad, f"{name}: {len(bad)} differences (largest relative {worst[0]:.2e}): {bad[:10]}"
 
 
-def main(names: list[str]) -> int:
+def main(argv: list[str]) -> int:
+    import argparse
+
+    ap = argparse.ArgumentParser(
+        prog="python tests/test_reproduce_figures.py",
+        description="Re-run the commands behind docs/figures and compare to 1e-9 relative.",
+    )
+    ap.add_argument("names", nargs="*", help=f"some of {sorted(CASES)}, or all (default)")
+    names = ap.parse_args(argv).names
     names = sorted(CASES, key=lambda n: CASES[n][2]) if names in ([], ["all"]) else names
     unknown = sorted(set(names) - set(CASES))
     if unknown:

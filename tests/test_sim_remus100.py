@@ -121,9 +121,16 @@ def test_registered_in_the_scenario_layer_and_example_configs_parse():
 @pytest.mark.slow
 @pytest.mark.parametrize("controller", ["decoupled", "alos3d", "pvs_pid", "vcm3d"])
 def test_every_controller_runs_through_the_loop_layer(controller):
-    traj, _ = sr.simulate(controller, horizon=SHORT, initial={"z": 2.0, "pitch_deg": 5.0})
+    traj, (path, coeffs) = sr.simulate(
+        controller, horizon=SHORT, initial={"z": 2.0, "pitch_deg": 5.0}
+    )
     assert bool(np.all(traj.finite))
     assert np.all(np.abs(np.asarray(traj.aux.eps)) < 10.0)
+    # the mission's metrics of any controller's run, its loop found from the law's state
+    m = sr.mission_metrics(traj, path, coeffs)
+    loop, sc = sr.mission_scenario(controller, coeffs=coeffs)
+    np.testing.assert_equal(m, sr.mission_metrics(traj, path, coeffs, loop=loop, scenario=sc))
+    assert m["healthy"] and set(m) == set(sr.REPORTED)
 
 
 @pytest.mark.slow

@@ -34,6 +34,10 @@ def tiny():
     return data, scen
 
 
+#: the tiny problem's batch loss and gradient, compiled once for the tests that need it
+tiny_value_and_grad = jax.jit(jax.value_and_grad(lambda th, d, s: objective(th, d, s, TINY)[0]))
+
+
 # ------------------------------------------------------------------ parametrisation
 
 
@@ -82,9 +86,8 @@ def test_parametrisation_subsets_and_variant():
 def test_loss_gradient_matches_central_differences(tiny):
     data, scen = tiny
     f = jax.jit(lambda th: objective(th, data, scen, TINY)[0])
-    g = jax.jit(jax.grad(lambda th: objective(th, data, scen, TINY)[0]))
     theta = data.theta_ref + 0.1 * jnp.arange(12.0) / 12.0
-    grad = np.asarray(g(theta))
+    grad = np.asarray(tiny_value_and_grad(theta, data, scen)[1])
     h = 1e-5
     fd = np.array(
         [
@@ -127,7 +130,7 @@ def test_checkpointed_loss_gradient_is_the_same(tiny):
     data, scen = tiny
     ck = dataclasses.replace(TINY, checkpoint=True, checkpoint_every=7)
     theta = data.theta_ref + 0.05
-    a = jax.jit(jax.value_and_grad(lambda th: objective(th, data, scen, TINY)[0]))(theta)
+    a = tiny_value_and_grad(theta, data, scen)
     b = jax.jit(jax.value_and_grad(lambda th: objective(th, data, scen, ck)[0]))(theta)
     np.testing.assert_allclose(a[0], b[0], rtol=1e-12)
     np.testing.assert_allclose(a[1], b[1], rtol=1e-9, atol=1e-12)
@@ -144,6 +147,40 @@ def test_symmetry_break_splits_equal_pairs_only():
     assert float(g.P_G[0]) == pytest.approx(float(base.P_G[0]))  # heading row untouched
     uneven = full._replace(vcm=base._replace(P_G=jnp.asarray([1.0, 0.3, 0.5])))
     assert np.count_nonzero(space.symmetry_break(uneven)) == 2  # only the e row
+
+
+def test_symmetry_break_skips_pairs_not_tuned_or_bounded_and_goes_on():
+    """A loop with three pairs: one not tuned (Delta, sigma), one with a bounded gain (P_int[0]
+    set equal to P_G[1]) and the Baumgarte pair P_G[1], P_Phi[3] (equal in Simulation 1's
+    gains): only the last is split, by the default exp(+-0.1)."""
+    base = GainSpace().loop
+
+    @dataclasses.dataclass(frozen=True)
+    class Pairs(type(base)):
+        def symmetric_pairs(self):
+            return (("Delta", 0, "sigma", 0), ("P_int", 0, "P_G", 1), ("P_G", 1, "P_Phi", 3))
+
+    loop = Pairs(controller=base.controller, path=base.path)
+    space = GainSpace(loop, tune=("P_G", "P_Phi", "P_int"))
+    full = sim1.default_gains()
+    full = full._replace(vcm=full.vcm._replace(P_int=jnp.asarray([0.5, 0.0])))
+    off = space.symmetry_break(full)
+    np.testing.assert_array_equal(off, [0.0, 0.1, 0.0, 0.0, 0.0, 0.0, -0.1, 0.0, 0.0, 0.0])
+
+
+def test_gain_space_values_are_plain_json_numbers_and_lists():
+    """Reports and histories: one-entry groups as numbers, the others as lists (Simulation 1's
+    gains, typed in)."""
+    v = GainSpace().values(sim1.default_gains())
+    assert v == {
+        "P_G": [1.0, 0.5, 0.5],
+        "P_Phi": [1.0, 1.0, 2.0, 0.5, 0.5],
+        "Delta": 5.0,
+        "sigma": 0.5,
+        "P_int": [0.05, 0.0],
+    }
+    assert type(v["Delta"]) is float and type(v["sigma"]) is float
+    assert json.loads(json.dumps(v)) == v
 
 
 def test_forward_mode_gradient_equals_reverse():
@@ -455,7 +492,8 @@ def _on_two_devices(script: str) -> dict:
     import sys
     from pathlib import Path
 
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
+    env = {**os.environ, "XLA_FLAGS": flags.strip()}
     env.pop("VCJAX_CPU_DEVICES", None)
     out = subprocess.run(
         [sys.executable, "-c", script],
@@ -519,8 +557,9 @@ out = {}
 for tile in (False, True):
     p = dataclasses.replace(prob, tile_gains=tile)
     f = jax.jit(jax.value_and_grad(lambda th, d, s: objective(th, d, s, p)[0]))
-    v, g = f(theta_d, data_d, scen_d)
-    text = f.lower(theta_d, data_d, scen_d).compile().as_text()
+    compiled = f.lower(theta_d, data_d, scen_d).compile()  # compiled once: run and read
+    v, g = compiled(theta_d, data_d, scen_d)
+    text = compiled.as_text()
     in_loops = loop_allreduces(text)
     out[str(tile)] = {"v": float(v), "g": np.asarray(g).tolist(), "in_loops": in_loops}
 v1, g1 = jax.jit(jax.value_and_grad(lambda th: objective(th, data, scen, prob)[0]))(theta)

@@ -48,12 +48,12 @@ def _engine_problem(params):
     """The exact constraint set (26)-(27) with z = [varpi, v_d] and v_d free (sway unactuated)."""
     g = params.gains
 
-    def frame(z):
-        return paths.path_frame(LINE_PATH, LINE_COEFFS, z[0])
+    def frame(z):  # the pose: the engine differentiates these constraints twice
+        return paths.path_pose(LINE_PATH, LINE_COEFFS, z[0])
 
     def eps_of(q, z):
         f = frame(z)
-        return rot2(f.psi_p).T @ (q[:2] - f.p_bar)
+        return rot2(f.psi_p).T @ (q[:2] - f.p[:2])
 
     def G(q, t, args, z):
         eps = eps_of(q, z)
@@ -100,7 +100,7 @@ def test_horizontal_reduction_equals_closed_form_38(gains):
     # the free rate is the closed form's v_d_dot (finite differences of the recorded v_d)
     vd = np.asarray(z.v_d)
     assert np.max(np.abs(vd)) > 1e-3
-    vdd_law = jax.vmap(lambda e, n, zz, t: vcm_law(_cfg(), params, t, e, n, zz)[1].v_d)(
+    vdd_law = jax.jit(jax.vmap(lambda e, n, zz, t: vcm_law(_cfg(), params, t, e, n, zz)[1].v_d))(
         eta, nu, jax.tree_util.tree_map(lambda a: a[:-1], z), traj.t[:-1]
     )
     np.testing.assert_allclose(vdd_e, vdd_law, rtol=1e-8, atol=1e-10 * np.abs(vdd_law).max())

@@ -84,12 +84,12 @@ def test_closed_form_matches_generic_engine(gains):
     traj, params = simulate(cfg, T=20.0, dt=0.05, gains=gains)
     g = params.gains
 
-    def frame(z):
-        return paths.path_frame(LINE_PATH, LINE_COEFFS, z[0])
+    def frame(z):  # the pose: the engine differentiates these constraints twice
+        return paths.path_pose(LINE_PATH, LINE_COEFFS, z[0])
 
     def eps_of(q, z):
         f = frame(z)
-        return rot2(f.psi_p).T @ (q[:2] - f.p_bar)
+        return rot2(f.psi_p).T @ (q[:2] - f.p[:2])
 
     def G(q, t, args, z):
         eps = eps_of(q, z)
@@ -192,6 +192,16 @@ def test_gain_validation():
         pm_gains(P_int=(0.5, 0.5))
     with pytest.raises(ValueError, match="actuation"):
         VCMConfig(path=LINE_PATH, actuation="sway")
+
+
+def test_integral_gain_bound_per_row_with_asymmetric_gains():
+    """Routh-Hurwitz of (41) row by row, (p_G + p_Phi) p_G p_Phi: s row (0.4 + 0.3) 0.4 0.3 =
+    0.084, e row (0.8 + 0.9) 0.8 0.9 = 1.224 (hand-computed; no two gains equal)."""
+    g = dict(P_G=(1.0, 0.4, 0.8), P_Phi=(1.0, 1.0, 2.0, 0.3, 0.9))
+    pm_gains(**g, P_int=(0.083, 1.223))
+    for bad in [(0.085, 0.5), (0.05, 1.225)]:
+        with pytest.raises(ValueError, match="P_int.*unstable"):
+            pm_gains(**g, P_int=bad)
 
 
 def test_ilos_guidance_keeps_37_exact_and_removes_the_cross_current_offset():

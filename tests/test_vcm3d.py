@@ -80,6 +80,61 @@ def test_theorem1_consistent_rows_decay_exactly():
     assert np.max(np.asarray(traj.aux.ls_residual)) < 1e-8
 
 
+def test_errors_angles_and_state_rates_by_hand():
+    """One evaluation off the path: the errors (23), the approach angles (24) or their ILOS
+    form (40), the particle rate (22), the ILOS and the integral states' rates (anti-windup
+    beyond int_limit), each against the formula written out here with its own rotation
+    matrices; Delta and sigma_i differ per channel, so a swapped index fails. (The LOS angles
+    (24) are the ILOS ones at sigma_i = 0: the closed-loop tests above and the REMUS channel
+    tests run them.)"""
+    gains = vcm3d_gains(Delta=(6.0, 11.0), sigma=0.35, sigma_i=(0.4, 0.7), k_int=(0.02, 0.03, 0.05))
+    params = vcm3d_params(gains, DM, LINE_C, u_d=1.5, int_limit=2.0)
+    psi_p, theta_p = 0.5, -np.arctan(0.2)  # LINE: azimuth 0.5 rad, 0.2 m deeper per m
+    c, s = np.cos(psi_p), np.sin(psi_p)
+    Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    c, s = np.cos(theta_p), np.sin(theta_p)
+    Ry = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    d = np.array([np.cos(0.5), np.sin(0.5), 0.2]) / np.linalg.norm([np.cos(0.5), np.sin(0.5), 0.2])
+    varpi, eps = 3.0, np.array([0.4, -1.3, 0.8])
+    p = np.array([0.0, 0.0, 5.0]) + varpi * d + Rz @ Ry @ eps
+    q = jnp.asarray(np.concatenate([p, [0.1, 0.6]]))
+    qd = jnp.array([1.2, 0.4, -0.1, 0.02, -0.03])
+    zeta, e_int, h_int = np.array([0.5, -3.0, 1.0]), -2.0, 1.5
+    z = vcm3d_state(varpi0=varpi, zeta0=zeta, e_int0=e_int, h_int0=h_int)
+    law = jax.jit(vcm3d_law, static_argnums=0)
+    _, z_dot, aux = law(cfg_of("full", True, "ilos"), params, 0.0, q, qd, z)
+    np.testing.assert_allclose(aux.eps, eps, atol=1e-12)
+    E, H = eps[1] + 0.4 * e_int, eps[2] + 0.7 * h_int
+    np.testing.assert_allclose(aux.psi_d, psi_p + np.arctan(-E / 6.0), atol=1e-12)
+    np.testing.assert_allclose(aux.theta_d, theta_p + np.arctan(H / 11.0), atol=1e-12)
+    np.testing.assert_allclose(aux.psi_tilde, 0.6 - float(aux.psi_d), atol=1e-12)
+    np.testing.assert_allclose(aux.theta_tilde, 0.1 - float(aux.theta_d), atol=1e-12)
+    np.testing.assert_allclose(z_dot.e_int, 6.0 * eps[1] / (E**2 + 36.0), rtol=1e-12)
+    np.testing.assert_allclose(z_dot.h_int, 11.0 * eps[2] / (H**2 + 121.0), rtol=1e-12)
+    # the particle runs at u_d + sigma s along the (unit-speed) line
+    np.testing.assert_allclose(z_dot.varpi, 1.5 + 0.35 * eps[0], rtol=1e-12)
+    # zeta' = eps, less the excess beyond int_limit = 2 (zeta[1] = -3 is 1 beyond)
+    np.testing.assert_allclose(z_dot.zeta, eps - np.array([0.0, -1.0, 0.0]), atol=1e-12)
+    assert float(z_dot.v_d) == 0.0 and float(z_dot.w_d) == 0.0  # full actuation
+
+
+def test_defaults_are_the_documented_ones():
+    """The API reference shows these defaults (typed in here from it)."""
+    g = vcm3d_gains()
+    expected = {
+        "P_G": [1.0, 1.0, 0.3, 0.3, 0.3],
+        "P_Phi": [0.5, 0.5, 0.5, 2.0, 2.0, 0.5, 0.5, 0.5],
+        "Delta": [8.0, 8.0],
+        "sigma": 0.3,
+        "k_int": [0.05, 0.05, 0.05],
+        "sigma_i": [0.5, 0.5],
+    }
+    for name, value in expected.items():
+        np.testing.assert_array_equal(getattr(g, name), value, err_msg=name)
+    p = vcm3d_params(g, DM, LINE_C)
+    assert float(p.u_d) == 1.5 and float(p.int_limit) == 50.0
+
+
 def _axis(p_K, p_G, p_Phi):
     """``[y, y']`` of one cross axis: the rows ``v' = -p_K v`` and ``y'' + (p_G + p_Phi) y' +
     p_Phi p_G y = 0`` share one acceleration (``v = y'``); least squares takes their mean."""

@@ -30,16 +30,18 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from tuning.config import TuneConfig, load_config
+from tuning.config import load_config
 from tuning.loss import TERMS, TuningProblem, objective, problem_data
 from tuning.loss import loss_weights as make_weights
 from tuning.optim import run_gradient_tuner, tuner_options
 from tuning.params import GainSpace
 from tuning.report import ProgressBar, plot_before_after, plot_loss_curve, plot_loss_terms
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
+from tuning.spec import TuneConfig
 from vcjax import distributed, loops, paths
 from vcjax.config import ConfigError, Current
-from vcjax.outputs import stop_requested_everywhere, write_json_atomic
+from vcjax.interrupts import stop_requested_everywhere
+from vcjax.outputs import write_json_atomic
 
 __all__ = ["build", "run_tune_config", "main"]
 

@@ -33,7 +33,7 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from vcjax.outputs import stop_requested
+from vcjax.interrupts import stop_requested
 
 __all__ = [
     "ENV_COORDINATOR",
@@ -160,7 +160,7 @@ def spawn(
     into that many devices (``VCJAX_CPU_DEVICES``, read by the ``vcjax`` commands, and
     ``XLA_FLAGS=--xla_force_host_platform_device_count`` for any other JAX program). If one
     process fails, or ``timeout_s`` passes, the others are terminated. Called inside
-    :func:`vcjax.outputs.interrupt_guard`, an interrupt is forwarded to the processes (SIGINT)
+    :func:`vcjax.interrupts.interrupt_guard`, an interrupt is forwarded to the processes (SIGINT)
     and they are waited for: each keeps and writes what it has done.
 
     Returns:

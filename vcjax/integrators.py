@@ -31,8 +31,8 @@ __all__ = [
 def dense_tangent(x, like):
     """``x`` unchanged, with a tangent that is never a *symbolic* zero when ``like`` has one.
 
-    Values and derivatives are those of ``x`` (its tangent is ``x``'s own plus ``0 x`` a linear
-    function of ``like``'s tangent). What changes is how much JAX traces: linearising a
+    Values and derivatives are those of ``x``, bit for bit, and it costs nothing when nothing
+    is differentiated (an identity). What changes is how much JAX traces: linearising a
     ``lax.scan`` is a fixpoint over which carries have non-zero tangents, one full
     linearisation of the loop body per round. A carry that starts from constants (a rollout's
     initial state, RK4's zero stage accumulators) starts the fixpoint at "zero" and pays a
@@ -41,6 +41,9 @@ def dense_tangent(x, like):
     non-zero from the start, it settles in one round: the same gradient, a fraction of the
     tracing. ``like`` is anything the carry's later values depend on (the parameters).
 
+    How: a ``jax.custom_jvp`` identity whose tangent is ``x``'s own (zeros where ``x`` has
+    none) plus ``0 x`` the sum of ``like``'s tangents; JAX then counts it as non-zero.
+
     Args:
         x: pytree of arrays (a scan's initial carry; integer leaves pass unchanged).
         like: pytree of arrays whose tangents the carry will pick up (integer leaves ignored).
@@ -48,30 +51,39 @@ def dense_tangent(x, like):
     return _dense(x, like)
 
 
+def _is_zero(t) -> bool:
+    from jax.custom_derivatives import SymbolicZero
+
+    return isinstance(t, SymbolicZero)
+
+
 @jax.custom_jvp
 def _dense(x, like):
     return x
 
 
-@_dense.defjvp
 def _dense_jvp(primals, tangents):
     import jax.numpy as jnp
 
     x, _ = primals
     t_x, t_like = tangents
-    # custom_jvp materialises symbolic zeros: every leaf of t_like is an array here, traced
-    # (unknown) where ``like`` has a real tangent; 0 x their sum makes t_x's rows depend on it
     parts = [
         jnp.sum(t)
-        for t in jax.tree_util.tree_leaves(t_like)
-        if jnp.issubdtype(t.dtype, jnp.inexact) and t.size
+        for t in jax.tree_util.tree_leaves(t_like, is_leaf=_is_zero)
+        if not _is_zero(t) and jnp.issubdtype(t.dtype, jnp.inexact) and t.size
     ]
-    if not parts:
-        return x, t_x
-    zero = 0.0 * sum(parts[1:], parts[0])
-    return x, jax.tree_util.tree_map(
-        lambda t: t + zero.astype(t.dtype) if jnp.issubdtype(t.dtype, jnp.inexact) else t, t_x
-    )
+    zero = 0.0 * sum(parts[1:], parts[0]) if parts else None
+
+    def out(t, p):
+        if not jnp.issubdtype(jnp.asarray(p).dtype, jnp.inexact):
+            return t  # integer leaves: float0 tangents
+        t = jnp.zeros_like(p) if _is_zero(t) else t
+        return t if zero is None else t + zero.astype(t.dtype)
+
+    return x, jax.tree_util.tree_map(out, t_x, x, is_leaf=_is_zero)
+
+
+_dense.defjvp(_dense_jvp, symbolic_zeros=True)
 
 
 def _axpy(a, x, y):
@@ -128,7 +140,10 @@ def rk4(f: Callable, t, y, dt, args):
     # the state's dtype (a Python-float dt stays weakly typed, as in the unrolled form)
     coef = jnp.asarray(_RK4_C, dtype=jnp.result_type(dtype, dt))
     weight = jnp.asarray(_RK4_W, dtype=coef.dtype)
-    zeros = dense_tangent(jax.tree_util.tree_map(jnp.zeros_like, y), y)
+    # ``0 y`` rather than constant zeros: the stage carry then has a tangent wherever ``y``
+    # has one, and linearising this scan settles in one round (see dense_tangent); the same
+    # numbers (y is finite: the rollout freezes a non-finite state)
+    zeros = jax.tree_util.tree_map(lambda a: 0 * a, y)
 
     def stage(carry, cw):
         k_prev, acc = carry

@@ -1,5 +1,5 @@
 """Output folders that lose nothing and clobber nothing: checks before any work, a lock, atomic
-writes, and interrupts that keep what is done.
+writes.
 
 Every ``vcjax`` command that writes a folder (``simulate``, ``sweep``, ``tune``, ``fit``) calls
 :func:`prepare_out` before it compiles or runs anything:
@@ -27,14 +27,7 @@ Writes are atomic (:func:`write_json_atomic`, :func:`save_npz_atomic`, :func:`sa
 a temporary file in the same folder, then ``os.replace``, so a killed run never leaves a
 half-written JSON or npz behind.
 
-Interrupts (:func:`interrupt_guard`): SIGINT and SIGTERM set a flag (:func:`stop_requested`)
-that the long loops poll at safe points (after a sweep chunk, a tuning step, a fit iteration);
-they stop there and write what is done, marked ``interrupted``. The CLI then prints one line and
-exits with :data:`EXIT_INTERRUPTED` (130). A second signal more than
-:data:`SAME_INTERRUPT_S` later raises :class:`KeyboardInterrupt` (the CLI turns it into a
-one-line exit too). ``vcjax launch`` forwards its interrupt to the processes it started and
-waits for them to write their results; the processes of a tuning agree on the step to stop at
-(:func:`stop_requested_everywhere`).
+Interrupts that keep what is done: :mod:`vcjax.interrupts`.
 """
 
 from __future__ import annotations
@@ -43,36 +36,25 @@ import atexit
 import contextlib
 import json
 import os
-import signal
 import socket
 import tempfile
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
 
 __all__ = [
-    "EXIT_INTERRUPTED",
     "LOCK",
     "MANIFEST",
     "MARKERS",
     "OutDir",
     "OutputError",
-    "interrupt_guard",
     "process_id_from_env",
     "prepare_out",
-    "request_stop",
     "save_npz_atomic",
     "savefig_atomic",
-    "stop_requested",
-    "stop_requested_everywhere",
-    "stop_signal",
     "write_json_atomic",
 ]
 
-#: Exit code of a run stopped by SIGINT / SIGTERM (128 + SIGINT, the shell's convention).
-EXIT_INTERRUPTED = 130
 #: Lock file name inside ``--out``.
 LOCK = ".vcjax.lock"
 #: Manifest of the files a run wrote (read by ``--overwrite`` to remove exactly those).
@@ -384,76 +366,3 @@ def prepare_out(
         raise
     d._before = d._snapshot()
     return d
-
-
-# --------------------------------------------------------------------------- interrupts
-
-_stop = threading.Event()
-_stop_signal: list[int] = []
-_stop_time: list[float] = [0.0]
-#: Signals closer together than this [s] count as one interrupt.
-SAME_INTERRUPT_S = 1.0
-
-
-def stop_requested() -> bool:
-    """Whether SIGINT / SIGTERM arrived inside :func:`interrupt_guard` (polled by the loops)."""
-    return _stop.is_set()
-
-
-def stop_requested_everywhere() -> bool:
-    """:func:`stop_requested` agreed by every process of a multi-process run (one small
-    all-gather; call it at the same point in every process, e.g. after each tuning step, so
-    that they all stop at the same step and none waits in a collective for one that stopped).
-    One process: :func:`stop_requested`."""
-    import jax
-
-    if jax.process_count() == 1:
-        return stop_requested()
-    from jax.experimental import multihost_utils
-
-    flags = multihost_utils.process_allgather(np.array(stop_requested()))
-    return bool(np.any(flags))
-
-
-def stop_signal() -> str | None:
-    """Name of the signal that requested the stop (``"SIGINT"``, ``"SIGTERM"``), or None."""
-    return signal.Signals(_stop_signal[0]).name if _stop_signal else None
-
-
-def request_stop(signum: int = signal.SIGINT) -> None:
-    """Ask the running loop to stop at its next safe point (what the signal handler does)."""
-    if not _stop_signal:
-        _stop_signal.append(int(signum))
-    _stop.set()
-
-
-@contextlib.contextmanager
-def interrupt_guard():
-    """Within the block, SIGINT / SIGTERM request a stop (:func:`stop_requested`) instead of
-    killing the process; a second signal raises :class:`KeyboardInterrupt`. On exit the
-    handlers are restored and the flag cleared (a later run in the same process starts afresh;
-    :func:`stop_signal` still names the signal). Only in the main thread (elsewhere: no-op)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handler(signum, frame):
-        # a second signal stops at once -- unless it is the same interrupt arriving twice (a
-        # terminal's Ctrl-C to the process group, and vcjax launch forwarding it): < 1 s apart
-        if _stop.is_set() and time.monotonic() - _stop_time[0] > SAME_INTERRUPT_S:
-            raise KeyboardInterrupt
-        if not _stop.is_set():
-            _stop_time[:] = [time.monotonic()]
-        request_stop(signum)
-
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    _stop.clear()
-    _stop_signal.clear()
-    for s in old:
-        signal.signal(s, handler)
-    try:
-        yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-        _stop.clear()

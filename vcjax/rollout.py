@@ -199,6 +199,31 @@ def _stack0(first, rest):
     return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b], axis=0), first, rest)
 
 
+def _batched_like(tree, like):
+    """``tree`` with every float leaf as ``where(False, s, leaf)``, ``s`` the sum of ``like``'s
+    float leaves: the same values, bit for bit, but under ``vmap`` batched whenever ``like``
+    is. ``vmap`` of a ``lax.scan`` is a fixpoint over which carries are batched, one batching
+    of the whole loop body per round: a controller state that starts from constants (while
+    the plant's initial state is per scenario) cost a second round. XLA folds the select."""
+    parts = [
+        jnp.sum(a)
+        for a in jax.tree_util.tree_leaves(like)
+        if jnp.issubdtype(jnp.result_type(a), jnp.inexact) and jnp.size(a)
+    ]
+    if not parts:
+        return tree
+    total = sum(parts[1:], parts[0])
+    never = jnp.zeros((), bool)
+
+    def mark(a):
+        a = jnp.asarray(a)
+        if not jnp.issubdtype(a.dtype, jnp.inexact):
+            return a
+        return jnp.where(never, total.astype(a.dtype), a)
+
+    return jax.tree_util.tree_map(mark, tree)
+
+
 def _dense_carry(init, like):
     """The scan's initial carry through :func:`~vcjax.integrators.dense_tangent`: it starts
     from constants but picks up the tangents of ``like`` (parameters, ``dt``), so linearising
@@ -306,6 +331,8 @@ def rollout(
     dtype = t0.dtype
     ks = jnp.arange(config.num_steps, dtype=jnp.int32)
     K = min(config.checkpoint_every, config.num_steps)
+    # every state batched like the plant's initial state (vmap: one batching round)
+    x0, z0, s0 = _batched_like((x0, z0, s0), x0)
     init = _dense_carry(((x0, z0), s0), (plant_params, ctrl_params, dt))
     if not config.checkpoint:
         _, (ys, us, auxs, oks) = jax.lax.scan(step, init, ks, unroll=config.unroll)
@@ -417,7 +444,8 @@ def rollout_reduce(
     L = min(L, N)
     n_seg, rest = divmod(N, L)
     ks = jnp.arange(N, dtype=jnp.int32)
-    init = _dense_carry((((x0, z0), s0), reduction.init), (plant_params, ctrl_params, dt))
+    x0, z0, s0, acc0 = _batched_like((x0, z0, s0, reduction.init), x0)
+    init = _dense_carry((((x0, z0), s0), acc0), (plant_params, ctrl_params, dt))
     state, outs = jax.lax.scan(segment, init, ks[: n_seg * L].reshape(n_seg, L))
     if rest:
         state, out_rest = segment(state, ks[n_seg * L :])

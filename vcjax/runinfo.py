@@ -13,6 +13,7 @@ import dataclasses
 import datetime
 import enum
 import math
+import os
 import platform
 import subprocess
 import sys
@@ -130,6 +131,7 @@ def run_info(
         },
         "processes": {"count": jax.process_count(), "index": jax.process_index()},
         "compilation_cache": cache_dir(),
+        "xla_flags": os.environ.get("XLA_FLAGS", ""),
         "config": to_jsonable(config),
         "seeds": to_jsonable(seeds or {}),
         "wall_s": to_jsonable(wall_s),

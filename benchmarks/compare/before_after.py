@@ -62,6 +62,12 @@ def parse_args(argv=None):
     p.add_argument("--timings", nargs="+", default=["sampled", "continuous"])
     p.add_argument("--kinds", nargs="+", default=["single", "vmap", "sharded"])
     p.add_argument("--sweep-config", default=str(SWEEP_CONFIG))
+    p.add_argument(
+        "--cli-compiler",
+        action="store_true",
+        help="the 'after' workers compile with the XLA CPU code generator the vcjax command "
+        "line uses (vcjax.compiler); default: XLA's defaults on both sides",
+    )
     p.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.quick:
@@ -181,12 +187,17 @@ def extract(rev: str, dest: Path) -> str:
     return full
 
 
-def run_worker(case: dict, lib_path: Path | None) -> dict:
-    """``measure(case)`` in a fresh process importing vcjax from ``lib_path`` (None: this one)."""
+def run_worker(case: dict, lib_path: Path | None, cli_compiler: bool = False) -> dict:
+    """``measure(case)`` in a fresh process importing vcjax from ``lib_path`` (None: this one);
+    ``cli_compiler``: with the command line's XLA CPU code generator (:mod:`vcjax.compiler`)."""
     env = dict(os.environ)
     env["PYTHONPATH"] = str(ROOT)
     env.pop("XLA_FLAGS", None)
     env.pop("VCJAX_CPU_DEVICES", None)
+    if cli_compiler:
+        from vcjax.compiler import prefer_fast_compile
+
+        prefer_fast_compile(env)
     case = {**case, "lib": str(lib_path) if lib_path else None}
     cmd = [sys.executable, "-m", "benchmarks.compare.before_after", "--worker", json.dumps(case)]
     res = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=ROOT)
@@ -239,7 +250,7 @@ def main(argv=None):
             best = {}
             for _ in range(args.rounds):
                 for side, lib in (("before", Path(tmp)), ("after", None)):
-                    r = run_worker(case, lib)
+                    r = run_worker(case, lib, args.cli_compiler and lib is None)
                     if side not in best or r["run_s"] < best[side]["run_s"]:
                         best[side] = r
             b, a = best["before"], best["after"]

@@ -17,6 +17,20 @@ program; default ``examples/tuning/remus100.toml``; ``--tune none`` skips it).
     python -m benchmarks.compile_times --dtype float64
     python -m benchmarks.compile_times --loops remus100/vcm3d,infante/vcm_integral --tune none
 
+By default the programs compile with the XLA CPU code generator the ``vcjax`` command line
+uses (:mod:`vcjax.compiler`); ``--xla-default`` measures XLA's default one.
+
+``--before REV`` measures in one run an older revision against this checkout: each program
+(loop x kind, and the tune step) is built in fresh processes that alternate, before then after,
+``--rounds`` times (the revision's ``vcjax``, ``tuning`` and ``benchmarks`` packages extracted
+with ``git archive`` into a temporary folder); each side keeps its fastest round (the sizes do
+not change between rounds); the older revision compiles with XLA's defaults, as its command
+line did, this checkout as its command line does (``--xla-default``: XLA's defaults on both
+sides, the code's own share). On a shared machine only such same-run ratios compare.
+
+    python -m benchmarks.compile_times --before ff295bc --loops remus100/vcm3d --tune none \
+        --json benchmarks/results/compile_times_before_after.json
+
 Writes ``benchmarks/results/compile_times.json`` (``--json``): one key per loop,
 ``"vehicle/controller": {"forward": {...}, "gradient": {...}}`` with ``trace_s``, ``lower_s``,
 ``compile_s``, ``hlo_lines``; ``"tune:<config>"`` for the training step (``"step"``: every
@@ -32,6 +46,9 @@ import argparse
 import json
 import os
 import platform
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -69,6 +86,19 @@ def parse_args(argv=None):
         action="store_true",
         help="trace and lower only (graph sizes; compile_s is null): a quick size check",
     )
+    p.add_argument(
+        "--before",
+        default=None,
+        help="git revision to measure against this checkout, program by program, in "
+        "alternating fresh processes (writes {program: {kind: {before, after}}})",
+    )
+    p.add_argument("--rounds", type=int, default=2, help="alternating rounds with --before")
+    p.add_argument(
+        "--xla-default",
+        action="store_true",
+        help="XLA's default CPU code generator; by default the one the vcjax command line "
+        "uses (vcjax.compiler: --xla_cpu_use_fusion_emitters=false)",
+    )
     args = p.parse_args(argv)
     if args.steps < 1:
         p.error("--steps: expected a positive int")
@@ -94,6 +124,7 @@ def machine(args) -> dict:
         "steps": args.steps,
         "timing": args.timing,
         "load_average_1min_at_start": C.load_average(),
+        "xla_flags": os.environ.get("XLA_FLAGS", ""),
     }
 
 
@@ -225,11 +256,26 @@ def _say(name: str, kind: str, r: dict) -> None:
 
 def main(argv=None) -> dict:
     args = parse_args(argv)
+    if args.before:
+        return before_after(args)
+    if not args.xla_default:
+        from vcjax.compiler import prefer_fast_compile
+
+        prefer_fast_compile()  # what the CLI compiles with (before JAX starts)
     C.setup(args.dtype)
     import jax
 
-    # measure real compiles: never read a persistent cache entry
+    # measure real compiles: never read a persistent cache entry (the caller's setting back
+    # at the end: the benchmark also runs inside the test session)
+    cache_was = jax.config.jax_enable_compilation_cache
     jax.config.update("jax_enable_compilation_cache", False)
+    try:
+        return _main(args)
+    finally:
+        jax.config.update("jax_enable_compilation_cache", cache_was)
+
+
+def _main(args) -> dict:
     mach = machine(args)
     print(
         f"compile times: {mach['cpu']}, {mach['cores']} cores, jax {mach['jax']}, {args.dtype}, "
@@ -270,6 +316,100 @@ def main(argv=None) -> dict:
     doc = {"machine": mach, **results}
     cols = ["program", "kind", "trace_s", "lower_s", "compile_s", "hlo_lines", "load"]
     C.print_table(rows, cols, title="compile times (s) and StableHLO size")
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(doc, indent=2) + "\n")
+        print(f"\nwrote {args.json}")
+    return doc
+
+
+# ----------------------------------------------------------------------------- before/after
+
+
+def _extract(rev: str, dest: Path) -> str:
+    """Write revision ``rev``'s packages into ``dest``; return the full commit hash."""
+    full = subprocess.run(
+        ["git", "rev-parse", rev], cwd=ROOT, check=True, capture_output=True, text=True
+    ).stdout.strip()
+    arch = subprocess.run(
+        ["git", "archive", full, "vcjax", "tuning", "benchmarks", "examples"],
+        cwd=ROOT,
+        check=True,
+        capture_output=True,
+    ).stdout
+    subprocess.run(["tar", "-x", "-C", str(dest)], input=arch, check=True)
+    return full
+
+
+def _one(root: Path, args, loops: str, kind: str, tune: str) -> dict:
+    """One program built by ``root``'s own compile_times in a fresh process."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "ct.json"
+        cmd = [sys.executable, "-m", "benchmarks.compile_times", "--dtype", args.dtype]
+        cmd += ["--steps", str(args.steps), "--timing", args.timing, "--loops", loops]
+        cmd += ["--kinds", kind, "--tune", tune, "--json", str(out)]
+        cmd += ["--no-compile"] if args.no_compile else []
+        cmd += ["--xla-default"] if args.xla_default and root == ROOT else []
+        env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "PYTHONPATH")}
+        env["PYTHONPATH"] = str(root)
+        res = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True)
+        if res.returncode != 0:
+            raise RuntimeError(f"{root}: {' '.join(cmd)} failed:\n{res.stderr[-3000:]}")
+        return json.loads(out.read_text())
+
+
+def before_after(args) -> dict:
+    """``--before``: every selected program of both revisions, alternating fresh processes."""
+    C.setup(args.dtype)
+    jobs = [(f"{v}/{c}", k, "none") for v, c in select(args.loops) for k in args.kinds]
+    if args.tune and args.tune.lower() != "none":
+        jobs.append((f"tune:{Path(args.tune).name}", "step", str(Path(args.tune).resolve())))
+    results: dict = {}
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        full = _extract(args.before, Path(tmp))
+        mach = machine(args)
+        mach["before"] = full
+        mach["after"] = "this checkout"
+        load = mach["load_average_1min_at_start"]
+        print(
+            f"compile times, {args.before} ({full[:10]}) against this checkout, "
+            f"{args.rounds} alternating rounds, load {load:.2f}"
+        )
+        for name, kind, tune in jobs:
+            loops = "none" if name.startswith("tune:") else name
+            kinds = "forward" if kind == "step" else kind
+            best: dict = {}
+            for _ in range(args.rounds):
+                for side, root in (("before", Path(tmp)), ("after", ROOT)):
+                    doc = _one(root, args, loops, kinds, tune)
+                    r = doc[name][kind]
+                    r = {**r, "load": C.load_average()}
+                    total = r["trace_s"] + r["lower_s"] + (r["compile_s"] or 0.0)
+                    if side not in best or total < best[side]["total_s"]:
+                        best[side] = {**r, "total_s": total}
+            results.setdefault(name, {})[kind] = best
+            b, a = best["before"], best["after"]
+            rows.append(
+                {
+                    "program": name,
+                    "kind": kind,
+                    "before_s": b["total_s"],
+                    "after_s": a["total_s"],
+                    "before_lines": b["hlo_lines"],
+                    "after_lines": a["hlo_lines"],
+                    "load": a["load"],
+                }
+            )
+            print(
+                f"  {name:28s} {kind:8s} before {b['total_s']:7.2f} s {b['hlo_lines']:7d} lines"
+                f"   after {a['total_s']:7.2f} s {a['hlo_lines']:7d} lines",
+                flush=True,
+            )
+    mach["load_average_1min_at_end"] = C.load_average()
+    doc = {"machine": mach, **results}
+    cols = ["program", "kind", "before_s", "after_s", "before_lines", "after_lines", "load"]
+    C.print_table(rows, cols, title="trace + lower + compile (s) and StableHLO lines")
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(doc, indent=2) + "\n")

@@ -4,10 +4,11 @@
   message names the file, the section and the key), :func:`read_toml` and one checker per value.
 * :mod:`vcjax.config.schema` -- the shared sections as typed, frozen objects, each key with its
   type, default, unit, description and older spellings: ``[simulation]`` (horizon, dt,
-  integrator, timing, u_d, smooth), ``[current]``, ``[waves]``, ``[initial]``, ``[model_error]``,
-  ``[sensor_noise]``, ``[disturbance]``; :func:`schema` returns them for a reference table and
-  :data:`DEFAULT_SCENARIO` is the scenario of a config without ``[scenario]`` (Simulation 1);
-  :func:`reference_markdown` renders the reference tables.
+  integrator, timing, u_d, smooth), ``[current]``, ``[waves]``, ``[initial]``,
+  ``[model_error]``, ``[sensor_noise]``, ``[disturbance]``; :data:`DEFAULT_SCENARIO` is the
+  scenario of a config without ``[scenario]`` (Simulation 1).
+* :mod:`vcjax.config.reference` -- :func:`schema` returns every section for a reference table,
+  :func:`reference_markdown` renders the tables.
 * :mod:`vcjax.config.scenario` -- ``[scenario]`` (:class:`ScenarioChoice`: vehicle,
   controller, path, parameter files, a module of your own loops, and any static option of the
   loop class read from its dataclass fields).
@@ -24,6 +25,7 @@ registry and the loop classes' dataclass fields); ``values`` and ``schema`` impo
 vcjax, and :mod:`vcjax.loops` never imports this package.
 """
 
+from vcjax.config.reference import reference_markdown, schema
 from vcjax.config.schema import (
     DEFAULT_SCENARIO,
     SECTIONS,
@@ -35,8 +37,6 @@ from vcjax.config.schema import (
     Simulation,
     Waves,
     parse_section,
-    reference_markdown,
-    schema,
 )
 from vcjax.config.values import (
     ConfigError,

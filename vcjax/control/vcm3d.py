@@ -86,6 +86,7 @@ __all__ = [
     "VCM3DAux",
     "vcm3d_law",
     "path_errors_3d",
+    "pose_errors",
 ]
 
 
@@ -273,9 +274,11 @@ def _zy_transpose(theta, psi, v):
     return jnp.stack([ct * x - st * v[2], y, st * x + ct * v[2]])
 
 
-def _pose_errors(path, coeffs, varpi, p):
+def pose_errors(path, coeffs, varpi, p):
     """``(pose, eps)``: :func:`path_errors_3d` from :func:`~vcjax.paths.path_pose` (the same
-    ``eps`` to round-off), for the engine's constraints that it differentiates twice."""
+    ``eps`` to round-off) for code that differentiates it (the engine's constraints, losses):
+    no rates of the path are computed, and derivatives in ``varpi`` come from the pose's
+    Taylor rule instead of differentiating the frame's own autodiff."""
     f = path_pose(path, coeffs, varpi)
     return f, _zy_transpose(f.theta_p, f.psi_p, p - f.p)
 
@@ -300,7 +303,7 @@ def _constraints(cfg: VCM3DConfig, params: VCM3DParams) -> VirtualConstraints:
     g = params.gains
 
     def G(q, t, args, zf):
-        f, eps = _pose_errors(cfg.path, params.path, zf[0], q[:3])
+        f, eps = pose_errors(cfg.path, params.path, zf[0], q[:3])
         psi_d, theta_d, _, _ = _angles(cfg, g, f, eps, zf)
         pos = eps + g.k_int * zf[3:6] if cfg.integral else eps
         att = jnp.stack([wrap_angle(q[4] - psi_d), q[3] - theta_d])
@@ -310,7 +313,7 @@ def _constraints(cfg: VCM3DConfig, params: VCM3DParams) -> VirtualConstraints:
         return _zy_transpose(q[3], q[4], qd[:3]) - jnp.stack([params.u_d, zf[1], zf[2]])
 
     def rate(q, t, zf, args):
-        f, eps = _pose_errors(cfg.path, params.path, zf[0], q[:3])
+        f, eps = pose_errors(cfg.path, params.path, zf[0], q[:3])
         varpi_dot = (params.u_d + g.sigma * eps[0]) * jnp.cos(f.theta_p) / f.speed_bar
         _, _, e_int_dot, h_int_dot = _angles(cfg, g, f, eps, zf)
         if cfg.integral:
@@ -357,7 +360,7 @@ def vcm3d_law(cfg: VCM3DConfig, params: VCM3DParams, t, q, qd, z: VCM3DState):
     else:
         tau_c, qdd, diag = reaction_force(cfg.system, cons, gains, q, qd, t, None, m, "column", zf)
     tau_b = J.T @ tau_c
-    f, eps = _pose_errors(cfg.path, params.path, z.varpi, q[:3])
+    f, eps = pose_errors(cfg.path, params.path, z.varpi, q[:3])
     psi_d, theta_d, _, _ = _angles(cfg, g, f, eps, zf)
     # nu_dot = J^-1 (q̈ - J̇ nu)
     if cfg.kinematics_inverse is not None:

@@ -201,14 +201,19 @@ def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25) -> dict:
     }
 
 
-def mission_metrics(traj, path, coeffs, settle=150.0, loop=None, scenario=None) -> dict:
+def mission_metrics(
+    traj, path, coeffs, settle=150.0, variant=None, loop=None, scenario=None
+) -> dict:
     """The mission's metrics of one run (``metrics.json``'s entry per variant, :data:`REPORTED`)
     as Python values: :func:`vcjax.metrics.run_metrics` of the loop's signals with the
-    mission's extras (:func:`mission_extras`). ``loop``, ``scenario``: the run's (default: the
-    mission's ``vcm3d_ilos`` loop and scenario on ``coeffs``; only the actuator limits and the
-    path matter for what is reported)."""
+    mission's extras (:func:`mission_extras`).
+
+    ``loop``, ``scenario``: the run's; by default the mission's on ``coeffs`` for ``variant``
+    (default: the controller whose state has the structure of ``traj.z``). Only the actuator
+    limits and the path matter for what is reported.
+    """
     if loop is None or scenario is None:
-        loop, scenario = mission_scenario(VARIANTS[0], coeffs=coeffs)
+        loop, scenario = mission_scenario(variant or _variant_of(traj), coeffs=coeffs)
     sig = loop.signals(traj, scenario)
     dt = traj.t[1] - traj.t[0]
     m = metrics.run_metrics(sig, traj.finite, dt, extras=mission_extras(traj, path, coeffs, settle))
@@ -217,6 +222,16 @@ def mission_metrics(traj, path, coeffs, settle=150.0, loop=None, scenario=None) 
         v = np.asarray(m[theirs])
         out[ours] = bool(v) if v.dtype == bool else float(v)
     return out
+
+
+def _variant_of(traj) -> str:
+    """The first controller of the mission whose law state has the structure of ``traj.z``."""
+    want = jax.tree_util.tree_structure(traj.z)
+    for v in VARIANTS:
+        loop, sc = mission_scenario(v)
+        if jax.tree_util.tree_structure(loop.initial_state(sc)[1]) == want:
+            return v
+    raise ValueError(f"variant: no REMUS 100 controller has the state of this run ({want})")
 
 
 def run_remus100(

@@ -3,16 +3,18 @@
 * :mod:`~vcjax.identify.data`: CSV / npz logs, checked eagerly (file, column and line named).
 * :mod:`~vcjax.identify.models`: per-vehicle channels and one discrete step (PVS or integrator).
 * :mod:`~vcjax.identify.lm`: Levenberg–Marquardt for the block-arrow multiple-shooting problem.
-* :mod:`~vcjax.identify.shooting`: the multiple-shooting residuals, the fit, standard errors,
-  correlations and identifiability warnings.
+* :mod:`~vcjax.identify.shooting`: the multiple-shooting problem (segments, scaling, residuals).
+* :mod:`~vcjax.identify.fit`: the fit (two weighted fits), standard errors, correlations and
+  identifiability warnings, :class:`FitResult`.
 * :mod:`~vcjax.identify.config`: the TOML schema and the runner writing ``fit.json`` and figures.
 """
 
 from vcjax.identify.config import load_fit_config, run_fit_config
 from vcjax.identify.data import Log, load_log, save_log_csv
+from vcjax.identify.fit import FitResult, fit_logs
 from vcjax.identify.lm import levenberg_marquardt, schur_information
 from vcjax.identify.models import FIT_MODELS, FitModel, current_vector, get_fit_model
-from vcjax.identify.shooting import FitResult, ShootingProblem, fit_logs, make_segments
+from vcjax.identify.shooting import ShootingProblem, make_segments
 
 __all__ = [
     "FIT_MODELS",

@@ -40,8 +40,8 @@ from vcjax.config import (
 )
 from vcjax.config.frozen import FrozenSection
 from vcjax.identify.data import load_log
+from vcjax.identify.fit import FitResult, fit_logs
 from vcjax.identify.models import get_fit_model, scalar_fields
-from vcjax.identify.shooting import FitResult, fit_logs
 from vcjax.outputs import write_json_atomic
 
 __all__ = [

@@ -182,7 +182,9 @@ FIT_MODELS: dict[str, FitModel] = {
         ),  # fmt: skip
         steps=("pvs",) + _INTEGRATOR_STEPS,
         nominal=lambda dtype: rm.remus100_params(dtype=dtype),
-        make_args=lambda p, v_c: rm.Remus100Args(vehicle=p, v_c=v_c, v_c_dot=jnp.zeros_like(v_c)),
+        make_args=lambda p, v_c: rm.Remus100Args(
+            vehicle=p, v_c=v_c, v_c_dot=jnp.zeros_like(v_c), M_factor=rm.mass_factor(p)
+        ),
         unpack=_remus_unpack,
         pack=_remus_pack,
         plant=rm.remus100_plant,

@@ -92,7 +92,13 @@ from vcjax.loops.disturbances import (
     simulate,
 )
 from vcjax.loops.engine import EngineAux, EngineGains, EngineLaw, EngineLoop, engine_gains
-from vcjax.loops.geometry import path_errors, path_frames, path_polyline, start_parameter
+from vcjax.loops.geometry import (
+    path_errors,
+    path_frames,
+    path_polyline,
+    path_poses,
+    start_parameter,
+)
 from vcjax.loops.infante import InfanteGains, InfanteLoop, infante_gains
 from vcjax.loops.law import Law
 from vcjax.loops.loop import Loop
@@ -156,6 +162,7 @@ __all__ = [
     "start_parameter",
     "path_polyline",
     "path_frames",
+    "path_poses",
     "path_errors",
     "register",
     "register_law",

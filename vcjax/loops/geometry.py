@@ -9,7 +9,7 @@ import jax.numpy as jnp
 from vcjax import paths
 from vcjax.linalg import rot2
 
-__all__ = ["start_parameter", "path_polyline", "path_frames", "path_errors"]
+__all__ = ["start_parameter", "path_polyline", "path_frames", "path_poses", "path_errors"]
 
 
 def _search_range(path: paths.Path, coeffs, w_range):
@@ -75,8 +75,15 @@ def path_frames(path, coeffs, w):
     return jax.vmap(lambda w1: paths.path_frame(path, coeffs, w1))(w)
 
 
+def path_poses(path, coeffs, w):
+    """:class:`~vcjax.paths.PathPose` at every parameter of ``w`` (N,): the frames' values
+    without their rates (what a loop's signals, and so a tuning loss, need)."""
+    return jax.vmap(lambda w1: paths.path_pose(path, coeffs, w1))(w)
+
+
 def path_errors(frames, eta):
-    """(N, 2) ``[s, e]`` (23) of the poses ``eta`` (N, >=2) w.r.t. the frames (N,)."""
-    return jax.vmap(lambda psi_p, p_bar, xy: rot2(psi_p).T @ (xy - p_bar))(
-        frames.psi_p, frames.p_bar, eta[:, :2]
+    """(N, 2) ``[s, e]`` (23) of the poses ``eta`` (N, >=2) w.r.t. the frames (N,) (path
+    frames or poses)."""
+    return jax.vmap(lambda psi_p, p, xy: rot2(psi_p).T @ (xy - p[:2]))(
+        frames.psi_p, frames.p, eta[:, :2]
     )

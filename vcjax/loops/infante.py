@@ -40,7 +40,7 @@ from vcjax.control.baselines import (
     baseline_state,
 )
 from vcjax.control.vcm import VCMConfig, check_edd, pm_gains, vcm_law, vcm_params, vcm_state
-from vcjax.loops.geometry import path_errors, path_frames
+from vcjax.loops.geometry import path_errors, path_frames, path_poses
 from vcjax.loops.law import Law
 from vcjax.loops.loop import Loop
 from vcjax.loops.params import gain_spec
@@ -280,9 +280,9 @@ class InfanteLoop(Loop):
         the controller's own ``aux.eps`` contains, does not enter)."""
         n = traj.u.shape[0]
         eta = traj.x.eta[:n]
-        frames = path_frames(self.path, sc.path, self.law.particle(traj.z)[:n])
+        frames = path_poses(self.path, sc.path, self.law.particle(traj.z)[:n])
         eps = path_errors(frames, eta)
-        p_err = jnp.concatenate([eta[:, :2] - frames.p_bar, -frames.p[:, 2:]], axis=1)
+        p_err = jnp.concatenate([eta[:, :2] - frames.p[:, :2], -frames.p[:, 2:]], axis=1)
         veh = sc.plant
         cmd = traj.u
         limits = jnp.stack([veh.thrust_max, veh.rudder_max])

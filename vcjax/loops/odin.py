@@ -38,7 +38,7 @@ from vcjax.control.vcm import (
     vcm_state,
 )
 from vcjax.linalg import Rzyx
-from vcjax.loops.geometry import path_errors, path_frames
+from vcjax.loops.geometry import path_errors, path_poses
 from vcjax.loops.law import Law
 from vcjax.loops.loop import Loop
 from vcjax.loops.params import gain_spec
@@ -382,7 +382,7 @@ class OdinLoop(Loop):
     def signals(self, traj, sc: Scenario) -> Signals:
         n = traj.u.shape[0]
         eta = traj.x.eta[:n]
-        frames = path_frames(self.path, sc.path, self.law.particle(traj.z)[:n])
+        frames = path_poses(self.path, sc.path, self.law.particle(traj.z)[:n])
         veh = sc.plant
         return Signals(
             eps=path_errors(frames, eta[:, :2]),
@@ -390,7 +390,7 @@ class OdinLoop(Loop):
             p_err=eta[:, :3] - frames.p,
             u_err=traj.x.nu[:n, 0] - sc.u_d,
             psi_err=self.law.heading_error(traj.aux),
-            depth_err=eta[:, 2] - frames.z_p,
+            depth_err=eta[:, 2] - frames.p[:, 2],
             cmd_ratio=traj.u / veh.thrust_max,
             sat=traj.aux.alloc_saturated,
             act={"thrust": jnp.max(jnp.abs(traj.x.thrust), axis=1)},

@@ -39,7 +39,7 @@ from vcjax.control.baselines3d import (
 from vcjax.control.vcm import VCMConfig, check_edd, pm_gains, vcm_params, vcm_state
 from vcjax.control.vcm3d import (
     VCM3DConfig,
-    path_errors_3d,
+    pose_errors,
     vcm3d_gains,
     vcm3d_law,
     vcm3d_params,
@@ -315,7 +315,12 @@ class Remus100Loop(Loop):
         return act.cmd, z_dot, RemusAux(aux.eps, aux.psi_d, aux.theta_d, tau, act.raw)
 
     def plant_args(self, sc: Scenario, current, current_dot):
-        return r100.Remus100Args(vehicle=sc.plant, v_c=current[:2], v_c_dot=current_dot[:2])
+        return r100.Remus100Args(
+            vehicle=sc.plant,
+            v_c=current[:2],
+            v_c_dot=current_dot[:2],
+            M_factor=r100.mass_factor(sc.plant),  # M is constant: factored once per scenario
+        )
 
     def with_current(self, args, current, current_dot):
         return args._replace(v_c=current[:2], v_c_dot=current_dot[:2])
@@ -354,9 +359,7 @@ class Remus100Loop(Loop):
         n = traj.u.shape[0]
         eta = traj.x.eta[:n]
         w = self.law.particle(traj.z)[:n]
-        frames, eps = jax.vmap(lambda w1, p: path_errors_3d(self.path, sc.path, w1, p))(
-            w, eta[:, :3]
-        )
+        frames, eps = jax.vmap(lambda w1, p: pose_errors(self.path, sc.path, w1, p))(w, eta[:, :3])
         lim = sc.plant.act_max
         ratio = traj.aux.raw / lim
         act = traj.x.act[:n]

@@ -3,6 +3,7 @@ experiment and one for sweeps.
 
 * :func:`pyplot` -- ``matplotlib.pyplot`` with the Agg backend selected;
 * :func:`save` -- lay a figure out, write it (PNG, 120 dpi), close it; returns the path;
+* :data:`STYLE` -- the line style of each INFANTE-class controller (experiments and sweeps);
 * :mod:`vcjax.plots.sim1`, :mod:`vcjax.plots.sim2`, :mod:`vcjax.plots.remus100`,
   :mod:`vcjax.plots.arm` -- the figures of each experiment (:mod:`vcjax.experiments`);
 * :mod:`vcjax.plots.sweep` -- the figures of a Monte-Carlo sweep (the CLI draws them from the
@@ -18,6 +19,17 @@ from __future__ import annotations
 from pathlib import Path
 
 __all__ = ["pyplot", "save", "STYLE"]
+
+#: Line styles of the INFANTE-class controllers, Simulation 1's variants (the paper: solid blue
+#: with integral action, dashed red without); sweeps use them too.
+STYLE = {
+    "vcm_integral": dict(color="C0", ls="-", label="VCM + integral (41)"),
+    "vcm": dict(color="C3", ls="--", label="VCM (31)/(38)"),
+    "ilos": dict(color="C2", ls="-.", label="ILOS (40)"),
+    "los_pid": dict(color="C1", ls=":", label="LOS + PID yaw (39)"),
+    "vcm_ilos": dict(color="C4", ls=(0, (5, 1, 1, 1)), label="VCM + (41) + ILOS angle (ext.)"),
+    "alos": dict(color="C5", ls=(0, (3, 1, 1, 1, 1, 1)), label="ALOS (Fossen 2023)"),
+}
 
 
 def pyplot():
@@ -40,6 +52,3 @@ def save(fig, path) -> Path:
     savefig_atomic(fig, path, dpi=120)
     pyplot().close(fig)
     return path
-
-
-from vcjax.plots.sim1 import STYLE  # noqa: E402  (Simulation 1's styles, used by sweeps too)

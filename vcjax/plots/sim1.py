@@ -7,19 +7,9 @@ from pathlib import Path
 import numpy as np
 
 import vcjax.plots as vplots
+from vcjax.plots import STYLE
 
 __all__ = ["sim1_figures", "STYLE"]
-
-#: Line styles of the Simulation 1 variants (the paper: solid blue with integral action,
-#: dashed red without).
-STYLE = {
-    "vcm_integral": dict(color="C0", ls="-", label="VCM + integral (41)"),
-    "vcm": dict(color="C3", ls="--", label="VCM (31)/(38)"),
-    "ilos": dict(color="C2", ls="-.", label="ILOS (40)"),
-    "los_pid": dict(color="C1", ls=":", label="LOS + PID yaw (39)"),
-    "vcm_ilos": dict(color="C4", ls=(0, (5, 1, 1, 1)), label="VCM + (41) + ILOS angle (ext.)"),
-    "alos": dict(color="C5", ls=(0, (3, 1, 1, 1, 1, 1)), label="ALOS (Fossen 2023)"),
-}
 
 
 def sim1_figures(trajs: dict, scenario, out: Path) -> list[Path]:

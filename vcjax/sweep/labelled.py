@@ -82,7 +82,7 @@ def _metric_units(name: str) -> str | None:
 
 def to_xarray(result):
     """The :class:`~vcjax.sweep.results.SweepResult` as an ``xarray.Dataset`` (see the module)."""
-    from vcjax.sweep.results import spec_to_dict
+    from vcjax.sweep.spec import spec_to_dict
 
     xr = _xr()
     spec = result.spec

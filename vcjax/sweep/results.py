@@ -9,9 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from vcjax.config.scenario import ScenarioChoice
 from vcjax.metrics import FLAGS
-from vcjax.sweep.spec import ScenarioSpec, SweepSpec
+from vcjax.sweep.spec import SweepSpec, spec_from_dict, spec_to_dict
 
 __all__ = [
     "SweepResult",
@@ -227,32 +226,6 @@ def summarize(result: SweepResult) -> dict:
         summary["interrupted"] = True
         summary["num_scenarios_planned"] = int(result.spec.num_scenarios)
     return summary
-
-
-def spec_to_dict(spec: SweepSpec) -> dict:
-    """Plain-JSON form of a :class:`~vcjax.sweep.spec.SweepSpec`."""
-    d = {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec)}
-    sc = spec.scenario
-    d["scenario"] = {f.name: getattr(sc, f.name) for f in dataclasses.fields(sc)}
-    d["scenario"]["initial"] = {k: list(v) for k, v in sc.initial}
-    d["scenario"]["noise"] = dict(sc.noise)
-    d["choice"] = spec.choice.to_dict()
-    return json.loads(json.dumps(d, default=list))
-
-
-def spec_from_dict(d: dict) -> SweepSpec:
-    """Inverse of :func:`spec_to_dict`."""
-    d = dict(d)
-    sc = dict(d.pop("scenario"))
-    sc["initial"] = tuple((k, tuple(v)) for k, v in sc["initial"].items())
-    sc["noise"] = tuple(sc["noise"].items())
-    sc["disturbance"] = tuple(tuple(r) for r in sc["disturbance"])
-    for k, v in sc.items():
-        if isinstance(v, list):
-            sc[k] = tuple(v)
-    d["variants"] = tuple(d["variants"])
-    d["choice"] = ScenarioChoice.from_dict(d["choice"])
-    return SweepSpec(scenario=ScenarioSpec(**sc), **d)
 
 
 def save_results(result: SweepResult, path: Path) -> Path:

@@ -16,6 +16,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from vcjax import loops
 from vcjax.config import ConfigError
+from vcjax.interrupts import stop_requested
 from vcjax.loops.base import DisturbanceParams, Disturbances, gauss_markov_params
 from vcjax.metrics import (
     metrics_finalize,
@@ -24,7 +25,6 @@ from vcjax.metrics import (
     run_metrics,
     window_start,
 )
-from vcjax.outputs import stop_requested
 from vcjax.progress import ProgressBar
 from vcjax.rollout import Reduction, RolloutConfig, Trajectory
 from vcjax.sweep.results import SweepResult, run_timing
@@ -261,8 +261,8 @@ def run_sweep(
         process_index, process_count: this process's share (default from JAX).
         stop: polled after each chunk; when it returns True the sweep ends there and returns
             the chunks done so far, with ``interrupted = True`` (default:
-            :func:`vcjax.outputs.stop_requested`, set by SIGINT / SIGTERM inside
-            :func:`vcjax.outputs.interrupt_guard`).
+            :func:`vcjax.interrupts.stop_requested`, set by SIGINT / SIGTERM inside
+            :func:`vcjax.interrupts.interrupt_guard`).
 
     Each variant's program is traced and compiled once, timed apart from running it:
     :attr:`~vcjax.sweep.results.SweepResult.timing` holds per variant ``compile_s``, ``run_s``

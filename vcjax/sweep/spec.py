@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import math
 from typing import Any, NamedTuple
 
@@ -29,6 +30,8 @@ __all__ = [
     "MCConfig",
     "sample_scenarios",
     "check_wave_step",
+    "spec_to_dict",
+    "spec_from_dict",
 ]
 
 _CURRENT_MODELS = ("constant", "gauss_markov")
@@ -458,3 +461,29 @@ def sample_scenarios(
     nf = len(spec.fields_for(loop))
     seed = jnp.asarray(seed, jnp.uint32)
     return _sample(loop, arrays, seed, indices, nf, _wave_static(spec))
+
+
+def spec_to_dict(spec: SweepSpec) -> dict:
+    """Plain-JSON form of a :class:`~vcjax.sweep.spec.SweepSpec`."""
+    d = {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec)}
+    sc = spec.scenario
+    d["scenario"] = {f.name: getattr(sc, f.name) for f in dataclasses.fields(sc)}
+    d["scenario"]["initial"] = {k: list(v) for k, v in sc.initial}
+    d["scenario"]["noise"] = dict(sc.noise)
+    d["choice"] = spec.choice.to_dict()
+    return json.loads(json.dumps(d, default=list))
+
+
+def spec_from_dict(d: dict) -> SweepSpec:
+    """Inverse of :func:`spec_to_dict`."""
+    d = dict(d)
+    sc = dict(d.pop("scenario"))
+    sc["initial"] = tuple((k, tuple(v)) for k, v in sc["initial"].items())
+    sc["noise"] = tuple(sc["noise"].items())
+    sc["disturbance"] = tuple(tuple(r) for r in sc["disturbance"])
+    for k, v in sc.items():
+        if isinstance(v, list):
+            sc[k] = tuple(v)
+    d["variants"] = tuple(d["variants"])
+    d["choice"] = ScenarioChoice.from_dict(d["choice"])
+    return SweepSpec(scenario=ScenarioSpec(**sc), **d)

@@ -69,7 +69,8 @@ Two ways to step it:
 
 Differences from PVS (none at the default parameters): a single ``rho`` is used everywhere
 (PVS hard-codes 1026 in ``gnc.forceLiftDrag`` / ``crossFlowDrag`` and uses ``self.rho = 1026``
-elsewhere); ``M^-1`` is applied with a linear solve instead of a precomputed inverse; square
+elsewhere); ``M^-1`` is applied with a Cholesky solve (the factor computed once per run,
+:attr:`Remus100Args.M_factor`) instead of a precomputed inverse; square
 roots and ``atan2`` are NaN-gradient-safe at zero relative velocity.
 
 Everything traced is a ``NamedTuple`` of arrays; the functions are pure ``jax.numpy``,
@@ -93,7 +94,7 @@ from vcjax._checks import (
     float_dtype,
     is_concrete,
 )
-from vcjax.linalg import safe_norm, saturate, smooth_saturate, spd_solve_small
+from vcjax.linalg import cho_solve_small, cholesky_small, safe_norm, saturate, smooth_saturate
 from vcjax.vehicles.sixdof import (
     SixDofParams,
     current_ned,
@@ -117,6 +118,7 @@ __all__ = [
     "Remus100Args",
     "remus100_args",
     "mass_matrix",
+    "mass_factor",
     "coriolis",
     "damping",
     "current_in_body",
@@ -229,6 +231,11 @@ class Remus100Args(NamedTuple):
         v_c: (2,) horizontal current in NED ``[north, east]`` [m/s] (or (3,): see
             :func:`current_in_body`).
         v_c_dot: (2,) its time derivative [m/s^2] (zero in PVS; (3,) with a (3,) ``v_c``).
+        M_factor: (6, 6) lower Cholesky factor of ``mass_matrix(vehicle)``
+            (:func:`mass_factor`), or ``None``. ``M`` is constant, so :func:`remus100_args`
+            and the loops factor it once, outside the rollout's loop; with ``None`` the plant
+            factors it at every evaluation (the same numbers). Rebuild the arguments (or the
+            factor) when ``vehicle`` changes.
         v_w: (3,) NED orbital velocity of waves on top of the current [m/s], rotated in full
             (``R(Theta)^T``), or None (no waves); see :func:`vcjax.waves.orbital_kinematics`.
         v_w_dot: (3,) its material acceleration [m/s^2] (with ``v_w``).
@@ -239,6 +246,7 @@ class Remus100Args(NamedTuple):
     vehicle: Remus100Params
     v_c: Any
     v_c_dot: Any
+    M_factor: Any = None
     v_w: Any = None
     v_w_dot: Any = None
     tau_w: Any = None
@@ -451,7 +459,7 @@ def remus100_args(
     v_c_dot = (
         jnp.zeros(2, dtype=dt) if v_c_dot is None else as_float_array("v_c_dot", v_c_dot, (2,), dt)
     )
-    return Remus100Args(vehicle=vehicle, v_c=v_c, v_c_dot=v_c_dot)
+    return Remus100Args(vehicle=vehicle, v_c=v_c, v_c_dot=v_c_dot, M_factor=mass_factor(vehicle))
 
 
 # --------------------------------------------------------------------------------------------
@@ -462,6 +470,12 @@ def remus100_args(
 def mass_matrix(p: Remus100Params):
     """(6, 6) ``M = M_RB + M_A`` about the CO."""
     return p.body.M_RB + p.body.M_A
+
+
+def mass_factor(p: Remus100Params):
+    """(6, 6) lower Cholesky factor ``L`` of :func:`mass_matrix` (``M = L L^T``), for
+    :attr:`Remus100Args.M_factor`."""
+    return cholesky_small(mass_matrix(p))
 
 
 def coriolis(p: Remus100Params, nu_r):
@@ -628,7 +642,8 @@ def _nu_dot(x: Remus100State, act_applied, args: Remus100Args):
     )
     if args.tau_w is not None:
         tau_sum = tau_sum + args.tau_w
-    return nu_c_dot + spd_solve_small(mass_matrix(p), tau_sum)
+    L = mass_factor(p) if args.M_factor is None else args.M_factor
+    return nu_c_dot + cho_solve_small(L, tau_sum)
 
 
 # --------------------------------------------------------------------------------------------

@@ -54,7 +54,6 @@ from vcjax.linalg import safe_norm, safe_sqrt, saturate
 from vcjax.mechanics import MechanicalSystem, from_body_frame
 from vcjax.vehicles import design3dof as d3
 from vcjax.vehicles import remus100 as r100
-from vcjax.vehicles.sixdof import kinematics
 
 __all__ = [
     "IDX5",
@@ -108,10 +107,24 @@ def to_six(q5, nu5):
 
 
 def kinematics5(q5, args=None):
-    """(5, 5) ``J5(q)``: ``q̇ = J5 nu5`` (``phi = 0``); ``args`` unused (engine signature)."""
-    J = kinematics(to_six(q5, q5)[0])
-    idx = np.asarray(IDX5)
-    return J[idx][:, idx]
+    """(5, 5) ``J5(q)``: ``q̇ = J5 nu5`` (``phi = 0``); ``args`` unused (engine signature).
+
+    ``blkdiag(R(0, theta, psi), diag(1, 1/cos theta))``: the rows and columns ``IDX5`` of
+    :func:`vcjax.vehicles.sixdof.kinematics` at zero roll, entry for entry the same numbers,
+    written out (the law differentiates it: no sines and cosines of a zero roll to carry)."""
+    theta, psi = q5[3], q5[4]
+    cth, sth = jnp.cos(theta), jnp.sin(theta)
+    cpsi, spsi = jnp.cos(psi), jnp.sin(psi)
+    one, z = jnp.ones_like(theta), jnp.zeros_like(theta)
+    return jnp.stack(
+        [
+            jnp.stack([cpsi * cth, -spsi, cpsi * sth, z, z]),
+            jnp.stack([spsi * cth, cpsi, sth * spsi, z, z]),
+            jnp.stack([-sth, z, cth, z, z]),
+            jnp.stack([z, z, z, one, z]),
+            jnp.stack([z, z, z, z, one / cth]),
+        ]
+    )
 
 
 def kinematics5_inverse(q5, args=None):
