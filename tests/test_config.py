@@ -21,6 +21,7 @@ def test_schema_lists_every_shared_section_with_metadata():
         "scenario",
         "simulation",
         "current",
+        "waves",
         "initial",
         "model_error",
         "sensor_noise",

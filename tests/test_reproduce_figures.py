@@ -58,9 +58,11 @@ CASES = {
     "sweep": (["sweep", "examples/sweeps/quick.toml"], "summary.json", 8),
     "sweep_circle": (["sweep", "examples/sweeps/circle.toml"], "summary.json", 3),
     "sweep_survey": (["sweep", "examples/sweeps/survey.toml"], "summary.json", 3),
+    "sweep_waves": (["sweep", "examples/sweeps/remus100_waves.toml"], "summary.json", 2),
     "tune": (["tune", "examples/tuning/acceptance.toml"], "summary.json", 2),
     "tune_sim2": (["tune", "examples/tuning/sim2.toml"], "summary.json", 8),
     "tune_arm": (["tune", "examples/tuning/arm.toml"], "summary.json", 14),
+    "tune_waves": (["tune", "examples/tuning/remus100_waves.toml"], "summary.json", 15),
 }
 
 

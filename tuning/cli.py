@@ -9,7 +9,8 @@ works too). It writes into ``out_dir``:
   the gains; plus the validated configuration and how the run ended;
 * ``summary.json``: ``heldout_loss_before`` / ``heldout_loss_after`` (default vs tuned gains on
   the held-out batch, evaluated with the hard-clipped plant unless configured otherwise), the
-  loss terms of each, the training losses, run statistics;
+  loss terms of each, the training losses, run statistics; with ``[waves]``, ``waves``: the
+  realised significant height of every training and held-out sea;
 * ``loss_curve.png``, ``before_after_paths.png``, ``before_after_cross_track.png``,
   ``before_after_loss_terms.png`` (what the loss measures: path, speed and heading errors,
   actuator commands against their limits, and the weighted loss terms, default vs tuned).
@@ -101,6 +102,11 @@ def build(cfg: TuneConfig):
         loops.check_disturbances(loop, max(speed) > 0, False)
     except ValueError as err:
         raise ConfigError("[current] " + str(err).removeprefix("current: ")) from None
+    wav = cfg["waves"]
+    if wav is not None:  # a random sea per scenario, as in sweeps (checked by validate_config)
+        extra["wave_spectrum"] = wav["spectrum"]
+        for k in ("hs", "tp", "direction_deg", "origin_depth", "gamma", "spreading", "components"):
+            extra[f"wave_{k}"] = tuple(wav[k]) if isinstance(wav[k], list) else wav[k]
     me = cfg.model_error
     if me.relative > 0:
         extra["model_error"] = me.relative
@@ -121,6 +127,12 @@ def build(cfg: TuneConfig):
     except ValueError as err:
         raise ConfigError(f"scenarios: {err}") from None
     return problem, eval_problem, data, train, heldout
+
+
+def _realised_hs(batch) -> list[float]:
+    """Per scenario, ``4 sqrt(sum a_i^2 / 2)`` [m] of its sea (rounded to mm)."""
+    a = np.asarray(batch.sea.amplitude, np.float64)
+    return [round(float(h), 3) for h in 4.0 * np.sqrt(0.5 * np.sum(a * a, axis=-1))]
 
 
 def _evaluate(eval_fn, theta, data, batch) -> dict:
@@ -369,6 +381,13 @@ def run_tune_config(
         "tuning_wall_s": res.history[-1]["wall_s"] if res.history else 0.0,
         "total_wall_s": time.perf_counter() - t_start,
     }
+    if cfg.get("waves") is not None:  # the seas trained on and held out (different keys)
+        summary["waves"] = {
+            "train_hs": _realised_hs(train),
+            "heldout_hs": _realised_hs(heldout),
+            "note": "realised significant height 4 sqrt(m0) of each scenario's sea [m]; the "
+            "held-out seas are drawn from other keys than the training seas",
+        }
     if interrupted:  # SIGINT / SIGTERM: the best gains so far, of o["steps"] planned steps
         summary["interrupted"] = True
         summary["steps_planned"] = o["steps"]

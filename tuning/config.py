@@ -52,6 +52,7 @@ command) naming the file and the offending ``section.key``::
     effort = 0.0
     unhealthy = 1000.0
     sat_width = 0.05
+    depth = 0.0                     # the depth error of 3-D loops (1/m^2)
 
     [scenarios]                     # distribution of the random scenarios
     current_max = 1.0               # [m/s], uniform speed, uniform direction
@@ -60,6 +61,11 @@ command) naming the file and the offending ``section.key``::
 
     [initial]                       # optional ranges of the vehicle's initial keys (override
     q1_deg = [20.0, 40.0]           # the offsets above), as in sweep configs
+
+    [waves]                         # optional, shared with sweeps (vcjax.config.schema.Waves):
+    hs = [0.5, 2.0]                 # a random sea per scenario (loops that take waves: REMUS
+    tp = [6.0, 10.0]                # 100, ODIN-class); hs, tp required, then spectrum,
+    direction_deg = [0.0, 360.0]    # gamma, spreading, components, origin_depth
 
     [disturbance]
     force = []                      # optional: one range per generalised force component
@@ -100,8 +106,18 @@ from pathlib import Path
 
 from tuning.spec import DEFAULTS, KEY_DOCS, TuneConfig
 from vcjax import loops
-from vcjax.config import ConfigError, Current, Simulation, as_range, parse_section, read_toml
+from vcjax.config import (
+    ConfigError,
+    Current,
+    Simulation,
+    Waves,
+    as_range,
+    parse_section,
+    read_toml,
+)
 from vcjax.config.scenario import loop_options, parse_scenario
+from vcjax.sweep.config import check_waves, refusal
+from vcjax.sweep.spec import check_wave_step
 
 __all__ = [
     "ConfigError",
@@ -115,7 +131,7 @@ __all__ = [
 
 #: sections parsed on their own: [scenario] (vcjax.config.scenario), [initial] (vehicle keys),
 #: the shared [simulation] and [current] (vcjax.config.schema)
-_SPECIAL = ("scenario", "initial", "simulation", "current")
+_SPECIAL = ("scenario", "initial", "simulation", "current", "waves")
 #: [simulation] keys that tune configs may also write under [problem] (the older spelling)
 _SIM_IN_PROBLEM = ("horizon", "dt", "integrator", "timing", "smooth", "edd")
 
@@ -226,6 +242,14 @@ def _shared_sections(raw: dict, cfg: dict) -> None:
         for k, v in dataclasses.asdict(cur).items()
         if k in cur_raw
     }
+    cfg["waves"] = None
+    if "waves" in raw:  # every key, the defaults filled in (the section's presence is the switch)
+        wav_raw = raw["waves"]
+        wav = parse_section(Waves, wav_raw, "waves")
+        check_waves(wav_raw)
+        cfg["waves"] = {
+            k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(wav).items()
+        }
 
 
 def validate_config(raw: dict, config_path=None) -> TuneConfig:
@@ -261,6 +285,8 @@ def validate_config(raw: dict, config_path=None) -> TuneConfig:
     _shared_sections(raw, cfg)
     if p["horizon"] / p["dt"] < 1:
         raise ConfigError(f"problem.horizon: must be >= problem.dt, got {p['horizon']}")
+    if cfg["waves"] is not None:
+        check_wave_step(cfg["waves"]["tp"][0], p["dt"], "[waves] tp")
     choice = parse_scenario(raw.get("scenario"), "scenario", config_path or Path("config"))
     cls = loops.loop_class(choice.vehicle)
     ctrl = p["variant"] or choice.controller or cls.default_controller or cls.controllers[0]
@@ -284,6 +310,10 @@ def validate_config(raw: dict, config_path=None) -> TuneConfig:
         if "edd" not in given:
             choice = dataclasses.replace(choice, options=(*choice.options, ("edd", p["edd"])))
     loop = choice.loop(ctrl)
+    try:  # a sea the loop cannot take is refused, never silently ignored
+        loops.check_disturbances(loop, False, False, waves=cfg["waves"] is not None)
+    except ValueError as err:
+        raise ConfigError(refusal(err)) from None
     names = [g.name for g in loop.gain_specs()]
     bad = [t for t in p["tune"] if t not in names]
     if bad:

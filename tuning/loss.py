@@ -6,6 +6,9 @@ Per rollout of horizon ``T = N dt`` (every integral normalised by ``T``, i.e. a 
 * ``eps``: ``1/T ∫ (s² + e²) dt`` [m²], path errors (23);
 * ``u_tilde``: ``1/T ∫ ũ² dt`` [(m/s)²], speed error;
 * ``psi_tilde``: ``1/T ∫ ψ̃² dt`` [rad²], heading error (25) (0 for loops without one);
+* ``depth``: ``1/T ∫ z̃² dt`` [m²], the depth error of 3-D loops (0 for planar ones; weight 0
+  by default: ``eps`` is the horizontal path error, so a loop whose depth matters, e.g. in
+  waves, weighs it in);
 * ``sat_excess``: ``1/T ∫ Σ_i (x_i)² dt`` with ``x_i = max(|cmd_i| - lim_i, 0) / lim_i``: how far
   the actuator *commands* go beyond their limits (INFANTE-class: 920 N, 30°), relative;
 * ``sat_time``: ``1/T ∫ Σ_i x_i² / (x_i² + w²) dt``: a smooth count of the time spent beyond the
@@ -49,14 +52,15 @@ __all__ = [
     "aggregate",
 ]
 
-TERMS = ("eps", "u_tilde", "psi_tilde", "sat_excess", "sat_time", "effort", "unhealthy")
+TERMS = ("eps", "u_tilde", "psi_tilde", "sat_excess", "sat_time", "effort", "unhealthy", "depth")
 
 
 class LossWeights(NamedTuple):
     """Weights of the loss terms (traced scalars; see the module docstring for units).
 
     Attributes:
-        eps, u_tilde, psi_tilde, sat_excess, sat_time, effort, unhealthy: () weights >= 0.
+        eps, u_tilde, psi_tilde, sat_excess, sat_time, effort, unhealthy, depth: () weights
+            >= 0.
         sat_width: () smoothing width ``w`` of the time-over-limit count (fraction of the limit).
     """
 
@@ -68,6 +72,7 @@ class LossWeights(NamedTuple):
     effort: Any
     unhealthy: Any
     sat_width: Any
+    depth: Any = 0.0
 
 
 def loss_weights(
@@ -79,6 +84,7 @@ def loss_weights(
     effort=0.0,
     unhealthy=1000.0,
     sat_width=0.05,
+    depth=0.0,
     dtype=None,
 ) -> LossWeights:
     """Validated :class:`LossWeights` (every weight finite and >= 0, ``sat_width`` > 0)."""
@@ -115,6 +121,7 @@ def rollout_terms(traj, sig: loops.Signals, sat_width) -> dict:
         "sat_time": jnp.mean(jnp.sum(over2 / (over2 + sat_width * sat_width), axis=-1)),
         "effort": jnp.mean(jnp.sum(x * x, axis=-1)),
         "unhealthy": jnp.mean((~traj.finite).astype(eps.dtype)),
+        "depth": jnp.mean(sig.depth_err**2),
     }
 
 

@@ -11,7 +11,8 @@ nominal start (Simulation 1: ``eta0 = [0, 0, pi/2]``, ``nu0 = [2, 0, 0]``, path 
   ``x`` and ``y`` initial keys [m] (where it has them);
 * initial heading offset ``~ U(-heading_offset, heading_offset)`` [rad] (``heading_deg`` key);
 * anything else a :class:`~vcjax.sweep.ScenarioSpec` describes (``initial`` ranges that
-  override the offsets, ``disturbance`` ranges, ``model_error``) via ``extra``.
+  override the offsets, ``disturbance`` ranges, ``model_error``, a random sea per scenario:
+  ``wave_spectrum``, ``wave_hs``, ...) via ``extra``.
 
 The batch is a :class:`~vcjax.loops.Scenario` whose fields carry a leading batch axis except
 ``path`` and ``design`` (shared); vmap it with :data:`SCENARIO_AXES`.
@@ -39,7 +40,17 @@ __all__ = [
 
 #: ``in_axes`` of a sampled batch for ``jax.vmap``
 SCENARIO_AXES = loops.Scenario(
-    eta0=0, nu0=0, current=0, u_d=0, varpi0=0, path=None, plant=0, design=None, disturbance=0
+    eta0=0,
+    nu0=0,
+    current=0,
+    u_d=0,
+    varpi0=0,
+    path=None,
+    plant=0,
+    design=None,
+    disturbance=0,
+    sea=0,
+    origin_depth=0,
 )
 
 

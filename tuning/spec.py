@@ -62,6 +62,7 @@ class Weights(FrozenSection):
     effort: float = 0.0
     unhealthy: float = 1000.0
     sat_width: float = 0.05
+    depth: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -170,6 +171,7 @@ class TuneConfig(FrozenSection):
     model_error: PlantError = PlantError()
     simulation: TuneSimulation = TuneSimulation()
     current: tuple[tuple[str, Any], ...] = ()
+    waves: tuple[tuple[str, Any], ...] | None = None
     initial: tuple[tuple[str, tuple[float, float]], ...] = ()
     scenario: ScenarioChoice = ScenarioChoice()
 
@@ -181,6 +183,7 @@ class TuneConfig(FrozenSection):
     def to_dict(self) -> dict:
         out = {k: thaw(getattr(self, k)) for k in self._keys() if k not in _PLAIN}
         out["current"] = {k: thaw(v) for k, v in self.current}
+        out["waves"] = None if self.waves is None else {k: thaw(v) for k, v in self.waves}
         out["initial"] = {k: thaw(v) for k, v in self.initial}
         out["scenario"] = self.scenario.to_dict()
         return out
@@ -188,8 +191,10 @@ class TuneConfig(FrozenSection):
     @classmethod
     def from_dict(cls, d) -> TuneConfig:
         d = dict(d)
+        waves = d.pop("waves", None)
         plain = {
             "current": freeze(dict(d.pop("current", {}))),
+            "waves": None if waves is None else freeze(dict(waves)),
             "initial": freeze(dict(d.pop("initial", {}))),
             "scenario": ScenarioChoice.from_dict(d.pop("scenario", ScenarioChoice().to_dict())),
         }
@@ -197,7 +202,7 @@ class TuneConfig(FrozenSection):
 
 
 #: the fields of :class:`TuneConfig` that read as plain dicts
-_PLAIN = ("current", "initial", "scenario")
+_PLAIN = ("current", "waves", "initial", "scenario")
 
 #: section -> key -> default (lists where the frozen sections hold tuples); the configuration
 #: reference is generated from it
@@ -230,6 +235,7 @@ KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     ("weights", "effort"): ("", "weight of the squared commands over their limits"),
     ("weights", "unhealthy"): ("", "penalty of a run that diverged"),
     ("weights", "sat_width"): ("", "width of the smooth step counting time over the limits"),
+    ("weights", "depth"): ("1/m^2", "weight of the depth error (3-D loops; e.g. in waves)"),
     ("scenarios", "current_max"): ("m/s", "current speed ~ U(0, current_max), any direction"),
     ("scenarios", "position_offset"): ("m", "initial x, y offsets ~ U(-o, o)"),
     ("scenarios", "heading_offset_deg"): ("deg", "initial heading offset ~ U(-o, o)"),

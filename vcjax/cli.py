@@ -167,6 +167,21 @@ def build_parser() -> argparse.ArgumentParser:
         "u_d x horizon, at least 50 m)",
     )
     s.add_argument(
+        "--waves",
+        type=float,
+        nargs=3,
+        metavar=("HS", "TP", "DIR_DEG"),
+        help="remus100/sim2: a random JONSWAP sea (64 components, long-crested): significant "
+        "height HS [m], peak period TP [s], direction the waves travel towards DIR_DEG [deg, "
+        "clockwise from north]",
+    )
+    s.add_argument(
+        "--wave-seed",
+        type=int,
+        metavar="N",
+        help="with --waves: seed of the sea's frequencies and phases (default 0)",
+    )
+    s.add_argument(
         "--max-steps", type=int, metavar="N", help="allow up to N steps (default 10,000,000)"
     )
     _add_overwrite(s)

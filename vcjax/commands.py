@@ -95,7 +95,32 @@ def fail(msg: str) -> int:
 
 
 #: options of ``vcjax simulate`` that only some experiments take (Experiment.options)
-_OWN_OPTIONS = ("edd", "timing", "actuation", "diverge_e")
+_OWN_OPTIONS = ("edd", "timing", "actuation", "diverge_e", "waves", "wave_seed")
+
+
+def _check_waves(args, where: str, dt: float) -> None:
+    """``--waves HS TP DIR_DEG`` and ``--wave-seed`` of ``vcjax simulate`` (one line, exit 2)."""
+    from vcjax import sizing
+
+    if args.wave_seed is not None:
+        if args.waves is None:
+            raise CLIError(f"{where}: --wave-seed needs --waves HS TP DIR_DEG")
+        try:
+            sizing.check_seed("--wave-seed", args.wave_seed, args.x64)
+        except ValueError as err:
+            raise CLIError(f"{where}: {err}") from None
+    if args.waves is None:
+        return
+    hs, tp, direction = args.waves
+    if not all(math.isfinite(v) for v in args.waves):
+        raise CLIError(f"{where}: --waves: contains NaN or inf, got {list(args.waves)}")
+    if hs < 0:
+        raise CLIError(f"{where}: --waves: HS must be >= 0 [m], got {hs:g}")
+    if tp < 40.0 * dt:
+        raise CLIError(
+            f"{where}: --waves: TP must be >= 40 dt = {40.0 * dt:g} s (the shortest component, "
+            f"TP / 4, needs 10 steps), got {tp:g}"
+        )
 
 
 def simulate(args) -> int:
@@ -126,6 +151,7 @@ def simulate(args) -> int:
     _time_grid(horizon, dt, args.max_steps or 10_000_000)
     if args.diverge_e is not None and not (math.isfinite(args.diverge_e) and args.diverge_e > 0):
         raise CLIError(f"--diverge-e: expected a finite bound > 0 [m], got {args.diverge_e:g}")
+    _check_waves(args, where, dt)
     out = _prepare(args, args.out or f"out/{exp.name}", where)
     _enable_x64(args.x64)
     options = {

@@ -4,9 +4,9 @@
   message names the file, the section and the key), :func:`read_toml` and one checker per value.
 * :mod:`vcjax.config.schema` -- the shared sections as typed, frozen objects, each key with its
   type, default, unit, description and older spellings: ``[simulation]`` (horizon, dt,
-  integrator, timing, u_d, smooth), ``[current]``, ``[initial]``, ``[model_error]``,
-  ``[sensor_noise]``, ``[disturbance]``; :data:`DEFAULT_SCENARIO` is the scenario of a config
-  without ``[scenario]`` (Simulation 1).
+  integrator, timing, u_d, smooth), ``[current]``, ``[waves]``, ``[initial]``,
+  ``[model_error]``, ``[sensor_noise]``, ``[disturbance]``; :data:`DEFAULT_SCENARIO` is the
+  scenario of a config without ``[scenario]`` (Simulation 1).
 * :mod:`vcjax.config.reference` -- :func:`schema` returns every section for a reference table,
   :func:`reference_markdown` renders the tables.
 * :mod:`vcjax.config.scenario` -- ``[scenario]`` (:class:`ScenarioChoice`: vehicle,
@@ -35,6 +35,7 @@ from vcjax.config.schema import (
     ModelError,
     SensorNoise,
     Simulation,
+    Waves,
     parse_section,
 )
 from vcjax.config.values import (
@@ -67,6 +68,7 @@ __all__ = [
     "SECTIONS",
     "Simulation",
     "Current",
+    "Waves",
     "Initial",
     "ModelError",
     "SensorNoise",

@@ -33,6 +33,7 @@ __all__ = [
     "DEFAULT_SCENARIO",
     "Simulation",
     "Current",
+    "Waves",
     "Initial",
     "ModelError",
     "SensorNoise",
@@ -176,10 +177,48 @@ class Disturbance:
     )
 
 
+@dataclasses.dataclass(frozen=True)
+class Waves:
+    """``[waves]``: a random sea in every scenario (linear Airy waves in deep water,
+    :mod:`vcjax.waves`; NED, depth positive down). Each scenario draws its ``hs``, ``tp``,
+    ``direction_deg`` and ``origin_depth`` from the ranges and its sea (frequencies, phases,
+    directions) from its own key, so a scenario's sea is the same whatever the chunk size or
+    device count. ``hs`` and ``tp`` are required; ``hs = 0`` is a calm sea (the run is then
+    exactly the run without waves). The integration step must resolve the shortest component
+    (``tp / 4``) with 10 steps: ``tp >= 40 dt``. Loops whose plant cannot feel a sea refuse the
+    section."""
+
+    spectrum: str = key(
+        "jonswap", "str", "", "wave spectrum (pm: Pierson-Moskowitz)", choices=("jonswap", "pm")
+    )
+    hs: tuple[float, float] | None = key(
+        None, "range", "m", "significant wave height (required)", lo=0.0
+    )
+    tp: tuple[float, float] | None = key(
+        None, "range", "s", "peak period (required)", positive=True
+    )
+    direction_deg: tuple[float, float] = key(
+        (0.0, 0.0), "range", "deg", "direction the waves travel towards, clockwise from north"
+    )
+    gamma: float = key(3.3, "float", "", "JONSWAP peak enhancement (1: Pierson-Moskowitz)", lo=1.0)
+    spreading: float = key(
+        0.0, "float", "", "s of the cos^2s directional spreading (0: long-crested)", lo=0.0
+    )
+    components: int = key(64, "int", "", "regular components of each sea", lo=1)
+    origin_depth: tuple[float, float] = key(
+        (0.0, 0.0),
+        "range",
+        "m",
+        "depth of the NED origin below the mean free surface: the vehicle feels the sea at "
+        "depth origin_depth + z (the same mission at another depth)",
+    )
+
+
 #: TOML section name -> section class (``[scenario]``: :mod:`vcjax.config.scenario`)
 SECTIONS: dict[str, type] = {
     "simulation": Simulation,
     "current": Current,
+    "waves": Waves,
     "initial": Initial,
     "model_error": ModelError,
     "sensor_noise": SensorNoise,

@@ -15,6 +15,11 @@ An experiment module provides:
   ``"metrics"`` (what ``metrics.json`` holds), ``"files"``, ``"printed"`` (flat metrics per run
   for the console) and ``"unhealthy"`` (``{run name: one-line reason}``).
 
+``waves`` and ``wave_seed`` are the options of the experiments whose loops feel a sea
+(``remus100``, ``sim2``): ``--waves HS TP DIR_DEG`` puts every run in one random JONSWAP sea
+(:func:`vcjax.waves.sea_state`, 64 components, long-crested) drawn from
+``PRNGKey(--wave-seed)`` (default 0); the others refuse them.
+
 The experiments: ``sim1`` (Simulation 1 of the paper: INFANTE-class on a line, every
 controller), ``sim2`` (Simulation 2: ODIN-class on a helix, both actuation modes), ``remus100``
 (a 3-D lawnmower survey of the PVS REMUS 100 under a cross current, every controller), ``arm``
@@ -78,7 +83,12 @@ EXPERIMENTS: dict[str, Experiment] = {
             "vcjax.experiments.sim2",
             horizon=300.0,
             dt=0.05,
-            options=(("actuation", "underactuated"), ("diverge_e", None)),
+            options=(
+                ("actuation", "underactuated"),
+                ("diverge_e", None),
+                ("waves", None),
+                ("wave_seed", 0),
+            ),
         ),
         Experiment(
             "remus100",
@@ -87,6 +97,7 @@ EXPERIMENTS: dict[str, Experiment] = {
             horizon=880.0,
             dt=0.05,
             current=(0.0, 0.3),
+            options=(("waves", None), ("wave_seed", 0)),
         ),
     )
 }

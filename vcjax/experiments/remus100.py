@@ -6,7 +6,8 @@ half circles), under a constant current of ``V_c`` m/s towards the east — acro
 plant is :func:`vcjax.vehicles.remus100.remus100_plant` (PythonVehicleSimulator's model, hard
 actuator limits and lags); every law's body force goes through the same actuator map
 (:func:`vcjax.vehicles.remus100_design.actuator_map`). The controller is sampled (zero-order
-hold at the step ``dt``), the plant integrated by RK4.
+hold at the step ``dt``), the plant integrated by RK4. With ``--waves HS TP DIR_DEG`` every
+variant meets the same random sea (:func:`mission_sea`) on top of the current.
 
 Variants (:data:`VARIANTS`):
 
@@ -33,6 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops, metrics, paths
+from vcjax import waves as wv
 from vcjax.loops.remus100 import REMUS_CONTROLLERS
 from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig
@@ -42,6 +44,7 @@ __all__ = [
     "LABELS",
     "mission_path",
     "mission_scenario",
+    "mission_sea",
     "simulate",
     "mission_geometry",
     "mission_extras",
@@ -65,26 +68,48 @@ def mission_path(leg=250.0, radius=30.0, n_legs=4, depth=15.0, descent=150.0, st
     return paths.lawnmower((0.0, 0.0, start_depth), leg, radius, n_legs, depth, descent)
 
 
-def mission_scenario(variant, current=(0.0, 0.3), initial=None, coeffs=None, u_d=1.5):
+def mission_scenario(
+    variant, current=(0.0, 0.3), initial=None, coeffs=None, u_d=1.5, waves=None, wave_seed=0
+):
     """``(loop, scenario)`` of the mission for one controller of the ``remus100`` loop.
 
     ``current``: (2,) NED water velocity ``[north, east]`` [m/s] (default: 0.3 m/s towards east,
     across the legs); ``initial``: the loop's ``initial_keys`` (default: 3 m east of the start,
-    1 m deep, heading north at 1.5 m/s).
+    1 m deep, heading north at 1.5 m/s); ``waves``: ``(hs [m], tp [s], direction [deg])`` of a
+    random sea (:func:`mission_sea`) or None.
     """
     loop = loops.make_loop("remus100", variant)
     coeffs = mission_path()[1] if coeffs is None else coeffs
-    sc = loops.make_scenario(loop, coeffs, initial=initial, current=current, u_d=u_d)
+    sea = None if waves is None else mission_sea(waves, wave_seed)
+    sc = loops.make_scenario(loop, coeffs, initial=initial, current=current, u_d=u_d, sea=sea)
     return loop, sc
+
+
+def mission_sea(waves, seed=0):
+    """The sea of ``vcjax simulate remus100 --waves HS TP DIR_DEG``: a long-crested JONSWAP sea
+    (``gamma = 3.3``, 64 components) drawn from ``PRNGKey(seed)``
+    (:func:`vcjax.waves.sea_state`); the mean free surface at NED depth 0."""
+    hs, tp, direction_deg = (float(v) for v in waves)
+    key = jax.random.PRNGKey(seed)
+    return wv.sea_state(key, hs, tp, np.radians(direction_deg), spectrum="jonswap")
 
 
 _run = jax.jit(loops.simulate, static_argnames=("loop", "config"))
 
 
-def simulate(variant, horizon=880.0, dt=0.05, current=(0.0, 0.3), initial=None, gains=None):
-    """One closed-loop run (controller sampled at ``dt``, RK4 plant); returns
-    ``(trajectory, (path, coeffs))``."""
-    loop, sc = mission_scenario(variant, current, initial)
+def simulate(
+    variant,
+    horizon=880.0,
+    dt=0.05,
+    current=(0.0, 0.3),
+    initial=None,
+    gains=None,
+    waves=None,
+    wave_seed=0,
+):
+    """One closed-loop run (controller sampled at ``dt``, RK4 plant; ``waves``: see
+    :func:`mission_scenario`); returns ``(trajectory, (path, coeffs))``."""
+    loop, sc = mission_scenario(variant, current, initial, waves=waves, wave_seed=wave_seed)
     gains = loop.default_gains() if gains is None else gains
     conf = RolloutConfig(num_steps=int(round(horizon / dt)), timing="sampled")
     traj = _run(loop, gains, sc, conf, dt)
@@ -210,21 +235,43 @@ def _variant_of(traj) -> str:
 
 
 def run_remus100(
-    out, horizon=880.0, dt=0.05, current=(0.0, 0.3), variants=VARIANTS, gains=None
+    out,
+    horizon=880.0,
+    dt=0.05,
+    current=(0.0, 0.3),
+    variants=VARIANTS,
+    gains=None,
+    waves=None,
+    wave_seed=0,
 ) -> dict:
     """Run every variant of the survey mission; write ``metrics.json`` and figures to ``out``
-    (``gains``: of every controller, default: the loop's defaults)."""
+    (``gains``: of every controller, default: the loop's defaults; ``waves``: ``(hs, tp,
+    direction_deg)`` of one sea for every variant, :func:`mission_sea`)."""
     from vcjax.plots.remus100 import remus100_figures
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     trajs, results = {}, {}
     for v in variants:
-        loop, sc = mission_scenario(v, current)
-        traj, (path, coeffs) = simulate(v, horizon, dt, current, gains=gains)
+        loop, sc = mission_scenario(v, current, waves=waves, wave_seed=wave_seed)
+        traj, (path, coeffs) = simulate(
+            v, horizon, dt, current, gains=gains, waves=waves, wave_seed=wave_seed
+        )
         trajs[v] = jax.device_get(traj)
         results[v] = mission_metrics(trajs[v], path, coeffs, loop=loop, scenario=sc)
     meta = {"horizon": horizon, "dt": dt, "current_ned": [float(c) for c in current]}
+    if waves is not None:
+        hs, tp, direction = (float(x) for x in waves)
+        meta["waves"] = {
+            "hs": hs,
+            "tp": tp,
+            "direction_deg": direction,
+            "seed": int(wave_seed),
+            "spectrum": "jonswap",
+            "gamma": 3.3,
+            "components": 64,
+            "origin_depth": 0.0,
+        }
     clean = {v: {k: (None if isinstance(x, float) and not np.isfinite(x) else x)
                  for k, x in m.items()} for v, m in results.items()}  # fmt: skip
     write_json_atomic(out / "metrics.json", {"config": meta, "variants": clean}, newline=False)
@@ -239,9 +286,19 @@ def load_gains(d: dict, **_options):
     return loops.make_loop("remus100", VARIANTS[0]).gains_from_json(d)
 
 
-def run_experiment(out, gains, *, horizon, dt, current, progress=print) -> dict:
+def run_experiment(
+    out, gains, *, horizon, dt, current, progress=print, waves=None, wave_seed=0
+) -> dict:
     """``vcjax simulate remus100`` (:mod:`vcjax.experiments`): :func:`run_remus100`."""
-    result = run_remus100(out, horizon=horizon, dt=dt, current=current, gains=gains)
+    result = run_remus100(
+        out,
+        horizon=horizon,
+        dt=dt,
+        current=current,
+        gains=gains,
+        waves=waves,
+        wave_seed=wave_seed,
+    )
     result["printed"] = result["metrics"]
     result["unhealthy"] = [
         f"remus100 {name}: a non-finite or runaway state, or more than 25 m off the path "

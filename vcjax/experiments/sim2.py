@@ -29,6 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops, paths
+from vcjax import waves as wv
 from vcjax._checks import check_array, check_positive
 from vcjax.loops.odin import OdinGains, OdinLoop, default_odin_gains, odin_gains
 from vcjax.metrics import path_bound, run_metrics
@@ -49,6 +50,8 @@ __all__ = [
     "sim2_metrics",
     "REPORTED",
     "run_sim2",
+    "sim2_sea",
+    "WAVE_ORIGIN_DEPTH",
 ]
 
 #: Simulation 2's path kind (the helix); its coefficients live in the scenario's ``path``.
@@ -262,6 +265,20 @@ def sim2_metrics(
     return out
 
 
+#: depth of the NED origin below the mean free surface with ``--waves`` [m]: the paper's start
+#: ``z = -102`` (as printed) then lies 5 m below the surface, the helix descending from 7 m
+WAVE_ORIGIN_DEPTH = 107.0
+
+
+def sim2_sea(waves, seed=0):
+    """``(sea, origin_depth)`` of ``vcjax simulate sim2 --waves HS TP DIR_DEG``: a long-crested
+    JONSWAP sea (``gamma = 3.3``, 64 components) drawn from ``PRNGKey(seed)``
+    (:func:`vcjax.waves.sea_state`), and :data:`WAVE_ORIGIN_DEPTH`."""
+    hs, tp, direction_deg = (float(v) for v in waves)
+    sea = wv.sea_state(jax.random.PRNGKey(seed), hs, tp, np.radians(direction_deg))
+    return sea, WAVE_ORIGIN_DEPTH
+
+
 def run_sim2(
     out: Path,
     gains: OdinGains | None = None,
@@ -271,6 +288,8 @@ def run_sim2(
     compare: bool = True,
     progress=print,
     diverge_e: float | None = None,
+    waves=None,
+    wave_seed: int = 0,
 ) -> dict:
     """Run Simulation 2, write ``metrics.json`` and the figures (PNG) into ``out``
     (``diverge_e``: path-error bound [m] of ``healthy``, default :func:`vcjax.metrics.path_bound`).
@@ -285,6 +304,8 @@ def run_sim2(
         compare: also run the other actuation mode (overlaid in the figures; its metrics under
             ``metrics["by_actuation"]``).
         progress: callback taking a status line.
+        waves: ``(hs [m], tp [s], direction [deg])`` of one random sea for every run
+            (:func:`sim2_sea`, from ``wave_seed``), or None.
 
     Returns:
         ``{"metrics": dict, "files": [Path, ...]}``.
@@ -296,6 +317,9 @@ def run_sim2(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     sc = sim2_scenario()
+    if waves is not None:
+        sea, origin_depth = sim2_sea(waves, wave_seed)
+        sc = sc._replace(sea=sea, origin_depth=jnp.asarray(origin_depth, sc.eta0.dtype))
     modes = [actuation] + ([m for m in ACTUATIONS if m != actuation] if compare else [])
     trajs, by_mode = {}, {}
     for i, mode in enumerate(modes):
@@ -306,18 +330,40 @@ def run_sim2(
         trajs[mode] = jax.device_get(run_variant(cfg, gains, sc, horizon, dt))
         by_mode[mode] = sim2_metrics(trajs[mode], sc, config=cfg, diverge_e=diverge_e)
     metrics = {"actuation": actuation, **by_mode[actuation], "by_actuation": by_mode}
+    if waves is not None:
+        hs, tp, direction = (float(x) for x in waves)
+        metrics["waves"] = {
+            "hs": hs,
+            "tp": tp,
+            "direction_deg": direction,
+            "seed": int(wave_seed),
+            "spectrum": "jonswap",
+            "gamma": 3.3,
+            "components": 64,
+            "origin_depth": WAVE_ORIGIN_DEPTH,
+        }
     write_json_atomic(out / "metrics.json", metrics)
     files = sim2_figures(trajs, sc, PATH, out)
     return {"metrics": metrics, "files": [out / "metrics.json", *files]}
 
 
-def load_gains(d: dict, actuation: str = "underactuated") -> OdinGains:
+def load_gains(d: dict, actuation: str = "underactuated", **_options) -> OdinGains:
     """The experiment's gains from a gains-JSON object (:func:`gains_from_json`)."""
     return gains_from_json(d, actuation)
 
 
 def run_experiment(
-    out, gains, *, horizon, dt, current, progress=print, actuation="underactuated", diverge_e=None
+    out,
+    gains,
+    *,
+    horizon,
+    dt,
+    current,
+    progress=print,
+    actuation="underactuated",
+    diverge_e=None,
+    waves=None,
+    wave_seed=0,
 ) -> dict:
     """``vcjax simulate sim2`` (:mod:`vcjax.experiments`): :func:`run_sim2` (no current)."""
     assert current is None  # the registry declares no current for sim2
@@ -329,6 +375,8 @@ def run_experiment(
         actuation=actuation,
         progress=progress,
         diverge_e=diverge_e,
+        waves=waves,
+        wave_seed=wave_seed,
     )
     by_mode = result["metrics"]["by_actuation"]
     result["printed"] = {

@@ -9,11 +9,13 @@ A *loop* assembles a vehicle's plant, the controller's design model, a law and t
 * the :class:`~vcjax.loops.Scenario` — traced, the same container for every loop: initial
   state ``eta0``/``nu0``, ``current`` (the water's NED velocity (3,) [m/s], built from a speed
   and a direction with :func:`vcjax.currents.current_ned`), ``u_d``, ``varpi0``, the path's
-  coefficients, the ``plant`` and ``design`` parameters, a constant ``disturbance`` force;
+  coefficients, the ``plant`` and ``design`` parameters, a constant ``disturbance`` force,
+  and optionally a ``sea`` (a :class:`vcjax.waves.Sea`) with its ``origin_depth``;
 * the gains — a NamedTuple pytree, traced (a new gain value never recompiles).
 
 :func:`~vcjax.loops.simulate` rolls any loop out, optionally with disturbances that wrap
-any loop (:class:`~vcjax.loops.Disturbances`: a Gauss–Markov current, sensor noise);
+any loop (:class:`~vcjax.loops.Disturbances`: a Gauss–Markov current, sensor noise) and a
+sea when the scenario has one (loops with ``takes_waves``, :meth:`Loop.plant_in_sea`);
 model error is just a ``plant`` that differs from ``design``.
 :func:`vcjax.metrics.run_metrics` turns any loop's :class:`~vcjax.loops.Signals` into the
 one set of metrics and health flags.
@@ -46,7 +48,8 @@ defines a loop entirely inside the test file and sweeps and tunes it):
    are given in degrees in configs and arrive in radians), ``noise_channels`` (sensor-noise
    channel name -> entries; leave empty if you model no sensors), ``takes_disturbance``,
    ``takes_current`` / ``takes_time_varying_current`` (False: configs asking for a current
-   are refused, :func:`check_disturbances`), ``default_speed``.
+   are refused, :func:`check_disturbances`), ``takes_waves`` (with ``plant_in_sea``; else
+   a sea is refused with ``waves_refusal`` as the reason), ``default_speed``.
 2. Implement (``register`` refuses a class missing one, naming them):
    ``default_params(dtype)`` — the plant parameters (a NamedTuple; its field names, dotted for
    nested NamedTuples, are the names ``[model_error] fields`` and parameter files use;
@@ -58,7 +61,8 @@ defines a loop entirely inside the test file and sweeps and tunes it):
    ``sc.design``), ``initial_state(sc) -> (x0, z0)``, ``initial_from(values) -> (eta0,
    nu0)``, ``position(eta, params) -> (3,)`` (where the path must be: craft position, end
    effector); ``signals(traj, sc) -> Signals`` (true errors, commands over limits, actuator
-   magnitudes); optionally ``measure(x, noise)`` and ``with_current(args, current, rate)``.
+   magnitudes); optionally ``measure(x, noise)``, ``with_current(args, current, rate)`` and
+   ``plant_in_sea(t, x, u, args, water)`` (:class:`~vcjax.loops.Water`).
    Gains (``default_gains``, ``gain_specs``, ``symmetric_pairs``, ``gains_from_json``) come
    from the law; a loop without ``laws`` defines ``default_gains`` and ``gain_specs`` itself.
 3. ``loops.register(MyLoop)`` (a name already taken is refused unless ``replace=True``). Then
@@ -119,7 +123,7 @@ from vcjax.loops.registry import (
 )
 from vcjax.loops.remus100 import Remus100Loop
 from vcjax.loops.scenario import apply_params, check_disturbances, make_scenario, read_param_file
-from vcjax.loops.types import GainSpec, Scenario, Signals
+from vcjax.loops.types import GainSpec, Scenario, Signals, Water
 
 __all__ = [
     "Disturbances",
@@ -129,6 +133,7 @@ __all__ = [
     "Loop",
     "Scenario",
     "Signals",
+    "Water",
     "InfanteGains",
     "InfanteLoop",
     "infante_gains",

@@ -70,6 +70,7 @@ class ArmLoop(EngineLoop):
     #: an arm in air: no water current
     takes_current: ClassVar[bool] = False
     takes_time_varying_current: ClassVar[bool] = False
+    waves_refusal: ClassVar[str] = "an arm in air feels no sea"
 
     @classmethod
     def default_path(cls):

@@ -1,6 +1,7 @@
-"""Disturbances that wrap any loop (a Gauss–Markov current, sensor noise) and :func:`simulate`,
-which rolls any loop out with or without them through :func:`vcjax.rollout.rollout`'s
-exogenous hook."""
+"""Disturbances that wrap any loop (a Gauss–Markov current, sensor noise, waves) and
+:func:`simulate`, which rolls any loop out with or without them: the current process and the
+noise through :func:`vcjax.rollout.rollout`'s exogenous hook, the sea (:attr:`Scenario.sea`)
+inside the plant's vector field."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ import jax.numpy as jnp
 
 from vcjax.currents import GaussMarkovCurrent, gm_init, gm_step, gm_value
 from vcjax.loops.loop import Loop
-from vcjax.loops.types import Scenario
+from vcjax.loops.scenario import check_disturbances
+from vcjax.loops.types import Scenario, Water
 from vcjax.rollout import Reduction, RolloutConfig, rollout, rollout_reduce
 
 __all__ = ["Disturbances", "DisturbanceParams", "gauss_markov_params", "simulate"]
@@ -55,31 +57,44 @@ class DisturbanceParams(NamedTuple):
 
 @dataclasses.dataclass(frozen=True)
 class _Wrapped:
+    """The loop with its disturbances: the current process and the noise through the rollout's
+    exogenous hook (once per step), the sea inside the plant (every integrator stage)."""
+
     loop: Loop
     dist: Disturbances
+    waves: bool = False
 
     def exogenous(self, k, t, s, plant_params, ctrl_params):
-        args, gm_p, key_steps, dt, vertical = plant_params
+        args, gm_p, key_steps, dt, current, sea = plant_params
         ctrl, noise_std, key_noise = ctrl_params
+        gm = None
         if self.dist.gauss_markov:
             # current on [t_k, t_k + dt]: linear between the exact GM samples, its rate the slope
             d_next = gm_step(gm_p, s, dt, jax.random.fold_in(key_steps, k))
             V0, V1 = gm_value(gm_p, s), gm_value(gm_p, d_next)
             dV = (V1 - V0) / dt
-            args = (args, jnp.concatenate([V0, vertical]), jnp.concatenate([dV, 0 * vertical]))
+            vertical = current[2:]
+            gm = (jnp.concatenate([V0, vertical]), jnp.concatenate([dV, 0 * vertical]))
             s = d_next
         n = None
         if self.dist.sensor_noise:
             n = noise_std * jax.random.normal(
                 jax.random.fold_in(key_noise, k), noise_std.shape, noise_std.dtype
             )
-        return s, (args, t), (ctrl, n)
+        return s, (args, t, gm, current, sea), (ctrl, n)
 
     def plant(self, t, x, u, params):
-        args, t_k = params
-        if self.dist.gauss_markov:
-            args, V, dV = args
-            args = self.loop.with_current(args, V + (t - t_k) * dV, dV)
+        args, t_k, gm, current, sea = params
+        current_dot = None
+        if gm is not None:
+            V, dV = gm
+            current, current_dot = V + (t - t_k) * dV, dV
+            args = self.loop.with_current(args, current, dV)
+        if self.waves:
+            sea, origin_depth = sea
+            return self.loop.plant_in_sea(
+                t, x, u, args, Water(sea, origin_depth, current, current_dot)
+            )
         return self.loop.plant(t, x, u, args)
 
     def control(self, t, x, z, params):
@@ -109,9 +124,13 @@ def simulate(
     """Roll ``loop`` out on scenario ``sc`` (pure, not jitted; vmap/grad it).
 
     ``loop``, ``config`` and ``dist`` are static; ``gains``, ``sc``, ``dt`` and ``dist_params``
-    are traced. Without disturbances this is one :func:`vcjax.rollout.rollout` of
+    are traced. Without disturbances and waves this is one :func:`vcjax.rollout.rollout` of
     ``loop.plant`` / ``loop.control``; with them the same loop gets a Gauss–Markov current
-    and/or measurement noise through the rollout's ``exogenous`` hook.
+    and/or measurement noise through the rollout's ``exogenous`` hook, and, when the scenario
+    has a sea (``sc.sea`` not None, a static choice), its plant feels the waves at the
+    vehicle's position in every integrator stage (:meth:`Loop.plant_in_sea`; a calm sea gives
+    exactly the run without one). A loop that cannot take what is asked raises ``ValueError``
+    (``current: ...`` / ``waves: ...``).
 
     Returns the :class:`~vcjax.rollout.Trajectory`; with a ``reduction``
     (:class:`~vcjax.rollout.Reduction`) the record is folded segment by segment instead
@@ -122,22 +141,32 @@ def simulate(
             f"current: the {loop.vehicle or type(loop).__name__} loop cannot take a "
             "time-varying (Gauss-Markov) current"
         )
+    waves = sc.sea is not None
+    if waves:
+        check_disturbances(loop, False, False, waves=True)
     run = rollout if reduction is None else functools.partial(rollout_reduce, reduction=reduction)
     x0, z0 = loop.initial_state(sc)
     ctrl = loop.ctrl_params(gains, sc)
     dtype = sc.eta0.dtype
-    if not dist.active:
+    if not dist.active and not waves:
         args = loop.plant_args(sc, sc.current, jnp.zeros(3, dtype))
         return run(loop.plant, loop.control, config, args, ctrl, x0, z0, dt)
+    w = _Wrapped(loop, dist, waves)
+    args = loop.plant_args(sc, sc.current, jnp.zeros(3, dtype))
+    sea = None
+    if waves:
+        depth = jnp.zeros((), dtype) if sc.origin_depth is None else sc.origin_depth
+        sea = (sc.sea, depth)
+    if not dist.active:  # waves only: no per-step process
+        plant_params = (args, None, None, sc.current, sea)
+        return run(w.plant, w.control, config, plant_params, (ctrl, None), x0, z0, dt)
     if dist_params is None:
         raise ValueError("dist_params: required with disturbances")
     dt = jnp.asarray(dt, dtype)
-    w = _Wrapped(loop, dist)
     k_init, k_steps, k_noise = _process_keys(dist_params.key)
     gm_p = dist_params.current
     s0 = gm_init(gm_p, k_init) if dist.gauss_markov else None
-    args = loop.plant_args(sc, sc.current, jnp.zeros(3, dtype))
-    plant_params = (args, gm_p, k_steps, dt, sc.current[2:])
+    plant_params = (args, gm_p, k_steps, dt, sc.current, sea)
     return run(
         w.plant,
         w.control,

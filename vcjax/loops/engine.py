@@ -36,7 +36,10 @@ its velocity over ground (a puck, a craft in its own coordinates). The current's
 (added-mass force) is not modelled; a time-varying (Gauss–Markov) current is taken the same way.
 A system without water (:mod:`vcjax.loops.arm`) sets ``takes_current = False`` and
 ``takes_time_varying_current = False``: configs asking for a current are then refused
-(:func:`vcjax.loops.check_disturbances`) and the plant ignores ``Scenario.current``.
+(:func:`vcjax.loops.check_disturbances`) and the plant ignores ``Scenario.current``. No engine
+loop takes waves (:attr:`~vcjax.loops.Loop.takes_waves` is False): the orbital motion's
+acceleration would need the added-mass and Froude–Krylov forces the engine's plant does not
+model, so a scenario or config with a sea is refused.
 """
 
 from __future__ import annotations
@@ -176,6 +179,10 @@ class EngineLoop(Loop):
     takes_disturbance: ClassVar[bool] = True
     takes_current: ClassVar[bool] = True
     takes_time_varying_current: ClassVar[bool] = True
+    waves_refusal: ClassVar[str] = (
+        "the engine's plant takes the water's velocity at its point only, not the orbital "
+        "motion's acceleration (added mass, Froude-Krylov) that waves need"
+    )
 
     # ---------------------------------------------------------------- what a subclass gives
     def mass_matrix(self, q, p):

@@ -62,6 +62,11 @@ class Loop:
     takes_current: ClassVar[bool] = False
     #: True when the plant sees a time-varying current (:meth:`with_current`; Gauss–Markov)
     takes_time_varying_current: ClassVar[bool] = False
+    #: True when the plant feels a sea (:attr:`Scenario.sea`, :meth:`plant_in_sea`); False:
+    #: a config or scenario with waves is refused (:func:`vcjax.loops.check_disturbances`)
+    takes_waves: ClassVar[bool] = False
+    #: why a loop that takes no waves cannot (the end of its one-line refusal)
+    waves_refusal: ClassVar[str] = "its plant has no door for the water's orbital motion"
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -187,6 +192,22 @@ class Loop:
     def with_current(self, args, current, current_dot):
         """``args`` with a new current (3,) and rate (3,) (time-varying currents)."""
         raise NotImplementedError(f"{type(self).__name__}: no time-varying current")
+
+    def plant_in_sea(self, t, x, u, args, water):
+        """The plant's vector field in a sea (loops with :attr:`takes_waves`).
+
+        Args:
+            t, x, u: as :meth:`plant`; args: the plant's arguments with the current already in
+                them (:meth:`plant_args`, :meth:`with_current`);
+            water: :class:`~vcjax.loops.types.Water` (the sea and the current at this time).
+
+        The loop knows how its plant takes the water: it evaluates ``water`` at the vehicle's
+        NED position (every integrator stage: the sea depends on where the vehicle is), hands
+        the velocity and material acceleration to the plant's current door and adds the
+        Froude–Krylov correction (:func:`vcjax.waves.current_door_correction`). A calm sea
+        (``hs = 0``) must give exactly :meth:`plant`'s result.
+        """
+        raise NotImplementedError(f"{type(self).__name__}: no waves ({self.waves_refusal})")
 
     def gains_to_json(self, gains) -> dict:
         return gains_to_json(gains)

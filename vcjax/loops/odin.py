@@ -22,7 +22,7 @@ from typing import Any, ClassVar, Literal, NamedTuple
 
 import jax.numpy as jnp
 
-from vcjax import paths
+from vcjax import paths, waves
 from vcjax._checks import check_positive
 from vcjax.allocation import allocate
 from vcjax.control.attitude import roll_pitch_pd
@@ -268,6 +268,7 @@ class OdinLoop(Loop):
     takes_disturbance: ClassVar[bool] = True
     default_speed: ClassVar[float] = 0.5
     takes_current: ClassVar[bool] = True
+    takes_waves: ClassVar[bool] = True
 
     def __post_init__(self):
         super().__post_init__()
@@ -346,6 +347,20 @@ class OdinLoop(Loop):
 
     def plant_args(self, sc: Scenario, current, current_dot):
         return odin.OdinArgs(vehicle=sc.plant, tau_dist=sc.disturbance, v_c=current)
+
+    def plant_in_sea(self, t, x, u, args, water):
+        """The 6-DOF plant in a sea: the water's velocity and material acceleration at the
+        vehicle's position (current + orbital motion) through the plant's (3,) current door,
+        the Froude–Krylov correction (:func:`vcjax.waves.current_door_correction`: the pendulum
+        moment of the CG below the CB, plus the buoyancy excess if ``B != W``) added to the
+        body disturbance. A calm sea changes nothing (every added term is exactly 0)."""
+        v_w, a_w = water.at(t, x.eta[:3])
+        b = args.vehicle.body
+        m = b.M_RB[0, 0]
+        R = Rzyx(x.eta[3], x.eta[4], x.eta[5])
+        tau_w = waves.current_door_correction(R, a_w, b.M_RB, m * b.B / b.W, b.r_bb)
+        args = args._replace(v_c=v_w, v_c_dot=a_w, tau_dist=args.tau_dist + tau_w)
+        return self.plant(t, x, u, args)
 
     def ctrl_params(self, gains: OdinGains, sc: Scenario) -> OdinCtrlParams:
         return self.law.params(self, gains, sc)

@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax import paths
+from vcjax import paths, waves
 from vcjax.control.baselines3d import (
     AutopilotConfig,
     DecoupledConfig,
@@ -45,7 +45,7 @@ from vcjax.control.vcm3d import (
     vcm3d_params,
     vcm3d_state,
 )
-from vcjax.linalg import wrap_angle
+from vcjax.linalg import Rzyx, wrap_angle
 from vcjax.loops.law import Law
 from vcjax.loops.loop import Loop
 from vcjax.loops.params import gain_spec
@@ -277,6 +277,7 @@ class Remus100Loop(Loop):
     default_speed: ClassVar[float] = 1.5
     takes_current: ClassVar[bool] = True
     takes_time_varying_current: ClassVar[bool] = True
+    takes_waves: ClassVar[bool] = True
 
     def __post_init__(self):
         super().__post_init__()
@@ -323,6 +324,19 @@ class Remus100Loop(Loop):
 
     def with_current(self, args, current, current_dot):
         return args._replace(v_c=current[:2], v_c_dot=current_dot[:2])
+
+    def plant_in_sea(self, t, x, u, args, water):
+        """The PVS plant in a sea: the current keeps PVS's yaw-only door (``args.v_c``), the
+        orbital motion at the hull's position goes through the full rotation on top of it
+        (:attr:`~vcjax.vehicles.remus100.Remus100Args.v_w`), and the pendulum moment of the CG
+        below the CB (:func:`vcjax.waves.current_door_correction`; ``W = B``, CB at the CO)
+        joins the force sum. A calm sea changes nothing (every added term is exactly 0)."""
+        u_w, a_w = water.waves_at(t, x.eta[:3])
+        b = args.vehicle.body
+        m = b.M_RB[0, 0]
+        R = Rzyx(x.eta[3], x.eta[4], x.eta[5])
+        tau_w = waves.current_door_correction(R, a_w, b.M_RB, m * b.B / b.W, b.r_bb)
+        return self.plant(t, x, u, args._replace(v_w=u_w, v_w_dot=a_w, tau_w=tau_w))
 
     def ctrl_params(self, gains: RemusGains, sc: Scenario):
         dm = rd.Remus100Design(sc.design, sc.u_d, jnp.asarray(0.5, sc.u_d.dtype))

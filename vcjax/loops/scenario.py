@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from vcjax import waves
 from vcjax.loops.geometry import start_parameter
 from vcjax.loops.loop import Loop
 from vcjax.loops.params import get_param, replace_params
@@ -19,16 +20,23 @@ from vcjax.loops.types import Scenario
 __all__ = ["make_scenario", "read_param_file", "apply_params", "check_disturbances"]
 
 
-def check_disturbances(loop, current_nonzero: bool, gauss_markov: bool) -> None:
-    """Refuse (``ValueError``, one line naming the reason) a current the loop cannot take.
+def check_disturbances(
+    loop, current_nonzero: bool, gauss_markov: bool, waves: bool = False
+) -> None:
+    """Refuse (``ValueError``, one line naming the reason) a current or a sea the loop cannot
+    take.
 
     Args:
         loop: a :class:`Loop` or a Loop subclass.
         current_nonzero: the config asks for a non-zero (mean) current.
         gauss_markov: the config asks for a time-varying (Gauss–Markov) current.
+        waves: the config asks for waves (a sea state, even a calm one); the message then
+            starts with ``waves:``.
     """
     cls = loop if isinstance(loop, type) else type(loop)
     name = cls.vehicle or cls.__name__
+    if waves and not cls.takes_waves:
+        raise ValueError(f"waves: the {name} loop cannot take waves: {cls.waves_refusal}")
     if gauss_markov and not cls.takes_time_varying_current:
         raise ValueError(
             f"current: the {name} loop cannot take a time-varying (Gauss-Markov) current"
@@ -51,6 +59,8 @@ def make_scenario(
     design=None,
     disturbance=None,
     varpi0=None,
+    sea=None,
+    origin_depth=0.0,
     dtype=None,
 ) -> Scenario:
     """A validated :class:`Scenario` for ``loop`` (eager; not for use under ``jit``).
@@ -67,6 +77,9 @@ def make_scenario(
             ``plant``).
         disturbance: constant generalised disturbance (default zeros).
         varpi0: initial particle (default: the path point nearest to the start).
+        sea: a :class:`vcjax.waves.Sea` (e.g. :func:`vcjax.waves.sea_state`) the plant feels,
+            or None (no waves; refused by a loop that cannot take waves).
+        origin_depth: depth of the NED origin below the sea's mean free surface [m].
     """
     plant = loop.default_params(dtype) if plant is None else loop.validate_params(plant, "plant")
     design = plant if design is None else loop.validate_params(design, "design")
@@ -107,6 +120,11 @@ def make_scenario(
         raise ValueError(f"disturbance: the {loop.vehicle} plant takes no disturbance force")
     if varpi0 is None:
         varpi0 = start_parameter(loop.path, coeffs, loop.position(eta0, design))
+    if sea is not None:
+        check_disturbances(loop, False, False, waves=True)
+        sea = _check_sea(sea, dt)
+        if not np.isfinite(origin_depth):
+            raise ValueError(f"origin_depth: expected a finite depth [m], got {origin_depth!r}")
     return Scenario(
         eta0=eta0,
         nu0=nu0,
@@ -117,7 +135,24 @@ def make_scenario(
         plant=plant,
         design=design,
         disturbance=jnp.asarray(disturbance, dt),
+        sea=sea,
+        origin_depth=None if sea is None else jnp.asarray(origin_depth, dt),
     )
+
+
+def _check_sea(sea, dtype):
+    """A :class:`~vcjax.waves.Sea` of five finite (N,) arrays cast to ``dtype``."""
+    if not isinstance(sea, waves.Sea):
+        raise ValueError(f"sea: expected a vcjax.waves.Sea, got {type(sea).__name__}")
+    arrs = [np.asarray(a, dtype=float) for a in sea]
+    n = arrs[0].shape
+    if (
+        len(n) != 1
+        or any(a.shape != n for a in arrs)
+        or not all(np.isfinite(a).all() for a in arrs)
+    ):
+        raise ValueError("sea: expected five finite (N,) arrays (omega, amplitude, ...)")
+    return waves.Sea(*(jnp.asarray(a, dtype) for a in arrs))
 
 
 def _state(name: str, value, shape, dtype):

@@ -6,7 +6,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
-__all__ = ["Scenario", "GainSpec", "Signals"]
+import jax.numpy as jnp
+
+from vcjax import waves
+
+__all__ = ["Scenario", "Water", "GainSpec", "Signals"]
 
 
 class Scenario(NamedTuple):
@@ -26,6 +30,12 @@ class Scenario(NamedTuple):
             from them); equal to ``plant`` unless a study perturbs the plant (model error).
         disturbance: (n_nu,) constant generalised disturbance force on the plant (body frame
             for craft) [N, N m]; zeros where the plant takes none.
+        sea: a :class:`vcjax.waves.Sea` (``N`` regular components, (N,) arrays) whose orbital
+            motion the plant feels on top of ``current`` (:meth:`Loop.plant_in_sea`), or
+            ``None``: no waves. Whether it is ``None`` is static (it changes the program).
+        origin_depth: () depth of the NED origin below the sea's mean free surface [m]: the sea
+            is felt at depth ``origin_depth + z`` (the same mission at another survey depth);
+            ``None`` is 0. Unused without a sea.
     """
 
     eta0: Any
@@ -37,6 +47,40 @@ class Scenario(NamedTuple):
     plant: Any
     design: Any
     disturbance: Any
+    sea: Any = None
+    origin_depth: Any = None
+
+
+class Water(NamedTuple):
+    """The water a plant moves in during one integration step (traced; built by
+    :func:`vcjax.loops.simulate` for :meth:`Loop.plant_in_sea`).
+
+    Attributes:
+        sea: :class:`vcjax.waves.Sea`; origin_depth: () depth of the NED origin below the mean
+            free surface [m] (:attr:`Scenario.origin_depth`);
+        current: (3,) uniform current in NED at this time [m/s];
+        current_dot: (3,) its rate [m/s^2], or ``None`` (a constant current).
+    """
+
+    sea: Any
+    origin_depth: Any
+    current: Any
+    current_dot: Any = None
+
+    def _at(self, p_ned):
+        return jnp.asarray(p_ned).at[2].add(self.origin_depth)
+
+    def at(self, t, p_ned):
+        """``(v_w (3,), a_w (3,))``: the water's velocity (current + orbital) [m/s] and material
+        acceleration [m/s^2] at the NED point ``p_ned`` (3,) [m], time ``t`` [s]
+        (:func:`vcjax.waves.water_kinematics`)."""
+        return waves.water_kinematics(self.sea, t, self._at(p_ned), self.current, self.current_dot)
+
+    def waves_at(self, t, p_ned):
+        """``(u (3,), a (3,))``: the waves' share of :meth:`at`, the orbital velocity and its
+        material acceleration advected by the current (:func:`vcjax.waves.orbital_kinematics`);
+        ``at = (current + u, current_dot + a)``."""
+        return waves.orbital_kinematics(self.sea, t, self._at(p_ned), self.current)
 
 
 class GainSpec(NamedTuple):

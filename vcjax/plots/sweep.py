@@ -5,7 +5,10 @@
 * ``sweep_metrics.png``: box plots of the main metrics per variant;
 * ``sweep_envelopes.png``: cross-track error against time, median and 25–75 % / 5–95 % bands
   per variant, all panels on one y scale;
-* ``sweep_paths.png``: a sample of the paths travelled, per variant (equal axis scales).
+* ``sweep_paths.png``: a sample of the paths travelled, per variant (equal axis scales);
+* ``sweep_error_vs_waves.png`` (sweeps with ``[waves]``): RMS cross-track and depth errors of
+  every run against the significant wave height, and against the depth of the NED origin below
+  the mean surface when it varies, with binned medians.
 
 Runs flagged ``diverged`` are left out of every panel (their count is in the titles).
 """
@@ -100,6 +103,55 @@ def _error_vs_current(result, out: Path) -> Path:
     axes[1].set_title("against the current's direction", fontsize=10)
     axes[0].legend(fontsize=8)
     return save(fig, out / "sweep_error_vs_current.png")
+
+
+def _error_vs_waves(result, out: Path) -> Path:
+    plt = pyplot()
+    sc = result.scenarios
+    hs = np.asarray(sc["wave_hs"], np.float64)
+    depth = np.asarray(sc["wave_origin_depth"], np.float64)
+    columns = [(hs, "significant wave height Hs [m]")]
+    if np.ptp(depth) > 0:
+        columns.append((depth, "origin_depth: depth of the NED origin below the surface [m]"))
+    rows = [
+        ("rms_cross_track_e", "RMS cross-track error [m]"),
+        ("rms_depth_err", "RMS depth error [m]"),
+    ]
+    fig, axes = plt.subplots(
+        2, len(columns), figsize=(6 * len(columns), 8), squeeze=False, sharey="row"
+    )
+    n = hs.size
+    alpha = float(np.clip(60.0 / max(n, 1), 0.2, 0.6))
+    for j, (x, xlabel) in enumerate(columns):
+        edges = np.linspace(x.min(), x.max() + 1e-12, 7) if n else np.linspace(0.0, 1.0, 7)
+        for i, (key, ylabel) in enumerate(rows):
+            ax = axes[i, j]
+            ys = []
+            for v in _variants(result):
+                ok = _ok(result, v)
+                y = np.maximum(np.asarray(result.metrics[v][key], np.float64)[ok], _FLOOR)
+                ys.append(y)
+                st = _style(v)
+                ax.scatter(x[ok], y, s=6, color=st["color"], alpha=alpha, lw=0)
+                if np.ptp(x) > 0 and ok.any():
+                    mx, my = _binned_median(x[ok], y, edges)
+                    ax.plot(mx, my, color=st["color"], ls=st["ls"], lw=2, label=st["label"])
+                else:
+                    ax.plot([], [], color=st["color"], ls=st["ls"], lw=2, label=st["label"])
+            y_all = np.concatenate(ys)
+            if y_all.size and np.ptp(y_all) > 0:  # no data, or one value (planar: no depth)
+                ax.set_yscale("log")
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel(ylabel)
+            ax.grid(True, which="both", alpha=0.3)
+    axes[0, 0].legend(fontsize=8)
+    fails = ", ".join(f"{v}: {int((~_ok(result, v)).sum())}" for v in _variants(result))
+    title = (
+        f"{n} scenarios, errors over the last {100 * result.spec.tail:.0f} % of each run; "
+        f"lines: binned medians; diverged runs (left out): {fails}"
+    )
+    fig.suptitle("\n".join(textwrap.wrap(title, 110)), fontsize=10)
+    return save(fig, out / "sweep_error_vs_waves.png")
 
 
 def _metric_boxes(result, out: Path) -> Path:
@@ -210,6 +262,8 @@ def sweep_figures(result, out: Path) -> list[Path]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     files = [_error_vs_current(result, out), _metric_boxes(result, out)]
+    if "wave_hs" in result.scenarios:
+        files.append(_error_vs_waves(result, out))
     if np.asarray(result.trace_t).size:
         files += [_envelopes(result, out), _paths(result, out)]
     return files

@@ -16,7 +16,11 @@ comparison). A scenario draws:
   design parameters;
 * sensor noise: white Gaussian noise on what the controller measures, drawn per step from
   ``jax.random.fold_in(key, k)`` (held over the step), standard deviations fixed by the study;
-* a constant disturbance force (vehicles whose plant takes one, e.g. ODIN-class).
+* a constant disturbance force (vehicles whose plant takes one, e.g. ODIN-class);
+* a random sea (``[waves]``; loops whose plant feels one, REMUS 100 and ODIN-class):
+  significant height ``hs`` [m], peak period ``tp`` [s], direction [deg, towards which the
+  waves travel] and the depth of the NED origin below the mean surface [m], then the sea's
+  frequencies, phases and directions (:func:`vcjax.waves.sea_state`).
 
 Everything a scenario draws comes from ``jax.random.fold_in(PRNGKey(seed), index)``, so scenario
 ``i`` is the same whatever the chunk size, the number of devices or of hosts.
@@ -74,6 +78,16 @@ TOML schema (every key optional unless marked; a value written ``range`` is eith
     sigma = 0.05                # m/s, stationary std of each fluctuation component (GM only)
     tau = 300.0                 # s, correlation time (GM only)
     max_speed = 2.0             # m/s, speed bound of the current handed to the plant (GM only)
+
+    [waves]                     # optional: a random sea per scenario (vcjax.waves)
+    spectrum = "jonswap"        # "jonswap" | "pm" (Pierson-Moskowitz)
+    hs = [0.5, 3.0]             # range, m, significant wave height (required)
+    tp = [5.0, 12.0]            # range, s, peak period (required; tp >= 40 dt)
+    direction_deg = [0, 360]    # range, deg, towards which the waves travel
+    gamma = 3.3                 # JONSWAP peak enhancement (>= 1)
+    spreading = 0.0             # s of the cos^2s spreading (0: long-crested)
+    components = 64             # int >= 1, regular components per sea
+    origin_depth = [2.0, 10.0]  # range, m, depth of the NED origin below the mean surface
 
     [initial]                   # the vehicle's keys (loop.initial_keys), each a range
     x = 0.0                     # INFANTE-class: x, y [m], heading_deg, speed [m/s]

@@ -20,6 +20,7 @@ from vcjax.config import (
     ModelError,
     SensorNoise,
     Simulation,
+    Waves,
     as_bool,
     as_str_list,
     check_schema,
@@ -32,7 +33,7 @@ from vcjax.sweep.results import load_results, merge_results, save_results, summa
 from vcjax.sweep.run import run_sweep
 from vcjax.sweep.spec import ScenarioSpec, SweepSpec
 
-__all__ = ["SCHEMA", "load_config", "run_sweep_config"]
+__all__ = ["SCHEMA", "load_config", "run_sweep_config", "check_waves", "refusal"]
 
 #: section -> keys ([initial] and [sensor_noise] keys depend on the vehicle)
 SCHEMA: dict[str, tuple[str, ...] | None] = {
@@ -40,6 +41,7 @@ SCHEMA: dict[str, tuple[str, ...] | None] = {
     "sweep": ("num_scenarios", "seed", "variants", "chunk_size"),
     "simulation": (*(f.name for f in dataclasses.fields(Simulation)), "edd", "gains"),
     "current": tuple(f.name for f in dataclasses.fields(Current)),
+    "waves": tuple(f.name for f in dataclasses.fields(Waves)),
     "initial": None,
     "model_error": tuple(f.name for f in dataclasses.fields(ModelError)),
     "sensor_noise": None,
@@ -72,6 +74,14 @@ _SCENARIO_KEYS = {
     ("current", "max_speed"): "current_max_speed",
     ("model_error", "relative"): "model_error",
     ("model_error", "fields"): "model_fields",
+    ("waves", "spectrum"): "wave_spectrum",
+    ("waves", "hs"): "wave_hs",
+    ("waves", "tp"): "wave_tp",
+    ("waves", "direction_deg"): "wave_direction_deg",
+    ("waves", "gamma"): "wave_gamma",
+    ("waves", "spreading"): "wave_spreading",
+    ("waves", "components"): "wave_components",
+    ("waves", "origin_depth"): "wave_origin_depth",
 }
 
 
@@ -87,11 +97,29 @@ def _toml_name(msg: str) -> str:
     return msg
 
 
+def check_waves(table) -> None:
+    """A ``[waves]`` table gives the two keys without a default (``ConfigError`` naming the
+    missing one)."""
+    for k in ("hs", "tp"):
+        if isinstance(table, dict) and k not in table:
+            raise ConfigError(f"[waves] {k} is required (a number or [lo, hi])")
+
+
+def refusal(err: ValueError) -> str:
+    """:func:`vcjax.loops.check_disturbances`'s message with its TOML section first."""
+    msg = str(err)
+    for sec in ("waves", "current"):
+        if msg.startswith(f"{sec}: "):
+            return f"[{sec}] " + msg.removeprefix(f"{sec}: ")
+    return msg
+
+
 def _sections(raw: dict, where: str) -> dict:
     """The shared sections (:mod:`vcjax.config.schema`) of a sweep config, parsed."""
     kinds = {
         "simulation": Simulation,
         "current": Current,
+        "waves": Waves,
         "initial": Initial,
         "model_error": ModelError,
         "sensor_noise": SensorNoise,
@@ -158,14 +186,18 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
             sc_kw["disturbance"] = sections["disturbance"].force
         if not cls.takes_current and "current" not in raw:
             sc_kw["current_speed"] = (0.0, 0.0)  # the default current is Simulation 1's
-        try:  # a current the loop cannot take is refused, never silently ignored
+        if "waves" in raw:
+            check_waves(raw["waves"])
+            sc_kw["wave_spectrum"] = sections["waves"].spectrum
+        try:  # a current or a sea the loop cannot take is refused, never silently ignored
             loops.check_disturbances(
                 cls,
                 max(sc_kw.get("current_speed", ScenarioSpec.current_speed)) > 0,
                 sc_kw.get("current_model", ScenarioSpec.current_model) == "gauss_markov",
+                waves="waves" in raw,
             )
         except ValueError as err:
-            raise ConfigError("[current] " + str(err).removeprefix("current: ")) from None
+            raise ConfigError(refusal(err)) from None
         gains = raw.get("simulation", {}).get("gains")
         figures = as_bool("[output] figures", raw.get("output", {}).get("figures", True))
         spec = SweepSpec(scenario=ScenarioSpec(**sc_kw), choice=choice, **spec_kw)

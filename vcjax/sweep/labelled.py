@@ -48,6 +48,10 @@ INPUT_UNITS = {
     "disturbance": ("N, N m (body frame)", None),
     "eta0": ("m, rad", None),
     "nu0": ("m/s, rad/s", None),
+    "wave_hs": ("m", None),
+    "wave_tp": ("s", None),
+    "wave_direction_deg": ("deg", None),
+    "wave_origin_depth": ("m", None),
 }
 #: Sampled fields left out: the scenario number is the ``scenario`` coordinate, and the PRNG key
 #: follows from it (``fold_in(PRNGKey(seed), index)``).

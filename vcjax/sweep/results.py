@@ -21,6 +21,8 @@ __all__ = [
     "merge_results",
     "spec_to_dict",
     "spec_from_dict",
+    "wave_table",
+    "WAVE_TABLE_METRICS",
 ]
 
 
@@ -140,13 +142,60 @@ def _stats(x: np.ndarray) -> dict:
     return {k: (float(v) if np.isfinite(v) else None) for k, v in vals.items()}
 
 
+#: the metrics :func:`wave_table` bins
+WAVE_TABLE_METRICS = ("rms_cross_track_e", "rms_depth_err")
+
+
+def wave_table(result: SweepResult, hs_bins: int = 3, depth_bins: int = 3) -> dict:
+    """Medians of :data:`WAVE_TABLE_METRICS` per significant-wave-height bin x origin-depth bin
+    (equal-width bins over the sampled ranges of a sweep with ``[waves]``; one depth bin when
+    ``origin_depth`` is fixed), per variant, over the runs that did not diverge.
+
+    Returns:
+        ``{"hs_edges": [...] m, "origin_depth_edges": [...] m, "variants": {variant: {metric:
+        [[median or None, ...] per depth bin] per Hs bin, "count": [[n, ...], ...]}}}``.
+    """
+    sc = result.spec.scenario
+    hs = np.asarray(result.scenarios["wave_hs"], np.float64)
+    depth = np.asarray(result.scenarios["wave_origin_depth"], np.float64)
+
+    def edges(r, n):
+        lo, hi = r
+        return np.linspace(lo, hi, n + 1) if hi > lo else np.array([lo, hi])
+
+    he, de = edges(sc.wave_hs, hs_bins), edges(sc.wave_origin_depth, depth_bins)
+    ih = np.clip(np.searchsorted(he, hs, side="right") - 1, 0, len(he) - 2)
+    idp = np.clip(np.searchsorted(de, depth, side="right") - 1, 0, len(de) - 2)
+    out = {"hs_edges": he.tolist(), "origin_depth_edges": de.tolist(), "variants": {}}
+    for v, m in result.metrics.items():
+        ok = ~np.asarray(m["diverged"], bool)
+        entry = {}
+        for key in (*WAVE_TABLE_METRICS, "count"):
+            table = []
+            for a in range(len(he) - 1):
+                row = []
+                for b in range(len(de) - 1):
+                    sel = ok & (ih == a) & (idp == b)
+                    if key == "count":
+                        row.append(int(sel.sum()))
+                    else:
+                        x = np.asarray(m[key], np.float64)[sel]
+                        row.append(float(np.median(x)) if x.size else None)
+                table.append(row)
+            entry[key] = table
+        out["variants"][v] = entry
+    return out
+
+
 def summarize(result: SweepResult) -> dict:
     """JSON-ready summary: per variant, failure counts and per-metric statistics.
 
     ``summary["variants"][v]``: ``n``, ``n_diverged``, ``n_nonfinite`` and, for every metric,
     ``mean``, ``std``, ``p5``, ``p50``, ``p95``, ``min``, ``max`` over the runs that did not
     diverge (``None`` where there are none); ``timing`` (:func:`run_timing`: ``compile_s``,
-    ``run_s``, ``traj_steps_per_s``, ...). A sweep stopped by SIGINT / SIGTERM also has
+    ``run_s``, ``traj_steps_per_s``, ...). A sweep with ``[waves]`` also has ``waves``
+    (:func:`wave_table`: median errors per wave height and depth bin). A sweep stopped by
+    SIGINT / SIGTERM also has
     ``"interrupted": true`` and ``num_scenarios_planned`` (``num_scenarios`` is then the number
     of scenarios that ran: the chunks completed).
     """
@@ -171,6 +220,8 @@ def summarize(result: SweepResult) -> dict:
         "spec": spec_to_dict(result.spec),
         "variants": out,
     }
+    if "wave_hs" in result.scenarios:
+        summary["waves"] = wave_table(result)
     if result.interrupted:  # only then: summaries of complete sweeps keep their keys
         summary["interrupted"] = True
         summary["num_scenarios_planned"] = int(result.spec.num_scenarios)
@@ -181,7 +232,9 @@ def save_results(result: SweepResult, path: Path) -> Path:
     """Write ``result`` to an ``.npz`` file (no pickles).
 
     Keys: ``index``; ``scenario.<field>`` (see :class:`~vcjax.sweep.spec.MCScenario`;
-    ``model_factors`` columns are ``model_fields``); ``<variant>.<metric>``;
+    ``model_factors`` columns are ``model_fields``; with ``[waves]`` also ``scenario.wave_hs``
+    [m], ``scenario.wave_tp`` [s], ``scenario.wave_direction_deg`` [deg] and
+    ``scenario.wave_origin_depth`` [m]); ``<variant>.<metric>``;
     ``<variant>.trace_e`` (n, P), ``<variant>.trace_xy`` (n, P, 2); ``trace_t``; ``spec_json``.
     """
     path = Path(path)

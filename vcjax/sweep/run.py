@@ -43,8 +43,9 @@ __all__ = [
     "SCENARIO_FIELDS",
 ]
 
-#: The sampled fields a :class:`~vcjax.sweep.results.SweepResult` keeps per scenario.
-SCENARIO_FIELDS = tuple(f for f in MCScenario._fields if f not in ("index", "key"))
+#: The sampled fields a :class:`~vcjax.sweep.results.SweepResult` keeps per scenario (those
+#: that are not None: the ``wave_*`` ones only with waves; the sea itself follows from the key).
+SCENARIO_FIELDS = tuple(f for f in MCScenario._fields if f not in ("index", "key", "sea"))
 
 
 def nominal(spec: SweepSpec, dtype=None):
@@ -73,7 +74,7 @@ def perturb_params(nominal_params, fields: tuple[str, ...], factors):
 def to_scenario(loop, sc: MCScenario, plant, design, coeffs, config: MCConfig) -> loops.Scenario:
     """The loop's :class:`~vcjax.loops.Scenario` of a sampled scenario (pure): the plant
     perturbed by the model factors, the design model nominal, the particle starting at the path
-    point nearest to the start."""
+    point nearest to the start, the scenario's sea (if any)."""
     return loops.Scenario(
         eta0=sc.eta0,
         nu0=sc.nu0,
@@ -84,6 +85,8 @@ def to_scenario(loop, sc: MCScenario, plant, design, coeffs, config: MCConfig) -
         plant=perturb_params(plant, config.model_fields, sc.model_factors),
         design=design,
         disturbance=sc.disturbance,
+        sea=sc.sea,
+        origin_depth=sc.wave_origin_depth,
     )
 
 
@@ -95,7 +98,8 @@ def simulate_scenario(
     ``loop`` and ``config`` are static; ``gains``, ``nominal_params`` (``(plant, design,
     coeffs)``, see :func:`nominal`), ``sc`` and ``dt`` [s] are traced. With a constant current
     and no sensor noise this *is* :func:`vcjax.loops.simulate`; otherwise the same loop gets a
-    Gauss–Markov current and/or measurement noise (:class:`~vcjax.loops.Disturbances`).
+    Gauss–Markov current and/or measurement noise (:class:`~vcjax.loops.Disturbances`). A
+    scenario with a sea (``[waves]``) hands it to the loop's plant.
 
     Returns:
         ``(traj, scenario)``; with a ``reduction`` (:class:`~vcjax.rollout.Reduction`, built
@@ -316,7 +320,13 @@ def run_sweep(
         sc_d = put_batch(sc)
         parts_idx.append(idx[:n_valid])
         host_sc = jax.device_get(sc)
-        parts_sc.append({f: np.asarray(getattr(host_sc, f))[:n_valid] for f in SCENARIO_FIELDS})
+        parts_sc.append(
+            {
+                f: np.asarray(getattr(host_sc, f))[:n_valid]
+                for f in SCENARIO_FIELDS
+                if getattr(host_sc, f) is not None
+            }
+        )
         for v in spec.variants:
             dyn = (gains_d, nom_d, sc_d, dt_d, div_d)
             if v not in compiled:  # trace, lower and compile once per variant, timed apart
@@ -337,7 +347,8 @@ def run_sweep(
         return np.concatenate(arrs) if arrs else np.zeros((0,))
 
     index = np.concatenate(parts_idx) if parts_idx else np.zeros(0, dtype=np.int64)
-    scenarios = {f: cat(parts_sc, f) for f in SCENARIO_FIELDS}
+    kept = [f for f in SCENARIO_FIELDS if spec.scenario.waves or not f.startswith("wave_")]
+    scenarios = {f: cat(parts_sc, f) for f in kept}
     names = {v: list(parts_m[v][0]) if parts_m[v] else [] for v in spec.variants}
     metrics = {v: {k: cat(parts_m[v], k) for k in names[v]} for v in spec.variants}
     traces = {v: {k: cat(parts_tr[v], k) for k in ("e", "xy")} for v in spec.variants}

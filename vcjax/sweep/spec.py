@@ -2,7 +2,8 @@
 (:class:`ScenarioSpec`), and the sampling (:func:`sample_scenarios` -> :class:`MCScenario`).
 
 Everything a scenario draws comes from ``jax.random.fold_in(PRNGKey(seed), index)``, so
-scenario ``i`` is the same whatever the chunk size, the number of devices or of hosts.
+scenario ``i`` is the same whatever the chunk size, the number of devices or of hosts; its sea
+(``[waves]``) included.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax import loops
+from vcjax import loops, waves
 from vcjax.config import ConfigError, as_choice, as_int, as_number, as_range
 from vcjax.config.scenario import ScenarioChoice
 from vcjax.currents import current_ned
@@ -28,6 +29,7 @@ __all__ = [
     "MCScenario",
     "MCConfig",
     "sample_scenarios",
+    "check_wave_step",
     "spec_to_dict",
     "spec_from_dict",
 ]
@@ -54,6 +56,12 @@ class ScenarioSpec:
             ``noise_channels`` (``*_deg``: degrees, deg/s).
         disturbance: per component of the generalised disturbance force, a range [N, N m]
             (empty: none).
+        wave_spectrum: ``"jonswap"`` or ``"pm"``: every scenario gets a random sea
+            (:func:`vcjax.waves.sea_state`) of ``wave_components`` components with its own
+            ``wave_hs`` [m], ``wave_tp`` [s], ``wave_direction_deg`` (towards, clockwise from
+            north) and ``wave_origin_depth`` [m] drawn from the ranges; ``None``: no waves.
+        wave_gamma: JONSWAP peak enhancement; wave_spreading: ``s`` of the ``cos^2s``
+            spreading (0: long-crested).
     """
 
     current_speed: tuple[float, float] = (0.5, 0.5)
@@ -68,6 +76,14 @@ class ScenarioSpec:
     model_fields: tuple[str, ...] | None = None
     noise: tuple[tuple[str, float], ...] = ()
     disturbance: tuple[tuple[float, float], ...] = ()
+    wave_spectrum: str | None = None
+    wave_hs: tuple[float, float] = (0.0, 0.0)
+    wave_tp: tuple[float, float] = (8.0, 8.0)
+    wave_direction_deg: tuple[float, float] = (0.0, 0.0)
+    wave_gamma: float = 3.3
+    wave_spreading: float = 0.0
+    wave_components: int = 64
+    wave_origin_depth: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self):
         s = object.__setattr__
@@ -93,6 +109,25 @@ class ScenarioSpec:
         noise = tuple((k, as_number(k, v, lo=0.0)) for k, v in dict(self.noise).items())
         s(self, "noise", noise)
         s(self, "disturbance", tuple(as_range("disturbance", r) for r in self.disturbance))
+        if self.wave_spectrum is not None:
+            as_choice("wave_spectrum", self.wave_spectrum, waves.SPECTRA)
+        s(self, "wave_hs", as_range("wave_hs", self.wave_hs, lo_min=0.0))
+        s(self, "wave_tp", as_range("wave_tp", self.wave_tp, positive=True))
+        s(self, "wave_direction_deg", as_range("wave_direction_deg", self.wave_direction_deg))
+        s(self, "wave_origin_depth", as_range("wave_origin_depth", self.wave_origin_depth))
+        as_number("wave_gamma", self.wave_gamma, lo=1.0)
+        as_number("wave_spreading", self.wave_spreading, lo=0.0)
+        s(self, "wave_components", as_int("wave_components", self.wave_components, 1))
+
+    @property
+    def waves(self) -> bool:
+        """Every scenario has a sea (:attr:`wave_spectrum` set)."""
+        return self.wave_spectrum is not None
+
+    def check_dt(self, dt: float) -> None:
+        """With waves, :func:`check_wave_step` of the shortest ``wave_tp``."""
+        if self.waves:
+            check_wave_step(self.wave_tp[0], dt)
 
     def check_for(self, loop: loops.Loop) -> None:
         """The vehicle-specific keys are the loop's (raises naming the key and listing the
@@ -115,6 +150,11 @@ class ScenarioSpec:
                     f"noise: unknown channel {k!r} for vehicle {loop.vehicle!r}; "
                     f"expected {list(loop.noise_channels)}"
                 )
+        if self.waves:
+            try:
+                loops.check_disturbances(loop, False, False, waves=True)
+            except ValueError as err:
+                raise ConfigError(str(err)) from None
         if self.disturbance:
             if not loop.takes_disturbance:
                 raise ConfigError(f"disturbance: the {loop.vehicle} plant takes no disturbance")
@@ -135,6 +175,17 @@ class ScenarioSpec:
     @property
     def sensor_noise(self) -> bool:
         return any(v > 0 for _, v in self.noise)
+
+
+def check_wave_step(tp: float, dt: float, name: str = "wave_tp") -> None:
+    """The step ``dt`` [s] resolves a sea of peak period ``tp`` [s]: its shortest component
+    (``tp / 4``, the top of :data:`vcjax.waves.BAND`) with 10 steps, ``tp >= 40 dt``
+    (``ConfigError`` naming ``name``)."""
+    if tp < 10.0 * waves.BAND[1] * dt:
+        raise ConfigError(
+            f"{name}: the shortest wave period (tp / {waves.BAND[1]:g}) needs 10 steps of "
+            f"dt = {dt:g} s: tp >= {10.0 * waves.BAND[1] * dt:g} s, got {tp:g}"
+        )
 
 
 def _zeros(loop):
@@ -186,6 +237,7 @@ class SweepSpec:
         as_number("diverge_e", self.diverge_e, lo=0.0, lo_open=True)
         if not isinstance(self.scenario, ScenarioSpec):
             raise ConfigError("scenario: expected a ScenarioSpec")
+        self.scenario.check_dt(self.dt)
         self.scenario.check_for(self.loop(variants[0]))
 
     def loop(self, variant: str) -> loops.Loop:
@@ -265,6 +317,11 @@ class MCScenario(NamedTuple):
         noise_std: (S,) sensor-noise standard deviations (SI).
         disturbance: (n_nu,) constant generalised disturbance force.
         key: (2,) uint32 PRNG key of the scenario's random processes (current, noise).
+        wave_hs: () significant wave height [m]; wave_tp: () peak period [s];
+        wave_direction_deg: () direction the waves travel towards [deg, clockwise from north];
+        wave_origin_depth: () depth of the NED origin below the mean free surface [m];
+        sea: the scenario's :class:`vcjax.waves.Sea` ((N,) arrays), drawn from its own key.
+        All five ``None`` without waves.
     """
 
     index: Any
@@ -281,6 +338,11 @@ class MCScenario(NamedTuple):
     noise_std: Any
     disturbance: Any
     key: Any
+    wave_hs: Any = None
+    wave_tp: Any = None
+    wave_direction_deg: Any = None
+    wave_origin_depth: Any = None
+    sea: Any = None
 
 
 def _spec_arrays(spec: ScenarioSpec, loop: loops.Loop, dtype):
@@ -296,17 +358,47 @@ def _spec_arrays(spec: ScenarioSpec, loop: loops.Loop, dtype):
     gm = (spec.current_sigma, spec.current_tau, spec.current_max_speed)
     n_nu = int(np.shape(loop.initial_from(_zeros(loop))[1])[0])
     dist = spec.disturbance or ((0.0, 0.0),) * n_nu
+    wave = (spec.wave_hs, spec.wave_tp, spec.wave_direction_deg, spec.wave_origin_depth)
     return (
         f(ranges),
         f(spec.model_error),
         f(gm),
         f(spec.noise_std(loop)),
         f(np.asarray(dist).reshape(-1, 2)),
+        f(wave),
     )
 
 
-def _sample_one(loop, arrays, seed, index, nf: int) -> MCScenario:
-    ranges, model_error, gm, noise_std, dist = arrays
+def _wave_static(spec: ScenarioSpec):
+    """The static part of a spec's sea (spectrum, components, gamma, spreading), or None."""
+    if not spec.waves:
+        return None
+    return (spec.wave_spectrum, spec.wave_components, spec.wave_gamma, spec.wave_spreading)
+
+
+def _draw_sea(wave_static, wave_ranges, key):
+    """``(hs, tp, direction_deg, origin_depth, sea)`` of one scenario from its own key."""
+    spectrum, components, gamma, spreading = wave_static
+    k_par, k_sea = jax.random.split(key)
+    u = jax.random.uniform(k_par, (4,), wave_ranges.dtype)
+    hs, tp, direction_deg, origin_depth = (
+        wave_ranges[:, 0] + (wave_ranges[:, 1] - wave_ranges[:, 0]) * u
+    )  # lo == hi: exactly lo
+    sea = waves.sea_state(
+        k_sea,
+        hs,
+        tp,
+        direction_deg * (math.pi / 180.0),
+        spectrum=spectrum,
+        gamma=gamma,
+        spreading=spreading,
+        components=components,
+    )
+    return hs, tp, direction_deg, origin_depth, sea
+
+
+def _sample_one(loop, arrays, seed, index, nf: int, wave_static=None) -> MCScenario:
+    ranges, model_error, gm, noise_std, dist, wave_ranges = arrays
     dtype = ranges.dtype
     key = jax.random.fold_in(jax.random.PRNGKey(seed), index)
     ks = jax.random.split(key, 9)
@@ -318,6 +410,9 @@ def _sample_one(loop, arrays, seed, index, nf: int) -> MCScenario:
     eta0, nu0 = loop.initial_from(init)
     factors = 1.0 + model_error * jax.random.uniform(ks[1], (nf,), dtype, -1.0, 1.0)
     ud = jax.random.uniform(ks[3], (dist.shape[0],), dtype)
+    wave = (None,) * 5
+    if wave_static is not None:
+        wave = _draw_sea(wave_static, wave_ranges, ks[4])
     return MCScenario(
         index=jnp.asarray(index, jnp.int32),
         eta0=eta0,
@@ -333,12 +428,17 @@ def _sample_one(loop, arrays, seed, index, nf: int) -> MCScenario:
         noise_std=noise_std,
         disturbance=dist[:, 0] + (dist[:, 1] - dist[:, 0]) * ud,
         key=ks[2],
+        wave_hs=wave[0],
+        wave_tp=wave[1],
+        wave_direction_deg=wave[2],
+        wave_origin_depth=wave[3],
+        sea=wave[4],
     )
 
 
-@functools.partial(jax.jit, static_argnames=("loop", "nf"))
-def _sample(loop, arrays, seed, indices, nf):
-    return jax.vmap(lambda i: _sample_one(loop, arrays, seed, i, nf))(indices)
+@functools.partial(jax.jit, static_argnames=("loop", "nf", "wave_static"))
+def _sample(loop, arrays, seed, indices, nf, wave_static):
+    return jax.vmap(lambda i: _sample_one(loop, arrays, seed, i, nf, wave_static))(indices)
 
 
 def sample_scenarios(
@@ -359,7 +459,8 @@ def sample_scenarios(
     indices = jnp.asarray(indices, dtype=jnp.int32)
     arrays = _spec_arrays(spec, loop, dtype)
     nf = len(spec.fields_for(loop))
-    return _sample(loop, arrays, jnp.asarray(seed, jnp.uint32), indices, nf)
+    seed = jnp.asarray(seed, jnp.uint32)
+    return _sample(loop, arrays, seed, indices, nf, _wave_static(spec))
 
 
 def spec_to_dict(spec: SweepSpec) -> dict:

@@ -236,12 +236,20 @@ class Remus100Args(NamedTuple):
             and the loops factor it once, outside the rollout's loop; with ``None`` the plant
             factors it at every evaluation (the same numbers). Rebuild the arguments (or the
             factor) when ``vehicle`` changes.
+        v_w: (3,) NED orbital velocity of waves on top of the current [m/s], rotated in full
+            (``R(Theta)^T``), or None (no waves); see :func:`vcjax.waves.orbital_kinematics`.
+        v_w_dot: (3,) its material acceleration [m/s^2] (with ``v_w``).
+        tau_w: (6,) extra body force of the waves (:func:`vcjax.waves.current_door_correction`,
+            the pendulum moment of the CG below the CB) [N, N m], or None.
     """
 
     vehicle: Remus100Params
     v_c: Any
     v_c_dot: Any
     M_factor: Any = None
+    v_w: Any = None
+    v_w_dot: Any = None
+    tau_w: Any = None
 
 
 # --------------------------------------------------------------------------------------------
@@ -620,6 +628,9 @@ def _nu_dot(x: Remus100State, act_applied, args: Remus100Args):
     p = args.vehicle
     eta, nu = x.eta, x.nu
     nu_c, nu_c_dot = current_in_body(eta, nu, args.v_c, args.v_c_dot)
+    if args.v_w is not None:  # waves on top of the current (its door stays PVS's)
+        nu_w, nu_w_dot = _current_in_body_3d(eta, nu, args.v_w, args.v_w_dot)
+        nu_c, nu_c_dot = nu_c + nu_w, nu_c_dot + nu_w_dot
     nu_r = nu - nu_c
     U_r = safe_norm(nu_r[:3])
     tau_sum = (
@@ -629,6 +640,8 @@ def _nu_dot(x: Remus100State, act_applied, args: Remus100Args):
         - (coriolis(p, nu_r) + damping(p, U_r)) @ nu_r
         - restoring(p, eta)
     )
+    if args.tau_w is not None:
+        tau_sum = tau_sum + args.tau_w
     L = mass_factor(p) if args.M_factor is None else args.M_factor
     return nu_c_dot + cho_solve_small(L, tau_sum)
 
