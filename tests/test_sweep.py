@@ -425,6 +425,22 @@ assert sharded.index.tolist() == list(range(10))
 for k, a in sharded.metrics["ilos"].items():
     np.testing.assert_allclose(a, single.metrics["ilos"][k], rtol=1e-10, atol=1e-12, err_msg=k)
 np.testing.assert_allclose(sharded.traces["ilos"]["e"], single.traces["ilos"]["e"], rtol=1e-6)
+# sea states drawn per scenario key: the same bits sharded over 4 devices as on one
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from vcjax import waves
+keys = jax.random.split(jax.random.PRNGKey(11), 8)
+def draw(k, hs):
+    sea = waves.sea_state(k, hs, 8.0, 0.3, spreading=2.0, components=64)
+    return sea, waves.orbital_velocity(sea, 30.0, jax.numpy.array([5.0, -3.0, 4.0]))
+draws = jax.jit(jax.vmap(draw))
+hs = jax.numpy.linspace(0.5, 3.0, 8)
+mesh = Mesh(np.array(jax.devices()), ("d",))
+on4 = jax.device_put((keys, hs), NamedSharding(mesh, PartitionSpec("d")))
+on1 = jax.device_put((keys, hs), jax.devices()[0])
+a, b = draws(*on4), draws(*on1)
+assert len(a[1].sharding.device_set) == 4 and len(b[1].sharding.device_set) == 1
+for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b), strict=True):
+    np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
 print("SHARDED_OK")
 """
 
