@@ -34,7 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops, metrics, paths
-from vcjax import waves as wv
+from vcjax.experiments.seas import option_sea, option_sea_record
 from vcjax.loops.remus100 import REMUS_CONTROLLERS
 from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig
@@ -86,12 +86,10 @@ def mission_scenario(
 
 
 def mission_sea(waves, seed=0):
-    """The sea of ``vcjax simulate remus100 --waves HS TP DIR_DEG``: a long-crested JONSWAP sea
-    (``gamma = 3.3``, 64 components) drawn from ``PRNGKey(seed)``
-    (:func:`vcjax.waves.sea_state`); the mean free surface at NED depth 0."""
-    hs, tp, direction_deg = (float(v) for v in waves)
-    key = jax.random.PRNGKey(seed)
-    return wv.sea_state(key, hs, tp, np.radians(direction_deg), spectrum="jonswap")
+    """The sea of ``vcjax simulate remus100 --waves HS TP DIR_DEG``
+    (:func:`vcjax.experiments.seas.option_sea`: long-crested JONSWAP, ``gamma = 3.3``, 64
+    components, from ``PRNGKey(seed)``); the mean free surface at NED depth 0."""
+    return option_sea(waves, seed)
 
 
 _run = jax.jit(loops.simulate, static_argnames=("loop", "config"))
@@ -261,17 +259,7 @@ def run_remus100(
         results[v] = mission_metrics(trajs[v], path, coeffs, loop=loop, scenario=sc)
     meta = {"horizon": horizon, "dt": dt, "current_ned": [float(c) for c in current]}
     if waves is not None:
-        hs, tp, direction = (float(x) for x in waves)
-        meta["waves"] = {
-            "hs": hs,
-            "tp": tp,
-            "direction_deg": direction,
-            "seed": int(wave_seed),
-            "spectrum": "jonswap",
-            "gamma": 3.3,
-            "components": 64,
-            "origin_depth": 0.0,
-        }
+        meta["waves"] = option_sea_record(waves, wave_seed, origin_depth=0.0)
     clean = {v: {k: (None if isinstance(x, float) and not np.isfinite(x) else x)
                  for k, x in m.items()} for v, m in results.items()}  # fmt: skip
     write_json_atomic(out / "metrics.json", {"config": meta, "variants": clean}, newline=False)

@@ -29,8 +29,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops, paths
-from vcjax import waves as wv
 from vcjax._checks import check_array, check_positive
+from vcjax.experiments.seas import option_sea, option_sea_record
 from vcjax.loops.odin import OdinGains, OdinLoop, default_odin_gains, odin_gains
 from vcjax.metrics import path_bound, run_metrics
 from vcjax.outputs import write_json_atomic
@@ -274,9 +274,7 @@ def sim2_sea(waves, seed=0):
     """``(sea, origin_depth)`` of ``vcjax simulate sim2 --waves HS TP DIR_DEG``: a long-crested
     JONSWAP sea (``gamma = 3.3``, 64 components) drawn from ``PRNGKey(seed)``
     (:func:`vcjax.waves.sea_state`), and :data:`WAVE_ORIGIN_DEPTH`."""
-    hs, tp, direction_deg = (float(v) for v in waves)
-    sea = wv.sea_state(jax.random.PRNGKey(seed), hs, tp, np.radians(direction_deg))
-    return sea, WAVE_ORIGIN_DEPTH
+    return option_sea(waves, seed), WAVE_ORIGIN_DEPTH
 
 
 def run_sim2(
@@ -331,17 +329,7 @@ def run_sim2(
         by_mode[mode] = sim2_metrics(trajs[mode], sc, config=cfg, diverge_e=diverge_e)
     metrics = {"actuation": actuation, **by_mode[actuation], "by_actuation": by_mode}
     if waves is not None:
-        hs, tp, direction = (float(x) for x in waves)
-        metrics["waves"] = {
-            "hs": hs,
-            "tp": tp,
-            "direction_deg": direction,
-            "seed": int(wave_seed),
-            "spectrum": "jonswap",
-            "gamma": 3.3,
-            "components": 64,
-            "origin_depth": WAVE_ORIGIN_DEPTH,
-        }
+        metrics["waves"] = option_sea_record(waves, wave_seed, WAVE_ORIGIN_DEPTH)
     write_json_atomic(out / "metrics.json", metrics)
     files = sim2_figures(trajs, sc, PATH, out)
     return {"metrics": metrics, "files": [out / "metrics.json", *files]}
