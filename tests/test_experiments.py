@@ -49,7 +49,11 @@ def test_registry_declares_every_experiment_and_its_options():
         "timing": "continuous",
         "diverge_e": None,
     }
-    assert "diverge_e" not in dict(experiments.get("remus100").options)
+    assert dict(experiments.get("remus100").options) == {
+        "diverge_e": None,
+        "waves": None,
+        "wave_seed": 0,
+    }
     assert experiments.get("sim2").current is None
     with pytest.raises(ValueError, match="expected one of"):
         experiments.get("sim3")

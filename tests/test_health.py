@@ -141,7 +141,11 @@ def test_strong_cross_current_is_not_healthy():
         (["sim1", "--diverge-e", "0"], "--diverge-e: expected a finite bound > 0 [m], got 0"),
         (["sim1", "--diverge-e", "-3"], "--diverge-e: expected a finite bound > 0 [m], got -3"),
         (["sim2", "--diverge-e", "nan"], "--diverge-e: expected a finite bound > 0 [m], got nan"),
-        (["remus100", "--diverge-e", "10"], "--diverge-e does not apply to remus100"),
+        (
+            ["remus100", "--diverge-e", "inf"],
+            "--diverge-e: expected a finite bound > 0 [m], got inf",
+        ),
+        (["remus100", "--edd", "implied"], "--edd does not apply to remus100"),
         (["sim1", "--max-steps", "0"], "--max-steps: expected an integer >= 1, got 0"),
         (["sim1", "--max-steps", "100"], "3000 steps: more than 100"),
     ],
@@ -163,3 +167,34 @@ def test_metrics_json_says_unhealthy_for_the_issue_case(tmp_path, capsys):
     m = json.loads((out / "metrics.json").read_text())
     assert all(v["healthy"] is False for v in m.values())
     assert err.count("vcjax: UNHEALTHY RUN:") == len(m)
+
+
+def test_remus100_off_path_bound_is_the_distance_to_the_survey_path():
+    """`vcjax simulate remus100 --diverge-e M`: the mission's health bound is the geometric
+    distance to the survey path. A track 20 m to the side of the first leg (parallel legs lie
+    60 m apart, so 20 m is its distance to the path): healthy within 25 m (the default) and
+    30 m, unhealthy within 15 m; a non-positive bound is refused."""
+    from types import SimpleNamespace
+
+    from vcjax import paths
+    from vcjax.experiments import remus100 as mission
+
+    path, coeffs = mission.mission_path()
+    w = jnp.linspace(40.0, 200.0, 33)
+    on = jax.vmap(lambda s: paths.path_point(path, coeffs, s))(w)
+    tangent = np.gradient(np.asarray(on[:, :2]), axis=0)
+    normal = np.stack([-tangent[:, 1], tangent[:, 0]], 1) / np.linalg.norm(tangent, axis=1)[:, None]
+    pos = np.asarray(on).copy()
+    pos[:, :2] += 20.0 * normal
+    traj = SimpleNamespace(x=SimpleNamespace(eta=jnp.asarray(pos)), healthy=jnp.asarray(True))
+
+    def healthy(**kw):
+        extras = mission.mission_extras(traj, path, coeffs, **kw)
+        return bool(extras["mission_healthy"](None, None))
+
+    dist = np.asarray(mission.mission_geometry(jnp.asarray(pos), path, coeffs)[0])
+    np.testing.assert_allclose(dist, 20.0, atol=0.05)
+    assert mission.OFF_PATH_M == 25.0 and healthy()
+    assert healthy(off_path=30.0) and not healthy(off_path=15.0)
+    with pytest.raises(ValueError, match="diverge_e: expected a finite bound > 0"):
+        mission.mission_metrics(traj, path, coeffs, variant="vcm3d", off_path=0.0)

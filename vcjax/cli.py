@@ -163,8 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--diverge-e",
         type=float,
         metavar="M",
-        help="sim1/sim2: a run more than M metres off the path is unhealthy (default: 25%% of "
-        "u_d x horizon, at least 50 m)",
+        help="sim1/sim2/remus100: a run more than M metres off the path is unhealthy (default: "
+        "sim1/sim2 25%% of u_d x horizon, at least 50 m; remus100 25 m from the survey path)",
     )
     s.add_argument(
         "--waves",

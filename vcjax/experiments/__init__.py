@@ -97,7 +97,7 @@ EXPERIMENTS: dict[str, Experiment] = {
             horizon=880.0,
             dt=0.05,
             current=(0.0, 0.3),
-            options=(("waves", None), ("wave_seed", 0)),
+            options=(("diverge_e", None), ("waves", None), ("wave_seed", 0)),
         ),
     )
 }

@@ -148,7 +148,7 @@ def mission_geometry(pos, path, coeffs, dw=0.25):
     return dist, w, jnp.sum(off[:, :2] * right, axis=1), off[:, 2]
 
 
-def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25) -> dict:
+def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25, off_path=OFF_PATH_M) -> dict:
     """The mission's metrics as extras of :func:`vcjax.metrics.run_metrics` (jnp).
 
     The distance to the path is geometric: every state's position against a polyline of the
@@ -161,8 +161,9 @@ def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25) -> dict:
       after the first, ``settle`` metres after each turn; ``ss_geo_dist_3d`` [m]: max 3-D
       distance there;
     * ``mission_healthy``: every step finite and within the rollout's bound
-      (:attr:`~vcjax.rollout.Trajectory.healthy`), and the vehicle within :data:`OFF_PATH_M`
-      of the path throughout;
+      (:attr:`~vcjax.rollout.Trajectory.healthy`), and the vehicle within ``off_path`` [m]
+      (default :data:`OFF_PATH_M`; ``vcjax simulate remus100 --diverge-e M``) of the path
+      throughout;
     * ``end_w``: the path parameter nearest to the final position.
 
     Args:
@@ -187,7 +188,7 @@ def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25) -> dict:
         mean = jnp.sum(jnp.where(m, a**2, 0.0)) / jnp.sum(m.astype(a.dtype))
         return jnp.where(jnp.any(m), jnp.sqrt(mean), nan)
 
-    healthy = traj.healthy & (jnp.max(dist) < OFF_PATH_M)
+    healthy = traj.healthy & (jnp.max(dist) < off_path)
     return {
         "rms_geo_dist_3d": lambda sig, win: rms(dist, after_first),
         "max_geo_dist_3d": lambda sig, win: max_abs(dist, after_first),
@@ -200,7 +201,7 @@ def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25) -> dict:
 
 
 def mission_metrics(
-    traj, path, coeffs, settle=150.0, variant=None, loop=None, scenario=None
+    traj, path, coeffs, settle=150.0, variant=None, loop=None, scenario=None, off_path=None
 ) -> dict:
     """The mission's metrics of one run (``metrics.json``'s entry per variant, :data:`REPORTED`)
     as Python values: :func:`vcjax.metrics.run_metrics` of the loop's signals with the
@@ -208,13 +209,17 @@ def mission_metrics(
 
     ``loop``, ``scenario``: the run's; by default the mission's on ``coeffs`` for ``variant``
     (default: the controller whose state has the structure of ``traj.z``). Only the actuator
-    limits and the path matter for what is reported.
+    limits and the path matter for what is reported. ``off_path``: the distance from the path
+    beyond which the run is unhealthy [m] (:func:`vcjax.metrics.path_bound`'s checks; default
+    :data:`OFF_PATH_M`).
     """
+    bound = OFF_PATH_M if off_path is None else metrics.path_bound(0.0, 0.0, off_path)
     if loop is None or scenario is None:
         loop, scenario = mission_scenario(variant or _variant_of(traj), coeffs=coeffs)
     sig = loop.signals(traj, scenario)
     dt = traj.t[1] - traj.t[0]
-    m = metrics.run_metrics(sig, traj.finite, dt, extras=mission_extras(traj, path, coeffs, settle))
+    extras = mission_extras(traj, path, coeffs, settle, off_path=bound)
+    m = metrics.run_metrics(sig, traj.finite, dt, extras=extras)
     out = {}
     for ours, theirs in REPORTED.items():
         v = np.asarray(m[theirs])
@@ -241,12 +246,15 @@ def run_remus100(
     gains=None,
     waves=None,
     wave_seed=0,
+    diverge_e=None,
 ) -> dict:
     """Run every variant of the survey mission; write ``metrics.json`` and figures to ``out``
     (``gains``: of every controller, default: the loop's defaults; ``waves``: ``(hs, tp,
-    direction_deg)`` of one sea for every variant, :func:`mission_sea`)."""
+    direction_deg)`` of one sea for every variant, :func:`mission_sea`; ``diverge_e``: the
+    distance from the path [m] beyond which a run is unhealthy, default :data:`OFF_PATH_M`)."""
     from vcjax.plots.remus100 import remus100_figures
 
+    off_path = OFF_PATH_M if diverge_e is None else metrics.path_bound(0.0, 0.0, diverge_e)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     trajs, results = {}, {}
@@ -256,8 +264,11 @@ def run_remus100(
             v, horizon, dt, current, gains=gains, waves=waves, wave_seed=wave_seed
         )
         trajs[v] = jax.device_get(traj)
-        results[v] = mission_metrics(trajs[v], path, coeffs, loop=loop, scenario=sc)
+        results[v] = mission_metrics(
+            trajs[v], path, coeffs, loop=loop, scenario=sc, off_path=off_path
+        )
     meta = {"horizon": horizon, "dt": dt, "current_ned": [float(c) for c in current]}
+    meta["off_path_bound_m"] = off_path
     if waves is not None:
         meta["waves"] = option_sea_record(waves, wave_seed, origin_depth=0.0)
     clean = {v: {k: (None if isinstance(x, float) and not np.isfinite(x) else x)
@@ -275,7 +286,7 @@ def load_gains(d: dict, **_options):
 
 
 def run_experiment(
-    out, gains, *, horizon, dt, current, progress=print, waves=None, wave_seed=0
+    out, gains, *, horizon, dt, current, progress=print, waves=None, wave_seed=0, diverge_e=None
 ) -> dict:
     """``vcjax simulate remus100`` (:mod:`vcjax.experiments`): :func:`run_remus100`."""
     result = run_remus100(
@@ -286,11 +297,13 @@ def run_experiment(
         gains=gains,
         waves=waves,
         wave_seed=wave_seed,
+        diverge_e=diverge_e,
     )
+    bound = OFF_PATH_M if diverge_e is None else float(diverge_e)
     result["printed"] = result["metrics"]
     result["unhealthy"] = [
-        f"remus100 {name}: a non-finite or runaway state, or more than 25 m off the path "
-        "(see metrics.json)"
+        f"remus100 {name}: a non-finite or runaway state, or more than {bound:g} m off the "
+        "path (see metrics.json)"
         for name, m in result["metrics"].items()
         if not m.get("healthy", True)
     ]
