@@ -61,7 +61,7 @@ def test_out_below_a_file_is_refused(command, tmp_path, capsys):
     assert f"cannot create the directory: {f} is a file" in err
 
 
-@pytest.mark.parametrize("command", COMMANDS)
+@pytest.mark.parametrize("command", ALL_COMMANDS)
 def test_out_that_cannot_be_created_is_refused(command, capsys):
     target = Path("/sys/vcjax-test-out")
     try:
@@ -75,7 +75,7 @@ def test_out_that_cannot_be_created_is_refused(command, capsys):
     assert f"--out {target}: cannot create the directory" in err
 
 
-@pytest.mark.parametrize("command", COMMANDS)
+@pytest.mark.parametrize("command", ALL_COMMANDS)
 def test_out_that_is_not_writable_is_refused(command, tmp_path, capsys):
     if os.geteuid() == 0:  # root writes anywhere: use a read-only file system instead
         ro = Path("/sys/kernel")
@@ -282,6 +282,25 @@ def test_write_json_atomic_keeps_the_old_file_when_serialisation_fails(tmp_path)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json"]  # no temporary left
 
 
+def test_write_atomic_keeps_the_old_file_when_the_writer_dies_half_way(tmp_path):
+    """``outputs.write_atomic`` (used for ``results.nc``): a writer that fails after writing
+    part of its file leaves the old file whole and no temporary; a writer that finishes
+    replaces it."""
+    f = tmp_path / "results.nc"
+    f.write_bytes(b"old")
+
+    def half(tmp):
+        Path(tmp).write_bytes(b"new, half")
+        raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        outputs.write_atomic(f, half)
+    assert f.read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.nc"]
+    assert outputs.write_atomic(f, lambda tmp: Path(tmp).write_bytes(b"new")) == f
+    assert f.read_bytes() == b"new" and sorted(p.name for p in tmp_path.iterdir()) == ["results.nc"]
+
+
 def test_save_npz_atomic_round_trip_and_no_temporary(tmp_path):
     f = tmp_path / "r.npz"
     outputs.save_npz_atomic(f, x=np.arange(3.0), name=np.array("a"))
@@ -428,6 +447,23 @@ def test_tune_seed_outside_the_prng_range(seed, flags, tmp_path, capsys):
     rc, err = _run(["tune", str(cfg), "--out", str(tmp_path / "o"), *flags], capsys)
     assert rc == 2
     assert f"train.seed: {seed} is outside the PRNG's seed range" in err
+
+
+@pytest.mark.parametrize(
+    "seed, flags, message",
+    [
+        (2**31, ["--no-x64"], f"heldout.seed: {2**31} is outside the PRNG's seed range"),
+        (2**63, [], f"heldout.seed: {2**63} is outside the PRNG's seed range 0 .. {2**63 - 1}"),
+        (-1, [], "heldout.seed: expected an integer >= 0, got -1"),
+    ],
+)
+def test_tune_heldout_seed_outside_the_prng_range(seed, flags, message, tmp_path, capsys):
+    text = TUNE.format(h=10.0, b=4, seed=0, extra="").replace("seed = 1001", f"seed = {seed}")
+    cfg = _cfg(tmp_path, text)
+    rc, err = _run(["tune", str(cfg), "--out", str(tmp_path / "o"), *flags], capsys)
+    assert rc == 2
+    assert message in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 
 def test_largest_seed_is_accepted_by_jax():

@@ -52,6 +52,7 @@ __all__ = [
     "prepare_out",
     "save_npz_atomic",
     "savefig_atomic",
+    "write_atomic",
     "write_json_atomic",
 ]
 
@@ -106,9 +107,11 @@ def _replace(tmp: Path, path: Path) -> Path:
     return path
 
 
-def _write_atomic(path, write) -> Path:
+def write_atomic(path, write) -> Path:
     """``write(tmp)`` to a temporary file beside ``path``, then rename it onto ``path``; the
-    temporary is removed if writing fails (``path`` keeps its old content)."""
+    temporary is removed if writing fails (``path`` keeps its old content). For writers that
+    take a file name (``xarray.Dataset.to_netcdf``, ...); JSON, npz and figures have their own
+    helpers below."""
     path = Path(path)
     tmp = _tmp_for(path)
     try:
@@ -139,20 +142,20 @@ def write_json_atomic(path, obj, indent: int | None = 2, newline: bool = True, *
     ``kwargs`` go to ``json.dumps`` (e.g. ``allow_nan=False``); an object that cannot be
     serialised raises before anything is written."""
     text = json.dumps(obj, indent=indent, **kwargs) + ("\n" if newline else "")
-    return _write_atomic(path, _synced("w", lambda f: f.write(text)))
+    return write_atomic(path, _synced("w", lambda f: f.write(text)))
 
 
 def save_npz_atomic(path, compressed: bool = True, **arrays) -> Path:
     """``np.savez_compressed(path, **arrays)`` (``np.savez`` unless ``compressed``), atomically."""
     save = np.savez_compressed if compressed else np.savez
-    return _write_atomic(path, _synced("wb", lambda f: save(f, **arrays)))
+    return write_atomic(path, _synced("wb", lambda f: save(f, **arrays)))
 
 
 def savefig_atomic(fig, path, **kwargs) -> Path:
     """``fig.savefig(path, **kwargs)`` through a temporary file (format from ``path``'s suffix
     unless ``format`` is given), then ``os.replace``."""
     kwargs.setdefault("format", Path(path).suffix.lstrip(".") or None)
-    return _write_atomic(path, lambda tmp: fig.savefig(tmp, **kwargs))
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, **kwargs))
 
 
 # --------------------------------------------------------------------------- output folder

@@ -128,7 +128,10 @@ class Trajectory(NamedTuple):
 
     @property
     def healthy(self):
-        """() bool: no step diverged (every state finite and within the bound)."""
+        """() bool: no step diverged: every state finite and within the bound, and the
+        controller's own diagnostics (:func:`controller_ok`) usable at every step. A path-error
+        bound is the metrics' job (:func:`vcjax.metrics.path_bound`, ``diverged`` of
+        :func:`vcjax.metrics.run_metrics`)."""
         return ~jnp.any(self.diverged)
 
 

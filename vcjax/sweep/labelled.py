@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from vcjax.metrics import FLAGS, METRICS
+from vcjax.outputs import write_atomic
 
 __all__ = ["to_xarray", "write_netcdf", "METRIC_UNITS", "INPUT_UNITS"]
 
@@ -154,6 +155,6 @@ def write_netcdf(result, path) -> Path:
         if ds[name].dtype == bool:
             ds[name] = ds[name].astype(np.int8)
             ds[name].attrs["flag"] = "1 = true"
-    path = Path(path)
-    ds.to_netcdf(path, engine="scipy")
-    return path
+    # atomically (a temporary file beside it, then renamed): a killed run leaves the old file
+    # or none, never half a file
+    return write_atomic(Path(path), lambda tmp: ds.to_netcdf(tmp, engine="scipy"))
