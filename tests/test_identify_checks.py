@@ -135,6 +135,31 @@ def test_product_pair_is_not_converged_and_warned_in_fit_json(tmp_path, capsys):
     assert res.converged is False
     assert any("poorly conditioned" in w for w in res.warnings), res.warnings
     assert res.to_json()["converged"] is False
+    # already before fitting: the warning names the pair (and only the pair)
+    before = [w for w in res.warnings if w.startswith("before fitting:")]
+    assert len(before) == 1 and "A_r" in before[0] and "CL_delta_r" in before[0], res.warnings
+    assert "current" not in before[0]
+
+
+def test_conditioning_before_fit_names_the_weak_combination():
+    """J^T J of residuals in which the second parameter acts exactly as the first (a product
+    a b: d/d ln a = d/d ln b) and a third acts on its own: singular, the warning names the
+    first two with opposite signs and not the third; independent columns: no warning."""
+    from vcjax.identify.checks import conditioning_before_fit
+
+    rng = np.random.default_rng(0)
+    c1, c3 = rng.normal(size=(2, 50))
+    J = np.stack([c1, c1, c3], axis=1)
+    w = conditioning_before_fit(["a", "b", "c"], J.T @ J)
+    assert w is not None and "poorly conditioned (condition number" in w
+    combo = w.split("combination ")[1].split(" of the relative")[0]
+    assert combo in ("1 a - 1 b", "1 b - 1 a"), combo  # opposite signs, c not in it
+    J_ok = rng.normal(size=(50, 3))
+    assert conditioning_before_fit(["a", "b", "c"], J_ok.T @ J_ok) is None
+    # nearly, not exactly, dependent: above the limit still warns, with the number
+    J_near = np.stack([c1, c1 + 1e-6 * c3, c3], axis=1)
+    w = conditioning_before_fit(["a", "b", "c"], J_near.T @ J_near)
+    assert w is not None and "> 1e+10" in w
 
 
 # ------------------------------------------------------------------ standard errors, calibrated

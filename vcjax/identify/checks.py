@@ -24,7 +24,12 @@ of the parameter, ``sqrt(I_ii / m)`` with ``I`` the Fisher information (profiled
 segments' initial states) and ``m`` the number of residuals -- at the initial estimate. A
 parameter whose sensitivity is below :data:`MIN_SENSITIVITY` (absolute) or
 :data:`MIN_RELATIVE_SENSITIVITY` x the largest one is not excited by the logs: an error naming
-it (a log without excitation, all zeros, cannot estimate a rudder coefficient).
+it (a log without excitation, all zeros, cannot estimate a rudder coefficient). Then
+:func:`conditioning_before_fit`: the information matrix's condition number (unit diagonal) at
+the initial estimate; above :data:`MAX_CONDITION` a warning names the combination of parameters
+the logs hardly determine (the weakest eigenvector's main components: ``A_r`` and
+``CL_delta_r`` entering only as a product). A warning, not a refusal: the fit may move to where
+the data do separate them, and the same check after fitting decides whether it is trusted.
 
 After fitting, :func:`trust_warnings`: a zero or non-finite standard error, an estimate outside
 the plausible range (more than a factor :data:`PLAUSIBLE_FACTOR` from the nominal value: the fit
@@ -49,6 +54,7 @@ __all__ = [
     "SAMPLING_RTOL",
     "check_excitation",
     "check_logs",
+    "conditioning_before_fit",
     "sensitivities",
     "trust_warnings",
 ]
@@ -208,6 +214,37 @@ def check_excitation(names: Sequence[str], info: np.ndarray, m: float) -> np.nda
             "remove them from [fit] params or log manoeuvres that move them"
         )
     return sens
+
+
+def conditioning_before_fit(names: Sequence[str], info: np.ndarray) -> str | None:
+    """A warning when the Fisher information at the initial estimate, normalised to unit
+    diagonal, has a condition number above :data:`MAX_CONDITION` (or is singular): names the
+    parameters that carry the weakest direction (eigenvector components of at least 0.3 in
+    magnitude, with their signs); ``None`` when it is well conditioned or not finite (the
+    excitation check reports that)."""
+    info = np.asarray(info, np.float64)
+    if info.shape[0] < 2 or not np.all(np.isfinite(info)):
+        return None
+    d = np.sqrt(np.diag(info))
+    if not np.all(d > 0):
+        return None
+    ev, vec = np.linalg.eigh(info / np.outer(d, d))
+    cond = float(ev[-1] / ev[0]) if ev[0] > 0 else math.inf
+    if cond <= MAX_CONDITION:
+        return None
+    v = vec[:, 0] / np.max(np.abs(vec[:, 0]))
+    v = v * np.sign(v[np.flatnonzero(np.abs(v) >= 0.3)[0]])  # the first one named positive
+    combo = " ".join(
+        f"{'+' if c > 0 else '-'} {abs(c):.2g} {n}"
+        for n, c in zip(names, v, strict=True)
+        if abs(c) >= 0.3
+    )
+    return (
+        f"before fitting: the information matrix at the initial estimate is poorly conditioned "
+        f"(condition number {cond:.3g} > {MAX_CONDITION:.0e}): the logs hardly determine the "
+        f"combination {combo.lstrip('+ ')} of the relative changes (a parameter that enters "
+        "only through a product or a sum with another cannot be separated from it)"
+    )
 
 
 def trust_warnings(

@@ -14,7 +14,12 @@ import numpy as np
 
 from vcjax import sizing
 from vcjax._checks import float_dtype
-from vcjax.identify.checks import check_excitation, check_logs, trust_warnings
+from vcjax.identify.checks import (
+    check_excitation,
+    check_logs,
+    conditioning_before_fit,
+    trust_warnings,
+)
 from vcjax.identify.data import Log
 from vcjax.identify.lm import levenberg_marquardt, schur_information
 from vcjax.identify.models import FitModel
@@ -245,7 +250,9 @@ def fit_logs(
         )
     dof_factor = m / (m - n_par)
     _, Jz0, Js0 = prob.linearize(z0, s0, seg, w)  # each parameter excited by the logs?
-    sensitivity = check_excitation(prob.all_names, schur_information(Jz0, Js0), m)
+    info0 = schur_information(Jz0, Js0)
+    sensitivity = check_excitation(prob.all_names, info0, m)
+    before = conditioning_before_fit(prob.all_names, info0)
     res = None
     for stage in (1, 2):
         cb = (lambda it, c, lam, _s=stage: callback(_s, it, c, lam)) if callback else None
@@ -289,7 +296,8 @@ def fit_logs(
     corr = cov / np.outer(np.where(sd > 0, sd, 1.0), np.where(sd > 0, sd, 1.0))
     names = prob.all_names
     finite = bool(np.all(np.isfinite(info_n)) and np.all(np.isfinite(corr)))
-    warns = _identifiability(names, corr, info_n) if finite else []
+    warns = [before] if before else []
+    warns += _identifiability(names, corr, info_n) if finite else []
     std = {n: float(v) for n, v in zip(names, sd, strict=True)}
     estimates, nominal = prob.values(z), prob.values(np.zeros_like(z))
     untrusted = trust_warnings(names, estimates, nominal, std, info_n)
