@@ -238,3 +238,51 @@ def test_ctrl_c_in_a_two_process_tune_stops_both_at_the_same_step(tmp_path):
     assert summary["interrupted"] is True and len(hist["iterations"]) == summary["iterations"]
     assert (out / "gains.json").exists() and not (out / outputs.LOCK).exists()
     assert "vcjax: launch: interrupted: exit codes [130, 0]" in c.text
+
+
+def _until(cond, what):
+    """Wait for ``cond()`` (a signal's Python handler runs between bytecodes: at once, but
+    not necessarily within the statement that sent it)."""
+    t0 = time.monotonic()
+    while not cond():
+        assert time.monotonic() - t0 < LIMIT_S, what
+        time.sleep(0.001)
+
+
+def test_the_interrupts_duplicate_after_the_guard_is_swallowed_and_a_later_one_is_not(
+    monkeypatch,
+):
+    """A terminal's Ctrl-C reaches every process of ``vcjax launch`` and the launcher forwards
+    it too: the duplicate may arrive after a process has left its guard (one that writes
+    nothing stops at once), where a KeyboardInterrupt in JAX's exit handler would leave the
+    other processes waiting at their shutdown barrier (run 2 of the loaded slow suite:
+    ``launch`` exit codes [-6, 0]). Within SAME_INTERRUPT_S of the interrupt it is swallowed;
+    a later signal gets the old handler, which is restored."""
+    from vcjax import interrupts
+
+    seen = []
+
+    def old(signum, frame):
+        seen.append(signum)
+
+    previous = signal.signal(signal.SIGINT, old)
+    try:
+        with interrupts.interrupt_guard():
+            os.kill(os.getpid(), signal.SIGINT)
+            _until(interrupts.stop_requested, "the guard's flag")
+        assert interrupts.stop_signal() == "SIGINT" and not interrupts.stop_requested()
+        os.kill(os.getpid(), signal.SIGINT)  # the forwarded duplicate, just after the guard
+        for _ in range(1000):  # bytecodes for the handler to run between
+            pass
+        assert seen == [] and signal.getsignal(signal.SIGINT) is not old
+        # a signal long after the interrupt is a new one: the old handler's
+        monkeypatch.setattr(interrupts, "_stop_time", [time.monotonic() - 10.0])
+        os.kill(os.getpid(), signal.SIGINT)
+        _until(lambda: seen == [signal.SIGINT], "the old handler")
+        assert signal.getsignal(signal.SIGINT) is old
+        # a guard that was not interrupted restores the old handler itself
+        with interrupts.interrupt_guard():
+            pass
+        assert signal.getsignal(signal.SIGINT) is old
+    finally:
+        signal.signal(signal.SIGINT, previous)

@@ -7,11 +7,15 @@ and write what is done, marked ``interrupted``. The CLI then prints one line and
 :class:`KeyboardInterrupt` (the CLI turns it into a one-line exit too). ``vcjax launch``
 forwards its interrupt to the processes it started and waits for them to write their results;
 the processes of a tuning agree on the step to stop at (:func:`stop_requested_everywhere`).
+After an interrupted guard, the interrupt's duplicate (a terminal's Ctrl-C reaches every
+process of the group, and ``vcjax launch`` forwards it as well) is swallowed until
+:data:`SAME_INTERRUPT_S` after it, so it cannot break the process's shutdown.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import threading
 import time
@@ -97,6 +101,29 @@ def interrupt_guard():
     try:
         yield
     finally:
+        interrupted = _stop.is_set()
         for s, h in old.items():
-            signal.signal(s, h)
+            # after an interrupt, its duplicate may still be on its way (vcjax launch forwards
+            # the terminal's Ctrl-C that its processes got too): swallowed, so that it cannot
+            # break the process's shutdown (a KeyboardInterrupt in JAX's exit handler leaves
+            # the other processes of a distributed run waiting at its shutdown barrier)
+            signal.signal(s, _after_interrupt(h) if interrupted else h)
         _stop.clear()
+
+
+def _after_interrupt(old):
+    """The handler to restore after an interrupted :func:`interrupt_guard`: a signal within
+    :data:`SAME_INTERRUPT_S` of the interrupt is the same interrupt (ignored); a later one gets
+    the old handler's behaviour (which is also restored)."""
+    old = signal.SIG_DFL if old is None else old
+
+    def handler(signum, frame):
+        if time.monotonic() - _stop_time[0] <= SAME_INTERRUPT_S:
+            return
+        signal.signal(signum, old)
+        if callable(old):
+            old(signum, frame)
+        elif old == signal.SIG_DFL:
+            os.kill(os.getpid(), signum)
+
+    return handler
