@@ -186,15 +186,19 @@ def test_remus100_off_path_bound_is_the_distance_to_the_survey_path():
     normal = np.stack([-tangent[:, 1], tangent[:, 0]], 1) / np.linalg.norm(tangent, axis=1)[:, None]
     pos = np.asarray(on).copy()
     pos[:, :2] += 20.0 * normal
-    traj = SimpleNamespace(x=SimpleNamespace(eta=jnp.asarray(pos)), healthy=jnp.asarray(True))
 
-    def healthy(**kw):
-        extras = mission.mission_extras(traj, path, coeffs, **kw)
-        return bool(extras["mission_healthy"](None, None))
+    @jax.jit  # one program for the three bounds (eager, each would take seconds)
+    def check(eta):
+        traj = SimpleNamespace(x=SimpleNamespace(eta=eta), healthy=jnp.asarray(True))
+        flags = [
+            mission.mission_extras(traj, path, coeffs, dw=2.0, **kw)["mission_healthy"](None, None)
+            for kw in ({}, {"off_path": 30.0}, {"off_path": 15.0})
+        ]
+        return mission.mission_geometry(traj.x.eta, path, coeffs, dw=2.0)[0], flags
 
-    dist = np.asarray(mission.mission_geometry(jnp.asarray(pos), path, coeffs)[0])
-    np.testing.assert_allclose(dist, 20.0, atol=0.05)
-    assert mission.OFF_PATH_M == 25.0 and healthy()
-    assert healthy(off_path=30.0) and not healthy(off_path=15.0)
+    dist, (default, wide, narrow) = check(jnp.asarray(pos))
+    np.testing.assert_allclose(np.asarray(dist), 20.0, atol=0.05)
+    assert mission.OFF_PATH_M == 25.0 and bool(default)
+    assert bool(wide) and not bool(narrow)
     with pytest.raises(ValueError, match="diverge_e: expected a finite bound > 0"):
-        mission.mission_metrics(traj, path, coeffs, variant="vcm3d", off_path=0.0)
+        mission.mission_metrics(None, path, coeffs, variant="vcm3d", off_path=0.0)
