@@ -365,6 +365,9 @@ def test_readme_is_short_and_its_commands_are_what_ci_runs():
     assert not re.search(r"\bissue[- ]\d", text) and "until 20" not in text
 
 
+# slow: .ci/run builds the site with `mkdocs build --strict` itself (asserted above), so the
+# default run need not build it a second time
+@pytest.mark.slow
 @pytest.mark.skipif(importlib.util.find_spec("mkdocs") is None, reason="docs extra not installed")
 def test_site_builds_strict(tmp_path):
     r = subprocess.run(

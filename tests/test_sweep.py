@@ -430,7 +430,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from vcjax import waves
 keys = jax.random.split(jax.random.PRNGKey(11), 8)
 def draw(k, hs):
-    sea = waves.sea_state(k, hs, 8.0, 0.3, spreading=2.0, components=64)
+    sea = waves.sea_state(k, hs, 8.0, 0.3, spreading=2.0, components=16)
     return sea, waves.orbital_velocity(sea, 30.0, jax.numpy.array([5.0, -3.0, 4.0]))
 draws = jax.jit(jax.vmap(draw))
 hs = jax.numpy.linspace(0.5, 3.0, 8)
