@@ -22,6 +22,12 @@ folder is capped at :data:`MAX_BYTES` where the JAX version supports it and the 
 package is installed (JAX needs it to remove the least recently used entries); otherwise the
 folder is not capped. Settings a JAX version does not know are skipped.
 
+Only on JAX versions whose cache reads programs back correctly (:data:`SAFE_FROM`): jax 0.5.1
+reads back a program drawing gamma or beta random numbers (``jax.random.gamma``, the sea's
+directional spreading) as one that returns a constant -- silently wrong results on a second
+run. Checked: 0.5.1 wrong, 0.6.2 and 0.10.2 right; below :data:`SAFE_FROM` the cache stays off
+and :func:`cache_off_reason` says why (``run.json`` records it).
+
 Tracing is not cached (JAX traces before it computes the cache key): the trace time of the big
 loops has to come down in the code itself (see ``benchmarks/perf/compile_times.py``).
 """
@@ -33,13 +39,48 @@ from pathlib import Path
 
 import jax
 
-__all__ = ["ENV", "MAX_BYTES", "default_cache_dir", "enable_compilation_cache", "cache_dir"]
+__all__ = [
+    "ENV",
+    "MAX_BYTES",
+    "SAFE_FROM",
+    "cache_dir",
+    "cache_off_reason",
+    "default_cache_dir",
+    "enable_compilation_cache",
+]
 
 ENV = "VCJAX_CACHE_DIR"
 OFF = ("off", "none", "0", "false", "no")
 MAX_BYTES = 4 * 1024**3  # 4 GiB: a few hundred of the largest (6-DOF gradient) programs
 
+#: the first jaxlib version whose persistent cache was checked to read programs back correctly
+SAFE_FROM = (0, 6, 2)
+
 _ACTIVE: str | None = None
+_OFF_REASON: list[str] = []
+
+
+def _version(v: str) -> tuple[int, ...]:
+    out = []
+    for part in v.split(".")[:3]:
+        digits = "".join(ch for ch in part if ch.isdigit()) or "0"
+        out.append(int(digits) if part[:1].isdigit() else 0)
+    return tuple(out)
+
+
+def unsafe_version(version: str | None = None) -> str | None:
+    """Why JAX's persistent cache must stay off with this jaxlib (None: it may be on)."""
+    if version is None:
+        import jaxlib
+
+        version = jaxlib.__version__
+    if _version(version) < SAFE_FROM:
+        safe = ".".join(map(str, SAFE_FROM))
+        return (
+            f"jaxlib {version} reads programs that draw gamma/beta random numbers back from "
+            f"its persistent cache wrongly; the cache is used from jaxlib {safe} on"
+        )
+    return None
 
 
 def default_cache_dir(environ=None) -> Path | None:
@@ -69,6 +110,11 @@ def enable_compilation_cache(environ=None) -> str | None:
     created (the run goes on without a cache)."""
     global _ACTIVE
     path = default_cache_dir(environ)
+    _OFF_REASON.clear()
+    reason = unsafe_version()
+    if path is not None and reason is not None:
+        _OFF_REASON.append(reason)
+        path = None
     if path is not None:
         try:
             path.mkdir(parents=True, exist_ok=True)
@@ -111,3 +157,9 @@ def _has_filelock() -> bool:
 def cache_dir() -> str | None:
     """The folder :func:`enable_compilation_cache` set in this process (None: none)."""
     return _ACTIVE
+
+
+def cache_off_reason() -> str | None:
+    """Why :func:`enable_compilation_cache` left the cache off although the environment asked
+    for it (None: it did not, or it is on)."""
+    return _OFF_REASON[0] if _OFF_REASON else None

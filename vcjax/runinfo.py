@@ -106,7 +106,7 @@ def run_info(
         extra: anything else worth keeping (merged in last).
     """
     import vcjax
-    from vcjax.cache import cache_dir
+    from vcjax.cache import cache_dir, cache_off_reason
 
     devices = jax.devices()
     info = {
@@ -131,6 +131,7 @@ def run_info(
         },
         "processes": {"count": jax.process_count(), "index": jax.process_index()},
         "compilation_cache": cache_dir(),
+        **({"compilation_cache_off": cache_off_reason()} if cache_off_reason() else {}),
         "xla_flags": os.environ.get("XLA_FLAGS", ""),
         "config": to_jsonable(config),
         "seeds": to_jsonable(seeds or {}),
