@@ -1,4 +1,4 @@
-"""The data flow of the package (STYLE.md): a module imports only from modules earlier in the
+"""The data flow of the package: a module imports only from modules earlier in the
 flow. Checked statically from the source (no imports executed)."""
 
 import ast
