@@ -6,12 +6,13 @@ mass held on a curve by the generic engine) swept and tuned through the public A
 import dataclasses
 import json
 import math
-from typing import Any, ClassVar, NamedTuple
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from planar_loops import PlanarPointMass, PointMassParams
 
 from tuning.loss import TuningProblem, objective, problem_data
 from tuning.optim import run_gradient_tuner
@@ -34,39 +35,18 @@ from vcjax.sweep import ScenarioSpec, SweepSpec, nominal, perturb_params, run_sw
 # ------------------------------------------------------------------ a loop of our own
 
 
-class PointMassParams(NamedTuple):
-    m: Any  # () mass [kg]
-    b: Any  # () linear drag [kg/s]
-    tau_max: Any  # (2,) force limits [N]
-
-
 @dataclasses.dataclass(frozen=True)
-class PointMassLoop(loops.EngineLoop):
+class PointMassLoop(PlanarPointMass, loops.EngineLoop):
     """A planar point mass ``m q'' + b q' = f`` whose position follows a path."""
 
     vehicle: ClassVar[str] = "pointmass"
     initial_keys: ClassVar[dict[str, float]] = {"x": 6.0, "y": 0.0, "vx": 0.0, "vy": 0.0}
+    defaults: ClassVar[tuple] = (2.0, 0.5, (20.0, 20.0))
     default_speed: ClassVar[float] = 1.0
 
     @classmethod
     def default_path(cls):
         return paths.circle(center=(0.0, 0.0), radius=5.0)
-
-    def default_params(self, dtype=None):
-        f = lambda x: jnp.asarray(x, jnp.asarray(0.0).dtype if dtype is None else dtype)
-        return PointMassParams(f(2.0), f(0.5), f([20.0, 20.0]))
-
-    def mass_matrix(self, q, p):
-        return p.m * jnp.eye(2, dtype=q.dtype)
-
-    def bias_force(self, q, qd, p):
-        return p.b * qd
-
-    def point(self, q, p):
-        return q
-
-    def initial_from(self, v):
-        return jnp.stack([v["x"], v["y"]]), jnp.stack([v["vx"], v["vy"]])
 
 
 loops.register(PointMassLoop)

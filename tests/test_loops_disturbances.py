@@ -6,12 +6,13 @@ mass of this file's own, a few steps (tiny programs, compiled once per static se
 
 import dataclasses
 import math
-from typing import Any, ClassVar, NamedTuple
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from planar_loops import PlanarPointMass
 
 from vcjax import loops, paths
 from vcjax.rollout import Reduction, RolloutConfig, rollout
@@ -72,41 +73,20 @@ def test_start_parameter_on_a_helix_and_a_survey():
 # ------------------------------------------------------------------ disturbances
 
 
-class DriftParams(NamedTuple):
-    m: Any  # () mass [kg]
-    b: Any  # () linear drag on the velocity through the water [kg/s]
-    tau_max: Any  # (2,) force limits [N]
-
-
 @dataclasses.dataclass(frozen=True)
-class DriftLoop(loops.EngineLoop):
+class DriftLoop(PlanarPointMass, loops.EngineLoop):
     """A planar point mass in water (drag on the velocity relative to the current), with
     position and velocity sensors."""
 
     vehicle: ClassVar[str] = "unit_drift"
     initial_keys: ClassVar[dict[str, float]] = {"x": 0.0, "y": 1.0, "vx": 0.5, "vy": 0.0}
     noise_channels: ClassVar[dict[str, int]] = {"position_std": 2, "velocity_std": 2}
+    defaults: ClassVar[tuple] = (2.0, 1.0, (10.0, 10.0))
     default_speed: ClassVar[float] = 0.5
 
     @classmethod
     def default_path(cls):
         return paths.line(origin=(0.0, 0.0), direction=(1.0, 0.0))
-
-    def default_params(self, dtype=None):
-        f = lambda x: jnp.asarray(x, jnp.asarray(0.0).dtype if dtype is None else dtype)
-        return DriftParams(f(2.0), f(1.0), f([10.0, 10.0]))
-
-    def mass_matrix(self, q, p):
-        return p.m * jnp.eye(2, dtype=q.dtype)
-
-    def bias_force(self, q, qd, p):
-        return p.b * qd
-
-    def point(self, q, p):
-        return q
-
-    def initial_from(self, v):
-        return jnp.stack([v["x"], v["y"]]), jnp.stack([v["vx"], v["vy"]])
 
     def measure(self, x, noise):
         q, qd = x

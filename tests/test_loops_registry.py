@@ -3,25 +3,20 @@ registration refuses and says, what a registered law adds, the base classes' def
 no rollouts."""
 
 import dataclasses
-from typing import Any, ClassVar, NamedTuple
+from typing import ClassVar
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from planar_loops import PlanarPointMass
 
 from vcjax import loops, paths
 from vcjax.loops.law import missing_methods, required
 from vcjax.loops.loop import REQUIRED
 
 
-class SledParams(NamedTuple):
-    m: Any  # () mass [kg]
-    b: Any  # () linear drag [kg/s]
-    tau_max: Any  # (2,) force limits [N]
-
-
 @dataclasses.dataclass(frozen=True)
-class SledLoop(loops.EngineLoop):
+class SledLoop(PlanarPointMass, loops.EngineLoop):
     """A planar point mass on ice, held on a path by the generic engine (this file's vehicle)."""
 
     vehicle: ClassVar[str] = "unit_sled"
@@ -29,26 +24,11 @@ class SledLoop(loops.EngineLoop):
     noise_channels: ClassVar[dict[str, int]] = {"position_std": 2, "velocity_std": 2}
     # a class of its own: laws registered here never reach EngineLoop's other subclasses
     laws: ClassVar[dict] = {"vcm": loops.EngineLaw()}
+    defaults: ClassVar[tuple] = (3.0, 0.2, (5.0, 5.0))
 
     @classmethod
     def default_path(cls):
         return paths.line(origin=(0.0, 0.0), direction=(1.0, 0.0))
-
-    def default_params(self, dtype=None):
-        f = lambda x: jnp.asarray(x, jnp.asarray(0.0).dtype if dtype is None else dtype)
-        return SledParams(f(3.0), f(0.2), f([5.0, 5.0]))
-
-    def mass_matrix(self, q, p):
-        return p.m * jnp.eye(2, dtype=q.dtype)
-
-    def bias_force(self, q, qd, p):
-        return p.b * qd
-
-    def point(self, q, p):
-        return q
-
-    def initial_from(self, v):
-        return jnp.stack([v["x"], v["y"]]), jnp.stack([v["vx"], v["vy"]])
 
 
 loops.register(SledLoop)
@@ -222,7 +202,7 @@ def test_base_loop_defaults_say_what_is_not_modelled():
         loop.noise_std({"position_std": 0.5, "velocity_std": 0.1}), [0.5, 0.5, 0.1, 0.1]
     )
     np.testing.assert_array_equal(loop.noise_std({}), np.zeros(4))
-    with pytest.raises(ValueError, match="plant: expected SledParams, got tuple"):
+    with pytest.raises(ValueError, match="plant: expected PointMassParams, got tuple"):
         loop.validate_params((3.0, 0.2, (5.0, 5.0)))
     with pytest.raises(NotImplementedError, match="no sensor-noise model"):
         loops.Loop.measure(loop, None, None)
