@@ -37,3 +37,14 @@ def test_a_jaxlib_newer_than_the_checked_one_gets_no_flag(monkeypatch):
     monkeypatch.setattr(comp, "_jaxlib_version", lambda: comp.CHECKED)
     env = {}
     assert prefer_fast_compile(env) and env["XLA_FLAGS"] == FLAG
+
+
+def test_jaxlib_version_reads_release_and_pre_release_spellings():
+    from vcjax.compiler import jaxlib_version
+
+    assert jaxlib_version(2, "0.10.2") == (0, 10)
+    assert jaxlib_version(3, "0.6.2") == (0, 6, 2)
+    assert jaxlib_version(3, "0.7.0rc1") == (0, 7, 0)
+    assert jaxlib_version(3, "0.7.0.dev20250101") == (0, 7, 0)
+    assert jaxlib_version(3, "0.6") == (0, 6, 0)
+    assert jaxlib_version(3, "x.6.1") == (0, 6, 1)

@@ -39,6 +39,8 @@ from pathlib import Path
 
 import jax
 
+from vcjax.compiler import jaxlib_version
+
 __all__ = [
     "ENV",
     "MAX_BYTES",
@@ -60,21 +62,13 @@ _ACTIVE: str | None = None
 _OFF_REASON: list[str] = []
 
 
-def _version(v: str) -> tuple[int, ...]:
-    out = []
-    for part in v.split(".")[:3]:
-        digits = "".join(ch for ch in part if ch.isdigit()) or "0"
-        out.append(int(digits) if part[:1].isdigit() else 0)
-    return tuple(out)
-
-
 def unsafe_version(version: str | None = None) -> str | None:
     """Why JAX's persistent cache must stay off with this jaxlib (None: it may be on)."""
     if version is None:
         import jaxlib
 
         version = jaxlib.__version__
-    if _version(version) < SAFE_FROM:
+    if jaxlib_version(3, version) < SAFE_FROM:
         safe = ".".join(map(str, SAFE_FROM))
         return (
             f"jaxlib {version} reads programs that draw gamma/beta random numbers back from "

@@ -40,13 +40,30 @@ _FIRST = (0, 6)  # the first jaxlib whose XLA knows the flag
 CHECKED = (0, 10)
 
 
-def _jaxlib_version() -> tuple[int, ...]:
-    try:
-        import jaxlib
+def jaxlib_version(parts: int = 2, version: str | None = None) -> tuple[int, ...]:
+    """The first ``parts`` numbers of ``version`` (default: the installed jaxlib's; ``(0, ...)``
+    when none is installed); a part that does not start with a digit counts as 0, trailing
+    letters are dropped (``0.7.0rc1`` -> ``(0, 7, 0)``). Imports no JAX."""
+    if version is None:
+        try:
+            import jaxlib
 
-        return tuple(int(p) for p in jaxlib.__version__.split(".")[:2])
-    except (ImportError, AttributeError, ValueError):
-        return (0, 0)
+            version = jaxlib.__version__
+        except (ImportError, AttributeError):
+            return (0,) * parts
+    out = []
+    for part in (version.split(".") + ["0"] * parts)[:parts]:
+        digits = ""
+        for ch in part:
+            if not ch.isdigit():
+                break
+            digits += ch
+        out.append(int(digits or "0"))
+    return tuple(out)
+
+
+def _jaxlib_version() -> tuple[int, ...]:
+    return jaxlib_version(2)
 
 
 def prefer_fast_compile(environ=None) -> bool:
