@@ -34,7 +34,7 @@ def setup(dtype: str, cpu_devices: int | None = None) -> None:
     import jax
 
     if cpu_devices is not None:
-        from vcjax.devices import use_cpu_cores
+        from vcjax.runtime.devices import use_cpu_cores
 
         use_cpu_cores(cpu_devices)
     if dtype == "float64":
@@ -144,7 +144,7 @@ def memory(compiled) -> dict:
 
 def base_inputs():
     """Simulation 1's default gains and scenario, in the process's default float dtype."""
-    from vcjax import sim1
+    from vcjax.experiments import sim1
 
     return sim1.default_gains(), sim1.sim1_scenario()
 
@@ -218,7 +218,7 @@ def metric_fn(
     Trajectory (its while-loop simplifier removes dead loop outputs), so memory is
     O(B N) for the stacked cross-track error instead of O(B N x every recorded signal).
     """
-    from vcjax import sim1
+    from vcjax.experiments import sim1
     from vcjax.rollout import RolloutConfig
 
     cfg = RolloutConfig(num_steps=num_steps, integrator="rk4", checkpoint=checkpoint, timing=timing)

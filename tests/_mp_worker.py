@@ -1,5 +1,5 @@
 """Worker of tests/test_distributed.py, started as one of several real processes by
-``vcjax.distributed.spawn``: joins the run, builds the tuning problem of a config file, shards its
+``vcjax.runtime.distributed.spawn``: joins the run, builds the tuning problem of a config file, shards its
 training batch over the global mesh (what ``vcjax tune`` does) and writes the loss and gradient,
 with the gains shared and tiled per scenario, and how often three tuner steps compiled the step.
 
@@ -11,8 +11,8 @@ import json
 import sys
 from pathlib import Path
 
-from vcjax import distributed
-from vcjax.compiler import prefer_fast_compile
+from vcjax.runtime import distributed
+from vcjax.runtime.compiler import prefer_fast_compile
 
 prefer_fast_compile()  # as the CLI does, before JAX starts
 distributed.initialize_from_env()

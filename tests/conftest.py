@@ -3,7 +3,7 @@ compilation cache per test session; the CLI's XLA CPU code generator.
 
 The library itself never flips these switches; only the tests do.
 
-Compilation cache: the CLI turns on JAX's persistent compilation cache (:mod:`vcjax.cache`);
+Compilation cache: the CLI turns on JAX's persistent compilation cache (:mod:`vcjax.runtime.cache`);
 tests, run in-process or in subprocesses, must never read or fill the user's folder. They share
 a fresh folder of their own instead, one per test session: the xdist workers of a run (one
 folder named after the run's id) and the ``vcjax`` subprocesses they start (through
@@ -20,8 +20,8 @@ from pathlib import Path
 
 import jax
 
-from vcjax.cache import enable_compilation_cache
-from vcjax.compiler import prefer_fast_compile
+from vcjax.runtime.cache import enable_compilation_cache
+from vcjax.runtime.compiler import prefer_fast_compile
 
 _PREFIX = "vcjax-test-jax-cache-"
 
@@ -35,7 +35,7 @@ def _session_cache_dir() -> Path:
     return Path(tempfile.mkdtemp(prefix=_PREFIX))
 
 
-# XLA's faster-compiling CPU kernel generator, as the CLI uses it (vcjax.compiler); inherited by
+# XLA's faster-compiling CPU kernel generator, as the CLI uses it (vcjax.runtime.compiler); inherited by
 # the subprocesses the tests start (before JAX starts: XLA reads its flags once)
 prefer_fast_compile()
 

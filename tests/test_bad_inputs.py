@@ -504,7 +504,7 @@ def test_progress_eta_excludes_the_compiling_step(monkeypatch):
     the later steps: 3 steps left -> 3 s, not 3 x 55 s."""
     import io
 
-    from vcjax import progress
+    from vcjax.runtime import progress
 
     clock = iter([0.0, 55.0, 56.0, 57.0])
     monkeypatch.setattr(progress.time, "perf_counter", lambda: next(clock))

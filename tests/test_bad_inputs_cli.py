@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vcjax import cli, outputs
+from vcjax import cli
+from vcjax.runtime import outputs
 
 COMMANDS = ("sweep", "tune", "fit")
 ALL_COMMANDS = COMMANDS + ("simulate", "demo")
@@ -389,7 +390,7 @@ def test_oversized_tune_is_refused_with_estimate_and_limit(
 
 
 def test_checkpointing_shrinks_the_tune_tape_estimate():
-    from vcjax import sizing
+    from vcjax.runtime import sizing
 
     base = {
         "problem": {"horizon": 1000.0, "dt": 0.1, "checkpoint": False, "checkpoint_every": 100},
@@ -405,7 +406,7 @@ def test_checkpointing_shrinks_the_tune_tape_estimate():
 
 
 def test_sweep_estimate_hand_count():
-    from vcjax import sizing
+    from vcjax.runtime import sizing
     from vcjax.sweep import SweepSpec
 
     spec = SweepSpec(
@@ -470,7 +471,7 @@ def test_largest_seed_is_accepted_by_jax():
     """The bound of check_seed is what PRNGKey takes (float64 mode), and one more is not."""
     import jax
 
-    from vcjax import sizing
+    from vcjax.runtime import sizing
 
     assert jax.config.jax_enable_x64  # tests run in float64 (conftest)
     sizing.check_seed("s", 2**63 - 1, x64=True)
@@ -624,7 +625,7 @@ def test_overwrite_never_removes_the_commands_inputs(tmp_path):
 
 
 def test_launch_bound_is_the_cores_and_at_least_two():
-    from vcjax import sizing
+    from vcjax.runtime import sizing
 
     sizing.check_launch(2, None, None, cores=1)  # two processes may always be tried
     with pytest.raises(sizing.SizeError, match="-n 3: more processes than the number of usable"):
@@ -673,7 +674,7 @@ def test_fit_sized_before_it_starts(flags, message, tmp_path, capsys):
 
 
 def test_fit_estimate_hand_count():
-    from vcjax import sizing
+    from vcjax.runtime import sizing
 
     e = sizing.fit_estimate(segments=4, segment_steps=25, n_x=15, n_params=2)
     assert e["memory_bytes"] == 3 * 8 * (4 * 25 * 15) * (1 + 2 + 15)

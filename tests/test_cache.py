@@ -1,4 +1,4 @@
-"""The CLI's persistent compilation cache (vcjax.cache): folder choice, and a second identical
+"""The CLI's persistent compilation cache (vcjax.runtime.cache): folder choice, and a second identical
 run that compiles nothing (every program read back from the cache)."""
 
 import json
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from vcjax.cache import default_cache_dir
+from vcjax.runtime.cache import default_cache_dir
 
 ROOT = Path(__file__).parents[1]
 
@@ -78,8 +78,8 @@ def _entries(cache: Path) -> dict:
 
 @pytest.mark.slow  # two CLI processes (~15-30 s on 2 cores)
 @pytest.mark.skipif(
-    __import__("vcjax.cache").cache.unsafe_version() is not None,
-    reason="this jaxlib's persistent cache stays off (vcjax.cache.SAFE_FROM)",
+    __import__("vcjax.runtime.cache").runtime.cache.unsafe_version() is not None,
+    reason="this jaxlib's persistent cache stays off (vcjax.runtime.cache.SAFE_FROM)",
 )
 def test_second_identical_run_compiles_nothing(tmp_path):
     cfg = tmp_path / "tiny.toml"
@@ -99,7 +99,7 @@ def test_second_identical_run_compiles_nothing(tmp_path):
 def test_off_disables_and_run_json_says_so(tmp_path):
     import jax
 
-    from vcjax import cache, runinfo
+    from vcjax.runtime import cache, runinfo
 
     before = jax.config.jax_enable_compilation_cache
     try:
@@ -123,7 +123,7 @@ def test_the_cache_stays_off_on_jax_versions_that_read_programs_back_wrongly(tmp
     that returns a constant (found by the minimum-versions test run: the sea's directional
     spreading collapsed on the second read); below SAFE_FROM the cache stays off, with the
     reason."""
-    from vcjax import cache
+    from vcjax.runtime import cache
 
     assert cache.unsafe_version("0.5.1") and "0.6.2" in cache.unsafe_version("0.5.3")
     assert cache.unsafe_version("0.6.2") is None and cache.unsafe_version("0.10.2") is None
@@ -136,7 +136,7 @@ def test_the_cache_stays_off_on_jax_versions_that_read_programs_back_wrongly(tmp
 GAMMA = """
 import sys, jax, jax.numpy as jnp, numpy as np
 jax.config.update("jax_enable_x64", True)
-from vcjax.cache import enable_compilation_cache
+from vcjax.runtime.cache import enable_compilation_cache
 print("cache", enable_compilation_cache())
 f = jax.jit(lambda k, a: jax.random.gamma(k, a, (4,), dtype=jnp.float64))
 print(np.asarray(f(jax.random.PRNGKey(3), 2.0)).tolist())

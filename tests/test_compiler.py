@@ -1,8 +1,8 @@
-"""The CLI's choice of XLA CPU code generator (vcjax.compiler): added to XLA_FLAGS unless the
+"""The CLI's choice of XLA CPU code generator (vcjax.runtime.compiler): added to XLA_FLAGS unless the
 user already chose, or turned it off, or the jaxlib predates the flag."""
 
-import vcjax.compiler as comp
-from vcjax.compiler import ENV, FLAG, prefer_fast_compile
+import vcjax.runtime.compiler as comp
+from vcjax.runtime.compiler import ENV, FLAG, prefer_fast_compile
 
 
 def test_flag_is_added_once_and_yields_to_the_user(monkeypatch):
@@ -40,7 +40,7 @@ def test_a_jaxlib_newer_than_the_checked_one_gets_no_flag(monkeypatch):
 
 
 def test_jaxlib_version_reads_release_and_pre_release_spellings():
-    from vcjax.compiler import jaxlib_version
+    from vcjax.runtime.compiler import jaxlib_version
 
     assert jaxlib_version(2, "0.10.2") == (0, 10)
     assert jaxlib_version(3, "0.6.2") == (0, 6, 2)

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vcjax.devices import ENV_VAR, cpu_device_count, usable_cores
+from vcjax.runtime.devices import ENV_VAR, cpu_device_count, usable_cores
 
 ROOT = Path(__file__).parents[1]
 
@@ -153,7 +153,7 @@ def test_tune_sharded_over_two_cpu_devices_matches_one_device(tmp_path):
 def test_default_keeps_running_jax_explicit_conflict_is_an_error(monkeypatch):
     import jax
 
-    from vcjax.devices import use_cpu_cores
+    from vcjax.runtime.devices import use_cpu_cores
 
     jax.numpy.zeros(1).block_until_ready()  # JAX is running in this process
     have = len(jax.devices("cpu"))

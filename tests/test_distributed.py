@@ -1,4 +1,4 @@
-"""Multi-process runs with real processes on localhost (``vcjax.distributed``, ``vcjax launch``).
+"""Multi-process runs with real processes on localhost (``vcjax.runtime.distributed``, ``vcjax launch``).
 
 * a sweep run as two real processes (``vcjax launch -n 2 -- sweep``: each process its share of
   the chunks, process 0 merges) equals the same sweep in one process;
@@ -23,7 +23,8 @@ import pytest
 from tuning.cli import build
 from tuning.config import load_config as load_tune_config
 from tuning.loss import objective
-from vcjax import cli, distributed
+from vcjax import cli
+from vcjax.runtime import distributed
 from vcjax.sweep import load_config, load_results, run_sweep
 
 ROOT = Path(__file__).resolve().parent.parent

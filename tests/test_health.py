@@ -10,7 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax import cli, sim1
+from vcjax import cli
+from vcjax.experiments import sim1
 from vcjax.mechanics import MechanicalSystem, VirtualConstraints, reaction_force, vcm_gains
 from vcjax.metrics import first_excursion, path_bound
 from vcjax.rollout import RolloutConfig, controller_ok, first_unhealthy_step, rollout

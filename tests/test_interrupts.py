@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vcjax import outputs
+from vcjax.runtime import outputs
 
 ROOT = Path(__file__).resolve().parent.parent
 LIMIT_S = 300  # per run: compile-bound, generous for a loaded machine
@@ -258,7 +258,7 @@ def test_the_interrupts_duplicate_after_the_guard_is_swallowed_and_a_later_one_i
     other processes waiting at their shutdown barrier (run 2 of the loaded slow suite:
     ``launch`` exit codes [-6, 0]). Within SAME_INTERRUPT_S of the interrupt it is swallowed;
     a later signal gets the old handler, which is restored."""
-    from vcjax import interrupts
+    from vcjax.runtime import interrupts
 
     seen = []
 

@@ -8,38 +8,25 @@ ROOT = Path(__file__).resolve().parents[1] / "vcjax"
 
 #: layers in data-flow order; a module may import from its own layer or an earlier one.
 #: ``config`` sits just above ``loops``: the ``[scenario]`` section reads the loop registry and
-#: the loop classes' dataclass fields (its options), so ``loops`` never imports it (``_config``
-#: is its older name, a re-export). Figures (``plots``) read results of loops and sweeps and run
-#: nothing; the experiments (presets of ``vcjax simulate``) sit on top, below only the CLI;
-#: ``sim1``/``sim2``/``demos``/``sim_remus100`` are the experiments' older names (aliases).
+#: the loop classes' dataclass fields (its options), so ``loops`` never imports it. ``runtime``
+#: (devices, caches, outputs, interrupts, progress: plumbing that knows no physics) is at the
+#: bottom. Figures (``plots``) read results of loops and sweeps and run nothing; the experiments
+#: (presets of ``vcjax simulate``) sit on top, below only the CLI.
 LAYERS = [
-    {
-        "_checks",
-        "devices",
-        "linalg",
-        "integrators",
-        "progress",
-        "cache",
-        "compiler",
-        "outputs",
-        "interrupts",
-        "sizing",
-    },
-    {"distributed", "runinfo"},
-    {"mechanics", "systems", "paths", "currents", "waves"},
+    {"_checks", "runtime", "linalg", "integrators"},
+    {"mechanics", "paths", "currents", "waves"},
     {"vehicles", "guidance", "allocation", "rollout"},
     {"control"},
     {"loops"},
-    {"config", "_config"},
+    {"config"},
     {"metrics"},
     {"sweep"},
     {"plots"},
     {"experiments", "identify"},
-    {"sim1", "sim2", "demos", "sim_remus100"},
     {"cli", "commands"},
 ]
 #: the only modules of vcjax that may import vcjax.experiments (besides itself)
-EXPERIMENT_IMPORTERS = {"cli", "commands", "sim1", "sim2", "demos", "sim_remus100"}
+EXPERIMENT_IMPORTERS = {"cli", "commands"}
 LAYER_OF = {name: i for i, names in enumerate(LAYERS) for name in names}
 
 

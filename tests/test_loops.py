@@ -19,7 +19,7 @@ from tuning.optim import run_gradient_tuner
 from tuning.params import GainSpace
 from tuning.scenarios import sample_scenarios as tuning_batch
 from vcjax import loops, paths
-from vcjax._config import ConfigError
+from vcjax.config import ConfigError
 from vcjax.config.scenario import ScenarioChoice, parse_scenario
 from vcjax.metrics import (
     metric_names,

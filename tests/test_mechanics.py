@@ -14,8 +14,8 @@ from vcjax.mechanics import (
     vcm_gains,
 )
 from vcjax.rollout import RolloutConfig, rollout
-from vcjax.systems import TWO_LINK_ARM, arm_end_effector, arm_params
 from vcjax.vehicles import design3dof as d3
+from vcjax.vehicles.arm import TWO_LINK_ARM, arm_end_effector, arm_params
 
 # ---------------------------------------------------------------- two-link arm on a circle
 CENTER = jnp.array([1.0, 0.6])

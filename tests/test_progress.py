@@ -2,7 +2,7 @@
 
 import io
 
-from vcjax.progress import ProgressBar
+from vcjax.runtime.progress import ProgressBar
 
 
 def test_bar_draws_in_place_and_ends_the_line_once():

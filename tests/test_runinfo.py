@@ -11,7 +11,7 @@ import numpy as np
 
 import vcjax
 from vcjax import cli
-from vcjax.runinfo import git_commit, run_info, to_jsonable
+from vcjax.runtime.runinfo import git_commit, run_info, to_jsonable
 
 KEYS = {"command", "argv", "vcjax", "versions", "x64", "devices", "processes", "config", "seeds"}
 

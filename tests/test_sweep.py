@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from vcjax import currents
-from vcjax._config import ConfigError
+from vcjax.config import ConfigError
 from vcjax.experiments import sim1
 from vcjax.metrics import metric_names
 from vcjax.plots.sweep import sweep_figures

@@ -165,7 +165,7 @@ def test_a_calm_sea_is_bit_identical_with_gauss_markov_current_and_noise():
     """REMUS 100 (its own current door, a Gauss–Markov current through the exogenous hook) and
     ODIN-class with sensor noise: a calm sea changes no bit of ODIN-class's run. REMUS 100's
     (every added term exactly 0) is bit-identical under XLA's default CPU code generator; under
-    the faster-compiling one the command line and the tests use (:mod:`vcjax.compiler`) a
+    the faster-compiling one the command line and the tests use (:mod:`vcjax.runtime.compiler`) a
     ``+ 0`` in the sea's program can stop LLVM from contracting ``a b + c`` into one fused
     multiply-add, so a few entries differ in the last bit or two: equal to 4 ulp of each
     signal's scale, no more."""

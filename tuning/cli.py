@@ -38,10 +38,11 @@ from tuning.params import GainSpace
 from tuning.report import ProgressBar, plot_before_after, plot_loss_curve, plot_loss_terms
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from tuning.spec import TuneConfig
-from vcjax import distributed, loops, paths
+from vcjax import loops, paths
 from vcjax.config import ConfigError, Current
-from vcjax.interrupts import stop_requested_everywhere
-from vcjax.outputs import write_json_atomic
+from vcjax.runtime import distributed
+from vcjax.runtime.interrupts import stop_requested_everywhere
+from vcjax.runtime.outputs import write_json_atomic
 
 __all__ = ["build", "run_tune_config", "main"]
 
@@ -192,12 +193,12 @@ def _path_polyline(loop, batch, xy_before, xy_after):
 
 def distribute(train, data, theta0):
     """With more than one device in the run (several processes, or several local devices), the
-    training batch is sharded along a global 1-D mesh of every device (:mod:`vcjax.distributed`)
-    and ``data``, ``theta0`` are replicated on it: each loss and gradient is then one SPMD
-    computation whose batch mean reduces across devices and processes, equal to the
-    single-device value. With one device, or a batch size that is not a multiple of the device
-    count (padding would change the mean loss), returns the inputs unchanged: every process then
-    computes the whole batch itself, with the same result.
+    training batch is sharded along a global 1-D mesh of every device
+    (:mod:`vcjax.runtime.distributed`) and ``data``, ``theta0`` are replicated on it: each loss
+    and gradient is then one SPMD computation whose batch mean reduces across devices and
+    processes, equal to the single-device value. With one device, or a batch size that is not a
+    multiple of the device count (padding would change the mean loss), returns the inputs
+    unchanged: every process then computes the whole batch itself, with the same result.
     """
     n = jax.device_count()
     if n == 1 or int(train.eta0.shape[0]) % n:

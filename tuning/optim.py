@@ -33,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from vcjax import distributed
+from vcjax.runtime import distributed
 
 __all__ = [
     "OPTIMIZERS",

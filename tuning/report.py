@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vcjax.outputs import savefig_atomic
 from vcjax.plots import pyplot
-from vcjax.progress import ProgressBar as _Bar
+from vcjax.runtime.outputs import savefig_atomic
+from vcjax.runtime.progress import ProgressBar as _Bar
 
 __all__ = ["ProgressBar", "plot_loss_curve", "plot_before_after", "plot_loss_terms"]
 

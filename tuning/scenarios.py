@@ -159,7 +159,7 @@ def shard_scenarios(batch: loops.Scenario, devices=None) -> tuple[loops.Scenario
     (default ``jax.local_devices()``), and the number of devices used.
 
     Jitted losses and gradients on a sharded batch run on every device (with host CPU devices,
-    :func:`vcjax.devices.use_cpu_cores`: every core), the batch mean becoming a cross-device
+    :func:`vcjax.runtime.devices.use_cpu_cores`: every core), the batch mean becoming a cross-device
     sum. The batch is left on one device (``n = 1``) when there is one, or when its size is not
     a multiple of the device count (padding would change the mean loss).
     """

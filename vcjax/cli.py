@@ -32,7 +32,7 @@ def _add_size_limits(p: argparse.ArgumentParser) -> None:
 def _cmd_launch(args) -> int:
     """``vcjax launch -n N -- COMMAND ...``: N local processes of one distributed run (or, inside
     a multi-task SLURM step, this process joins the step's run and runs COMMAND itself)."""
-    from vcjax import distributed
+    from vcjax.runtime import distributed
 
     rest = list(args.rest)
     if rest[:1] == ["--"]:
@@ -54,8 +54,8 @@ def _cmd_launch(args) -> int:
         return fail("launch: -n N (number of processes, >= 1) is required outside SLURM")
     if args.cpu_devices is not None and args.cpu_devices < 1:
         return fail(f"launch: --cpu-devices must be >= 1, got {args.cpu_devices}")
-    from vcjax.devices import usable_cores
-    from vcjax.sizing import SizeError, check_launch
+    from vcjax.runtime.devices import usable_cores
+    from vcjax.runtime.sizing import SizeError, check_launch
 
     try:
         check_launch(args.n, args.timeout, args.max_processes, usable_cores())
@@ -278,13 +278,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     args.t_start = time.perf_counter()
-    from vcjax.cache import enable_compilation_cache
-    from vcjax.compiler import prefer_fast_compile
+    from vcjax.runtime.cache import enable_compilation_cache
+    from vcjax.runtime.compiler import prefer_fast_compile
 
     prefer_fast_compile()  # before JAX starts: XLA reads its flags once
     enable_compilation_cache()
     if args.command != "launch":  # a process started by `vcjax launch` joins its run first
-        from vcjax import distributed
+        from vcjax.runtime import distributed
 
         try:
             distributed.initialize_from_env()

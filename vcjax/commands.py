@@ -20,9 +20,9 @@ def _enable_x64(flag: bool) -> None:
 
 
 def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
-    """Write ``out/run.json`` (:mod:`vcjax.runinfo`) and say so; ``config`` defaults to the
+    """Write ``out/run.json`` (:mod:`vcjax.runtime.runinfo`) and say so; ``config`` defaults to the
     parsed command-line options."""
-    from vcjax.runinfo import write_run_json
+    from vcjax.runtime.runinfo import write_run_json
 
     config = {k: v for k, v in vars(args).items() if k != "func"} if config is None else config
     config.pop("func", None)
@@ -34,8 +34,9 @@ def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
 
 
 def _prepare(args, path, command: str) -> Path:
-    """Check, clear (``--overwrite``) and lock ``--out`` before any work (:mod:`vcjax.outputs`)."""
-    from vcjax.outputs import OutputError, prepare_out
+    """Check, clear (``--overwrite``) and lock ``--out`` before any work
+    (:mod:`vcjax.runtime.outputs`)."""
+    from vcjax.runtime.outputs import OutputError, prepare_out
 
     try:
         inputs = [getattr(args, k, None) for k in ("config", "gains")]  # never removed
@@ -100,7 +101,7 @@ _OWN_OPTIONS = ("edd", "timing", "actuation", "diverge_e", "waves", "wave_seed")
 
 def _check_waves(args, where: str, dt: float) -> None:
     """``--waves HS TP DIR_DEG`` and ``--wave-seed`` of ``vcjax simulate`` (one line, exit 2)."""
-    from vcjax import sizing
+    from vcjax.runtime import sizing
 
     if args.wave_seed is not None:
         if args.waves is None:
@@ -192,8 +193,8 @@ def _is_number(v) -> bool:
 
 def _use_cores(args, command: str) -> int | None:
     """Split the host CPU into devices (before JAX initialises); a bad count is one line."""
-    from vcjax import distributed
-    from vcjax.devices import use_cpu_cores
+    from vcjax.runtime import distributed
+    from vcjax.runtime.devices import use_cpu_cores
 
     try:
         use_cpu_cores(args.cpu_devices)
@@ -261,15 +262,15 @@ def sweep(args) -> int:
 
 def interruptible():
     """SIGINT / SIGTERM ask the running loop to stop at its next safe point and write what is
-    done (:func:`vcjax.interrupts.interrupt_guard`)."""
-    from vcjax.interrupts import interrupt_guard
+    done (:func:`vcjax.runtime.interrupts.interrupt_guard`)."""
+    from vcjax.runtime.interrupts import interrupt_guard
 
     return interrupt_guard()
 
 
 def _interrupted(command: str, what: str) -> int:
     """The one line of an interrupted run; exit code 130."""
-    from vcjax.interrupts import EXIT_INTERRUPTED, stop_signal
+    from vcjax.runtime.interrupts import EXIT_INTERRUPTED, stop_signal
 
     print(f"vcjax: {command}: interrupted ({stop_signal() or 'signal'}): {what}", file=sys.stderr)
     return EXIT_INTERRUPTED
@@ -277,8 +278,8 @@ def _interrupted(command: str, what: str) -> int:
 
 def _size_check(args, command: str, spec=None, cfg=None) -> None:
     """Refuse (ValueError, exit 2) work that cannot fit or seeds the PRNG cannot take
-    (:mod:`vcjax.sizing`), before anything is compiled."""
-    from vcjax import sizing
+    (:mod:`vcjax.runtime.sizing`), before anything is compiled."""
+    from vcjax.runtime import sizing
 
     sizing.check_limits_options(args.max_steps, args.max_memory_gb)
     if spec is not None:
@@ -331,7 +332,7 @@ def tune(args) -> int:
 
 def fit(args) -> int:
     _prepare(args, args.out, "fit")
-    from vcjax.sizing import check_limits_options
+    from vcjax.runtime.sizing import check_limits_options
 
     try:
         check_limits_options(None, args.max_memory_gb)

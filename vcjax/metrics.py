@@ -1,5 +1,5 @@
 """One metrics function for every closed loop (JAX: jit/vmap-safe), on a loop's
-:class:`~vcjax.loops.base.Signals`.
+:class:`~vcjax.loops.Signals`.
 
 Windows: ``ss_*`` and ``rms_*`` / ``max_dist_3d`` use the steady-state window, the steps from
 ``floor(start n)`` on (``start = 1 - tail`` for a sweep's ``tail``; Simulation 2 reports from 20 %
@@ -141,7 +141,7 @@ def metrics_update(acc: dict, sig, finite, ks, k0: int) -> dict:
     """Fold the samples ``ks`` (global step indices, (L,)) of a run into ``acc``.
 
     Args:
-        acc: accumulator (:func:`metrics_init`); sig: :class:`~vcjax.loops.base.Signals` of
+        acc: accumulator (:func:`metrics_init`); sig: :class:`~vcjax.loops.Signals` of
             the L samples; finite: (L,) the rollout's ``finite`` flags of those steps.
         ks: (L,) int step indices; k0: static first step of the steady-state window.
     """
@@ -203,7 +203,7 @@ def run_metrics(sig, finite, dt, start: float = 0.8, diverge_e=jnp.inf, extras=N
     """Metrics and health flags of one run, with an experiment's own metrics added.
 
     Args:
-        sig: :class:`~vcjax.loops.base.Signals` (N steps).
+        sig: :class:`~vcjax.loops.Signals` (N steps).
         finite: (N,) bool, the rollout's ``Trajectory.finite``.
         dt: () step [s].
         start: static fraction of the run where the steady-state window begins.

@@ -66,7 +66,7 @@ def parse_args(argv=None):
         "--cli-compiler",
         action="store_true",
         help="the 'after' workers compile with the XLA CPU code generator the vcjax command "
-        "line uses (vcjax.compiler); default: XLA's defaults on both sides",
+        "line uses (vcjax.runtime.compiler); default: XLA's defaults on both sides",
     )
     p.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     args = p.parse_args(argv)
@@ -82,9 +82,9 @@ def parse_args(argv=None):
 def _simulate_fn():
     """``simulate(variant, gains, scenario, config, dt)`` of whichever vcjax is importable."""
     try:
-        from vcjax import sim1
-    except ImportError:  # the scenario layer may move the experiment
-        from vcjax.experiments import sim1  # type: ignore[no-redef]
+        from vcjax.experiments import sim1
+    except ImportError:  # an older revision: the experiment under its former name
+        from vcjax import sim1  # type: ignore[no-redef]
     return sim1
 
 
@@ -189,13 +189,14 @@ def extract(rev: str, dest: Path) -> str:
 
 def run_worker(case: dict, lib_path: Path | None, cli_compiler: bool = False) -> dict:
     """``measure(case)`` in a fresh process importing vcjax from ``lib_path`` (None: this one);
-    ``cli_compiler``: with the command line's XLA CPU code generator (:mod:`vcjax.compiler`)."""
+    ``cli_compiler``: with the command line's XLA CPU code generator
+    (:mod:`vcjax.runtime.compiler`)."""
     env = dict(os.environ)
     env["PYTHONPATH"] = str(ROOT)
     env.pop("XLA_FLAGS", None)
     env.pop("VCJAX_CPU_DEVICES", None)
     if cli_compiler:
-        from vcjax.compiler import prefer_fast_compile
+        from vcjax.runtime.compiler import prefer_fast_compile
 
         prefer_fast_compile(env)
     case = {**case, "lib": str(lib_path) if lib_path else None}

@@ -18,7 +18,7 @@ program; default ``examples/tuning/remus100.toml``; ``--tune none`` skips it).
     python -m benchmarks.perf.compile_times --loops remus100/vcm3d,infante/vcm_integral --tune none
 
 By default the programs compile with the XLA CPU code generator the ``vcjax`` command line
-uses (:mod:`vcjax.compiler`); ``--xla-default`` measures XLA's default one.
+uses (:mod:`vcjax.runtime.compiler`); ``--xla-default`` measures XLA's default one.
 
 ``--before REV`` measures in one run an older revision against this checkout: each program
 (loop x kind, and the tune step) is built in fresh processes that alternate, before then after,
@@ -97,7 +97,7 @@ def parse_args(argv=None):
         "--xla-default",
         action="store_true",
         help="XLA's default CPU code generator; by default the one the vcjax command line "
-        "uses (vcjax.compiler: --xla_cpu_use_fusion_emitters=false)",
+        "uses (vcjax.runtime.compiler: --xla_cpu_use_fusion_emitters=false)",
     )
     args = p.parse_args(argv)
     if args.steps < 1:
@@ -259,7 +259,7 @@ def main(argv=None) -> dict:
     if args.before:
         return before_after(args)
     if not args.xla_default:
-        from vcjax.compiler import prefer_fast_compile
+        from vcjax.runtime.compiler import prefer_fast_compile
 
         prefer_fast_compile()  # what the CLI compiles with (before JAX starts)
     C.setup(args.dtype)

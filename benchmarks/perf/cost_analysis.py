@@ -149,8 +149,9 @@ def components(batch: int, iters: int, repeats: int) -> list[dict]:
     import jax
     import jax.numpy as jnp
 
-    from vcjax import paths, sim1
+    from vcjax import paths
     from vcjax.control.vcm import VCMConfig, vcm_law, vcm_params, vcm_state
+    from vcjax.experiments import sim1
     from vcjax.vehicles import infante
 
     gains, sc = C.base_inputs()

@@ -103,7 +103,7 @@ def loss_fn(num_steps: int, checkpoint: bool, every: int = 1, timing: str = "con
     import jax
     import jax.numpy as jnp
 
-    from vcjax import sim1
+    from vcjax.experiments import sim1
     from vcjax.rollout import RolloutConfig
 
     cfg = RolloutConfig(

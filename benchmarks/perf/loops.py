@@ -1,10 +1,11 @@
 """Throughput of every closed loop: each (vehicle, controller) of the scenario layer's registry
-(:mod:`vcjax.loops`), plus Simulation 2's ODIN-class loop (:mod:`vcjax.sim2`) and the REMUS 100
-survey loop (:mod:`vcjax.sim_remus100`) while they are not in the registry; single trajectory,
-a batch on one core, the same batch on every core.
+(:mod:`vcjax.loops`), plus Simulation 2's ODIN-class loop (:mod:`vcjax.experiments.sim2`)
+and the REMUS 100 survey loop (:mod:`vcjax.experiments.remus100`) while they are not in the
+registry; single trajectory, a batch on one core, the same batch on every core.
 
 The process splits the host CPU into ``--cpu-devices`` JAX devices (default: one per core,
-:mod:`vcjax.devices`) before JAX starts. ``vmap`` rows run the batch on one device (one core);
+:mod:`vcjax.runtime.devices`) before JAX starts. ``vmap`` rows run the batch on one device
+(one core);
 ``sharded`` rows shard the same batch over every device (``NamedSharding`` along the scenario
 axis, as ``vcjax sweep`` does); ``cores_used`` says which. RK4, dt = 0.05 s, the controller
 ``--timing`` (default sampled: once per step, held, as on a vehicle); batches are the loop's
@@ -107,7 +108,7 @@ def odin_case(timing: str):
     import jax
     import jax.numpy as jnp
 
-    from vcjax import sim2
+    from vcjax.experiments import sim2
     from vcjax.rollout import RolloutConfig, rollout
     from vcjax.vehicles import odin
 
@@ -134,11 +135,12 @@ def odin_case(timing: str):
 
 
 def remus_case(timing: str):
-    """The REMUS 100 survey loop of :mod:`vcjax.sim_remus100` (``vcm3d_ilos``: 3-D VCM with the
-    integral LOS angle, PVS's plant) as a case; its controller is sampled (as in the module)."""
+    """The REMUS 100 survey loop of :mod:`vcjax.experiments.remus100` (``vcm3d_ilos``: 3-D VCM
+    with the integral LOS angle, PVS's plant) as a case; its controller is sampled (as in the
+    module)."""
     import jax.numpy as jnp
 
-    from vcjax import sim_remus100 as sr
+    from vcjax.experiments import remus100 as sr
     from vcjax.rollout import RolloutConfig, rollout
     from vcjax.vehicles import remus100 as r100
 
@@ -189,7 +191,7 @@ def _time(name, kind, f, inputs, batch, steps, cores, args):
 
 def main(argv=None):
     args = parse_args(argv)
-    from vcjax.devices import cpu_device_count
+    from vcjax.runtime.devices import cpu_device_count
 
     C.setup(args.dtype, cpu_device_count(args.cpu_devices))
     import jax

@@ -46,7 +46,7 @@ def main(argv=None):
     import jax.numpy as jnp
     import numpy as np
 
-    from vcjax import sim1
+    from vcjax.experiments import sim1
     from vcjax.rollout import RolloutConfig
 
     B, N = args.batch, args.steps

@@ -1,8 +1,8 @@
 """Closed-loop throughput of Simulation 1's VCM controller (``vcm_integral``, underactuated) on
 the INFANTE-class plant, RK4, continuous-time controller (``--timing sampled``: once per step).
 
-``--cpu-devices N`` splits the host CPU into N JAX devices (:mod:`vcjax.devices`) and shards each
-batch over them (``NamedSharding`` along the scenario axis, as ``vcjax sweep`` does); the
+``--cpu-devices N`` splits the host CPU into N JAX devices (:mod:`vcjax.runtime.devices`) and shards
+each batch over them (``NamedSharding`` along the scenario axis, as ``vcjax sweep`` does); the
 ``cores_used`` column says over how many devices a row ran. Default 1: one device, one core.
 
 Measures, in one dtype per process:

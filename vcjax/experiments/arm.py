@@ -1,8 +1,8 @@
 """The arm demo (``vcjax demo``): the generic engine on a non-marine system, a two-link arm
 whose end effector is held on a circle by virtual constraints.
 
-The ``arm`` loop (:class:`vcjax.loops.ArmLoop`: :mod:`vcjax.systems`' two-link arm, joint-torque
-limits 40 and 15 N m) on its default circle (centre (1.0, 0.6) m, radius 0.35 m,
+The ``arm`` loop (:class:`vcjax.loops.ArmLoop`: :mod:`vcjax.vehicles.arm`' two-link arm,
+joint-torque limits 40 and 15 N m) on its default circle (centre (1.0, 0.6) m, radius 0.35 m,
 counter-clockwise), travelled at :data:`ARM_SPEED`; built with :func:`vcjax.loops.make_loop`,
 :func:`vcjax.loops.make_scenario` and :func:`vcjax.loops.simulate`, RK4 at :data:`ARM_DT`. The
 end effector starts 0.2 m off the circle, moving (joint angles (0.35, 1.3) rad, rates
@@ -21,8 +21,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops, metrics
-from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig
+from vcjax.runtime.outputs import write_json_atomic
 
 __all__ = ["arm_demo", "demo_run", "demo_gains", "ARM_DT", "ARM_SPEED", "Q0", "QD0"]
 

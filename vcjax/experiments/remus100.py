@@ -36,8 +36,8 @@ import numpy as np
 from vcjax import loops, metrics, paths
 from vcjax.experiments.seas import option_sea, option_sea_record
 from vcjax.loops.remus100 import REMUS_CONTROLLERS
-from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig
+from vcjax.runtime.outputs import write_json_atomic
 
 __all__ = [
     "VARIANTS",

@@ -31,8 +31,8 @@ import numpy as np
 from vcjax import loops, metrics, paths
 from vcjax._checks import check_array, check_positive
 from vcjax.loops import InfanteGains, InfanteLoop, infante_gains
-from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig
+from vcjax.runtime.outputs import write_json_atomic
 from vcjax.vehicles import infante
 
 __all__ = [

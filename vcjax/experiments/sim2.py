@@ -33,8 +33,8 @@ from vcjax._checks import check_array, check_positive
 from vcjax.experiments.seas import option_sea, option_sea_record
 from vcjax.loops.odin import OdinGains, OdinLoop, default_odin_gains, odin_gains
 from vcjax.metrics import path_bound, run_metrics
-from vcjax.outputs import write_json_atomic
 from vcjax.rollout import RolloutConfig
+from vcjax.runtime.outputs import write_json_atomic
 from vcjax.vehicles import odin
 
 __all__ = [

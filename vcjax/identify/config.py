@@ -42,7 +42,7 @@ from vcjax.config.frozen import FrozenSection
 from vcjax.identify.data import load_log
 from vcjax.identify.fit import FitResult, fit_logs
 from vcjax.identify.models import get_fit_model, scalar_fields
-from vcjax.outputs import write_json_atomic
+from vcjax.runtime.outputs import write_json_atomic
 
 __all__ = [
     "FitConfig",

@@ -75,8 +75,8 @@ def cost_history_figure(result, path) -> Path:
 
 def _save_fit(fig, path: Path, result) -> Path:
     """Lay out, write the fit's warnings (and an untrusted optimum) into the figure in red,
-    save atomically (:func:`vcjax.outputs.savefig_atomic`), close."""
-    from vcjax.outputs import savefig_atomic
+    save atomically (:func:`vcjax.runtime.outputs.savefig_atomic`), close."""
+    from vcjax.runtime.outputs import savefig_atomic
 
     bottom = _warnings_text(fig, result)
     fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0))

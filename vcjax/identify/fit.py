@@ -12,7 +12,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from vcjax import sizing
 from vcjax._checks import float_dtype
 from vcjax.identify.checks import (
     check_excitation,
@@ -24,6 +23,7 @@ from vcjax.identify.data import Log
 from vcjax.identify.lm import levenberg_marquardt, schur_information
 from vcjax.identify.models import FitModel
 from vcjax.identify.shooting import CURRENT_NAMES, ShootingProblem, make_segments, seg_count
+from vcjax.runtime import sizing
 
 __all__ = ["FitResult", "fit_logs", "CORRELATION_WARN"]
 
@@ -198,7 +198,7 @@ def fit_logs(
         segment_steps: samples per shooting segment (>= 2); max_iters: per stage.
         base: the nominal parameters (default: the vehicle's defaults in ``dtype``).
         callback: ``callback(stage, iteration, cost, lam)`` after every iteration.
-        max_memory_gb: limit of the estimated memory (:func:`vcjax.sizing.fit_estimate`;
+        max_memory_gb: limit of the estimated memory (:func:`vcjax.runtime.sizing.fit_estimate`;
             default 80 % of the machine's).
 
     Raises:

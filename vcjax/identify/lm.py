@@ -130,10 +130,10 @@ def levenberg_marquardt(
             data fitted to round-off).
         callback: called as ``callback(iteration, cost, lam)`` after every iteration.
         should_stop: polled before every iteration (default
-            :func:`vcjax.interrupts.stop_requested`: SIGINT / SIGTERM in the CLI); True stops with
-            the last accepted iterate, ``converged = False``, ``reason = "interrupted"``.
+            :func:`vcjax.runtime.interrupts.stop_requested`: SIGINT / SIGTERM in the CLI); True
+            stops with the last accepted iterate, ``converged = False``, ``reason = "interrupted"``.
     """
-    from vcjax.interrupts import stop_requested
+    from vcjax.runtime.interrupts import stop_requested
 
     should_stop = stop_requested if should_stop is None else should_stop
     z, s = np.asarray(z0, np.float64), np.asarray(s0, np.float64)

@@ -1,4 +1,4 @@
-"""The two-link arm of :mod:`vcjax.systems` as an engine loop (:class:`ArmLoop`): its end
+"""The two-link arm of :mod:`vcjax.vehicles.arm` as an engine loop (:class:`ArmLoop`): its end
 effector held on a path by the generic engine, with joint-torque limits.
 
 Coordinates: the arm moves in a vertical plane, ``x`` horizontal, ``y`` up (gravity ``-y``); the
@@ -16,13 +16,13 @@ import jax.numpy as jnp
 from vcjax import paths
 from vcjax._checks import check_positive
 from vcjax.loops.engine import EngineGains, EngineLoop, engine_gains
-from vcjax.systems import TWO_LINK_ARM, ArmParams, arm_end_effector, arm_params
+from vcjax.vehicles.arm import TWO_LINK_ARM, ArmParams, arm_end_effector, arm_params
 
 __all__ = ["ArmLoopParams", "arm_loop_params", "ArmLoop"]
 
 
 class ArmLoopParams(NamedTuple):
-    """The arm's :class:`~vcjax.systems.ArmParams` fields and its joint-torque limits.
+    """The arm's :class:`~vcjax.vehicles.arm.ArmParams` fields and its joint-torque limits.
 
     Attributes:
         l1, l2, lc1, lc2 [m]; m1, m2 [kg]; I1, I2 [kg m^2]; g [m/s^2] (see ArmParams);
@@ -42,7 +42,8 @@ class ArmLoopParams(NamedTuple):
 
 
 def arm_loop_params(tau_max=(40.0, 15.0), dtype=None, **arm) -> ArmLoopParams:
-    """Validated :class:`ArmLoopParams` (``arm``: :func:`~vcjax.systems.arm_params` keywords)."""
+    """Validated :class:`ArmLoopParams` (``arm``: :func:`~vcjax.vehicles.arm.arm_params`
+    keywords)."""
     check_positive("tau_max", tau_max, (2,))
     a = arm_params(**arm)
     dt = jnp.asarray(0.0).dtype if dtype is None else dtype

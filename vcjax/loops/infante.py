@@ -177,7 +177,7 @@ _SCALAR_FIELDS = tuple(f for f in infante.InfanteParams._fields if f != "cf_x")
 class InfanteLoop(Loop):
     """INFANTE-class craft (3-DOF horizontal plant, thrust + rudder) under one controller.
 
-    Attributes (besides :class:`~vcjax.loops.base.Loop`'s):
+    Attributes (besides :class:`~vcjax.loops.Loop`'s):
         edd: which ``e_ddot`` enters the VCM heading row (``"paper"`` or ``"implied"``).
     """
 

@@ -239,7 +239,7 @@ class OdinLoop(Loop):
     """ODIN-class sphere (6-DOF plant, 8 thrusters) under the horizontal VCM law + depth and
     attitude loops + allocation (module docstring).
 
-    Attributes (besides :class:`~vcjax.loops.base.Loop`'s):
+    Attributes (besides :class:`~vcjax.loops.Loop`'s):
         integral: integral action (41) in the VCM law (gains ``P_int``).
         edd: ``"paper"`` or ``"implied"`` (see :mod:`vcjax.control.vcm`).
         polish: projected-gradient steps of the allocation (see :mod:`vcjax.allocation`).

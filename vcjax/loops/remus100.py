@@ -1,6 +1,6 @@
 """REMUS 100 loops: the PVS REMUS 100 plant under the 3-D VCM law or a 3-D baseline.
 
-Controllers (see :mod:`vcjax.sim_remus100` for the experiment built on the same laws):
+Controllers (see :mod:`vcjax.experiments.remus100` for the experiment built on the same laws):
 
 * ``vcm3d_ilos``: 3-D VCM (:mod:`vcjax.control.vcm3d`), underactuated in sway and heave (fin
   forces tied to their moments), integral action and integral-LOS angles in both planes;
@@ -256,7 +256,7 @@ REMUS_CONTROLLERS = tuple(REMUS_LAWS)
 class Remus100Loop(Loop):
     """The PVS REMUS 100 (6-DOF, fins + propeller) under one 3-D path-following controller.
 
-    Attributes (besides :class:`~vcjax.loops.base.Loop`'s):
+    Attributes (besides :class:`~vcjax.loops.Loop`'s):
         edd: which ``e_ddot`` enters the heading row of ``decoupled``'s 2-D VCM law
             (``"paper"`` or ``"implied"``, :class:`~vcjax.control.vcm.VCMConfig`).
     """
@@ -286,7 +286,7 @@ class Remus100Loop(Loop):
     # ---------------------------------------------------------------- parameters and gains
     @classmethod
     def default_path(cls):
-        """The survey lawnmower of :func:`vcjax.sim_remus100.mission_path`'s defaults."""
+        """The survey lawnmower of :func:`vcjax.experiments.remus100.mission_path`'s defaults."""
         return paths.lawnmower((0.0, 0.0, 1.0), 250.0, 30.0, 4, 15.0, 150.0)
 
     def position(self, eta, params):

@@ -45,7 +45,7 @@ def pyplot():
 def save(fig, path) -> Path:
     """Lay ``fig`` out, write it to ``path`` (120 dpi; atomically: a temporary file renamed, so
     an interrupted run never leaves half a PNG) and close it; returns ``Path(path)``."""
-    from vcjax.outputs import savefig_atomic
+    from vcjax.runtime.outputs import savefig_atomic
 
     path = Path(path)
     fig.tight_layout()

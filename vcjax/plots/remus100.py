@@ -1,4 +1,4 @@
-"""Figures of the REMUS 100 survey mission (:mod:`vcjax.sim_remus100`)."""
+"""Figures of the REMUS 100 survey mission (:mod:`vcjax.experiments.remus100`)."""
 
 from __future__ import annotations
 

@@ -241,7 +241,7 @@ def run_sweep_config(
         ``{"summary": dict, "files": [Path, ...], "result": SweepResult, "figures": bool}``
         (on processes other than 0: the part file only, and ``summary`` None).
     """
-    from vcjax.outputs import write_json_atomic
+    from vcjax.runtime.outputs import write_json_atomic
 
     spec, extras = load_config(config_path) if loaded is None else loaded
     if netcdf:

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from vcjax.metrics import FLAGS, METRICS
-from vcjax.outputs import write_atomic
+from vcjax.runtime.outputs import write_atomic
 
 __all__ = ["to_xarray", "write_netcdf", "METRIC_UNITS", "INPUT_UNITS"]
 

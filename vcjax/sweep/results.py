@@ -252,7 +252,7 @@ def save_results(result: SweepResult, path: Path) -> Path:
             arrays[f"{v}.{k}"] = a
         for k, a in result.traces[v].items():
             arrays[f"{v}.trace_{k}"] = a
-    from vcjax.outputs import save_npz_atomic
+    from vcjax.runtime.outputs import save_npz_atomic
 
     return save_npz_atomic(path, **arrays)
 

@@ -16,8 +16,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from vcjax import loops
 from vcjax.config import ConfigError
-from vcjax.interrupts import stop_requested
-from vcjax.loops.base import DisturbanceParams, Disturbances, gauss_markov_params
+from vcjax.loops import DisturbanceParams, Disturbances, gauss_markov_params
 from vcjax.metrics import (
     metrics_finalize,
     metrics_init,
@@ -25,8 +24,9 @@ from vcjax.metrics import (
     run_metrics,
     window_start,
 )
-from vcjax.progress import ProgressBar
 from vcjax.rollout import Reduction, RolloutConfig, Trajectory
+from vcjax.runtime.interrupts import stop_requested
+from vcjax.runtime.progress import ProgressBar
 from vcjax.sweep.results import SweepResult, run_timing
 from vcjax.sweep.spec import MCConfig, MCScenario, SweepSpec, sample_scenarios
 
@@ -261,8 +261,8 @@ def run_sweep(
         process_index, process_count: this process's share (default from JAX).
         stop: polled after each chunk; when it returns True the sweep ends there and returns
             the chunks done so far, with ``interrupted = True`` (default:
-            :func:`vcjax.interrupts.stop_requested`, set by SIGINT / SIGTERM inside
-            :func:`vcjax.interrupts.interrupt_guard`).
+            :func:`vcjax.runtime.interrupts.stop_requested`, set by SIGINT / SIGTERM inside
+            :func:`vcjax.runtime.interrupts.interrupt_guard`).
 
     Each variant's program is traced and compiled once, timed apart from running it:
     :attr:`~vcjax.sweep.results.SweepResult.timing` holds per variant ``compile_s``, ``run_s``

@@ -37,8 +37,8 @@ constant keeps it a minor term. A sphere has no rotational added inertia or pres
 rotation; the real ODIN's thrusters and housings do resist rotation, which a 2 s time constant
 stands for. ``z_g = 2 cm`` gives roll/pitch restoring ``z_g W = 22.7 N m/rad`` (natural period
 ~2.7 s, open-loop damping ratio ~0.1), so that the vehicle is "structurally stable in roll and
-pitch" as Corollaries 2-3 assume; the attitude PD of :mod:`vcjax.sim2` adds the damping. The
-CG offset makes ``M_RB`` couple surge-pitch and sway-roll (``m z_g = 2.3 kg m``), as Fossen's
+pitch" as Corollaries 2-3 assume; the attitude PD of :mod:`vcjax.experiments.sim2` adds the damping.
+The CG offset makes ``M_RB`` couple surge-pitch and sway-roll (``m z_g = 2.3 kg m``), as Fossen's
 ``H(r_bg)`` transformation prescribes. Quadratic drag is isotropic (``|v_r| v_r``, the physics of
 a sphere) rather than Fossen's axis-by-axis ``|u| u``: the drag of a sphere does not depend on
 the direction of the flow.

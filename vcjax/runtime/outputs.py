@@ -27,7 +27,7 @@ Writes are atomic (:func:`write_json_atomic`, :func:`save_npz_atomic`, :func:`sa
 a temporary file in the same folder, then ``os.replace``, so a killed run never leaves a
 half-written JSON or npz behind.
 
-Interrupts that keep what is done: :mod:`vcjax.interrupts`.
+Interrupts that keep what is done: :mod:`vcjax.runtime.interrupts`.
 """
 
 from __future__ import annotations

@@ -33,7 +33,7 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from vcjax.interrupts import stop_requested
+from vcjax.runtime.interrupts import stop_requested
 
 __all__ = [
     "ENV_COORDINATOR",
@@ -131,7 +131,7 @@ def warm_up() -> None:
         return
     from jax.experimental import multihost_utils
 
-    multihost_utils.sync_global_devices("vcjax.distributed: joined")
+    multihost_utils.sync_global_devices("vcjax.runtime.distributed: joined")
 
 
 def free_port(host: str = "localhost") -> int:
@@ -160,8 +160,8 @@ def spawn(
     into that many devices (``VCJAX_CPU_DEVICES``, read by the ``vcjax`` commands, and
     ``XLA_FLAGS=--xla_force_host_platform_device_count`` for any other JAX program). If one
     process fails, or ``timeout_s`` passes, the others are terminated. Called inside
-    :func:`vcjax.interrupts.interrupt_guard`, an interrupt is forwarded to the processes (SIGINT)
-    and they are waited for: each keeps and writes what it has done.
+    :func:`vcjax.runtime.interrupts.interrupt_guard`, an interrupt is forwarded to the processes
+    (SIGINT) and they are waited for: each keeps and writes what it has done.
 
     Returns:
         the ``n`` exit codes (``-SIGTERM``'s value for a terminated process).
@@ -198,7 +198,7 @@ def spawn(
             for k, p in enumerate(procs):
                 if codes[k] is None:
                     codes[k] = p.poll()
-            if stop_requested() and not forwarded:  # interrupted (vcjax.outputs): pass it on
+            if stop_requested() and not forwarded:  # interrupted (runtime.outputs): pass it on
                 forwarded = True
                 for k, p in enumerate(procs):
                     if codes[k] is None:

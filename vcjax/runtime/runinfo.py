@@ -106,7 +106,7 @@ def run_info(
         extra: anything else worth keeping (merged in last).
     """
     import vcjax
-    from vcjax.cache import cache_dir, cache_off_reason
+    from vcjax.runtime.cache import cache_dir, cache_off_reason
 
     devices = jax.devices()
     info = {
@@ -150,6 +150,6 @@ def write_run_json(out_dir, command: str, **kwargs) -> Path | None:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "run.json"
-    from vcjax.outputs import write_json_atomic
+    from vcjax.runtime.outputs import write_json_atomic
 
     return write_json_atomic(path, run_info(command, **kwargs))

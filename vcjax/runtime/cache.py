@@ -39,7 +39,7 @@ from pathlib import Path
 
 import jax
 
-from vcjax.compiler import jaxlib_version
+from vcjax.runtime.compiler import jaxlib_version
 
 __all__ = [
     "ENV",
