@@ -60,3 +60,20 @@ def test_demo_writes_run_json(tmp_path):
     assert KEYS <= set(run)
     assert run["command"] == "demo" and run["config"]["horizon"] == 0.5
     assert run["wall_s"]["total"] > 0
+
+
+def test_git_commit_only_of_a_checkouts_root(tmp_path):
+    """An installed vcjax inside some other repository (a venv in a user's project) must not
+    record that repository's commit: only the root of the checkout counts."""
+    import subprocess
+
+    git = ["git", "-c", "user.email=t@t", "-c", "user.name=t", "-C", str(tmp_path)]
+    subprocess.run([*git, "init", "-q"], check=True)
+    (tmp_path / "f").write_text("x")
+    subprocess.run([*git, "add", "f"], check=True)
+    subprocess.run([*git, "commit", "-qm", "c"], check=True)
+    sub = tmp_path / "site-packages"
+    sub.mkdir()
+    root = git_commit(tmp_path)
+    assert root is not None and len(root["commit"]) == 40 and root["dirty"] is False
+    assert git_commit(sub) is None

@@ -25,13 +25,23 @@ import numpy as np
 
 __all__ = ["run_info", "write_run_json", "to_jsonable", "git_commit"]
 
-_REPO = Path(__file__).resolve().parent.parent
+#: the checkout's root when vcjax runs from one (``vcjax/runtime/runinfo.py`` two folders down)
+_REPO = Path(__file__).resolve().parents[2]
 
 
 def git_commit(path: Path = _REPO) -> dict | None:
-    """``{"commit": sha, "dirty": bool}`` of the git checkout holding ``path``, or None (not a
-    checkout, or git missing)."""
+    """``{"commit": sha, "dirty": bool}`` of the git checkout whose root is ``path``, or None
+    (not a checkout's root, e.g. an installed wheel inside some other repository, or git
+    missing)."""
     try:
+        top = subprocess.run(
+            ["git", "-C", str(path), "rev-parse", "--show-toplevel"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+        if top.returncode != 0 or Path(top.stdout.strip()).resolve() != Path(path).resolve():
+            return None
         sha = subprocess.run(
             ["git", "-C", str(path), "rev-parse", "HEAD"],
             capture_output=True,
