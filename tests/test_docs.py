@@ -28,7 +28,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 PAGES = [README, *sorted((ROOT / "docs").rglob("*.md"))]
-FENCE = re.compile(r"^```(\w*)\n(.*?)^```", flags=re.S | re.M)
+#: a fenced block: the closing fence alone on its line (text glued to it would swallow what follows)
+FENCE = re.compile(r"^```(\w*)\n(.*?)^```[ \t]*$", flags=re.S | re.M)
 
 
 def _rel(p: Path) -> str:
@@ -360,7 +361,7 @@ def test_readme_is_short_and_its_commands_are_what_ci_runs():
         "python3 -m venv .venv",
         '.venv/bin/pip install -e ".[test]"',
     ]
-    assert '.venv/bin/pip install -q -e ".[test]"' in ci
+    assert '.venv/bin/pip install -q -c .ci/tools.txt -e ".[test]"' in ci
     assert "mkdocs build --strict" in ci
     assert not re.search(r"\bissue[- ]\d", text) and "until 20" not in text
 
@@ -381,3 +382,86 @@ def test_site_builds_strict(tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     assert (tmp_path / "site" / "reference" / "config" / "index.html").exists()
     assert (tmp_path / "site" / "api" / "vcjax.rollout" / "index.html").exists()
+
+
+# --------------------------------------------------------------------------- rendering
+
+
+def _line_headings(text: str) -> list[str]:
+    """Headings as the lines say (outside fenced blocks, a fence toggled by a line that starts
+    with three backticks)."""
+    out, fenced = [], False
+    for ln in text.splitlines():
+        if ln.startswith("```"):
+            fenced = not fenced
+        elif not fenced and re.match(r"#{1,6} ", ln):
+            out.append(ln.split(" ", 1)[1].strip())
+    return out
+
+
+def _rendered_headings(text: str) -> list[str]:
+    """Headings as a CommonMark parser renders them."""
+    from markdown_it import MarkdownIt
+
+    tokens = MarkdownIt("commonmark").parse(text)
+    return [tokens[i + 1].content for i, t in enumerate(tokens) if t.type == "heading_open"]
+
+
+@pytest.mark.parametrize("page", PAGES, ids=_rel)
+def test_page_renders_its_headings(page):
+    """Every heading written on a page is a heading once rendered: a fence with text glued to
+    its closing backticks (or left open) swallows what follows it into a code block."""
+    text = page.read_text()
+    assert _rendered_headings(text) == _line_headings(text)
+
+
+def test_readme_renders_as_intended():
+    heads = _rendered_headings(README.read_text())
+    assert heads[0] == "vcjax"
+    for h in ("Set up", "A closed loop in Python", "Sweep, then tune", "Documentation", "Citing"):
+        assert h in heads, (h, heads)
+
+
+def test_the_rendering_check_catches_a_glued_fence():
+    bad = "# t\n\n```bash\nx\n``` text glued\n\n## Swallowed\n"
+    assert _rendered_headings(bad) != _line_headings(bad)
+
+
+# --------------------------------------------------------------------------- release
+
+
+def test_release_files_agree():
+    """A lab can install and cite: a licence, a citation whose version is the package's (one
+    source: ``vcjax.__version__``, read by the build), type information shipped."""
+    import tomllib
+
+    import vcjax
+
+    assert "MIT License" in (ROOT / "LICENSE").read_text()
+    cff = (ROOT / "CITATION.cff").read_text()
+    assert re.search(rf'^version: "?{re.escape(vcjax.__version__)}"?$', cff, flags=re.M)
+    assert re.search(r"^cff-version: 1\.2\.0$", cff, flags=re.M)
+    assert re.search(r"^license: MIT$", cff, flags=re.M)
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert "version" not in project["project"] and project["project"]["dynamic"] == ["version"]
+    assert project["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "vcjax.__version__"}
+    assert (ROOT / "vcjax" / "py.typed").exists()
+    assert "py.typed" in project["tool"]["setuptools"]["package-data"]["vcjax"]
+    assert "bash .ci/package" in (ROOT / ".ci" / "run").read_text()
+
+
+def test_ci_tools_are_pinned_and_docs_extra_bounded():
+    """The tools CI runs are pinned exactly; the docs extra has upper bounds (a new major of the
+    docstring parser must not turn a clean checkout red)."""
+    import tomllib
+
+    pins = [
+        ln
+        for ln in (ROOT / ".ci" / "tools.txt").read_text().splitlines()
+        if ln and not ln.startswith("#")
+    ]
+    assert pins and all(re.fullmatch(r"[A-Za-z0-9_.\-]+==[0-9][0-9A-Za-z.]*", p) for p in pins)
+    names = {p.split("==")[0] for p in pins}
+    assert {"ruff", "pytest", "mkdocs", "mkdocstrings-python", "griffelib"} <= names
+    docs = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    assert all("<" in req for req in docs["docs"]), docs["docs"]
