@@ -1,7 +1,8 @@
 """mkdocs hooks: pages generated from the code and the benchmark results at build time.
 
-* ``api/<module>.md`` for every public module of ``vcjax`` and ``tuning`` (mkdocstrings renders
-  the docstrings), listed under *API* in the navigation;
+* ``api/<concept>.md``: the API by concept (:data:`CONCEPTS`: loops and laws, vehicles, environment,
+  rollouts, sweeps, tuning, ...), each page the public modules of its concept (mkdocstrings renders
+  the docstrings), listed under *API* in the navigation; internals are not shown;
 * ``<!-- vcjax:config-reference -->`` in a page becomes the configuration reference generated from
   the config schema objects (:func:`vcjax.config.schema`), one table per section;
 * ``<!-- vcjax:benchmark-tables -->`` becomes one table per result file of
@@ -31,38 +32,161 @@ def public_modules() -> list[str]:
     return sorted(out)
 
 
-def _api_page(module: str) -> str:
-    return f"# `{module}`\n\n::: {module}\n"
+#: the API by concept: (page, title, introduction, module prefixes). A module belongs to the
+#: first concept one of whose prefixes it equals or lies under; modules of no concept (the
+#: command line's internals, interrupts, progress lines, size estimates) are not shown.
+CONCEPTS = [
+    (
+        "engine",
+        "The engine",
+        "The generic virtually-constrained-motion engine: a mechanical system, its virtual "
+        "constraints and their stabilised reaction force; the small linear solves; integrators; "
+        "thruster allocation.",
+        ["vcjax", "vcjax.mechanics", "vcjax.linalg", "vcjax.integrators", "vcjax.allocation"],
+    ),
+    (
+        "loops",
+        "Loops and laws",
+        "Closed loops by name (vehicle x law x path), control laws as objects, their registry; "
+        "paths and guidance.",
+        ["vcjax.loops", "vcjax.control", "vcjax.paths", "vcjax.guidance"],
+    ),
+    (
+        "vehicles",
+        "Vehicles",
+        "The plants: INFANTE-class, ODIN-class, REMUS 100, the 3-DOF "
+        "design model and the two-link arm.",
+        ["vcjax.vehicles"],
+    ),
+    (
+        "environment",
+        "Environment",
+        "What the water and the world do to a vehicle: currents, random seas, sensor noise, "
+        "forces.",
+        ["vcjax.environment", "vcjax.currents", "vcjax.waves"],
+    ),
+    (
+        "rollouts",
+        "Rollouts and metrics",
+        "The scan rollout, its health flags, and the one metrics function of every loop.",
+        ["vcjax.rollout", "vcjax.metrics"],
+    ),
+    (
+        "sweep",
+        "Sweeps",
+        "Monte-Carlo batches of any loop: sampling, running, results.",
+        ["vcjax.sweep"],
+    ),
+    (
+        "search",
+        "Scenario search",
+        "Worst-case search over an envelope of scenarios.",
+        ["vcjax.falsify", "vcjax.search"],
+    ),
+    (
+        "tuning",
+        "Tuning",
+        "Gain tuning through the closed loop: problems, losses, optimisers, "
+        "black-box baselines, reports.",
+        ["tuning"],
+    ),
+    (
+        "identification",
+        "Identification",
+        "Plant parameters from logged runs by multiple shooting.",
+        ["vcjax.identify"],
+    ),
+    (
+        "config",
+        "Configuration",
+        "The configuration files: sections, values, older spellings.",
+        ["vcjax.config"],
+    ),
+    (
+        "experiments",
+        "Experiments and figures",
+        "The presets of `vcjax simulate` and the figures.",
+        ["vcjax.experiments", "vcjax.plots"],
+    ),
+    (
+        "runtime",
+        "Outputs and runtime",
+        "Output folders and what they record, the compilation cache and compiler flags, devices "
+        "and processes.",
+        [
+            "vcjax.runtime.outputs",
+            "vcjax.runtime.runinfo",
+            "vcjax.runtime.cache",
+            "vcjax.runtime.compiler",
+            "vcjax.runtime.devices",
+            "vcjax.runtime.distributed",
+        ],
+    ),
+]
 
 
-def _api_index(modules) -> str:
+def _concept_of(module: str):
+    for concept in CONCEPTS:
+        for prefix in concept[3]:
+            if module == prefix or (prefix != "vcjax" and module.startswith(prefix + ".")):
+                return concept
+    return None
+
+
+def api_pages() -> dict[str, tuple[str, str, list[str]]]:
+    """``{page: (title, introduction, [module, ...])}`` of the concepts that have modules."""
+    pages: dict = {}
+    for m in public_modules():
+        concept = _concept_of(m)
+        if concept is not None:
+            pages.setdefault(concept[0], (concept[1], concept[2], []))[2].append(m)
+    return {c[0]: pages[c[0]] for c in CONCEPTS if c[0] in pages}
+
+
+def _api_page(title: str, intro: str, modules: list[str]) -> str:
+    lines = [f"# {title}", "", intro, ""]
+    for m in modules:
+        lines += [
+            f"## `{m}`",
+            "",
+            f"::: {m}",
+            "    options:",
+            "      heading_level: 3",
+            "      show_submodules: false",
+            "",
+        ]
+    return "\n".join(lines)
+
+
+def _api_index(pages) -> str:
     lines = [
         "# API reference",
         "",
-        "Generated from the docstrings of every public module (shapes, units and frames are",
-        "given there). Start with `vcjax.loops` (closed loops by name), `vcjax.rollout`,",
-        "`vcjax.mechanics` (the generic engine) and `vcjax.metrics`.",
+        "Generated from the docstrings (shapes, units and frames are given there), by concept.",
+        "Start with the loops (closed loops by name), the rollouts and the metrics.",
         "",
     ]
-    lines += [f"- [`{m}`]({m}.md)" for m in modules]
+    lines += [f"- [{title}]({page}.md): {intro}" for page, (title, intro, _) in pages.items()]
     return "\n".join(lines) + "\n"
 
 
 def on_config(config):
-    modules = public_modules()
+    pages = api_pages()
     for item in config["nav"]:
         if isinstance(item, dict) and "API" in item:
-            item["API"] = ["api/index.md"] + [{m: f"api/{m}.md"} for m in modules]
+            item["API"] = ["api/index.md"] + [{t: f"api/{p}.md"} for p, (t, _, _) in pages.items()]
     return config
 
 
 def on_files(files, config):
     from mkdocs.structure.files import File  # here, so the tests can import the generators
 
-    modules = public_modules()
-    files.append(File.generated(config, "api/index.md", content=_api_index(modules)))
-    for m in modules:
-        files.append(File.generated(config, f"api/{m}.md", content=_api_page(m)))
+    pages = api_pages()
+    files.append(File.generated(config, "api/index.md", content=_api_index(pages)))
+    for page, (title, intro, modules) in pages.items():
+        files.append(
+            File.generated(config, f"api/{page}.md", content=_api_page(title, intro, modules))
+        )
     for png in sorted((ROOT / "benchmarks" / "results").glob("*.png")):
         files.append(File.generated(config, f"benchmarks/{png.name}", abs_src_path=str(png)))
     return files

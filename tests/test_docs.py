@@ -381,7 +381,7 @@ def test_site_builds_strict(tmp_path):
     )
     assert r.returncode == 0, r.stderr[-3000:]
     assert (tmp_path / "site" / "reference" / "config" / "index.html").exists()
-    assert (tmp_path / "site" / "api" / "vcjax.rollout" / "index.html").exists()
+    assert (tmp_path / "site" / "api" / "rollouts" / "index.html").exists()
 
 
 # --------------------------------------------------------------------------- rendering
