@@ -354,7 +354,79 @@ def config_reference() -> str:
     return "\n".join(out)
 
 
+# ------------------------------------------------------------------------------ CLI reference
+
+
+def _md_cell(text: str) -> str:
+    return " ".join(str(text).split()).replace("|", "\\|")
+
+
+def _option_rows(parser) -> list[str]:
+    import argparse
+
+    rows = ["| option | meaning | default |", "|---|---|---|"]
+    for action in parser._actions:
+        if isinstance(action, (argparse._HelpAction, argparse._SubParsersAction)):
+            continue
+        if action.help == argparse.SUPPRESS:
+            continue
+        if action.option_strings:
+            names = ", ".join(action.option_strings)
+            takes = action.nargs != 0
+            meta = action.metavar or (action.dest.upper() if takes else "")
+            if isinstance(meta, tuple):
+                meta = " ".join(meta)
+            elif takes and isinstance(action.nargs, int) and action.nargs > 1:
+                meta = " ".join([meta] * action.nargs)
+            flag = f"`{names} {meta}`" if takes and meta else f"`{names}`"
+        else:
+            flag = f"`{action.metavar or action.dest.upper()}`"
+        default = action.default
+        if isinstance(default, (list, tuple)):
+            default = " ".join(map(str, default))
+        shown = (
+            ""
+            if default in (None, False, argparse.SUPPRESS) or action.nargs == 0
+            else f"`{default}`"
+        )
+        help_text = (action.help or "") % {"default": default} if action.help else ""
+        if action.choices and not isinstance(action.choices, dict):
+            help_text += f" (one of: {', '.join(f'`{c}`' for c in action.choices)})"
+        rows.append(f"| {flag} | {_md_cell(help_text)} | {shown} |")
+    return rows
+
+
+def _subcommands(parser, prefix: str):
+    import argparse
+
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            helps = {a.dest: a.help for a in action._choices_actions}
+            for name, sub in action.choices.items():
+                yield f"{prefix} {name}", helps.get(name), sub
+                yield from _subcommands(sub, f"{prefix} {name}")
+
+
+def cli_reference() -> str:
+    """Every command and option of ``vcjax``, generated from its argument parser
+    (:func:`vcjax.cli.build_parser`): what ``vcjax COMMAND --help`` prints, as tables."""
+    from vcjax.cli import build_parser
+
+    out = []
+    for name, help_text, sub in _subcommands(build_parser(), "vcjax"):
+        depth = name.count(" ")
+        out += [f"{'#' * min(depth + 2, 4)} `{name}`", ""]
+        if help_text or sub.description:
+            out += [_md_cell(sub.description or help_text), ""]
+        out += [f"```text\n{sub.format_usage().strip()}\n```", ""]
+        rows = _option_rows(sub)
+        if len(rows) > 2:
+            out += rows + [""]
+    return "\n".join(out)
+
+
 MARKERS = {
+    "<!-- vcjax:cli-reference -->": cli_reference,
     "<!-- vcjax:benchmark-tables -->": benchmark_tables,
     "<!-- vcjax:config-reference -->": config_reference,
 }

@@ -465,3 +465,40 @@ def test_ci_tools_are_pinned_and_docs_extra_bounded():
     assert {"ruff", "pytest", "mkdocs", "mkdocstrings-python", "griffelib"} <= names
     docs = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
     assert all("<" in req for req in docs["docs"]), docs["docs"]
+
+
+def test_cli_reference_is_generated_from_the_parser():
+    """The command-line reference lists every option of every command, straight from the
+    parser (options added later cannot be missing: simulate --max-steps, demo --horizon and
+    launch --port once were)."""
+    import argparse
+
+    from vcjax.cli import build_parser
+
+    assert "<!-- vcjax:cli-reference -->" in (ROOT / "docs/reference/cli.md").read_text()
+    sys.path.insert(0, str(ROOT / "docs"))
+    try:
+        import _hooks
+    finally:
+        sys.path.pop(0)
+    text = _hooks.cli_reference()
+
+    def walk(parser, name):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for sub_name, sub in action.choices.items():
+                    yield f"{name} {sub_name}", sub
+                    yield from walk(sub, f"{name} {sub_name}")
+
+    commands = list(walk(build_parser(), "vcjax"))
+    assert {"vcjax simulate", "vcjax sweep", "vcjax tune", "vcjax fit", "vcjax launch"} <= {
+        n for n, _ in commands
+    }
+    for name, sub in commands:
+        section = text.split(f"`{name}`", 1)[1]
+        for action in sub._actions:
+            for flag in action.option_strings:
+                if flag not in ("-h", "--help") and action.help != argparse.SUPPRESS:
+                    assert f"`{flag}" in section or f", {flag}" in section, (name, flag)
+    for name, flag in [("launch", "--port"), ("demo", "--horizon"), ("simulate", "--max-steps")]:
+        assert f"`{flag}" in text.split(f"`vcjax {name}`", 1)[1], (name, flag)
