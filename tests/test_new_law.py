@@ -82,14 +82,14 @@ class LosPDLaw(loops.Law):
         return tau, LosPDState(varpi=w_dot), LosPDAux(jnp.stack([s, e]), psi_tilde)
 
 
-loops.register_law("infante", "los_pd", LosPDLaw())  # the one registry line
+loops.register_law("infante", "los_pd_here", LosPDLaw())  # the one registry line
 
 # ------------------------------------------------------------------ through the public API
 
 
 def test_the_new_law_is_listed_and_simulated_with_its_own_gains():
-    assert "los_pd" in loops.controllers("infante")
-    loop = loops.make_loop("infante", "los_pd")
+    assert "los_pd_here" in loops.controllers("infante")
+    loop = loops.make_loop("infante", "los_pd_here")
     g = loop.default_gains()
     assert isinstance(g, LosPDGains) and [s.name for s in loop.gain_specs()] == list(g._fields)
     back = loop.gains_from_json(loop.gains_to_json(g._replace(Delta=jnp.asarray(4.0))))
@@ -106,10 +106,10 @@ def test_the_new_law_is_listed_and_simulated_with_its_own_gains():
 
 
 def test_the_new_law_is_swept_and_tuned():
-    choice = ScenarioChoice(vehicle="infante", controller="los_pd")
+    choice = ScenarioChoice(vehicle="infante", controller="los_pd_here")
     spec = SweepSpec(
         num_scenarios=2,
-        variants=("los_pd",),
+        variants=("los_pd_here",),
         horizon=3.0,
         dt=0.1,
         chunk_size=2,
@@ -118,10 +118,10 @@ def test_the_new_law_is_swept_and_tuned():
         scenario=ScenarioSpec(initial=(("y", (-2.0, 2.0)),)),
     )
     res = run_sweep(spec, progress=False)
-    m = res.metrics["los_pd"]
+    m = res.metrics["los_pd_here"]
     assert res.index.tolist() == [0, 1] and np.all(np.isfinite(m["max_abs_e"]))
 
-    loop = spec.loop("los_pd")
+    loop = spec.loop("los_pd_here")
     problem = TuningProblem(space=GainSpace(loop=loop), num_steps=30, timing="sampled")
     data = problem_data(problem, dt=0.1)
     train = tuning_batch(0, 2, loop=loop, position_offset=2.0, current_max=0.0)

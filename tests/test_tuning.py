@@ -628,3 +628,12 @@ def test_host_driven_lbfgs_takes_optax_steps():
     assert max(counts) > 1  # some line searches took more than one evaluation
     assert float(loss(th_a, a)) < 0.05 * float(loss(th0, a))
     assert step._cache_size() == 1  # the one value_and_grad compiled once
+
+
+def test_change_text_never_calls_a_rise_lower():
+    from tuning.report import change_text
+
+    assert change_text(58.5788, 59.5437) == "1.6 % higher"
+    assert change_text(10.0, 7.5) == "25.0 % lower"
+    assert change_text(10.0, 10.0) == "unchanged"
+    assert change_text(0.0, 1.0) == "not comparable"

@@ -35,7 +35,13 @@ from tuning.loss import TERMS, TuningProblem, objective, problem_data
 from tuning.loss import loss_weights as make_weights
 from tuning.optim import run_gradient_tuner, tuner_options
 from tuning.params import GainSpace
-from tuning.report import ProgressBar, plot_before_after, plot_loss_curve, plot_loss_terms
+from tuning.report import (
+    ProgressBar,
+    change_text,
+    plot_before_after,
+    plot_loss_curve,
+    plot_loss_terms,
+)
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from tuning.spec import TuneConfig
 from vcjax import loops, paths
@@ -397,7 +403,7 @@ def run_tune_config(
     files.append(f)
     say(
         f"held-out loss {lb:.6g} -> {la:.6g} "
-        f"({summary['heldout_reduction_pct']:.1f} % lower); wrote {len(files)} files to {out}"
+        f"({change_text(lb, la)}); wrote {len(files)} files to {out}"
     )
     return {"summary": summary, "files": files}
 

@@ -10,7 +10,24 @@ from vcjax.plots import pyplot
 from vcjax.runtime.outputs import savefig_atomic
 from vcjax.runtime.progress import ProgressBar as _Bar
 
-__all__ = ["ProgressBar", "plot_loss_curve", "plot_before_after", "plot_loss_terms"]
+__all__ = [
+    "ProgressBar",
+    "change_text",
+    "plot_loss_curve",
+    "plot_before_after",
+    "plot_loss_terms",
+]
+
+
+def change_text(before: float, after: float) -> str:
+    """``"12.3 % lower"`` / ``"4.5 % higher"`` / ``"unchanged"``: how ``after`` compares with
+    ``before`` (a held-out loss that rose is never called lower)."""
+    if not (np.isfinite(before) and np.isfinite(after)) or before == 0:
+        return "not comparable" if after != before else "unchanged"
+    pct = 100.0 * (after - before) / abs(before)
+    if abs(pct) < 0.05:
+        return "unchanged"
+    return f"{abs(pct):.1f} % {'lower' if pct < 0 else 'higher'}"
 
 
 class ProgressBar(_Bar):

@@ -316,9 +316,9 @@ def tune(args) -> int:
         return 0
     before, after = summary.get("heldout_loss_before"), summary.get("heldout_loss_after")
     if before is not None and after is not None:
-        print(
-            f"held-out loss: {before:.4g} -> {after:.4g} ({100 * (1 - after / before):.1f} % lower)"
-        )
+        from tuning.report import change_text
+
+        print(f"held-out loss: {before:.4g} -> {after:.4g} ({change_text(before, after)})")
     if summary.get("aborted"):
         return fail(f"tune: aborted: {summary.get('reason', 'non-finite steps')}")
     if summary.get("interrupted"):

@@ -183,6 +183,46 @@ def streamed_metrics(loop, gains, nominal_params, sc: MCScenario, config: MCConf
     return m, outs
 
 
+def variant_gains(loops_: dict, gains=None) -> dict:
+    """``{variant: gains}`` for a sweep's loops: ``gains`` (one gains NamedTuple) for every
+    variant whose law's default gains have its type and structure, a dict's entry for its
+    variant, the law's defaults for the rest. Gains of one type given for a variant whose law
+    takes another are refused (``ValueError``), never silently replaced."""
+    if isinstance(gains, dict):
+        unknown = sorted(set(gains) - set(loops_))
+        if unknown:
+            raise ValueError(f"gains: no variant {unknown} in this sweep ({sorted(loops_)})")
+        given = dict(gains)
+    else:
+        given = {}
+    out = {}
+    for v, loop in loops_.items():
+        default = loop.default_gains()
+        g = given.get(v, gains if not isinstance(gains, dict) else None)
+        if g is None:
+            out[v] = default
+            continue
+        same = type(g) is type(default) and jax.tree_util.tree_structure(
+            g
+        ) == jax.tree_util.tree_structure(default)
+        if not same and v in given:
+            raise ValueError(
+                f"gains for variant {v!r}: expected {type(default).__name__}, "
+                f"got {type(g).__name__}"
+            )
+        out[v] = g if same else default
+    if (
+        gains is not None
+        and not isinstance(gains, dict)
+        and not any(out[v] is gains for v in loops_)
+    ):
+        raise ValueError(
+            f"gains: {type(gains).__name__} fits none of the variants "
+            f"{sorted(loops_)} (each takes its law's own gains type)"
+        )
+    return out
+
+
 def _act_names(loop, gains, s: loops.Scenario) -> tuple[str, ...]:
     """The actuator names of ``loop.signals`` (traced abstractly on a one-step record)."""
 
@@ -255,7 +295,10 @@ def run_sweep(
     parts with :func:`~vcjax.sweep.results.merge_results`.
 
     Args:
-        spec: the study; gains: the vehicle's gains NamedTuple (default: the loop's defaults).
+        spec: the study; gains: the vehicle's gains NamedTuple, used by every variant whose
+            law takes gains of that type (the built-in laws of a vehicle share one), or a dict
+            ``{variant: gains}``; a variant given no gains runs with its law's defaults (a law
+            of your own with gains of its own, swept beside the built-in ones).
         progress: True: a bar on stderr; a callable: receives a line per chunk; False: silent.
         devices: devices to shard over (default ``jax.local_devices()``).
         process_index, process_count: this process's share (default from JAX).
@@ -271,7 +314,7 @@ def run_sweep(
     """
     t_start = time.perf_counter()
     loops_ = {v: spec.loop(v) for v in spec.variants}
-    gains = loops_[spec.variants[0]].default_gains() if gains is None else gains
+    gains_of = variant_gains(loops_, gains)
     devices = list(jax.local_devices() if devices is None else devices)
     p_idx = jax.process_index() if process_index is None else int(process_index)
     p_cnt = jax.process_count() if process_count is None else int(process_count)
@@ -296,7 +339,7 @@ def run_sweep(
         repl = NamedSharding(mesh, PartitionSpec())
         put_batch = lambda tree: jax.device_put(tree, batch_sh)
         put_repl = lambda tree: jax.device_put(tree, repl)
-    gains_d, nom_d, dt_d, div_d = put_repl((gains, nom, dt, diverge_e))
+    gains_d, nom_d, dt_d, div_d = put_repl((gains_of, nom, dt, diverge_e))
 
     bar = _progress_bar(len(mine) * len(spec.variants), progress)
     compiled, compile_s = {}, dict.fromkeys(spec.variants, 0.0)
@@ -328,10 +371,10 @@ def run_sweep(
             }
         )
         for v in spec.variants:
-            dyn = (gains_d, nom_d, sc_d, dt_d, div_d)
+            dyn = (gains_d[v], nom_d, sc_d, dt_d, div_d)
             if v not in compiled:  # trace, lower and compile once per variant, timed apart
                 t0 = time.perf_counter()
-                lowered = _run_batch.lower(loops_[v], gains_d, nom_d, sc_d, config, dt_d, div_d)
+                lowered = _run_batch.lower(loops_[v], *dyn[:3], config, *dyn[3:])
                 compiled[v] = lowered.compile()
                 compile_s[v] = time.perf_counter() - t0
             t0 = time.perf_counter()
