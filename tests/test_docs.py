@@ -502,3 +502,42 @@ def test_cli_reference_is_generated_from_the_parser():
                     assert f"`{flag}" in section or f", {flag}" in section, (name, flag)
     for name, flag in [("launch", "--port"), ("demo", "--horizon"), ("simulate", "--max-steps")]:
         assert f"`{flag}" in text.split(f"`vcjax {name}`", 1)[1], (name, flag)
+
+
+# --------------------------------------------------------------------------- quoted results
+
+#: numbers user pages quote from committed result files: (page, results file, key path,
+#: format); the formatted value must appear on the page, so a re-made result that moves a
+#: number fails here until the page says the new one
+QUOTES = [
+    (
+        "docs/guides/sweeps.md",
+        "docs/figures/sweep/summary.json",
+        f"variants.{v}.metrics.ss_abs_e.p50",
+        fmt,
+    )
+    for v, fmt in [
+        ("vcm", "{:.2f} m"),
+        ("ilos", "{:.3f} m"),
+        ("los_pid", "{:.2f} m"),
+        ("vcm_ilos", "{:.3f} m"),
+        ("alos", "{:.3f} m"),
+    ]
+] + [
+    (
+        "docs/guides/sweeps.md",
+        "docs/figures/sweep/summary.json",
+        "variants.alos.metrics.ss_abs_e.p95",
+        "p95 {:.2f} m",
+    )
+]
+
+
+@pytest.mark.parametrize("page, results, key, fmt", QUOTES, ids=lambda x: str(x)[-40:])
+def test_pages_quote_the_committed_results(page, results, key, fmt):
+    import json
+
+    value = json.loads((ROOT / results).read_text())
+    for part in key.split("."):
+        value = value[part]
+    assert fmt.format(value) in (ROOT / page).read_text(), (page, key, fmt.format(value))
