@@ -541,3 +541,14 @@ def test_pages_quote_the_committed_results(page, results, key, fmt):
     for part in key.split("."):
         value = value[part]
     assert fmt.format(value) in (ROOT / page).read_text(), (page, key, fmt.format(value))
+
+
+def test_the_registered_loops_table_lists_every_loop():
+    from vcjax import loops
+
+    page = (ROOT / "docs/guides/own-system.md").read_text()
+    rows = {ln.split("|")[1].split("`")[1]: ln for ln in page.splitlines() if ln.startswith("| `")}
+    for v in ("infante", "odin", "arm", "remus100"):
+        assert v in rows, v
+        for c in loops.controllers(v):
+            assert f"`{c}`" in rows[v], (v, c)
