@@ -509,27 +509,26 @@ def test_cli_reference_is_generated_from_the_parser():
 #: numbers user pages quote from committed result files: (page, results file, key path,
 #: format); the formatted value must appear on the page, so a re-made result that moves a
 #: number fails here until the page says the new one
+SWEEP = ("docs/guides/sweeps.md", "docs/figures/sweep/summary.json")
+TUNE = ("docs/guides/tuning.md", "docs/figures/tune/summary.json")
+REMUS = ("docs/experiments/remus100.md", "docs/figures/remus100/metrics.json")
 QUOTES = [
-    (
-        "docs/guides/sweeps.md",
-        "docs/figures/sweep/summary.json",
-        f"variants.{v}.metrics.ss_abs_e.p50",
-        fmt,
-    )
-    for v, fmt in [
-        ("vcm", "{:.2f} m"),
-        ("ilos", "{:.3f} m"),
-        ("los_pid", "{:.2f} m"),
-        ("vcm_ilos", "{:.3f} m"),
-        ("alos", "{:.3f} m"),
-    ]
-] + [
-    (
-        "docs/guides/sweeps.md",
-        "docs/figures/sweep/summary.json",
-        "variants.alos.metrics.ss_abs_e.p95",
-        "p95 {:.2f} m",
-    )
+    (*SWEEP, "variants.vcm.metrics.ss_abs_e.p50", "{:.2f} m"),
+    (*SWEEP, "variants.ilos.metrics.ss_abs_e.p50", "{:.3f} m"),
+    (*SWEEP, "variants.los_pid.metrics.ss_abs_e.p50", "{:.2f} m"),
+    (*SWEEP, "variants.vcm_ilos.metrics.ss_abs_e.p50", "{:.3f} m"),
+    (*SWEEP, "variants.alos.metrics.ss_abs_e.p50", "{:.3f} m"),
+    (*SWEEP, "variants.alos.metrics.ss_abs_e.p95", "p95 {:.2f} m"),
+    (*TUNE, "heldout_loss_before", "| {:.2f} |"),
+    (*TUNE, "heldout_loss_after", "| {:.2f} |"),
+    (*TUNE, "heldout_reduction_pct", "−{:.1f} %"),
+    (*TUNE, "heldout_terms_before.eps", "| {:.2f} |"),
+    (*TUNE, "heldout_terms_after.eps", "| {:.2f} |"),
+    (*TUNE, "heldout_terms_before.sat_excess", "| {:.2f} |"),
+    (*REMUS, "variants.decoupled.ss_dist_3d", "{:.3f} m"),
+    (*REMUS, "variants.decoupled.ss_cross_track", "{:.3f} m"),
+    (*REMUS, "variants.vcm3d_ilos.ss_dist_3d", "{:.3f} m"),
+    (*REMUS, "variants.alos3d.ss_dist_3d", "{:.3f} m"),
 ]
 
 
