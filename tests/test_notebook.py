@@ -53,3 +53,17 @@ def test_remus100_notebook_executes_at_small_size(monkeypatch, tmp_path):
         assert bool(ok.all()) and rms.shape == (4,)
     assert plt.get_fignums()
     plt.close("all")
+
+
+@pytest.mark.parametrize("path", [NOTEBOOK, REMUS_NOTEBOOK], ids=lambda p: p.name)
+def test_notebooks_are_committed_executed_with_their_figures(path):
+    """The documentation shows the notebooks as committed (it does not execute them): each is
+    committed run top to bottom in one kernel, with its outputs and at least one figure, and
+    forces no backend (a figure must show in Jupyter)."""
+    nb = json.loads(path.read_text())
+    code = [c for c in nb["cells"] if c["cell_type"] == "code"]
+    assert [c["execution_count"] for c in code] == list(range(1, len(code) + 1))
+    images = [o for c in code for o in c["outputs"] if "image/png" in o.get("data", {})]
+    assert images, f"{path.name}: no figure in the committed outputs"
+    assert not any(o.get("output_type") == "error" for c in code for o in c["outputs"])
+    assert not any("matplotlib.use(" in "".join(c["source"]) for c in code)
