@@ -91,7 +91,8 @@ class PathBound(Options):
 
     diverge_e: float | None = option(
         None,
-        "a run more than M metres off the path is unhealthy (default: the experiment's own)",
+        "a run more than M metres off the path is unhealthy (default: 25 % of u_d x horizon, "
+        "at least 50 m)",
         "M",
     )
 
@@ -128,7 +129,7 @@ def flags(options: type[Options]) -> list[tuple[str, dict]]:
         kw = _flag_type(hints[f.name])
         meta = f.metadata
         default = "" if f.default is None else f" (default {f.default})"
-        kw["help"] = meta.get("help", "") + default
+        kw["help"] = (meta.get("help", "") + default).replace("%", "%%")  # argparse formats it
         if meta.get("metavar"):
             kw["metavar"] = meta["metavar"]
         out.append(("--" + f.name.replace("_", "-"), {"dest": f.name, "default": None, **kw}))

@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops, metrics, paths
-from vcjax.experiments.base import Experiment, PathBound
+from vcjax.experiments.base import Experiment, PathBound, option
 from vcjax.experiments.seas import WaveOptions, option_sea, option_sea_record
 from vcjax.loops.remus100 import REMUS_CONTROLLERS
 
@@ -82,8 +82,14 @@ OFF_PATH_M = 25.0
 
 @dataclasses.dataclass(frozen=True)
 class Remus100Options(PathBound, WaveOptions):
-    """Options of ``vcjax simulate remus100`` (``--diverge-e`` default: :data:`OFF_PATH_M`
-    from the survey path)."""
+    """Options of ``vcjax simulate remus100``."""
+
+    diverge_e: float | None = option(
+        None,
+        "a run more than M metres from the survey path (geometric distance) is unhealthy "
+        f"(default {OFF_PATH_M:g} m)",
+        "M",
+    )
 
 
 def mission_geometry(pos, path, coeffs, dw=0.25):

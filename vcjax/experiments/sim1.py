@@ -35,7 +35,15 @@ import numpy as np
 from vcjax import loops, metrics
 from vcjax.experiments.base import Experiment, PathBound, option
 
-__all__ = ["SIM1", "Sim1", "Sim1Options", "VARIANTS", "PAPER_VARIANTS", "METRIC_KEYS"]
+__all__ = [
+    "SIM1",
+    "Sim1",
+    "Sim1Options",
+    "VARIANTS",
+    "PAPER_VARIANTS",
+    "METRIC_KEYS",
+    "health_extras",
+]
 
 VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos", "alos")
 #: The four controllers of the paper's comparison (Simulation 1).
