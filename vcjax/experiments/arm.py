@@ -72,6 +72,9 @@ class Arm(Experiment):
     def report(self, results, setup) -> dict:
         return results["vcm"]
 
+    def label(self, variant: str) -> str:
+        return "the two-link arm"
+
     def printed(self, results) -> None:
         return None
 
