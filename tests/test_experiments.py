@@ -93,7 +93,7 @@ def test_registry_declares_every_experiment_and_the_flags_follow_its_options():
         experiments.get("sim3")
     with pytest.raises(ValueError, match="actuation: expected one of"):
         experiments.get("sim2").setup(actuation="both")
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match="sim1: no option 'actuation'"):
         experiments.get("sim1").setup(actuation="full")  # not one of sim1's options
 
 

@@ -238,7 +238,11 @@ class Experiment:
 
     def setup(self, horizon=None, dt=None, current=None, **options) -> Setup:
         """A :class:`Setup`: the defaults where ``None``; ``options`` by field name (a name the
-        experiment's options do not have is a ``TypeError``)."""
+        experiment's options do not have is a ``TypeError`` naming it)."""
+        names = [f.name for f in dataclasses.fields(self.options)]
+        for k in options:
+            if k not in names:
+                raise TypeError(f"{self.name}: no option {k!r} (its options: {names})")
         if current is not None and self.current is None:
             raise ValueError(f"current: {self.name} has no ocean current")
         cur = self.current if current is None else tuple(float(c) for c in current)
