@@ -144,9 +144,10 @@ def memory(compiled) -> dict:
 
 def base_inputs():
     """Simulation 1's default gains and scenario, in the process's default float dtype."""
-    from vcjax.experiments import sim1
+    from vcjax import experiments
 
-    return sim1.default_gains(), sim1.sim1_scenario()
+    sim1 = experiments.get("sim1")
+    return sim1.default_gains(VARIANT), sim1.scenario(VARIANT)
 
 
 def current_field(sc) -> str:
@@ -218,13 +219,14 @@ def metric_fn(
     Trajectory (its while-loop simplifier removes dead loop outputs), so memory is
     O(B N) for the stacked cross-track error instead of O(B N x every recorded signal).
     """
-    from vcjax.experiments import sim1
+    from vcjax import experiments, loops
     from vcjax.rollout import RolloutConfig
 
     cfg = RolloutConfig(num_steps=num_steps, integrator="rk4", checkpoint=checkpoint, timing=timing)
+    loop = experiments.get("sim1").loop(VARIANT)
 
     def one(gains, sc, dt):
-        tr = sim1.simulate(VARIANT, gains, sc, cfg, dt)
+        tr = loops.simulate(loop, gains, sc, cfg, dt)
         return jnp_mean_abs(tr.aux.eps[:, 1])
 
     if not batched:

@@ -14,9 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax import cli
+from vcjax import cli, experiments, loops
 from vcjax.allocation import allocate, clip_allocate
-from vcjax.experiments import sim1
 from vcjax.mechanics import (
     MechanicalSystem,
     VCMGains,
@@ -274,26 +273,27 @@ def test_allocation_bad_limits_inside_jit_are_infeasible(f_max):
 @pytest.mark.parametrize(
     "field, value, message",
     [
-        ("mass", -3331.8, r"vehicle.mass: every entry must be > 0"),
-        ("Iz", math.nan, r"vehicle.Iz: contains NaN"),
-        ("thrust_max", 0.0, r"vehicle.thrust_max: every entry must be > 0"),
-        ("Y_vdot", 1e5, r"vehicle: M \(mass, Iz, x_g and added mass\): symmetric part of the"),
+        ("mass", -3331.8, r"plant.mass: every entry must be > 0"),
+        ("Iz", math.nan, r"plant.Iz: contains NaN"),
+        ("thrust_max", 0.0, r"plant.thrust_max: every entry must be > 0"),
+        ("Y_vdot", 1e5, r"plant: M \(mass, Iz, x_g and added mass\): symmetric part of the"),
     ],
 )
 def test_edited_infante_params_rejected_by_the_scenario(field, value, message):
     bad = infante.infante_params()._replace(**{field: jnp.asarray(value)})
     with pytest.raises(ValueError, match=message):
-        sim1.sim1_scenario(vehicle=bad)
+        loops.make_scenario(loops.make_loop("infante", "vcm"), plant=bad)
 
 
 def test_edited_design_vehicle_and_plant_args():
     bad = infante.infante_params()._replace(T_rudder=jnp.asarray(-0.1))
-    with pytest.raises(ValueError, match="design_vehicle.T_rudder"):
-        sim1.sim1_scenario(design_vehicle=bad)
+    loop = loops.make_loop("infante", "vcm")
+    with pytest.raises(ValueError, match="design.T_rudder"):
+        loops.make_scenario(loop, design=bad)
     with pytest.raises(ValueError, match="vehicle.T_rudder"):
         infante.plant_args(bad)
-    with pytest.raises(ValueError, match="vehicle: expected InfanteParams, got OdinParams"):
-        sim1.sim1_scenario(vehicle=odin.odin_params())
+    with pytest.raises(ValueError, match="plant: expected InfanteParams, got OdinParams"):
+        loops.make_scenario(loop, plant=odin.odin_params())
 
 
 def test_edited_odin_and_remus_params():
@@ -327,7 +327,7 @@ def test_edited_odin_and_remus_params():
 )
 def test_gains_from_json(data, message):
     with pytest.raises(ValueError, match=message):
-        sim1.gains_from_json(data)
+        experiments.get("sim1").load_gains(data)
 
 
 # ------------------------------------------------------------------ CLI (in-process)

@@ -214,7 +214,7 @@ def test_second_writer_of_one_out_gets_exit_2(tmp_path, capsys):
     """Two processes, one --out: the second is refused while the first holds the lock."""
     out = tmp_path / "out"
     code = (
-        "import sys; from vcjax import outputs\n"
+        "import sys; from vcjax.runtime import outputs\n"
         f"d = outputs.prepare_out({str(out)!r}, False, 'sweep')\n"
         "print('locked', flush=True); sys.stdin.readline()\n"
     )

@@ -158,10 +158,11 @@ def test_underactuated_sway_force_is_the_rudders():
     plant's rudder produces at the commanded angle: the rudder terms of the plant's force model
     (``body_forces``, a separate code path), whose sway/yaw ratio is npsauv.m's published
     ``Ydr / (Ndr L)`` (Healey & Lienard 1993: Ydr = 0.027, Ndr = -0.013; L = 4.5 m)."""
-    from vcjax.experiments import sim1
+    from vcjax import experiments
     from vcjax.vehicles import infante
 
-    traj = sim1.run_variant("ilos", horizon=10.0, dt=0.05)
+    sim1 = experiments.get("sim1")
+    traj = sim1.simulate("ilos", sim1.setup(horizon=10.0, dt=0.05))
     p = infante.infante_params()
     nu = traj.x.nu[:-1]  # the (measured) velocity the controller used at each step
     delta = traj.u[:, 1]  # commanded rudder angle [rad]

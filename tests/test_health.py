@@ -10,8 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax import cli
-from vcjax.experiments import sim1
+from vcjax import cli, experiments
 from vcjax.mechanics import MechanicalSystem, VirtualConstraints, reaction_force, vcm_gains
 from vcjax.metrics import first_excursion, path_bound
 from vcjax.rollout import RolloutConfig, controller_ok, first_unhealthy_step, rollout
@@ -123,17 +122,19 @@ def test_first_excursion():
 def test_strong_cross_current_is_not_healthy():
     """A 50 m/s cross current sweeps the vehicle off the line: not healthy, the first step past
     the bound (50 m) named; the paper's current stays healthy."""
-    sc_bad = sim1.sim1_scenario(current=(50.0, 0.0))
-    traj = jax.device_get(sim1.run_variant("vcm", None, sc_bad, 3.0, 0.05))
-    m = sim1.tracking_metrics("vcm", traj, sc_bad)
+    sim1 = experiments.get("sim1")
+    bad = sim1.setup(horizon=3.0, dt=0.05, current=(50.0, 0.0))
+    run = sim1.outcome("vcm", bad, jax.device_get(sim1.simulate("vcm", bad)))
+    m = sim1.metrics(run, bad)
     assert m["healthy"] is False
-    e = np.abs(np.asarray(sim1.closed_loop("vcm").signals(traj, sc_bad).eps)[:, 1])
+    e = np.abs(np.asarray(run.loop.signals(run.traj, run.scenario).eps)[:, 1])
     k = m["unhealthy_step"]
     assert e[k] > 50.0 and np.all(e[:k] <= 50.0)  # independent: the first sample past 50 m
-    assert sim1.tracking_metrics("vcm", traj, sc_bad, diverge_e=1e6)["healthy"] is True
-    sc = sim1.sim1_scenario()
-    ok = jax.device_get(sim1.run_variant("vcm", None, sc, 3.0, 0.05))
-    assert sim1.tracking_metrics("vcm", ok, sc)["healthy"] is True
+    wide = bad._replace(options=bad.options.replace(diverge_e=1e6))
+    assert sim1.metrics(run, wide)["healthy"] is True
+    good = sim1.setup(horizon=3.0, dt=0.05)
+    ok = sim1.outcome("vcm", good, jax.device_get(sim1.simulate("vcm", good)))
+    assert sim1.metrics(ok, good)["healthy"] is True
 
 
 @pytest.mark.parametrize(
@@ -177,10 +178,11 @@ def test_remus100_off_path_bound_is_the_distance_to_the_survey_path():
     30 m, unhealthy within 15 m; a non-positive bound is refused."""
     from types import SimpleNamespace
 
-    from vcjax import paths
-    from vcjax.experiments import remus100 as mission
+    from vcjax import loops, paths
+    from vcjax.experiments.remus100 import OFF_PATH_M, mission_extras, mission_geometry
 
-    path, coeffs = mission.mission_path()
+    remus100 = experiments.get("remus100")
+    path, coeffs = loops.default_path("remus100")  # the survey lawnmower
     w = jnp.linspace(40.0, 200.0, 33)
     on = jax.vmap(lambda s: paths.path_point(path, coeffs, s))(w)
     tangent = np.gradient(np.asarray(on[:, :2]), axis=0)
@@ -192,14 +194,15 @@ def test_remus100_off_path_bound_is_the_distance_to_the_survey_path():
     def check(eta):
         traj = SimpleNamespace(x=SimpleNamespace(eta=eta), healthy=jnp.asarray(True))
         flags = [
-            mission.mission_extras(traj, path, coeffs, dw=2.0, **kw)["mission_healthy"](None, None)
+            mission_extras(traj, path, coeffs, dw=2.0, **kw)["mission_healthy"](None, None)
             for kw in ({}, {"off_path": 30.0}, {"off_path": 15.0})
         ]
-        return mission.mission_geometry(traj.x.eta, path, coeffs, dw=2.0)[0], flags
+        return mission_geometry(traj.x.eta, path, coeffs, dw=2.0)[0], flags
 
     dist, (default, wide, narrow) = check(jnp.asarray(pos))
     np.testing.assert_allclose(np.asarray(dist), 20.0, atol=0.05)
-    assert mission.OFF_PATH_M == 25.0 and bool(default)
+    assert OFF_PATH_M == 25.0 and bool(default)
     assert bool(wide) and not bool(narrow)
+    assert remus100.off_path(remus100.setup(diverge_e=30.0).options) == 30.0
     with pytest.raises(ValueError, match="diverge_e: expected a finite bound > 0"):
-        mission.mission_metrics(None, path, coeffs, variant="vcm3d", off_path=0.0)
+        remus100.off_path(remus100.setup(diverge_e=0.0).options)

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vcjax.experiments import sim1
+from vcjax import experiments, loops
 from vcjax.vehicles import infante
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -49,8 +49,9 @@ def test_plant_parameters_rebuilt_from_the_docstring_match():
     ],
 )
 def test_numpy_reference_matches_vcjax(eta0, V_c):
-    sc = sim1.sim1_scenario(eta0=eta0, current=V_c)
-    traj = sim1.run_variant("vcm_integral", scenario=sc, horizon=HORIZON, dt=DT)
+    sim1 = experiments.get("sim1")
+    sc = loops.make_scenario(sim1.loop("vcm"), eta0=eta0, nu0=(2.0, 0.0, 0.0), current=V_c, u_d=2.0)
+    traj = sim1.simulate("vcm_integral", sim1.setup(HORIZON, DT, V_c), scenario=sc)
     assert bool(np.all(np.asarray(traj.finite)))
     J = _vcjax_states(traj)
     n = int(round(HORIZON / DT))

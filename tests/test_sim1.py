@@ -6,8 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from vcjax import cli
-from vcjax.experiments import sim1
+from vcjax import cli, experiments, loops
+
+SIM1 = experiments.get("sim1")
 
 KEYS = {
     "ss_abs_e",
@@ -33,7 +34,7 @@ def test_cli_writes_figures_and_metrics(sim1_out):
         assert f.stat().st_size > 10_000
         assert f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     metrics = json.loads((sim1_out / "metrics.json").read_text())
-    assert set(metrics) == set(sim1.VARIANTS)
+    assert set(metrics) == set(SIM1.variants())
     run = json.loads((sim1_out / "run.json").read_text())
     assert run["command"] == "simulate sim1"
     assert run["config"]["horizon"] == 150.0 and run["config"]["dt"] == 0.05
@@ -61,22 +62,22 @@ def test_metrics_meet_the_papers_claims(sim1_out):
 
 
 def test_gains_file_round_trip(tmp_path):
-    g = sim1.default_gains()
-    d = sim1.gains_to_json(g)
-    g2 = sim1.gains_from_json(json.loads(json.dumps(d)))
+    g = SIM1.default_gains("vcm")
+    d = loops.gains_to_json(g)
+    g2 = SIM1.load_gains(json.loads(json.dumps(d)))
     for a, b in zip(g.vcm, g2.vcm, strict=True):
         np.testing.assert_array_equal(a, b)
     for a, b in zip(g.baseline, g2.baseline, strict=True):
         np.testing.assert_array_equal(a, b)
     d["vcm"]["Delta"] = 3.0
-    g3 = sim1.gains_from_json(d)
+    g3 = SIM1.load_gains(d)
     assert float(g3.vcm.Delta) == 3.0
     with pytest.raises(ValueError, match="Delta"):
-        sim1.gains_from_json({"vcm": {"Delta": -1.0}})
+        SIM1.load_gains({"vcm": {"Delta": -1.0}})
     with pytest.raises(ValueError, match="unknown"):
-        sim1.gains_from_json({"vcm": {"Delta": 1.0}, "extra": {}})
+        SIM1.load_gains({"vcm": {"Delta": 1.0}, "extra": {}})
     with pytest.raises(ValueError, match="gains file"):
-        sim1.gains_from_json({"vcm": {"P_K": [1.0]}})
+        SIM1.load_gains({"vcm": {"P_K": [1.0]}})
 
 
 def test_cli_rejects_a_bad_gains_file(tmp_path, capsys):
@@ -86,19 +87,22 @@ def test_cli_rejects_a_bad_gains_file(tmp_path, capsys):
     assert "sigma" in capsys.readouterr().err
 
 
-def test_scenario_validation():
+def test_scenario_and_setup_validation():
+    loop = SIM1.loop("vcm")
     with pytest.raises(ValueError, match="eta0"):
-        sim1.sim1_scenario(eta0=(0.0, 0.0))
+        loops.make_scenario(loop, eta0=(0.0, 0.0))
     with pytest.raises(ValueError, match="current"):
-        sim1.sim1_scenario(current=(np.nan, 0.0))
+        SIM1.scenario("vcm", SIM1.setup(current=(np.nan, 0.0)))
     with pytest.raises(ValueError, match="current"):
-        sim1.sim1_scenario(current=(0.0, 0.5, 0.0, 1.0))
+        SIM1.scenario("vcm", SIM1.setup(current=(0.0, 0.5, 0.0, 1.0)))
     with pytest.raises(ValueError, match="u_d"):
-        sim1.sim1_scenario(u_d=0.0)
+        loops.make_scenario(loop, u_d=0.0)
     with pytest.raises(ValueError, match="variant"):
-        sim1.run_variant("pid")
+        SIM1.loop("pid")
+    with pytest.raises(ValueError, match="edd"):
+        SIM1.setup(edd="neither")
     with pytest.raises(ValueError, match="horizon"):
-        sim1.run_variant("vcm", horizon=-1.0)
+        SIM1.simulate("vcm", SIM1.setup(horizon=-1.0))
 
 
 def test_cli_sim2_and_argument_errors(tmp_path, capsys):

@@ -5,16 +5,17 @@ Bounds are derived, not fitted (see the docstrings); horizons are 150 s at dt = 
 results agree with dt = 0.05 s to 4 digits), one compiled loop per path kind.
 """
 
-import json
 import math
 
 import jax
 import numpy as np
 import pytest
 
-from vcjax import paths
-from vcjax.experiments import sim2
+from vcjax import experiments, loops, paths
+from vcjax.rollout import RolloutConfig
 from vcjax.vehicles import odin
+
+SIM2 = experiments.get("sim2")
 
 # a descending straight line 3 m east of the start, 2 m below it, heading north
 LINE, LINE_COEFFS = paths.line(origin=(0.0, 3.0, -100.0), direction=(1.0, 0.0, 0.05))
@@ -22,9 +23,21 @@ HORIZON, DT = 150.0, 0.1
 
 
 def _line_run(tau_dist):
-    sc = sim2.sim2_scenario(tau_dist=tau_dist, path_coeffs=LINE_COEFFS)
-    cfg = sim2.Sim2Config(path=LINE, actuation="underactuated")
-    return jax.device_get(sim2.run_variant(cfg, scenario=sc, horizon=HORIZON, dt=DT)), sc
+    """Simulation 2's start (the experiment's scenario) on ``LINE`` instead of the helix."""
+    loop = loops.make_loop("odin", "vcm", path=LINE)
+    paper = SIM2.scenario("underactuated")
+    sc = loops.make_scenario(
+        loop,
+        LINE_COEFFS,
+        eta0=paper.eta0,
+        nu0=paper.nu0,
+        u_d=paper.u_d,
+        plant=paper.plant,
+        disturbance=np.concatenate([tau_dist, np.zeros(3)]),
+        varpi0=0.0,
+    )
+    cfg = RolloutConfig(num_steps=int(round(HORIZON / DT)))
+    return jax.device_get(experiments.rollout(loop, loop.default_gains(), sc, cfg, DT)), sc
 
 
 def test_straight_line_underactuated_converges_without_disturbance():
@@ -57,7 +70,7 @@ def test_straight_line_sideslip_offset_under_sway_disturbance():
     veh = sc.plant
     U = math.hypot(u, v)
     assert v == pytest.approx(5.0 / (float(veh.body.D[1, 1]) + float(veh.drag_coeff) * U), rel=0.01)
-    g = sim2.default_gains().vcm
+    g = SIM2.default_gains("underactuated").vcm
     Delta = float(g.Delta)
     assert e == pytest.approx(Delta * math.tan(math.atan(v / u) + psi_t), rel=0.01)
     assert e == pytest.approx(Delta * v / u, rel=0.12)
@@ -75,9 +88,10 @@ def test_helix_run_sim2_figures_metrics_and_error_bound(tmp_path):
     = 0.25 m/s and |e| ~ Delta v / u <= 1.0 m; plus the heading offset above (~0.05 rad ->
     0.1 m) and small s and depth errors: ~1.15 m. The test allows 1.5 m (measured: 1.06 m).
     """
-    res = sim2.run_sim2(tmp_path, horizon=HORIZON, dt=DT, compare=False, progress=lambda s: None)
-    m = json.loads((tmp_path / "metrics.json").read_text())
-    assert m == json.loads(json.dumps(res["metrics"]))
+    setup = SIM2.setup(horizon=HORIZON, dt=DT)
+    traj = jax.device_get(SIM2.simulate("underactuated", setup))
+    outcome = SIM2.outcome("underactuated", setup, traj)
+    m = SIM2.report({"underactuated": SIM2.metrics(outcome, setup)}, setup)
     assert m["actuation"] == "underactuated" and m["healthy"]
     for key in ("rms_dist_3d", "max_dist_3d", "rms_depth_err", "thruster_sat_fraction"):
         assert key in m and math.isfinite(m[key])
@@ -88,30 +102,32 @@ def test_helix_run_sim2_figures_metrics_and_error_bound(tmp_path):
     assert m["rms_depth_err"] < 0.1
     assert m["alloc_infeasible_fraction"] == 0.0
     assert 15.0 < m["mean_abs_sideslip_deg"] < 30.0
-    for f in res["files"]:
+    files = SIM2.figures({"underactuated": outcome}, setup, tmp_path)
+    for f in files:
         assert f.exists() and f.stat().st_size > 0
-    assert {f.name for f in res["files"]} >= {"sim2_path_3d.png", "sim2_errors.png"}
+    assert {f.name for f in files} >= {"sim2_path_3d.png", "sim2_errors.png"}
 
 
 def test_validation_names_the_field():
     with pytest.raises(ValueError, match="actuation"):
-        sim2.Sim2Config(actuation="sway")
-    with pytest.raises(ValueError, match="depth"):
-        sim2.sim2_gains(depth=(0.01, 0.1, 0.01))  # k_d k_p < k_i: unstable PID
-    with pytest.raises(ValueError, match="attitude"):
-        sim2.sim2_gains(attitude=(10.0, -1.0))
-    with pytest.raises(ValueError, match="p0"):
-        sim2.sim2_scenario(p0=(0.0, 0.0))
-    with pytest.raises(ValueError, match="tau_dist"):
-        sim2.sim2_scenario(tau_dist=(0.0, 5.0))
-    with pytest.raises(ValueError, match="u_d"):
-        sim2.sim2_scenario(u_d=0.0)
+        SIM2.setup(actuation="sway")
     with pytest.raises(ValueError, match="actuation"):
-        sim2.run_sim2("unused", actuation="both")
+        SIM2.loop("both")
+    with pytest.raises(ValueError, match="depth"):
+        loops.odin_gains(depth=(0.01, 0.1, 0.01))  # k_d k_p < k_i: unstable PID
+    with pytest.raises(ValueError, match="attitude"):
+        loops.odin_gains(attitude=(10.0, -1.0))
+    loop = SIM2.loop("underactuated")
+    with pytest.raises(ValueError, match="eta0"):
+        loops.make_scenario(loop, eta0=(0.0, 0.0))
+    with pytest.raises(ValueError, match="disturbance"):
+        loops.make_scenario(loop, disturbance=(0.0, 5.0))
+    with pytest.raises(ValueError, match="u_d"):
+        loops.make_scenario(loop, u_d=0.0)
 
 
 def test_design_model_is_derived_from_the_plant():
-    sc = sim2.sim2_scenario()
+    sc = SIM2.scenario()
     dm = odin.design_model(sc.plant, sc.u_d)
     assert float(dm.m11) == pytest.approx(float(odin.mass_matrix(sc.plant)[0, 0]))
 
@@ -120,9 +136,9 @@ def test_design_model_is_derived_from_the_plant():
 def test_fully_actuated_helix_converges_to_the_path():
     """With sway thrust (v_d = 0) and integral action on both eps components, the disturbance
     is rejected and the craft converges to the helix (measured: 2.6 mm at 300 s)."""
-    cfg = sim2.Sim2Config(actuation="full")
-    tr = jax.device_get(sim2.run_variant(cfg, horizon=300.0, dt=DT))
-    m = sim2.sim2_metrics(tr, config=cfg)
+    setup = SIM2.setup(horizon=300.0, dt=DT)
+    tr = jax.device_get(SIM2.simulate("full", setup))
+    m = SIM2.metrics(SIM2.outcome("full", setup, tr), setup)
     d = np.linalg.norm(tr.aux.p_err, axis=1)
     assert d[-1] < 0.01
     assert m["rms_dist_3d"] < 0.2

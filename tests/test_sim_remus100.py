@@ -1,4 +1,4 @@
-"""REMUS 100 closed loop (sim_remus100): the fin-tied force rows on the PVS plant, the geometric
+"""REMUS 100 closed loop (the ``remus100`` experiment): the fin-tied force rows on the PVS plant, the geometric
 metrics, gradients through the loop; the full survey mission is marked slow."""
 
 import jax
@@ -6,19 +6,26 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax.experiments import remus100 as sr
+from vcjax import experiments, loops
+from vcjax.experiments.remus100 import REPORTED, mission_geometry
 from vcjax.vehicles import remus100 as r100
 from vcjax.vehicles import remus100_design as rd
 
 SHORT = 4.0  # s: every default-run closed loop uses this horizon (one compilation per variant)
+REMUS100 = experiments.get("remus100")
+
+
+def _run(variant, horizon, current=(0.0, 0.3), initial=None):
+    """``(trajectory, setup, scenario)``: the mission's run of ``variant`` from ``initial``."""
+    setup = REMUS100.setup(horizon=horizon, current=current)
+    sc = loops.make_scenario(REMUS100.loop(variant), initial=initial, current=current, u_d=1.5)
+    return REMUS100.simulate(variant, setup, scenario=sc), setup, sc
 
 
 def test_unactuated_forces_are_the_fin_forces_at_every_step():
     """Underactuated 3-D VCM on the PVS plant: the law's sway and heave forces are exactly what the
     fins produce at the commanded deflections (with their yaw and pitch moments), to round-off."""
-    traj, _ = sr.simulate(
-        "vcm3d_ilos", horizon=SHORT, current=(0.0, 0.0), initial={"y": 3.0, "z": 2.0}
-    )
+    traj, _, _ = _run("vcm3d_ilos", SHORT, current=(0.0, 0.0), initial={"y": 3.0, "z": 2.0})
     assert bool(np.all(traj.finite))
     tau = np.asarray(traj.aux.tau)
     raw = np.asarray(traj.aux.raw)
@@ -38,7 +45,7 @@ def test_unactuated_forces_are_the_fin_forces_at_every_step():
 
 def test_metrics_distance_is_geometric():
     """Positions placed at known offsets from a straight leg and a turn: exact distances."""
-    path, c = sr.mission_path()
+    path, c = loops.default_path("remus100")  # the survey lawnmower
     L, R = float(c.leg), float(c.radius)
     # leg 1 runs south at east = 2R, depth 16 m; a point 0.3 m east of it and 0.2 m deeper
     p_leg = np.array([[L - 100.0, 2 * R + 0.3, 16.2]])
@@ -46,7 +53,7 @@ def test_metrics_distance_is_geometric():
     a = 0.7
     p_turn = np.array([[L + (R + 1.0) * np.sin(a), R - (R + 1.0) * np.cos(a), 16.0]])
     dist, w, e, h = (
-        np.asarray(a) for a in sr.mission_geometry(np.concatenate([p_leg, p_turn]), path, c)
+        np.asarray(a) for a in mission_geometry(np.concatenate([p_leg, p_turn]), path, c)
     )
     np.testing.assert_allclose(dist, [np.hypot(0.3, 0.2), 1.0], atol=1e-3)
     np.testing.assert_allclose(h[0], 0.2, atol=1e-9)
@@ -58,13 +65,10 @@ def test_metrics_distance_is_geometric():
 def test_gradient_of_a_remus_rollout_loss_matches_finite_differences():
     """Through the loop layer, smooth actuator saturation: d loss / d gains vs central
     differences (rev mode)."""
-    from vcjax import loops
     from vcjax.rollout import RolloutConfig
 
     loop = loops.make_loop("remus100", "vcm3d_ilos", smooth=True)
-    sc = loops.make_scenario(
-        loop, sr.mission_path()[1], initial={"y": 2.0}, current=(0.0, 0.3), u_d=1.5
-    )
+    sc = loops.make_scenario(loop, initial={"y": 2.0}, current=(0.0, 0.3), u_d=1.5)
     conf = RolloutConfig(num_steps=30, timing="sampled")
     g0 = loop.default_gains()
 
@@ -88,14 +92,16 @@ def test_gradient_of_a_remus_rollout_loss_matches_finite_differences():
 
 
 @pytest.mark.slow
-def test_survey_mission_ilos_holds_the_path_under_cross_current(tmp_path):
-    res = sr.run_remus100(tmp_path, variants=("vcm3d_ilos", "vcm3d"))
-    m = res["metrics"]
+def test_survey_mission_ilos_holds_the_path_under_cross_current():
+    setup = REMUS100.setup()
+    m = {}
+    for v in ("vcm3d_ilos", "vcm3d"):
+        traj = jax.device_get(REMUS100.simulate(v, setup))
+        m[v] = REMUS100.metrics(REMUS100.outcome(v, setup, traj), setup)
     assert m["vcm3d_ilos"]["healthy"] and m["vcm3d"]["healthy"]
     assert m["vcm3d_ilos"]["ss_dist_3d"] < 0.1
     # the paper's angle with the exactly enforced heading row needs e = Delta tan(crab)
     assert m["vcm3d"]["ss_cross_track"] > 5 * m["vcm3d_ilos"]["ss_cross_track"]
-    assert (tmp_path / "metrics.json").exists()
 
 
 def test_registered_in_the_scenario_layer_and_example_configs_parse():
@@ -106,7 +112,7 @@ def test_registered_in_the_scenario_layer_and_example_configs_parse():
     from vcjax import loops
 
     assert "remus100" in loops.vehicles()
-    assert loops.controllers("remus100") == sr.VARIANTS
+    assert loops.controllers("remus100") == REMUS100.variants()
     root = Path(__file__).resolve().parents[1] / "examples"
     sweep_config.load_config(root / "sweeps" / "remus100.toml")
     cfg = tune_config.load_config(root / "tuning" / "remus100.toml")
@@ -121,16 +127,13 @@ def test_registered_in_the_scenario_layer_and_example_configs_parse():
 @pytest.mark.slow
 @pytest.mark.parametrize("controller", ["decoupled", "alos3d", "pvs_pid", "vcm3d"])
 def test_every_controller_runs_through_the_loop_layer(controller):
-    traj, (path, coeffs) = sr.simulate(
-        controller, horizon=SHORT, initial={"z": 2.0, "pitch_deg": 5.0}
-    )
+    traj, setup, sc = _run(controller, SHORT, initial={"z": 2.0, "pitch_deg": 5.0})
+    traj = jax.device_get(traj)
     assert bool(np.all(traj.finite))
     assert np.all(np.abs(np.asarray(traj.aux.eps)) < 10.0)
-    # the mission's metrics of any controller's run, its loop found from the law's state
-    m = sr.mission_metrics(traj, path, coeffs)
-    loop, sc = sr.mission_scenario(controller, coeffs=coeffs)
-    np.testing.assert_equal(m, sr.mission_metrics(traj, path, coeffs, loop=loop, scenario=sc))
-    assert m["healthy"] and set(m) == set(sr.REPORTED)
+    # the mission's metrics of any controller's run
+    m = REMUS100.metrics(REMUS100.outcome(controller, setup, traj, scenario=sc), setup)
+    assert m["healthy"] and set(m) == set(REPORTED)
 
 
 @pytest.mark.slow
@@ -139,7 +142,7 @@ def test_decoupled_holds_a_straight_leg_under_cross_current():
     0.3 m/s cross current: the ILOS angle and the integral remove the offset and the heading
     settles at the crab angle. With (20)'s linearised bias (phantom Munk moment while crabbing,
     see control.baselines3d) it oscillated: +-1.5 m cross-track, 20 deg heading swings."""
-    from vcjax import loops, paths
+    from vcjax import paths
     from vcjax.rollout import RolloutConfig
 
     path, c = paths.line((0.0, 0.0, 15.0), (1.0, 0.0, 0.0))

@@ -14,9 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax import currents
+from vcjax import currents, experiments, loops
 from vcjax.config import ConfigError
-from vcjax.experiments import sim1
 from vcjax.metrics import metric_names
 from vcjax.plots.sweep import sweep_figures
 from vcjax.sweep import (
@@ -118,6 +117,7 @@ def test_vmapped_sweep_equals_loop_of_single_rollouts():
     spec = make_spec()
     res = run_sweep(spec, progress=False)
     nominal = infante.infante_params()
+    sim1 = experiments.get("sim1")
     m = res.metrics["ilos"]
     assert set(metric_names(("tau_u", "rudder_deg"))) | set(FLAGS) == set(m)
     assert res.index.tolist() == [0, 1, 2]
@@ -127,16 +127,18 @@ def test_vmapped_sweep_equals_loop_of_single_rollouts():
         vehicle = perturb_params(
             nominal, spec.mc_config().model_fields, jnp.asarray(sc["model_factors"][i])
         )
-        s1 = sim1.sim1_scenario(
+        s1 = loops.make_scenario(
+            sim1.loop("ilos"),
             eta0=sc["eta0"][i],
             nu0=sc["nu0"][i],
             current=sc["current"][i],
             u_d=float(sc["u_d"][i]),
-            vehicle=vehicle,
-            design_vehicle=nominal,
+            plant=vehicle,
+            design=nominal,
         )
-        traj = sim1.run_variant("ilos", scenario=s1, horizon=HORIZON, dt=DT, timing="sampled")
-        ref = sim1.tracking_metrics("ilos", traj, s1)
+        setup = sim1.setup(horizon=HORIZON, dt=DT, timing="sampled")
+        traj = sim1.simulate("ilos", setup, scenario=s1)
+        ref = sim1.metrics(sim1.outcome("ilos", setup, traj, scenario=s1), setup)
         for k in ("ss_abs_e", "ss_abs_s", "ss_abs_u_err", "iae_e", "max_abs_tau_u"):
             np.testing.assert_allclose(m[k][i], ref[k], rtol=1e-9, err_msg=k)
         np.testing.assert_allclose(m["max_abs_rudder_deg"][i], ref["max_abs_rudder_deg"], rtol=1e-9)
@@ -217,7 +219,7 @@ def test_gauss_markov_current_is_clipped_and_zero_sigma_is_constant():
 
 def test_zero_noise_and_zero_sigma_equal_the_plain_loop_and_nonzero_ones_act():
     spec = make_spec()
-    gains = sim1.default_gains()
+    gains = loops.infante_gains()
     sc = sample_scenarios(spec.scenario, spec.seed, np.arange(3))
     plain = spec.mc_config()
     both = dataclasses.replace(plain, current_model="gauss_markov", sensor_noise=True)
@@ -242,7 +244,7 @@ def test_zero_noise_and_zero_sigma_equal_the_plain_loop_and_nonzero_ones_act():
 
 def test_health_flags_catch_divergence_without_leaking_nans():
     spec = make_spec()
-    args = (spec.loop("ilos"), sim1.default_gains(), nominal(spec))
+    args = (spec.loop("ilos"), loops.infante_gains(), nominal(spec))
     cfg = spec.mc_config()
     sc = sample_scenarios(spec.scenario, spec.seed, np.arange(3))
     ref, _ = as_np(run_batch(*args, sc, cfg, DT, 50.0))

@@ -20,11 +20,15 @@ from tuning.loss import TuningProblem, aggregate, objective, problem_data
 from tuning.optim import forward_mode, run_gradient_tuner
 from tuning.params import FRAC_MAX, GainSpace, rh_bound
 from tuning.scenarios import sample_scenarios
-from vcjax import cli
+from vcjax import cli, loops
 from vcjax.control.vcm import pm_gains
-from vcjax.experiments import sim1
 
 TINY = TuningProblem(num_steps=40, integrator="euler", timing="sampled")
+
+
+def _infante(controller: str):
+    """The INFANTE-class loop of ``controller`` on its default path (Simulation 1's line)."""
+    return loops.make_loop("infante", controller)
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +48,7 @@ tiny_value_and_grad = jax.jit(jax.value_and_grad(lambda th, d, s: objective(th, 
 def test_parametrisation_gives_valid_gains_and_inverts():
     space = GainSpace()
     assert space.size == 12 and len(space.labels()) == 12
-    base = sim1.default_gains()
+    base = loops.infante_gains()
     rng = np.random.default_rng(0)
     for _ in range(20):
         theta = jnp.asarray(rng.normal(scale=3.0, size=space.size))
@@ -63,8 +67,8 @@ def test_parametrisation_gives_valid_gains_and_inverts():
 
 
 def test_parametrisation_subsets_and_variant():
-    base = sim1.default_gains()
-    s = GainSpace(loop=sim1.closed_loop("vcm"), tune=("sigma", "Delta"))
+    base = loops.infante_gains()
+    s = GainSpace(loop=_infante("vcm"), tune=("sigma", "Delta"))
     assert s.tune == ("Delta", "sigma")  # canonical order
     g = s.decode(jnp.log(jnp.asarray([2.0, 3.0])), base)
     assert float(g.vcm.Delta) == pytest.approx(2.0) and float(g.vcm.sigma) == pytest.approx(3.0)
@@ -72,9 +76,9 @@ def test_parametrisation_subsets_and_variant():
     with pytest.raises(ValueError, match="unknown"):
         GainSpace(tune=("P_K",))
     with pytest.raises(ValueError, match=r"unknown gains \['P_int'\]"):  # "vcm": no integral
-        GainSpace(loop=sim1.closed_loop("vcm"), tune=("P_int",))
+        GainSpace(loop=_infante("vcm"), tune=("P_int",))
     # a baseline's gains are tunable too (every loop exposes its gain groups)
-    ilos = GainSpace(loop=sim1.closed_loop("ilos"))
+    ilos = GainSpace(loop=_infante("ilos"))
     assert "sigma_i" in ilos.labels() and "k_ep" not in ilos.labels()
     g = ilos.decode(ilos.encode(base) + 0.1, base)
     assert float(g.baseline.Delta) == pytest.approx(float(base.baseline.Delta) * np.exp(0.1))
@@ -103,7 +107,7 @@ def test_alos_gains_are_tunable_with_exact_gradients():
     """Fossen's ALOS baseline: its look-ahead, adaptation gain and heading-loop gains are tuned
     like any loop's, and the loss gradient (through beta_hat's dynamics) matches central
     differences."""
-    space = GainSpace(loop=sim1.closed_loop("alos"))
+    space = GainSpace(loop=_infante("alos"))
     assert {"Delta", "gamma", "k_psi_p", "k_psi_d"} <= set(space.labels())
     assert "sigma_i" not in space.labels() and "k_ei" not in space.labels()
     problem = TuningProblem(space=space, num_steps=40, integrator="euler", timing="sampled")
@@ -138,7 +142,7 @@ def test_checkpointed_loss_gradient_is_the_same(tiny):
 
 def test_symmetry_break_splits_equal_pairs_only():
     space = GainSpace()
-    full = sim1.default_gains()
+    full = loops.infante_gains()
     base = full.vcm  # P_G[1:] == P_Phi[3:] == 0.5
     off = space.symmetry_break(full, eps=0.1)
     g = space.decode(space.encode(full) + off, full).vcm
@@ -162,7 +166,7 @@ def test_symmetry_break_skips_pairs_not_tuned_or_bounded_and_goes_on():
 
     loop = Pairs(controller=base.controller, path=base.path)
     space = GainSpace(loop, tune=("P_G", "P_Phi", "P_int"))
-    full = sim1.default_gains()
+    full = loops.infante_gains()
     full = full._replace(vcm=full.vcm._replace(P_int=jnp.asarray([0.5, 0.0])))
     off = space.symmetry_break(full)
     np.testing.assert_array_equal(off, [0.0, 0.1, 0.0, 0.0, 0.0, 0.0, -0.1, 0.0, 0.0, 0.0])
@@ -171,7 +175,7 @@ def test_symmetry_break_skips_pairs_not_tuned_or_bounded_and_goes_on():
 def test_gain_space_values_are_plain_json_numbers_and_lists():
     """Reports and histories: one-entry groups as numbers, the others as lists (Simulation 1's
     gains, typed in)."""
-    v = GainSpace().values(sim1.default_gains())
+    v = GainSpace().values(loops.infante_gains())
     assert v == {
         "P_G": [1.0, 0.5, 0.5],
         "P_Phi": [1.0, 1.0, 2.0, 0.5, 0.5],
@@ -215,8 +219,8 @@ def test_tiny_tuning_run_lowers_the_loss(tiny):
     assert res.loss < res.history[0]["loss"]
     assert [h["iter"] for h in res.history] == [0, 1, 2, 3]
     gains = TINY.space.decode(jnp.asarray(res.theta), data.base)
-    d = json.loads(json.dumps(sim1.gains_to_json(gains)))
-    back = sim1.gains_from_json(d)  # the file `vcjax simulate --gains` loads
+    d = json.loads(json.dumps(loops.gains_to_json(gains)))
+    back = _infante("vcm").gains_from_json(d)  # the file `vcjax simulate --gains` loads
     for a, b in zip(back.vcm, gains.vcm, strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
@@ -371,7 +375,7 @@ def test_vcjax_tune_end_to_end(tmp_path, capsys):
     assert np.isfinite(s["heldout_loss_before"]) and np.isfinite(s["heldout_loss_after"])
     h = json.loads((out / "history.json").read_text())
     assert len(h["iterations"]) == 3 and "gains" in h["iterations"][0]
-    g = sim1.gains_from_json(json.loads((out / "gains.json").read_text()))
+    g = _infante("vcm").gains_from_json(json.loads((out / "gains.json").read_text()))
     np.testing.assert_allclose(g.vcm.Delta, s["tuned_gains"]["Delta"])
 
 

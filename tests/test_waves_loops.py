@@ -460,15 +460,24 @@ def test_a_calm_sea_is_bit_identical_through_the_tuning_loss():
 
 
 def test_the_experiments_whose_loops_take_waves_take_the_option():
-    from vcjax.experiments import EXPERIMENTS, remus100, sim2
+    import dataclasses
 
-    takes = {n for n, e in EXPERIMENTS.items() if "waves" in dict(e.options)}
+    from vcjax import experiments
+
+    takes = {
+        n
+        for n, e in experiments.EXPERIMENTS.items()
+        if "waves" in {f.name for f in dataclasses.fields(e.options)}
+    }
     assert takes == {"remus100", "sim2"}
-    a = remus100.mission_sea((2.0, 8.0, 90.0), seed=3)
+    remus100, sim2 = experiments.get("remus100"), experiments.get("sim2")
+    a = remus100.scenario("vcm3d", remus100.setup(waves=(2.0, 8.0, 90.0), wave_seed=3))
     b = waves.sea_state(jax.random.PRNGKey(3), 2.0, 8.0, np.pi / 2)
-    assert _same(a, b)
-    sea, depth = sim2.sim2_sea((1.0, 6.0, 0.0))
-    assert depth == sim2.WAVE_ORIGIN_DEPTH and sea.amplitude.shape == (64,)
+    assert _same(a.sea, b) and float(a.origin_depth) == 0.0
+    sc = sim2.scenario("full", sim2.setup(waves=(1.0, 6.0, 0.0)))
+    assert float(sc.origin_depth) == 107.0 and sc.sea.amplitude.shape == (64,)
+    c = waves.sea_state(jax.random.PRNGKey(0), 1.0, 6.0, 0.0)  # --wave-seed: default 0
+    assert _same(sc.sea, c)
 
 
 @pytest.mark.slow

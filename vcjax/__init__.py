@@ -14,8 +14,9 @@ The public API, by stage of the data flow (each module's docstring has the detai
   type, disturbances wrapping any loop; :mod:`vcjax.metrics` — one metrics function for all.
 * :mod:`vcjax.sweep` — Monte-Carlo batches of any loop; :mod:`vcjax.currents` — current models.
 * :mod:`vcjax.config` — one configuration system (sections, types, units, older spellings).
-* :mod:`vcjax.experiments` — the presets of ``vcjax simulate`` (the paper's two experiments,
-  the REMUS 100 mission, the arm demo), on top of the loops; :mod:`vcjax.plots` — figures.
+* :mod:`vcjax.experiments` — the presets of ``vcjax simulate`` as data (``Experiment``: the
+  paper's two experiments, the REMUS 100 mission, the arm demo), on top of the loops;
+  :mod:`vcjax.plots` — figures.
 * :mod:`vcjax.identify` — ``vcjax fit``: plant parameters from logged runs by multiple shooting.
 
 The library never enables float64 and never jits for you.

@@ -99,6 +99,63 @@ def _add_overwrite(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_experiment_flags(p: argparse.ArgumentParser, exp, out: str) -> None:
+    """The flags of one experiment (:mod:`vcjax.experiments`): the common ones, ``--gains`` and
+    ``--current`` where it takes them, and one per field of its typed options
+    (:func:`vcjax.experiments.flags`)."""
+    from vcjax.experiments import flags
+
+    p.add_argument("--out", default=out, help=f"output directory (default: {out})")
+    if exp.gains:
+        p.add_argument(
+            "--gains",
+            help="JSON file of gains (e.g. the gains.json `vcjax tune` writes for the vehicle)",
+        )
+    p.add_argument("--horizon", type=float, help=f"simulated time [s] (default {exp.horizon:g})")
+    p.add_argument("--dt", type=float, help=f"RK4 step [s] (default {exp.dt:g})")
+    if exp.current is not None:
+        p.add_argument(
+            "--current",
+            type=float,
+            nargs=2,
+            metavar=("V_N", "V_E"),
+            help="ocean current, north and east [m/s] (default "
+            f"{exp.current[0]:g} {exp.current[1]:g})",
+        )
+    for flag, kw in flags(exp.options):
+        p.add_argument(flag, **kw)
+    p.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    p.add_argument(
+        "--max-steps", type=int, metavar="N", help="allow up to N steps (default 10,000,000)"
+    )
+    _add_overwrite(p)
+    p.set_defaults(experiment=exp.name, func=commands.simulate)
+
+
+def _add_simulate(sub) -> None:
+    """``vcjax simulate NAME``: one subcommand per experiment of the registry, its flags
+    generated from the experiment."""
+    from vcjax.experiments import EXPERIMENTS
+
+    s = sub.add_parser("simulate", help="run one of the paper's experiments and write figures")
+    names = s.add_subparsers(dest="experiment", metavar="EXPERIMENT", required=True)
+    for e in EXPERIMENTS.values():
+        p = names.add_parser(e.name, help=e.summary, description=e.summary)
+        _add_experiment_flags(p, e, f"out/{e.name}")
+
+
+def _add_demo(sub) -> None:
+    """``vcjax demo``: ``vcjax simulate arm`` writing to ``out/demo`` by default."""
+    from vcjax.experiments import EXPERIMENTS
+
+    d = sub.add_parser(
+        "demo",
+        help="generic engine demo: a two-link arm whose end effector is held on a circle "
+        "(vcjax simulate arm)",
+    )
+    _add_experiment_flags(d, EXPERIMENTS["arm"], "out/demo")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="vcjax",
@@ -107,85 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
-    from vcjax.experiments import EXPERIMENTS
-
-    s = sub.add_parser("simulate", help="run one of the paper's experiments and write figures")
-    s.add_argument(
-        "experiment",
-        choices=sorted(EXPERIMENTS),
-        help="; ".join(f"{e.name}: {e.summary}" for e in EXPERIMENTS.values()),
-    )
-    s.add_argument("--out", help="output directory (default: out/EXPERIMENT)")
-    s.add_argument(
-        "--gains",
-        help="JSON file of gains (e.g. the gains.json `vcjax tune` writes for the vehicle)",
-    )
-    s.add_argument(
-        "--horizon",
-        type=float,
-        help="simulated time [s] ("
-        + ", ".join(f"{e.name}: {e.horizon:g}" for e in EXPERIMENTS.values())
-        + ")",
-    )
-    s.add_argument("--dt", type=float, help="RK4 step [s] (default 0.05)")
-    s.add_argument(
-        "--current",
-        type=float,
-        nargs=2,
-        metavar=("V_N", "V_E"),
-        help="ocean current, north and east [m/s] ("
-        + ", ".join(
-            f"{e.name}: {e.current[0]:g} {e.current[1]:g}"
-            for e in EXPERIMENTS.values()
-            if e.current
-        )
-        + "); not for experiments without a current",
-    )
-    s.add_argument(
-        "--edd",
-        choices=["paper", "implied"],
-        help="sim1 only: which e_ddot enters psi_d_ddot (paper = reference mode; default paper)",
-    )
-    s.add_argument(
-        "--timing",
-        choices=["continuous", "sampled"],
-        help="sim1 only: controller evaluated at every RK4 stage, or once per step and held "
-        "(default continuous)",
-    )
-    s.add_argument(
-        "--actuation",
-        choices=["underactuated", "full"],
-        help="sim2 only: headline mode (the paper: underactuated, the default); the other is "
-        "run for comparison",
-    )
-    s.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
-    s.add_argument(
-        "--diverge-e",
-        type=float,
-        metavar="M",
-        help="sim1/sim2/remus100: a run more than M metres off the path is unhealthy (default: "
-        "sim1/sim2 25%% of u_d x horizon, at least 50 m; remus100 25 m from the survey path)",
-    )
-    s.add_argument(
-        "--waves",
-        type=float,
-        nargs=3,
-        metavar=("HS", "TP", "DIR_DEG"),
-        help="remus100/sim2: a random JONSWAP sea (64 components, long-crested): significant "
-        "height HS [m], peak period TP [s], direction the waves travel towards DIR_DEG [deg, "
-        "clockwise from north]",
-    )
-    s.add_argument(
-        "--wave-seed",
-        type=int,
-        metavar="N",
-        help="with --waves: seed of the sea's frequencies and phases (default 0)",
-    )
-    s.add_argument(
-        "--max-steps", type=int, metavar="N", help="allow up to N steps (default 10,000,000)"
-    )
-    _add_overwrite(s)
-    s.set_defaults(func=commands.simulate)
+    _add_simulate(sub)
 
     w = sub.add_parser(
         "sweep", help="Monte-Carlo sweep of any registered closed loop (TOML; default Sim. 1)"
@@ -231,15 +210,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_overwrite(f)
     f.set_defaults(func=commands.fit)
 
-    d = sub.add_parser(
-        "demo",
-        help="generic engine demo: a two-link arm whose end effector is held on a circle",
-    )
-    d.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
-    d.add_argument("--horizon", type=float, default=6.0, help="simulated time [s]")
-    d.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
-    _add_overwrite(d)
-    d.set_defaults(func=commands.demo)
+    _add_demo(sub)
 
     n = sub.add_parser(
         "launch",
@@ -273,7 +244,11 @@ _DISTRIBUTED = ("sweep", "tune")
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra and getattr(args, "experiment", None) is not None:  # simulate NAME, demo
+        return fail(commands.flags_refused(args, extra))
+    if extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
     if not getattr(args, "func", None):
         parser.print_help()
         return 0

@@ -1,7 +1,8 @@
 """The bodies of ``vcjax``'s commands (:mod:`vcjax.cli` parses the command line once and
-dispatches here): ``simulate`` through the experiments registry, ``sweep``, ``tune``, ``fit``,
-``demo``; and what they share -- preparing and locking ``--out``, recording ``run.json``, one
-line and exit status 2 for a bad input (:class:`CLIError`), interruptible long loops."""
+dispatches here): ``simulate`` (and ``demo``, its ``arm`` experiment) through the experiments
+registry, ``sweep``, ``tune``, ``fit``; and what they share -- preparing and locking ``--out``,
+recording ``run.json``, one line and exit status 2 for a bad input (:class:`CLIError`),
+interruptible long loops."""
 
 from __future__ import annotations
 
@@ -10,7 +11,16 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["CLIError", "demo", "simulate", "sweep", "tune", "fit", "fail", "release_outputs"]
+__all__ = [
+    "CLIError",
+    "flags_refused",
+    "simulate",
+    "sweep",
+    "tune",
+    "fit",
+    "fail",
+    "release_outputs",
+]
 
 
 def _enable_x64(flag: bool) -> None:
@@ -77,109 +87,100 @@ def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
     return n
 
 
-def demo(args) -> int:
-    from vcjax.experiments import ARM
-
-    _time_grid(args.horizon, ARM.dt)
-    out = _prepare(args, args.out, "demo")
-    _enable_x64(args.x64)
-    files = ARM.load().arm_demo(out, horizon=args.horizon)
-    for f in files:
-        print(f"wrote {f}")
-    _record(out, "demo", args)
-    return 0
-
-
 def fail(msg: str) -> int:
     print(f"vcjax: {msg}", file=sys.stderr)
     return 2
 
 
-#: options of ``vcjax simulate`` that only some experiments take (Experiment.options)
-_OWN_OPTIONS = ("edd", "timing", "actuation", "diverge_e", "waves", "wave_seed")
+def _where(args) -> str:
+    """How the errors of ``vcjax simulate NAME`` (or ``vcjax demo``) name the command."""
+    return "demo" if args.command == "demo" else f"simulate {args.experiment}"
 
 
-def _check_waves(args, where: str, dt: float) -> None:
-    """``--waves HS TP DIR_DEG`` and ``--wave-seed`` of ``vcjax simulate`` (one line, exit 2)."""
-    from vcjax.runtime import sizing
+def flags_refused(args, extra: list[str]) -> str:
+    """The one line refusing the flags ``extra`` that experiment ``args.experiment`` does not
+    take (its flags are generated from its options, :mod:`vcjax.experiments`)."""
+    from vcjax.experiments import EXPERIMENTS, flags
 
-    if args.wave_seed is not None:
-        if args.waves is None:
-            raise CLIError(f"{where}: --wave-seed needs --waves HS TP DIR_DEG")
-        try:
-            sizing.check_seed("--wave-seed", args.wave_seed, args.x64)
-        except ValueError as err:
-            raise CLIError(f"{where}: {err}") from None
-    if args.waves is None:
-        return
-    hs, tp, direction = args.waves
-    if not all(math.isfinite(v) for v in args.waves):
-        raise CLIError(f"{where}: --waves: contains NaN or inf, got {list(args.waves)}")
-    if hs < 0:
-        raise CLIError(f"{where}: --waves: HS must be >= 0 [m], got {hs:g}")
-    if tp < 40.0 * dt:
-        raise CLIError(
-            f"{where}: --waves: TP must be >= 40 dt = {40.0 * dt:g} s (the shortest component, "
-            f"TP / 4, needs 10 steps), got {tp:g}"
-        )
+    exp = EXPERIMENTS[args.experiment]
+    where = _where(args)
+    flag = next((a for a in extra if a.startswith("--")), None)
+    if flag is None:
+        return f"{where}: unrecognized arguments: {' '.join(extra)}"
+    flag = flag.split("=", 1)[0]
+    if flag == "--current":
+        return f"{where}: --current is not supported for {exp.name} (no ocean current)"
+    if flag == "--gains":
+        return f"{where}: --gains is not supported for {exp.name}"
+    elsewhere = {f for e in EXPERIMENTS.values() for f, _ in flags(e.options)}
+    if flag in elsewhere:
+        own = ", ".join(f for f, _ in flags(exp.options)) or "none"
+        return f"{where}: {flag} does not apply to {exp.name} (its own options: {own})"
+    return f"{where}: unrecognized arguments: {' '.join(extra)}"
 
 
-def simulate(args) -> int:
-    """``vcjax simulate NAME``: one experiment of the registry (:mod:`vcjax.experiments`)."""
-    import json
-
-    from vcjax.experiments import get
-
-    exp = get(args.experiment)
-    where = f"simulate {exp.name}"
-    own = dict(exp.options)
-    for opt in _OWN_OPTIONS:
-        if getattr(args, opt) is not None and opt not in own:
-            takes = ", ".join("--" + o.replace("_", "-") for o in own) or "none"
-            flag = "--" + opt.replace("_", "-")
-            return fail(f"{where}: {flag} does not apply to {exp.name} (its own options: {takes})")
-    if args.current is not None and exp.current is None:
-        return fail(f"{where}: --current is not supported for {exp.name} (no ocean current)")
-    if args.gains is not None and not exp.gains:
-        return fail(f"{where}: --gains is not supported for {exp.name}")
+def _setup(exp, args, where: str):
+    """The run's :class:`~vcjax.experiments.Setup` from the command line, every value checked
+    (:class:`CLIError`, one line) before anything is written."""
     current = None if exp.current is None else tuple(args.current or exp.current)
     if current is not None and not all(math.isfinite(c) for c in current):
-        return fail(f"{where}: --current: contains NaN or inf, got {list(current)}")
+        raise CLIError(f"{where}: --current: contains NaN or inf, got {list(current)}")
     horizon = exp.horizon if args.horizon is None else args.horizon
     dt = exp.dt if args.dt is None else args.dt
     if args.max_steps is not None and args.max_steps < 1:
         raise CLIError(f"--max-steps: expected an integer >= 1, got {args.max_steps}")
     _time_grid(horizon, dt, args.max_steps or 10_000_000)
-    if args.diverge_e is not None and not (math.isfinite(args.diverge_e) and args.diverge_e > 0):
-        raise CLIError(f"--diverge-e: expected a finite bound > 0 [m], got {args.diverge_e:g}")
-    _check_waves(args, where, dt)
-    out = _prepare(args, args.out or f"out/{exp.name}", where)
-    _enable_x64(args.x64)
-    options = {
-        k: default if getattr(args, k) is None else getattr(args, k) for k, default in own.items()
+    import dataclasses
+
+    given = {
+        f.name: getattr(args, f.name)
+        for f in dataclasses.fields(exp.options)
+        if getattr(args, f.name) is not None
     }
-    mod = exp.load()
+    given = {k: tuple(v) if isinstance(v, list) else v for k, v in given.items()}
+    setup = exp.setup(horizon, dt, current, **given)
+    try:
+        setup.options.check(dt, args.x64)
+    except ValueError as err:
+        raise CLIError(f"{where}: {err}") from None
+    return setup
+
+
+def simulate(args) -> int:
+    """``vcjax simulate NAME`` and ``vcjax demo`` (``simulate arm``): one experiment of the
+    registry (:mod:`vcjax.experiments`)."""
+    import json
+
+    from vcjax.experiments import get
+
+    exp = get(args.experiment)
+    where = _where(args)
+    setup = _setup(exp, args, where)
+    _enable_x64(args.x64)
+    gains_file = getattr(args, "gains", None)
     gains = None
-    if args.gains:
+    if gains_file:
         try:
-            gains = mod.load_gains(json.loads(Path(args.gains).read_text()), **options)
+            gains = exp.load_gains(json.loads(Path(gains_file).read_text()), setup.options)
         except (OSError, json.JSONDecodeError, ValueError) as err:
-            return fail(f"{where}: cannot use gains file {args.gains}: {err}")
-    result = mod.run_experiment(out, gains, horizon=horizon, dt=dt, current=current, **options)
-    _print_metrics(result["printed"])
+            return fail(f"{where}: cannot use gains file {gains_file}: {err}")
+    out = _prepare(args, args.out, where)
+    result = exp.run(out, gains, setup)
+    if result["printed"]:
+        _print_metrics(result["printed"])
     for f in result["files"]:
         print(f"wrote {f}")
     config = {
         "experiment": exp.name,
-        "horizon": horizon,
-        "dt": dt,
-        "current": current,
-        "gains": args.gains,
+        "horizon": setup.horizon,
+        "dt": setup.dt,
+        "current": setup.current,
+        "gains": gains_file,
         "gains_values": gains,
         "out": str(out),
         "x64": args.x64,
-        **options,
-        **result.get("config", {}),
+        **setup.options.record(),
+        **result["config"],
     }
     _record(out, where, args, config=config)
     for line in result["unhealthy"]:

@@ -79,13 +79,24 @@ def parse_args(argv=None):
 # ----------------------------------------------------------------------------- worker side
 
 
-def _simulate_fn():
-    """``simulate(variant, gains, scenario, config, dt)`` of whichever vcjax is importable."""
+def _simulation_1():
+    """``(gains, scenario, simulate)`` of Simulation 1 in whichever vcjax is importable:
+    ``simulate(variant, gains, scenario, config, dt)`` (not jitted)."""
     try:
-        from vcjax.experiments import sim1
-    except ImportError:  # an older revision: the experiment under its former name
-        from vcjax import sim1  # type: ignore[no-redef]
-    return sim1
+        from vcjax import experiments, loops
+
+        sim1 = experiments.get("sim1")
+    except (ImportError, AttributeError):  # an older revision: the parallel module API
+        try:
+            from vcjax.experiments import sim1
+        except ImportError:  # older still: the experiment under its former name
+            from vcjax import sim1  # type: ignore[no-redef]
+        return sim1.default_gains(), sim1.sim1_scenario(), sim1.simulate
+
+    def simulate(variant, gains, scenario, config, dt):
+        return loops.simulate(sim1.loop(variant), gains, scenario, config, dt)
+
+    return sim1.default_gains("vcm"), sim1.scenario(), simulate
 
 
 def measure(case: dict) -> dict:
@@ -105,12 +116,11 @@ def measure(case: dict) -> dict:
 
     if case["kind"] == "sweep":
         return _measure_sweep(case)
-    sim1 = _simulate_fn()
-    gains, sc = sim1.default_gains(), sim1.sim1_scenario()
+    gains, sc, simulate = _simulation_1()
     cfg = RolloutConfig(num_steps=case["steps"], integrator="rk4", timing=case["timing"])
 
     def one(g, s, dt):
-        tr = sim1.simulate(C.VARIANT, g, s, cfg, dt)
+        tr = simulate(C.VARIANT, g, s, cfg, dt)
         return jnp.mean(jnp.abs(tr.aux.eps[:, 1]))
 
     if case["kind"] == "single":

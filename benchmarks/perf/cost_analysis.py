@@ -151,7 +151,6 @@ def components(batch: int, iters: int, repeats: int) -> list[dict]:
 
     from vcjax import paths
     from vcjax.control.vcm import VCMConfig, vcm_law, vcm_params, vcm_state
-    from vcjax.experiments import sim1
     from vcjax.vehicles import infante
 
     gains, sc = C.base_inputs()
@@ -166,7 +165,7 @@ def components(batch: int, iters: int, repeats: int) -> list[dict]:
     u_cmd = jnp.broadcast_to(jnp.asarray([500.0, 0.1], dt), (batch, 2))
     Y, N = infante.rudder_gains(veh, jnp.array([1.0, 0.0, 0.0], dt))
     cp = vcm_params(gains.vcm, infante.design_model(veh), sc.path, u_d=sc.u_d, k_rudder=Y / N)
-    cfg = VCMConfig(path=sim1.PATH, actuation="underactuated", integral=True)
+    cfg = VCMConfig(path=paths.LINE, actuation="underactuated", integral=True)
     z = jax.vmap(lambda w: vcm_state(varpi0=0.0)._replace(varpi=w))(scb.eta0[:, 1])
 
     def plant_body(s):
@@ -196,7 +195,7 @@ def components(batch: int, iters: int, repeats: int) -> list[dict]:
         return xs._replace(nu=xs.nu + eps_ * jnp.stack([y, n, y], axis=1)), a
 
     def frame_body(w):
-        fr = jax.vmap(lambda w1: paths.path_frame(sim1.PATH, sc.path, w1))(w)
+        fr = jax.vmap(lambda w1: paths.path_frame(paths.LINE, sc.path, w1))(w)
         return w + eps_ * (fr.psi_p + fr.dpsi_dw + fr.d2psi_dw2 + fr.speed_bar + fr.p_bar[:, 0])
 
     M = infante.mass_matrix(veh)

@@ -103,7 +103,7 @@ def loss_fn(num_steps: int, checkpoint: bool, every: int = 1, timing: str = "con
     import jax
     import jax.numpy as jnp
 
-    from vcjax.experiments import sim1
+    from vcjax import experiments, loops
     from vcjax.rollout import RolloutConfig
 
     cfg = RolloutConfig(
@@ -113,10 +113,11 @@ def loss_fn(num_steps: int, checkpoint: bool, every: int = 1, timing: str = "con
         checkpoint_every=every,
         timing=timing,
     )
-    base = sim1.default_gains()
+    sim1 = experiments.get("sim1")
+    base, loop = sim1.default_gains(C.VARIANT), sim1.loop(C.VARIANT)
 
     def one(pm, sc, dt):
-        tr = sim1.simulate(C.VARIANT, base._replace(vcm=pm), sc, cfg, dt)
+        tr = loops.simulate(loop, base._replace(vcm=pm), sc, cfg, dt)
         return jnp.sum(tr.aux.eps**2) * dt
 
     def loss(pm, sc, dt):

@@ -1,7 +1,6 @@
-"""Throughput of every closed loop: each (vehicle, controller) of the scenario layer's registry
-(:mod:`vcjax.loops`), plus Simulation 2's ODIN-class loop (:mod:`vcjax.experiments.sim2`)
-and the REMUS 100 survey loop (:mod:`vcjax.experiments.remus100`) while they are not in the
-registry; single trajectory, a batch on one core, the same batch on every core.
+"""Throughput of every closed loop: each (vehicle, controller) of the loop registry
+(:mod:`vcjax.loops`: INFANTE, ODIN, REMUS 100, the arm); single trajectory, a batch on one
+core, the same batch on every core.
 
 The process splits the host CPU into ``--cpu-devices`` JAX devices (default: one per core,
 :mod:`vcjax.runtime.devices`) before JAX starts. ``vmap`` rows run the batch on one device
@@ -103,71 +102,6 @@ def registry_cases(timing: str, names=None):
     return out
 
 
-def odin_case(timing: str):
-    """Simulation 2's ODIN-class loop (helix, 8 thrusters, underactuated) as a case."""
-    import jax
-    import jax.numpy as jnp
-
-    from vcjax.experiments import sim2
-    from vcjax.rollout import RolloutConfig, rollout
-    from vcjax.vehicles import odin
-
-    cfg2 = sim2.Sim2Config()
-    gains = sim2.default_gains(cfg2.actuation)
-    ctrl_fn = sim2.make_controller(cfg2)
-    sc0 = sim2.sim2_scenario()
-
-    def one(sc, n):
-        rc = RolloutConfig(num_steps=n, integrator="rk4", timing=timing)
-        x0 = odin.odin_state(sc.eta0, sc.nu0, dtype=sc.eta0.dtype)
-        args = odin.OdinArgs(vehicle=sc.vehicle, tau_dist=sc.tau_dist, v_c=sc.v_c)
-        ctrl = sim2._ctrl_params(gains, sc)
-        tr = rollout(odin.odin_plant, ctrl_fn, rc, args, ctrl, x0, sim2._initial_z(sc), C.DT)
-        return jnp.mean(jnp.abs(tr.aux.vcm.eps[:, 1]))
-
-    def make_batch(batch):
-        d_xy, cur = _offsets(batch, np.dtype(sc0.eta0.dtype))
-        eta0 = jnp.asarray(sc0.eta0)[None, :].repeat(batch, 0).at[:, :2].add(jnp.asarray(d_xy))
-        axes = jax.tree_util.tree_map(lambda _: None, sc0)._replace(eta0=0, v_c=0)
-        return sc0._replace(eta0=eta0, v_c=jnp.asarray(cur)), axes
-
-    return ("odin/vcm (sim2)", one, sc0, make_batch)
-
-
-def remus_case(timing: str):
-    """The REMUS 100 survey loop of :mod:`vcjax.experiments.remus100` (``vcm3d_ilos``: 3-D VCM
-    with the integral LOS angle, PVS's plant) as a case; its controller is sampled (as in the
-    module)."""
-    import jax.numpy as jnp
-
-    from vcjax.experiments import remus100 as sr
-    from vcjax.rollout import RolloutConfig, rollout
-    from vcjax.vehicles import remus100 as r100
-
-    variant = "vcm3d_ilos"
-    path, coeffs = sr.mission_path()
-    p, dm = sr.vehicle()
-    params = sr.controller_params(variant, coeffs, dm)
-    ctrl = sr.make_controller(variant, path)
-    z0 = sr.initial_controller_state(variant)
-    x00 = sr.initial_state()
-    sc0 = (x00.eta, jnp.asarray([0.0, 0.3], x00.eta.dtype))
-
-    def one(sc, n):
-        eta0, v_c = sc
-        rc = RolloutConfig(num_steps=n, integrator="rk4", timing="sampled")
-        args = r100.remus100_args(p, v_c=v_c)
-        tr = rollout(r100.remus100_plant, ctrl, rc, args, params, x00._replace(eta=eta0), z0, C.DT)
-        return jnp.mean(jnp.abs(tr.x.eta[:, 1]))
-
-    def make_batch(batch):
-        d_xy, cur = _offsets(batch, np.dtype(x00.eta.dtype))
-        eta0 = jnp.asarray(x00.eta)[None, :].repeat(batch, 0).at[:, :2].add(jnp.asarray(d_xy))
-        return (eta0, jnp.asarray(cur[:, :2])), (0, 0)
-
-    return ("remus100/vcm3d_ilos (sim_remus100)", one, sc0, make_batch)
-
-
 def _time(name, kind, f, inputs, batch, steps, cores, args):
     lower_s, compile_s, comp = C.compile_timed(f, *inputs)
     run_s = C.best_of(lambda: comp(*inputs), args.repeats)
@@ -199,12 +133,6 @@ def main(argv=None):
 
     n_dev = len(jax.devices())
     cases = registry_cases(args.timing, args.loops)
-    from vcjax import loops as _loops
-
-    if "odin" not in _loops.vehicles() and (not args.loops or "odin" in args.loops):
-        cases.append(odin_case(args.timing))
-    if "remus100" not in _loops.vehicles() and (not args.loops or "remus100" in args.loops):
-        cases.append(remus_case(args.timing))
     rows = []
     mesh = Mesh(np.asarray(jax.devices()), ("scenarios",))
     sharding = NamedSharding(mesh, PartitionSpec("scenarios"))

@@ -46,19 +46,20 @@ def main(argv=None):
     import jax.numpy as jnp
     import numpy as np
 
-    from vcjax.experiments import sim1
+    from vcjax import experiments, loops
     from vcjax.rollout import RolloutConfig
 
     B, N = args.batch, args.steps
     gains, sc = C.base_inputs()
     pm, scb = gains.vcm, C.batched_scenario(sc, B)
     axes = C.scenario_axes(scb)
-    base = sim1.default_gains()
+    sim1 = experiments.get("sim1")
+    base, loop = sim1.default_gains(C.VARIANT), sim1.loop(C.VARIANT)
     scs = C.shard_batch(scb, len(jax.devices()))
 
     def one(g, s, dt):
         cfg = RolloutConfig(num_steps=N, integrator="rk4", timing="continuous")
-        tr = sim1.simulate(C.VARIANT, base._replace(vcm=g), s, cfg, dt)
+        tr = loops.simulate(loop, base._replace(vcm=g), s, cfg, dt)
         return jnp.sum(tr.aux.eps**2) * dt
 
     def shared(g, s, dt):

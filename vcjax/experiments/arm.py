@@ -14,17 +14,15 @@ exact exponential and ``metrics.json`` reports (``phi_decay_error``).
 
 from __future__ import annotations
 
-from pathlib import Path
+import dataclasses
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops, metrics
-from vcjax.rollout import RolloutConfig
-from vcjax.runtime.outputs import write_json_atomic
+from vcjax.experiments.base import Experiment
 
-__all__ = ["arm_demo", "demo_run", "demo_gains", "ARM_DT", "ARM_SPEED", "Q0", "QD0"]
+__all__ = ["ARM", "Arm", "ARM_DT", "ARM_SPEED", "Q0", "QD0", "REPORTED", "decay_extra"]
 
 #: RK4 step of the arm demo [s].
 ARM_DT = 2e-3
@@ -34,25 +32,6 @@ ARM_SPEED = 0.5
 Q0, QD0 = (0.35, 1.3), (0.2, -0.1)
 #: what ``metrics.json`` holds: the generic metrics of the run and the demo's extra
 REPORTED = ("ss_abs_e", "max_abs_e", "iae_e", "max_abs_torque", "sat_fraction", "phi_decay_error")
-
-
-def demo_gains() -> loops.EngineGains:
-    """``P_G = (2, 2)``, ``P_Phi = (1.5, 3)`` [1/s] (the two rows decay at different rates, so
-    the figure tells them apart), ``sigma = 1`` [1/s]."""
-    return loops.engine_gains(P_G=(2.0, 2.0), P_Phi=(1.5, 3.0), sigma=1.0)
-
-
-_run = jax.jit(loops.simulate, static_argnames=("loop", "config"))
-
-
-def demo_run(horizon: float = 6.0, dt: float = ARM_DT):
-    """``(loop, scenario, gains, trajectory)`` of the demo."""
-    loop = loops.make_loop("arm", "vcm")
-    _, coeffs = loops.default_path("arm")
-    sc = loops.make_scenario(loop, coeffs, eta0=Q0, nu0=QD0, u_d=ARM_SPEED)
-    gains = demo_gains()
-    traj = _run(loop, gains, sc, RolloutConfig(num_steps=int(round(horizon / dt))), dt)
-    return loop, sc, gains, jax.device_get(traj)
 
 
 def decay_extra(traj, gains) -> dict:
@@ -65,21 +44,61 @@ def decay_extra(traj, gains) -> dict:
     return {"phi_decay_error": lambda sig, win: jnp.max(jnp.abs(phi - exact) / jnp.abs(phi[0]))}
 
 
-def arm_demo(out: Path, horizon: float = 6.0, dt: float = ARM_DT) -> list[Path]:
-    """Simulate the arm demo; write ``metrics.json`` and ``arm_demo.png`` into ``out``;
-    returns the written files."""
-    from vcjax.plots.arm import arm_figure
+@dataclasses.dataclass(frozen=True)
+class Arm(Experiment):
+    """The arm demo: one run (variant ``vcm``) of the ``arm`` loop on its default circle."""
 
-    loop, sc, gains, traj = demo_run(horizon, dt)
-    sig = loop.signals(traj, sc)
-    m = metrics.run_metrics(sig, traj.finite, dt, extras=decay_extra(traj, gains))
-    out = Path(out)
-    result = {k: float(m[k]) for k in REPORTED} | {"healthy": bool(~m["diverged"])}
-    write_json_atomic(out / "metrics.json", result)
-    ee = np.asarray(sig.pos)[:, :2]
-    center, radius = np.asarray(sc.path.center)[:2], float(sc.path.radius)
-    e = np.asarray(sig.eps)[:, 1]
-    f = arm_figure(
-        traj.t, ee, traj.aux.Phi, e, traj.u, gains.P_Phi, center, radius, out / "arm_demo.png"
-    )
-    return [out / "metrics.json", f]
+    def variants(self, options=None) -> tuple[str, ...]:
+        return ("vcm",)
+
+    def loop(self, variant: str = "vcm", options=None) -> loops.Loop:
+        return loops.make_loop("arm", variant)
+
+    def scenario(self, variant: str = "vcm", setup=None) -> loops.Scenario:
+        return loops.make_scenario(self.loop(variant), eta0=Q0, nu0=QD0, u_d=ARM_SPEED)
+
+    def default_gains(self, variant: str = "vcm", options=None) -> loops.EngineGains:
+        """``P_G = (2, 2)``, ``P_Phi = (1.5, 3)`` [1/s] (the two rows decay at different rates,
+        so the figure tells them apart), ``sigma = 1`` [1/s]."""
+        return loops.engine_gains(P_G=(2.0, 2.0), P_Phi=(1.5, 3.0), sigma=1.0)
+
+    def metrics(self, outcome, setup) -> dict:
+        """:data:`REPORTED` and ``healthy`` (no state diverged)."""
+        traj = outcome.traj
+        sig = outcome.loop.signals(traj, outcome.scenario)
+        m = metrics.run_metrics(sig, traj.finite, setup.dt, extras=decay_extra(traj, outcome.gains))
+        return {k: float(m[k]) for k in REPORTED} | {"healthy": bool(~m["diverged"])}
+
+    def report(self, results, setup) -> dict:
+        return results["vcm"]
+
+    def label(self, variant: str) -> str:
+        return "the two-link arm"
+
+    def printed(self, results) -> None:
+        return None
+
+    def unhealthy(self, results, outcomes, setup) -> list[str]:
+        bad = not results["vcm"]["healthy"]
+        return ["arm: a non-finite or runaway state (see metrics.json)"] if bad else []
+
+    def figures(self, outcomes, setup, out):
+        from vcjax.plots.arm import arm_figure
+
+        o = outcomes["vcm"]
+        traj, sc = o.traj, o.scenario
+        sig = o.loop.signals(traj, sc)
+        ee = np.asarray(sig.pos)[:, :2]
+        center, radius = np.asarray(sc.path.center)[:2], float(sc.path.radius)
+        e = np.asarray(sig.eps)[:, 1]
+        png = out / "arm_demo.png"
+        return [arm_figure(traj.t, ee, traj.aux.Phi, e, traj.u, o.gains.P_Phi, center, radius, png)]
+
+
+ARM = Arm(
+    "arm",
+    "two-link arm drawing a circle with the generic engine (vcjax demo)",
+    horizon=6.0,
+    dt=ARM_DT,
+    gains=False,
+)

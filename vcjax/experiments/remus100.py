@@ -7,7 +7,7 @@ plant is :func:`vcjax.vehicles.remus100.remus100_plant` (PythonVehicleSimulator'
 actuator limits and lags); every law's body force goes through the same actuator map
 (:func:`vcjax.vehicles.remus100_design.actuator_map`). The controller is sampled (zero-order
 hold at the step ``dt``), the plant integrated by RK4. With ``--waves HS TP DIR_DEG`` every
-variant meets the same random sea (:func:`mission_sea`) on top of the current.
+variant meets the same random sea (:mod:`vcjax.experiments.seas`) on top of the current.
 
 Variants (:data:`VARIANTS`):
 
@@ -19,7 +19,10 @@ Variants (:data:`VARIANTS`):
 * ``alos3d``: ALOS3D guidance (Fossen & Aguiar 2024) + PID heading/pitch autopilots + surge PI;
 * ``pvs_pid``: heading/depth PID autopilots with plain LOS angles (PVS-like sanity run).
 
-Metrics (:func:`mission_metrics`): :func:`vcjax.metrics.run_metrics` with the mission's extras
+Options (``vcjax simulate remus100``): ``--diverge-e`` (default :data:`OFF_PATH_M`),
+``--waves``/``--wave-seed``.
+
+Metrics (:meth:`Remus100.metrics`): :func:`vcjax.metrics.run_metrics` with the mission's extras
 (:func:`mission_extras`): the 3-D distance to the path is measured geometrically (nearest point
 of a dense polyline of the path, :func:`vcjax.metrics.polyline_nearest`), independent of each
 law's own error signals.
@@ -27,30 +30,27 @@ law's own error signals.
 
 from __future__ import annotations
 
-from pathlib import Path
+import dataclasses
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops, metrics, paths
-from vcjax.experiments.seas import option_sea, option_sea_record
+from vcjax.experiments.base import Experiment, PathBound, option
+from vcjax.experiments.seas import WaveOptions, option_sea, option_sea_record
 from vcjax.loops.remus100 import REMUS_CONTROLLERS
-from vcjax.rollout import RolloutConfig
-from vcjax.runtime.outputs import write_json_atomic
 
 __all__ = [
+    "REMUS100",
+    "Remus100",
+    "Remus100Options",
     "VARIANTS",
     "LABELS",
-    "mission_path",
-    "mission_scenario",
-    "mission_sea",
-    "simulate",
+    "REPORTED",
+    "OFF_PATH_M",
     "mission_geometry",
     "mission_extras",
-    "mission_metrics",
-    "REPORTED",
-    "run_remus100",
 ]
 
 VARIANTS = REMUS_CONTROLLERS
@@ -61,60 +61,8 @@ LABELS = {
     "alos3d": "ALOS3D + PID autopilots",
     "pvs_pid": "PID autopilots, plain LOS",
 }
-
-
-def mission_path(leg=250.0, radius=30.0, n_legs=4, depth=15.0, descent=150.0, start_depth=1.0):
-    """The survey path ``(path, coeffs)`` (a :func:`vcjax.paths.lawnmower`)."""
-    return paths.lawnmower((0.0, 0.0, start_depth), leg, radius, n_legs, depth, descent)
-
-
-def mission_scenario(
-    variant, current=(0.0, 0.3), initial=None, coeffs=None, u_d=1.5, waves=None, wave_seed=0
-):
-    """``(loop, scenario)`` of the mission for one controller of the ``remus100`` loop.
-
-    ``current``: (2,) NED water velocity ``[north, east]`` [m/s] (default: 0.3 m/s towards east,
-    across the legs); ``initial``: the loop's ``initial_keys`` (default: 3 m east of the start,
-    1 m deep, heading north at 1.5 m/s); ``waves``: ``(hs [m], tp [s], direction [deg])`` of a
-    random sea (:func:`mission_sea`) or None.
-    """
-    loop = loops.make_loop("remus100", variant)
-    coeffs = mission_path()[1] if coeffs is None else coeffs
-    sea = None if waves is None else mission_sea(waves, wave_seed)
-    sc = loops.make_scenario(loop, coeffs, initial=initial, current=current, u_d=u_d, sea=sea)
-    return loop, sc
-
-
-def mission_sea(waves, seed=0):
-    """The sea of ``vcjax simulate remus100 --waves HS TP DIR_DEG``
-    (:func:`vcjax.experiments.seas.option_sea`: long-crested JONSWAP, ``gamma = 3.3``, 64
-    components, from ``PRNGKey(seed)``); the mean free surface at NED depth 0."""
-    return option_sea(waves, seed)
-
-
-_run = jax.jit(loops.simulate, static_argnames=("loop", "config"))
-
-
-def simulate(
-    variant,
-    horizon=880.0,
-    dt=0.05,
-    current=(0.0, 0.3),
-    initial=None,
-    gains=None,
-    waves=None,
-    wave_seed=0,
-):
-    """One closed-loop run (controller sampled at ``dt``, RK4 plant; ``waves``: see
-    :func:`mission_scenario`); returns ``(trajectory, (path, coeffs))``."""
-    loop, sc = mission_scenario(variant, current, initial, waves=waves, wave_seed=wave_seed)
-    gains = loop.default_gains() if gains is None else gains
-    conf = RolloutConfig(num_steps=int(round(horizon / dt)), timing="sampled")
-    traj = _run(loop, gains, sc, conf, dt)
-    return traj, (loop.path, sc.path)
-
-
-# ---------------------------------------------------------------------------------- metrics
+#: desired speed [m/s]
+U_D = 1.5
 
 #: ``metrics.json`` per variant: its name -> the name in :func:`vcjax.metrics.run_metrics`'s
 #: result (the mission's extras, :func:`mission_extras`, and the generic ``sat_fraction``)
@@ -130,6 +78,18 @@ REPORTED = {
 }
 #: a run further than this from the path, anywhere, is unhealthy [m]
 OFF_PATH_M = 25.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Remus100Options(PathBound, WaveOptions):
+    """Options of ``vcjax simulate remus100``."""
+
+    diverge_e: float | None = option(
+        None,
+        "a run more than M metres from the survey path (geometric distance) is unhealthy "
+        f"(default {OFF_PATH_M:g} m)",
+        "M",
+    )
 
 
 def mission_geometry(pos, path, coeffs, dw=0.25):
@@ -200,111 +160,85 @@ def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25, off_path=OFF_PATH_
     }
 
 
-def mission_metrics(
-    traj, path, coeffs, settle=150.0, variant=None, loop=None, scenario=None, off_path=None
-) -> dict:
-    """The mission's metrics of one run (``metrics.json``'s entry per variant, :data:`REPORTED`)
-    as Python values: :func:`vcjax.metrics.run_metrics` of the loop's signals with the
-    mission's extras (:func:`mission_extras`).
+@dataclasses.dataclass(frozen=True)
+class Remus100(Experiment):
+    """The survey mission: every controller of the ``remus100`` loop on its default lawnmower
+    (:meth:`vcjax.loops.remus100.Remus100Loop.default_path`), sampled controller."""
 
-    ``loop``, ``scenario``: the run's; by default the mission's on ``coeffs`` for ``variant``
-    (default: the controller whose state has the structure of ``traj.z``). Only the actuator
-    limits and the path matter for what is reported. ``off_path``: the distance from the path
-    beyond which the run is unhealthy [m] (:func:`vcjax.metrics.path_bound`'s checks; default
-    :data:`OFF_PATH_M`).
-    """
-    bound = OFF_PATH_M if off_path is None else metrics.path_bound(0.0, 0.0, off_path)
-    if loop is None or scenario is None:
-        loop, scenario = mission_scenario(variant or _variant_of(traj), coeffs=coeffs)
-    sig = loop.signals(traj, scenario)
-    dt = traj.t[1] - traj.t[0]
-    extras = mission_extras(traj, path, coeffs, settle, off_path=bound)
-    m = metrics.run_metrics(sig, traj.finite, dt, extras=extras)
-    out = {}
-    for ours, theirs in REPORTED.items():
-        v = np.asarray(m[theirs])
-        out[ours] = bool(v) if v.dtype == bool else float(v)
-    return out
+    json_newline = False
+
+    def variants(self, options=None) -> tuple[str, ...]:
+        return VARIANTS
+
+    def loop(self, variant: str, options=None) -> loops.Loop:
+        return loops.make_loop("remus100", variant)
+
+    def scenario(self, variant: str = VARIANTS[0], setup=None) -> loops.Scenario:
+        """The loop's default start (3 m east of the path's start, 1 m deep, heading north at
+        1.5 m/s) under the setup's current; with ``--waves`` the sea, the mean free surface at
+        NED depth 0."""
+        setup = self.setup() if setup is None else setup
+        o = setup.options
+        sea = None if o.waves is None else option_sea(o.waves, o.seed)
+        loop = self.loop(variant)
+        return loops.make_scenario(loop, current=setup.current, u_d=U_D, sea=sea)
+
+    def off_path(self, options) -> float:
+        """The distance from the path beyond which a run is unhealthy [m]."""
+        b = options.diverge_e
+        return OFF_PATH_M if b is None else metrics.path_bound(0.0, 0.0, b)
+
+    def metrics(self, outcome, setup) -> dict:
+        """:data:`REPORTED` as Python values: :func:`vcjax.metrics.run_metrics` of the loop's
+        signals with the mission's extras (:func:`mission_extras`)."""
+        traj, sc, loop = outcome.traj, outcome.scenario, outcome.loop
+        sig = loop.signals(traj, sc)
+        dt = traj.t[1] - traj.t[0]
+        bound = self.off_path(setup.options)
+        extras = mission_extras(traj, loop.path, sc.path, off_path=bound)
+        m = metrics.run_metrics(sig, traj.finite, dt, extras=extras)
+        out = {}
+        for ours, theirs in REPORTED.items():
+            v = np.asarray(m[theirs])
+            out[ours] = bool(v) if v.dtype == bool else float(v)
+        return out
+
+    def report(self, results, setup) -> dict:
+        """``{"config": the run's horizon, dt, current, bound (and sea), "variants": metrics
+        per variant, non-finite numbers as null}``."""
+        meta = {"horizon": setup.horizon, "dt": setup.dt}
+        meta["current_ned"] = [float(c) for c in setup.current]
+        meta["off_path_bound_m"] = self.off_path(setup.options)
+        o = setup.options
+        if o.waves is not None:
+            meta["waves"] = option_sea_record(o.waves, o.seed, origin_depth=0.0)
+        clean = {v: {k: (None if isinstance(x, float) and not np.isfinite(x) else x)
+                     for k, x in m.items()} for v, m in results.items()}  # fmt: skip
+        return {"config": meta, "variants": clean}
+
+    def figures(self, outcomes, setup, out):
+        from vcjax.plots.remus100 import remus100_figures
+
+        trajs = {v: o.traj for v, o in outcomes.items()}
+        first = next(iter(outcomes.values()))
+        return remus100_figures(trajs, first.loop.path, first.scenario.path, out, LABELS)
+
+    def unhealthy(self, results, outcomes, setup) -> list[str]:
+        bound = self.off_path(setup.options)
+        return [
+            f"remus100 {name}: a non-finite or runaway state, or more than {bound:g} m off the "
+            "path (see metrics.json)"
+            for name, m in results.items()
+            if not m.get("healthy", True)
+        ]
 
 
-def _variant_of(traj) -> str:
-    """The first controller of the mission whose law state has the structure of ``traj.z``."""
-    want = jax.tree_util.tree_structure(traj.z)
-    for v in VARIANTS:
-        loop, sc = mission_scenario(v)
-        if jax.tree_util.tree_structure(loop.initial_state(sc)[1]) == want:
-            return v
-    raise ValueError(f"variant: no REMUS 100 controller has the state of this run ({want})")
-
-
-def run_remus100(
-    out,
+REMUS100 = Remus100(
+    "remus100",
+    "3-D survey mission of the PVS REMUS 100 under a cross current, every controller",
     horizon=880.0,
     dt=0.05,
+    options=Remus100Options,
     current=(0.0, 0.3),
-    variants=VARIANTS,
-    gains=None,
-    waves=None,
-    wave_seed=0,
-    diverge_e=None,
-) -> dict:
-    """Run every variant of the survey mission; write ``metrics.json`` and figures to ``out``
-    (``gains``: of every controller, default: the loop's defaults; ``waves``: ``(hs, tp,
-    direction_deg)`` of one sea for every variant, :func:`mission_sea`; ``diverge_e``: the
-    distance from the path [m] beyond which a run is unhealthy, default :data:`OFF_PATH_M`)."""
-    from vcjax.plots.remus100 import remus100_figures
-
-    off_path = OFF_PATH_M if diverge_e is None else metrics.path_bound(0.0, 0.0, diverge_e)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    trajs, results = {}, {}
-    for v in variants:
-        loop, sc = mission_scenario(v, current, waves=waves, wave_seed=wave_seed)
-        traj, (path, coeffs) = simulate(
-            v, horizon, dt, current, gains=gains, waves=waves, wave_seed=wave_seed
-        )
-        trajs[v] = jax.device_get(traj)
-        results[v] = mission_metrics(
-            trajs[v], path, coeffs, loop=loop, scenario=sc, off_path=off_path
-        )
-    meta = {"horizon": horizon, "dt": dt, "current_ned": [float(c) for c in current]}
-    meta["off_path_bound_m"] = off_path
-    if waves is not None:
-        meta["waves"] = option_sea_record(waves, wave_seed, origin_depth=0.0)
-    clean = {v: {k: (None if isinstance(x, float) and not np.isfinite(x) else x)
-                 for k, x in m.items()} for v, m in results.items()}  # fmt: skip
-    write_json_atomic(out / "metrics.json", {"config": meta, "variants": clean}, newline=False)
-    files = [out / "metrics.json"]
-    files += remus100_figures(trajs, path, coeffs, out, LABELS)
-    return {"metrics": results, "files": files}
-
-
-def load_gains(d: dict, **_options):
-    """Gains of every REMUS 100 controller from a gains-JSON object (what ``vcjax tune`` writes
-    for a ``remus100`` config; missing entries: the defaults), validated."""
-    return loops.make_loop("remus100", VARIANTS[0]).gains_from_json(d)
-
-
-def run_experiment(
-    out, gains, *, horizon, dt, current, progress=print, waves=None, wave_seed=0, diverge_e=None
-) -> dict:
-    """``vcjax simulate remus100`` (:mod:`vcjax.experiments`): :func:`run_remus100`."""
-    result = run_remus100(
-        out,
-        horizon=horizon,
-        dt=dt,
-        current=current,
-        gains=gains,
-        waves=waves,
-        wave_seed=wave_seed,
-        diverge_e=diverge_e,
-    )
-    bound = OFF_PATH_M if diverge_e is None else float(diverge_e)
-    result["printed"] = result["metrics"]
-    result["unhealthy"] = [
-        f"remus100 {name}: a non-finite or runaway state, or more than {bound:g} m off the "
-        "path (see metrics.json)"
-        for name, m in result["metrics"].items()
-        if not m.get("healthy", True)
-    ]
-    return result
+    timing="sampled",
+)

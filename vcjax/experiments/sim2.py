@@ -12,7 +12,10 @@ Control loop: :class:`vcjax.loops.odin.OdinLoop` (horizontal VCM law + depth PID
 PD + thruster allocation), continuous-time, evaluated inside the integrator like Simulation 1;
 controller ``"vcm"`` (underactuated, the paper) or ``"vcm_full"`` (sway thrust available).
 
-Metrics (:func:`sim2_metrics`) are evaluated after the first 20 % of the run (the approach from
+Options (``vcjax simulate sim2``): ``--actuation`` (the headline mode; the other is run for
+comparison), ``--diverge-e``, ``--waves``/``--wave-seed`` (:mod:`vcjax.experiments.seas`).
+
+Metrics (:meth:`Sim2.metrics`) are evaluated after the first 20 % of the run (the approach from
 8 m away is a transient): ``rms_dist_3d`` / ``max_dist_3d`` (3-D distance between the vehicle and
 the path particle ``p_p(w)``), ``rms_depth_err``, ``thruster_sat_fraction`` (fraction of steps in
 which at least one thruster is commanded at its limit, whole run).
@@ -21,162 +24,49 @@ which at least one thruster is commanded at its limit, whole run).
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax import loops, paths
-from vcjax._checks import check_array, check_positive
-from vcjax.experiments.seas import option_sea, option_sea_record
-from vcjax.loops.odin import OdinGains, OdinLoop, default_odin_gains, odin_gains
+from vcjax import loops
+from vcjax.experiments.base import Experiment, PathBound, option
+from vcjax.experiments.seas import WaveOptions, option_sea, option_sea_record
 from vcjax.metrics import path_bound, run_metrics
-from vcjax.rollout import RolloutConfig
-from vcjax.runtime.outputs import write_json_atomic
 from vcjax.vehicles import odin
 
 __all__ = [
-    "PATH",
+    "SIM2",
+    "Sim2",
+    "Sim2Options",
     "ACTUATIONS",
-    "sim2_scenario",
-    "sim2_gains",
-    "default_gains",
-    "gains_from_json",
-    "Sim2Config",
-    "run_variant",
-    "sim2_extras",
-    "sim2_metrics",
     "REPORTED",
-    "run_sim2",
-    "sim2_sea",
     "WAVE_ORIGIN_DEPTH",
+    "sim2_extras",
 ]
 
-#: Simulation 2's path kind (the helix); its coefficients live in the scenario's ``path``.
-PATH, _PATH_COEFFS = paths.paper_helix()
-ACTUATIONS = ("underactuated", "full")
-
-
-def sim2_scenario(
-    p0=(0.0, 0.0, -102.0),
-    psi0=0.0,
-    tau_dist=(0.0, 5.0, 0.0),
-    current=(0.0, 0.0, 0.0),
-    u_d=0.5,
-    varpi0=0.0,
-    vehicle=None,
-    path_coeffs=None,
-) -> loops.Scenario:
-    """The paper's Simulation 2 scenario (defaults), validated; starts level and at rest.
-
-    Args:
-        p0: (3,) NED start [m]; psi0: () heading [rad]; tau_dist: (3,) or (6,) body disturbance;
-        current: (3,) water velocity in NED [m/s]; u_d: () desired speed [m/s];
-        varpi0: () particle start; vehicle: :class:`~vcjax.vehicles.odin.OdinParams` (default
-        ``odin_params()``); path_coeffs: coefficients for the path kind of the
-        :class:`Sim2Config` used (default: the paper's helix).
-
-    Returns:
-        :class:`~vcjax.loops.Scenario` (:func:`vcjax.loops.make_scenario` of the ``odin``
-        loop; ``plant`` and ``design`` both ``vehicle``).
-    """
-    check_array("p0", p0, (3,))
-    check_array("psi0", psi0, ())
-    check_positive("u_d", u_d, ())
-    check_array("varpi0", varpi0, ())
-    vehicle = odin.odin_params() if vehicle is None else odin.validate(vehicle)
-    args = odin.odin_args(vehicle, tau_dist, current)  # tau_dist (3,) -> (6,), both validated
-    dtype = args.tau_dist.dtype
-    eta0 = np.concatenate([np.asarray(p0, float), [0.0, 0.0], [float(psi0)]])
-    return loops.make_scenario(
-        Sim2Config().loop(),  # the scenario is the same for every Simulation 2 loop
-        _PATH_COEFFS if path_coeffs is None else path_coeffs,
-        eta0=eta0,
-        nu0=np.zeros(6),
-        current=args.v_c,
-        u_d=u_d,
-        plant=vehicle,
-        disturbance=args.tau_dist,
-        varpi0=varpi0,
-        dtype=dtype,
-    )
-
-
-def sim2_gains(vcm=None, depth=(0.09, 0.6, 0.005), attitude=(10.0, 8.0), int_z_limit=20.0):
-    """Validated :class:`~vcjax.loops.odin.OdinGains` (:func:`vcjax.loops.odin.odin_gains`)."""
-    return odin_gains(vcm=vcm, depth=depth, attitude=attitude, int_z_limit=int_z_limit)
-
-
-def default_gains(actuation: str = "underactuated") -> OdinGains:
-    """Gains used for the paper's Simulation 2, per actuation mode
-    (:func:`vcjax.loops.odin.default_odin_gains`, which explains them)."""
-    if actuation not in ACTUATIONS:
-        raise ValueError(f"actuation: expected one of {ACTUATIONS}, got {actuation!r}")
-    return default_odin_gains(actuation)
-
-
-def gains_from_json(d: dict, actuation: str = "underactuated") -> OdinGains:
-    """Gains from the JSON ``vcjax tune`` writes for the ODIN-class loop (missing entries take
-    the defaults of ``actuation``), validated."""
-    return Sim2Config(actuation=actuation).loop().gains_from_json(d)
+#: the actuation modes: the ``odin`` loop's controller of each
+ACTUATIONS = {"underactuated": "vcm", "full": "vcm_full"}
+#: The paper's start ``p0`` (NED [m]) and heading [rad], the body disturbance ``[X, Y, Z]`` [N],
+#: the desired speed [m/s]; the vehicle starts level and at rest, the particle at ``w = 0``.
+P0, PSI0, TAU_DIST, U_D = (0.0, 0.0, -102.0), 0.0, (0.0, 5.0, 0.0), 0.5
+#: the metrics' window: after the first ``SKIP`` of the run
+SKIP = 0.2
+#: depth of the NED origin below the mean free surface with ``--waves`` [m]: the paper's start
+#: ``z = -102`` (as printed) then lies 5 m below the surface, the helix descending from 7 m
+WAVE_ORIGIN_DEPTH = 107.0
 
 
 @dataclasses.dataclass(frozen=True)
-class Sim2Config:
-    """Static choices of the Simulation 2 loop (:meth:`loop` gives the
-    :class:`~vcjax.loops.odin.OdinLoop`).
+class Sim2Options(PathBound, WaveOptions):
+    """Options of ``vcjax simulate sim2`` (``--diverge-e`` default: 25 % of ``u_d x
+    horizon``, at least 50 m, :func:`vcjax.metrics.path_bound`). The loop's own options
+    (integral action, ``edd``, allocation polish) are the ``odin`` loop's defaults."""
 
-    Attributes:
-        path: path kind (default: the paper's helix).
-        actuation: ``"underactuated"`` (paper; ``tau_v = 0``) or ``"full"``.
-        integral: integral action (41) in the VCM law (gains ``P_int``).
-        edd: ``"paper"`` or ``"implied"`` (see :mod:`vcjax.control.vcm`).
-        polish: projected-gradient steps of the allocation (see :mod:`vcjax.allocation`).
-    """
-
-    path: Any = PATH
-    actuation: Literal["underactuated", "full"] = "underactuated"
-    integral: bool = True
-    edd: Literal["paper", "implied"] = "paper"
-    polish: int = 50
-
-    def __post_init__(self):
-        if self.actuation not in ACTUATIONS:
-            raise ValueError(f"actuation: expected one of {ACTUATIONS}, got {self.actuation!r}")
-
-    def loop(self) -> OdinLoop:
-        ctrl = "vcm" if self.actuation == "underactuated" else "vcm_full"
-        return loops.make_loop(
-            "odin", ctrl, path=self.path, integral=self.integral, edd=self.edd, polish=self.polish
-        )
-
-
-_run = jax.jit(loops.simulate, static_argnames=("loop", "config"))
-
-
-def run_variant(
-    config: Sim2Config | None = None,
-    gains: OdinGains | None = None,
-    scenario: loops.Scenario | None = None,
-    horizon: float = 300.0,
-    dt: float = 0.05,
-    timing: str = "continuous",
-):
-    """Roll the Simulation 2 loop out; returns the :class:`~vcjax.rollout.Trajectory`.
-
-    ``traj.x`` is an :class:`~vcjax.vehicles.odin.OdinState`, ``traj.z`` an
-    :class:`~vcjax.loops.odin.OdinCtrlState`, ``traj.u`` the (N, 8) thruster commands,
-    ``traj.aux`` an :class:`~vcjax.loops.odin.OdinAux`.
-    """
-    if not (horizon > 0 and dt > 0 and horizon / dt >= 1):
-        raise ValueError(f"horizon and dt must be positive with horizon >= dt, got {horizon}, {dt}")
-    config = Sim2Config() if config is None else config
-    gains = default_gains(config.actuation) if gains is None else gains
-    sc = sim2_scenario() if scenario is None else scenario
-    rc = RolloutConfig(num_steps=int(round(horizon / dt)), integrator="rk4", timing=timing)
-    return _run(config.loop(), gains, sc, rc, dt)
+    actuation: Literal["underactuated", "full"] = option(
+        "underactuated",
+        "headline mode (the paper: underactuated); the other is run for comparison",
+    )
 
 
 #: ``metrics.json`` per actuation mode: its name -> the name in
@@ -240,140 +130,102 @@ def sim2_extras(traj, bound: float) -> dict:
     }
 
 
-def sim2_metrics(
-    traj, scenario: loops.Scenario | None = None, skip: float = 0.2, config=None, diverge_e=None
-) -> dict:
-    """Metrics of one run (module docstring; :data:`REPORTED`) as Python values; ``skip``:
-    fraction of the run left out.
+@dataclasses.dataclass(frozen=True)
+class Sim2(Experiment):
+    """Simulation 2: the ``odin`` loop on the paper's helix, the headline actuation mode and the
+    other for comparison (variants: the modes)."""
 
-    :func:`vcjax.metrics.run_metrics` from :math:`0.2 T` on (``thruster_sat_fraction`` is its
-    ``sat_fraction``, whole run) with the ODIN-specific diagnostics of this experiment added
-    (:func:`sim2_extras`); ``healthy`` also needs the vehicle within the path-error bound
-    (:func:`vcjax.metrics.path_bound`, scaled to ``u_d x horizon``, or ``diverge_e`` [m]).
-    """
-    sc = sim2_scenario() if scenario is None else scenario
-    loop = (Sim2Config() if config is None else config).loop()
-    sig = loop.signals(traj, sc)
-    t = np.asarray(traj.t)
-    bound = path_bound(float(np.asarray(sc.u_d)), float(t[-2] + (t[1] - t[0])), diverge_e)
-    dt = traj.t[1] - traj.t[0]
-    m = run_metrics(sig, traj.finite, dt, start=skip, extras=sim2_extras(traj, bound))
-    out = {}
-    for ours, theirs in REPORTED.items():
-        v = np.asarray(m[theirs])
-        out[ours] = bool(v) if v.dtype == bool else float(v)
-    return out
+    def variants(self, options=None) -> tuple[str, ...]:
+        actuation = "underactuated" if options is None else options.actuation
+        return (actuation, *(m for m in ACTUATIONS if m != actuation))
 
+    def loop(self, variant: str, options=None) -> loops.Loop:
+        if variant not in ACTUATIONS:
+            raise ValueError(f"actuation: expected one of {tuple(ACTUATIONS)}, got {variant!r}")
+        return loops.make_loop("odin", ACTUATIONS[variant])
 
-#: depth of the NED origin below the mean free surface with ``--waves`` [m]: the paper's start
-#: ``z = -102`` (as printed) then lies 5 m below the surface, the helix descending from 7 m
-WAVE_ORIGIN_DEPTH = 107.0
-
-
-def sim2_sea(waves, seed=0):
-    """``(sea, origin_depth)`` of ``vcjax simulate sim2 --waves HS TP DIR_DEG``: a long-crested
-    JONSWAP sea (``gamma = 3.3``, 64 components) drawn from ``PRNGKey(seed)``
-    (:func:`vcjax.waves.sea_state`), and :data:`WAVE_ORIGIN_DEPTH`."""
-    return option_sea(waves, seed), WAVE_ORIGIN_DEPTH
-
-
-def run_sim2(
-    out: Path,
-    gains: OdinGains | None = None,
-    horizon: float = 300.0,
-    dt: float = 0.05,
-    actuation: str = "underactuated",
-    compare: bool = True,
-    progress=print,
-    diverge_e: float | None = None,
-    waves=None,
-    wave_seed: int = 0,
-) -> dict:
-    """Run Simulation 2, write ``metrics.json`` and the figures (PNG) into ``out``
-    (``diverge_e``: path-error bound [m] of ``healthy``, default :func:`vcjax.metrics.path_bound`).
-
-    Args:
-        out: output folder (created).
-        gains: :class:`~vcjax.loops.odin.OdinGains` for both modes (default:
-            :func:`default_gains` of each mode).
-        horizon, dt: run length and RK4 step [s].
-        actuation: the headline mode, ``"underactuated"`` (paper) or ``"full"``; its metrics are
-            the top-level entries of ``metrics.json``.
-        compare: also run the other actuation mode (overlaid in the figures; its metrics under
-            ``metrics["by_actuation"]``).
-        progress: callback taking a status line.
-        waves: ``(hs [m], tp [s], direction [deg])`` of one random sea for every run
-            (:func:`sim2_sea`, from ``wave_seed``), or None.
-
-    Returns:
-        ``{"metrics": dict, "files": [Path, ...]}``.
-    """
-    from vcjax.plots.sim2 import sim2_figures
-
-    if actuation not in ACTUATIONS:
-        raise ValueError(f"actuation: expected one of {ACTUATIONS}, got {actuation!r}")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    sc = sim2_scenario()
-    if waves is not None:
-        sea, origin_depth = sim2_sea(waves, wave_seed)
-        sc = sc._replace(sea=sea, origin_depth=jnp.asarray(origin_depth, sc.eta0.dtype))
-    modes = [actuation] + ([m for m in ACTUATIONS if m != actuation] if compare else [])
-    trajs, by_mode = {}, {}
-    for i, mode in enumerate(modes):
-        progress(
-            f"[{i + 1}/{len(modes)}] simulating ODIN-class, {mode} ({horizon:g} s, dt {dt:g} s)"
+    def scenario(self, variant: str = "underactuated", setup=None) -> loops.Scenario:
+        """The paper's scenario (the same for both modes); with ``--waves`` the sea, the NED
+        origin :data:`WAVE_ORIGIN_DEPTH` below the mean free surface."""
+        setup = self.setup() if setup is None else setup
+        vehicle = odin.odin_params()
+        args = odin.odin_args(vehicle, TAU_DIST)  # tau_dist (3,) -> (6,)
+        eta0 = np.concatenate([np.asarray(P0, float), [0.0, 0.0], [float(PSI0)]])
+        waves = setup.options.waves
+        self.loop(variant)  # a known mode: both run the same scenario
+        sc = loops.make_scenario(
+            self.loop("underactuated"),
+            eta0=eta0,
+            nu0=np.zeros(6),
+            current=args.v_c,
+            u_d=U_D,
+            plant=vehicle,
+            disturbance=args.tau_dist,
+            varpi0=0.0,
+            dtype=args.tau_dist.dtype,
         )
-        cfg = Sim2Config(actuation=mode)
-        trajs[mode] = jax.device_get(run_variant(cfg, gains, sc, horizon, dt))
-        by_mode[mode] = sim2_metrics(trajs[mode], sc, config=cfg, diverge_e=diverge_e)
-    metrics = {"actuation": actuation, **by_mode[actuation], "by_actuation": by_mode}
-    if waves is not None:
-        metrics["waves"] = option_sea_record(waves, wave_seed, WAVE_ORIGIN_DEPTH)
-    write_json_atomic(out / "metrics.json", metrics)
-    files = sim2_figures(trajs, sc, PATH, out)
-    return {"metrics": metrics, "files": [out / "metrics.json", *files]}
+        if waves is None:
+            return sc
+        sea = option_sea(waves, setup.options.seed)
+        return sc._replace(sea=sea, origin_depth=jnp.asarray(WAVE_ORIGIN_DEPTH, sc.eta0.dtype))
+
+    def metrics(self, outcome, setup) -> dict:
+        """:data:`REPORTED` of one run as Python values: :func:`vcjax.metrics.run_metrics`
+        from ``SKIP x T`` on (``thruster_sat_fraction`` is its ``sat_fraction``, whole run)
+        with :func:`sim2_extras`; ``healthy`` also needs the vehicle within the path-error
+        bound (:func:`vcjax.metrics.path_bound`, scaled to ``u_d x horizon``, or
+        ``--diverge-e`` [m])."""
+        traj, sc = outcome.traj, outcome.scenario
+        sig = outcome.loop.signals(traj, sc)
+        t = np.asarray(traj.t)
+        u_d = float(np.asarray(sc.u_d))
+        bound = path_bound(u_d, float(t[-2] + (t[1] - t[0])), setup.options.diverge_e)
+        dt = traj.t[1] - traj.t[0]
+        m = run_metrics(sig, traj.finite, dt, start=SKIP, extras=sim2_extras(traj, bound))
+        out = {}
+        for ours, theirs in REPORTED.items():
+            v = np.asarray(m[theirs])
+            out[ours] = bool(v) if v.dtype == bool else float(v)
+        return out
+
+    def report(self, results, setup) -> dict:
+        """The headline mode's metrics at the top level, every mode's under ``by_actuation``,
+        the sea under ``waves``."""
+        actuation = setup.options.actuation
+        report = {"actuation": actuation, **results[actuation], "by_actuation": results}
+        if setup.options.waves is not None:
+            o = setup.options
+            report["waves"] = option_sea_record(o.waves, o.seed, WAVE_ORIGIN_DEPTH)
+        return report
+
+    def figures(self, outcomes, setup, out):
+        from vcjax.plots.sim2 import sim2_figures
+
+        trajs = {v: o.traj for v, o in outcomes.items()}
+        first = next(iter(outcomes.values()))
+        return sim2_figures(trajs, first.scenario, first.loop.path, out)
+
+    def printed(self, results) -> dict:
+        def number(v):
+            return isinstance(v, int | float) and not isinstance(v, bool)
+
+        return {mode: {k: v for k, v in m.items() if number(v)} for mode, m in results.items()}
+
+    def unhealthy(self, results, outcomes, setup) -> list[str]:
+        return [
+            f"sim2 {mode} diverged (see metrics.json)"
+            for mode, m in results.items()
+            if not m.get("healthy", True)
+        ]
+
+    def label(self, variant: str) -> str:
+        return f"ODIN-class, {variant}"
 
 
-def load_gains(d: dict, actuation: str = "underactuated", **_options) -> OdinGains:
-    """The experiment's gains from a gains-JSON object (:func:`gains_from_json`)."""
-    return gains_from_json(d, actuation)
-
-
-def run_experiment(
-    out,
-    gains,
-    *,
-    horizon,
-    dt,
-    current,
-    progress=print,
-    actuation="underactuated",
-    diverge_e=None,
-    waves=None,
-    wave_seed=0,
-) -> dict:
-    """``vcjax simulate sim2`` (:mod:`vcjax.experiments`): :func:`run_sim2` (no current)."""
-    assert current is None  # the registry declares no current for sim2
-    result = run_sim2(
-        out,
-        gains,
-        horizon=horizon,
-        dt=dt,
-        actuation=actuation,
-        progress=progress,
-        diverge_e=diverge_e,
-        waves=waves,
-        wave_seed=wave_seed,
-    )
-    by_mode = result["metrics"]["by_actuation"]
-    result["printed"] = {
-        mode: {k: v for k, v in m.items() if isinstance(v, int | float) and not isinstance(v, bool)}
-        for mode, m in by_mode.items()
-    }
-    result["unhealthy"] = [
-        f"sim2 {mode} diverged (see metrics.json)"
-        for mode, m in by_mode.items()
-        if not m.get("healthy", True)
-    ]
-    return result
+SIM2 = Sim2(
+    "sim2",
+    "Simulation 2 (ODIN-class, helix, Figs. 6-7), both actuation modes",
+    horizon=300.0,
+    dt=0.05,
+    options=Sim2Options,
+)

@@ -286,7 +286,7 @@ class Remus100Loop(Loop):
     # ---------------------------------------------------------------- parameters and gains
     @classmethod
     def default_path(cls):
-        """The survey lawnmower of :func:`vcjax.experiments.remus100.mission_path`'s defaults."""
+        """The survey lawnmower of ``vcjax simulate remus100``."""
         return paths.lawnmower((0.0, 0.0, 1.0), 250.0, 30.0, 4, 15.0, 150.0)
 
     def position(self, eta, params):

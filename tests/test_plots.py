@@ -1,0 +1,210 @@
+"""A smoke test per figure function of :mod:`vcjax.plots`: each is called on small real data (a
+short run of its experiment, a tiny sweep) and must write a non-empty PNG whose axes carry the
+expected labels. The figures are caught as they are saved (:func:`vcjax.plots.save`), so their
+axes are read from the figure objects themselves, not from the pixels."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import jax
+import pytest
+
+from vcjax import experiments, plots, sweep
+from vcjax.plots import arm as plots_arm
+from vcjax.plots import remus100 as plots_remus100
+from vcjax.plots import sim2 as plots_sim2
+from vcjax.plots import sweep as plots_sweep
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """``{file name: [(xlabel, ylabel, title) of each visible axes]}`` of every figure saved
+    while the test runs (the real :func:`vcjax.plots.save` still writes it)."""
+    figures: dict[str, list[tuple[str, str, str]]] = {}
+    real = plots.save
+
+    def save(fig, path):
+        axes = [a for a in fig.axes if a.get_visible()]
+        labels = [(a.get_xlabel(), a.get_ylabel(), a.get_title()) for a in axes]
+        title = fig._suptitle.get_text() if fig._suptitle is not None else ""
+        figures[Path(path).name] = labels + [("", "", title)]
+        return real(fig, path)
+
+    monkeypatch.setattr(plots, "save", save)  # vcjax.plots.sim1 calls it as plots.save
+    for mod in (plots_arm, plots_remus100, plots_sim2, plots_sweep):
+        monkeypatch.setattr(mod, "save", save)
+    return figures
+
+
+def _check(files, drawn, expected: dict[str, set[str]]):
+    """Every file a non-empty PNG; each figure has axes, and the labels ``expected`` names."""
+    assert {Path(f).name for f in files} == set(expected)
+    for f in files:
+        f = Path(f)
+        assert f.stat().st_size > 1000 and f.read_bytes()[:8] == PNG, f
+        labels = drawn[f.name]
+        assert len(labels) >= 2, f  # at least one axes besides the figure's title
+        text = {s for row in labels for s in row if s}
+        missing = expected[f.name] - text
+        assert not missing, (f.name, missing, text)
+
+
+def _run(name: str, variant: str, horizon: float, dt: float):
+    """A short run of one variant of an experiment: its outcome and setup."""
+    exp = experiments.get(name)
+    setup = exp.setup(horizon=horizon, dt=dt)
+    traj = jax.device_get(exp.simulate(variant, setup))
+    return exp.outcome(variant, setup, traj), setup
+
+
+def test_sim1_figures(tmp_path, drawn):
+    from vcjax.plots.sim1 import sim1_figures
+
+    run, _ = _run("sim1", "vcm_integral", 2.0, 0.1)
+    files = sim1_figures({"vcm_integral": run.traj}, run.scenario, tmp_path)
+    xy = {"y (east) [m]", "x (north) [m]"}
+    _check(
+        files,
+        drawn,
+        {
+            "sim1_paths.png": xy | {"the approach (same scale on both axes)"},
+            "sim1_speed_heading.png": {"t [s]", "u [m/s]", "heading error ψ̃ [deg]"},
+            "sim1_controls.png": {"t [s]", "rudder δ [deg]", "thrust τ_u [N]"},
+            "sim1_errors.png": {"t [s]", "along-track s [m]", "cross-track e [m]"},
+        },
+    )
+
+
+def test_sim2_figures(tmp_path, drawn):
+    from vcjax.plots.sim2 import sim2_figures
+
+    run, _ = _run("sim2", "underactuated", 1.0, 0.1)
+    files = sim2_figures({"underactuated": run.traj}, run.scenario, run.loop.path, tmp_path)
+    xy = {"y (east) [m]", "x (north) [m]"}
+    _check(
+        files,
+        drawn,
+        {
+            "sim2_path_3d.png": {"Simulation 2: ODIN-class AUV on the helix"},
+            "sim2_horizontal.png": xy,
+            "sim2_errors.png": {"|p - p_p(w)| [m]", "t [s]"},
+            "sim2_path_errors.png": {"along-track s [m]", "cross-track e [m]", "depth error [m]"},
+            "sim2_thrusters.png": {"t [s]", "thrusters (underactuated)"},
+        },
+    )
+
+
+def test_remus100_figures(tmp_path, drawn):
+    from vcjax.experiments.remus100 import LABELS
+    from vcjax.plots.remus100 import remus100_figures
+
+    run, _ = _run("remus100", "vcm3d_ilos", 1.0, 0.1)
+    files = remus100_figures(
+        {"vcm3d_ilos": run.traj}, run.loop.path, run.scenario.path, tmp_path, LABELS
+    )
+    _check(
+        files,
+        drawn,
+        {
+            "remus100_path3d.png": {"east [m]", "north [m]"},
+            "remus100_plan.png": {"east [m]", "north [m]", "plan view"},
+            "remus100_errors.png": {"t [s]", "path-frame errors at each law's path particle"},
+            "remus100_actuators.png": {"t [s]", "actuators (limits dotted)"},
+        },
+    )
+
+
+def test_arm_figure(tmp_path, drawn):
+    import numpy as np
+
+    from vcjax.plots.arm import arm_figure
+
+    run, _ = _run("arm", "vcm", 0.2, 2e-3)
+    sig = run.loop.signals(run.traj, run.scenario)
+    sc, tr = run.scenario, run.traj
+    center, radius = np.asarray(sc.path.center)[:2], float(sc.path.radius)
+    f = arm_figure(
+        tr.t,
+        np.asarray(sig.pos)[:, :2],
+        tr.aux.Phi,
+        np.asarray(sig.eps)[:, 1],
+        tr.u,
+        run.gains.P_Phi,
+        center,
+        radius,
+        tmp_path / "arm.png",
+    )
+    _check(
+        [f],
+        drawn,
+        {
+            "arm.png": {
+                "end-effector path",
+                "constraint violation vs. the exact decay (14)",
+                "joint torque [N m]",
+            }
+        },
+    )
+
+
+SWEEP = """
+[scenario]
+vehicle = "odin"
+[sweep]
+num_scenarios = 4
+chunk_size = 4
+[simulation]
+horizon = 1.0
+dt = 0.1
+timing = "sampled"
+[current]
+speed = [0.0, 0.3]
+[waves]
+hs = [0.5, 1.5]
+tp = 8.0
+origin_depth = [105.0, 110.0]
+[output]
+record_points = 5
+"""
+
+
+def test_sweep_figures(tmp_path, drawn):
+    from vcjax.plots.sweep import sweep_figures
+
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(SWEEP)
+    spec, _ = sweep.load_config(cfg)
+    result = sweep.run_sweep(spec, progress=False)
+    files = sweep_figures(result, tmp_path / "figures")
+    _check(
+        files,
+        drawn,
+        {
+            "sweep_error_vs_current.png": {
+                "mean current speed [m/s]",
+                "current direction (towards, from north) [deg]",
+                "steady-state mean |e| [m] (last 20 %)",
+            },
+            "sweep_metrics.png": {"steady-state |e| [m]", "max |e| [m]", "IAE of e [m s]"},
+            "sweep_error_vs_waves.png": {
+                "significant wave height Hs [m]",
+                "RMS cross-track error [m]",
+                "RMS depth error [m]",
+                "origin_depth: depth of the NED origin below the surface [m]",
+            },
+            "sweep_envelopes.png": {
+                "cross-track error e [m]",
+                "t [s]",
+                "VCM (31)/(38) (4 runs)",
+                "vcm_full (4 runs)",
+            },
+            "sweep_paths.png": {
+                "x (north) [m]",
+                "y (east) [m]",
+                "vcm_full: 4 paths (black: diverged)",
+            },
+        },
+    )
