@@ -606,6 +606,11 @@ def test_cli_reference_is_generated_from_the_parser():
 SWEEP = ("docs/guides/sweeps.md", "docs/figures/sweep/summary.json")
 TUNE = ("docs/guides/tuning.md", "docs/figures/tune/summary.json")
 REMUS = ("docs/experiments/remus100.md", "docs/figures/remus100/metrics.json")
+SIM1 = ("docs/experiments/sim1.md", "docs/figures/sim1/metrics.json")
+SIM1X = ("docs/experiments/sim1.md", "docs/figures/sim1_cross_current/metrics.json")
+SIM1_LAWS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos", "alos")
+SIM2 = ("docs/experiments/sim2.md", "docs/figures/sim2/metrics.json")
+REMUS_LAWS = ("vcm3d_ilos", "vcm3d", "decoupled", "alos3d", "pvs_pid")
 FIT = ("docs/guides/identification.md", "docs/figures/fit/study.json")
 STUDY = ("docs/experiments/identify-tune-verify.md", "docs/figures/fit/study.json")
 FIT_PARAMS = ("X_uu", "Y_uv", "Y_ur", "N_uv", "N_ur", "Y_uudr", "N_uudr", "cf_coeff")
@@ -626,6 +631,36 @@ QUOTES = [
     (*REMUS, "variants.decoupled.ss_cross_track", "{:.3f} m"),
     (*REMUS, "variants.vcm3d_ilos.ss_dist_3d", "{:.3f} m"),
     (*REMUS, "variants.alos3d.ss_dist_3d", "{:.3f} m"),
+    *[
+        (*REMUS, f"variants.{v}.{k}", "| {:.3g} m |")
+        for v in REMUS_LAWS
+        for k in ("rms_dist_3d", "max_dist_3d")
+    ],
+    *[(*SIM1, f"{v}.ss_abs_e", "| {:.1e} |") for v in SIM1_LAWS if v != "los_pid"],
+    (*SIM1, "los_pid.ss_abs_e", "| {:.2f} |"),
+    *[
+        (*run, f"{v}.{k}", fmt)
+        for run in (SIM1, SIM1X)
+        for v in SIM1_LAWS
+        for k, fmt in (
+            ("iae_e", "| {:.1f} |"),
+            ("max_abs_tau_u", "| {:.1f} |"),
+            ("sat_fraction", "| {:.3f} |"),
+        )
+    ],
+    *[(*SIM1X, f"{v}.ss_abs_e", "| {:.1e} |") for v in ("ilos", "vcm_ilos", "alos")],
+    (*SIM1X, "los_pid.ss_abs_e", "| {:.2f} |"),
+    (*SIM1X, "vcm.ss_abs_e", "{:.2f} m (`vcm`)"),
+    (*SIM1X, "vcm_integral.ss_abs_e", "{:.2f} m (`vcm_integral`)"),
+    *[
+        (*SIM2, f"by_actuation.{a}.{k}", fmt)
+        for a in ("underactuated", "full")
+        for k, fmt in (
+            ("rms_dist_3d", "{:.2f} /"),
+            ("max_dist_3d", "/ {:.2f} m"),
+            ("mean_abs_sideslip_deg", "{:.1f}°"),
+        )
+    ],
     *[(*FIT, f"fit.{p}.{k}", "| {:.6g} |") for p in FIT_PARAMS for k in ("true", "estimate")],
     *[(*FIT, f"fit.{p}.std", "| {:.2g} |") for p in FIT_PARAMS],
     (*STUDY, "heldout_loss_true_plant.default gains, nominal design model", "| {:.2f} |"),
