@@ -313,9 +313,36 @@ def test_every_example_config_is_in_a_folder_of_its_command():
         assert path.parent.name in CONFIG_COMMANDS, f"{_rel(path)}: which command reads it?"
 
 
+@pytest.fixture
+def own_registry(monkeypatch):
+    """Loops and laws a config's ``[scenario] module`` registers stay inside the test."""
+    from vcjax.config import scenario
+    from vcjax.loops import registry
+
+    monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))
+    for cls in set(registry._REGISTRY.values()):
+        monkeypatch.setattr(cls, "laws", cls.laws)
+        monkeypatch.setattr(cls, "controllers", cls.controllers)
+    monkeypatch.setattr(scenario, "_IMPORTED", dict(scenario._IMPORTED))
+
+
 @pytest.mark.parametrize("path", EXAMPLE_CONFIGS, ids=_rel)
-def test_example_configs_pass_their_commands_checks(path):
+def test_example_configs_pass_their_commands_checks(path, own_registry):
     _check_config(CONFIG_COMMANDS[path.parent.name], path)
+
+
+def test_a_config_its_command_refuses_fails_the_check(tmp_path, own_registry):
+    """The check above can fail: a shipped config with one wrong key is refused by each
+    command's loader, naming the key."""
+    from vcjax.config import ConfigError
+
+    for folder, command in CONFIG_COMMANDS.items():
+        src = next(p for p in EXAMPLE_CONFIGS if p.parent.name == folder)
+        bad = tmp_path / folder / src.name
+        bad.parent.mkdir()
+        bad.write_text(src.read_text() + "\n[no_such_section]\nkey = 1\n")
+        with pytest.raises(ConfigError, match="no_such_section"):
+            _check_config(command, bad)
 
 
 def _config_argument(tokens: list[str]) -> tuple[str, str] | None:
@@ -542,6 +569,17 @@ def test_release_files_agree():
     assert (ROOT / "vcjax" / "py.typed").exists()
     assert "py.typed" in project["tool"]["setuptools"]["package-data"]["vcjax"]
     assert "bash .ci/package" in (ROOT / ".ci" / "run").read_text()
+
+
+def test_pages_name_the_packages_version():
+    """Where a user page names the version to cite or install, it is the package's."""
+    import vcjax
+
+    for page in ("docs/index.md", "docs/getting-started.md"):
+        text = (ROOT / page).read_text()
+        named = set(re.findall(r"version (\d+\.\d+\.\d+)", text))
+        assert named == {vcjax.__version__}, (page, named)
+        assert "MIT licence" in text, page
 
 
 def test_ci_tools_are_pinned_and_docs_extra_bounded():
