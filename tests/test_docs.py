@@ -649,6 +649,7 @@ SIM1X = ("docs/experiments/sim1.md", "docs/figures/sim1_cross_current/metrics.js
 SIM1_LAWS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos", "alos")
 SIM2 = ("docs/experiments/sim2.md", "docs/figures/sim2/metrics.json")
 REMUS_LAWS = ("vcm3d_ilos", "vcm3d", "decoupled", "alos3d", "pvs_pid")
+OWN = "docs/guides/own-system.md"
 FIT = ("docs/guides/identification.md", "docs/figures/fit/study.json")
 STUDY = ("docs/experiments/identify-tune-verify.md", "docs/figures/fit/study.json")
 FIT_PARAMS = ("X_uu", "Y_uv", "Y_ur", "N_uv", "N_ur", "Y_uudr", "N_uudr", "cf_coeff")
@@ -698,6 +699,12 @@ QUOTES = [
             ("max_dist_3d", "/ {:.2f} m"),
             ("mean_abs_sideslip_deg", "{:.1f}°"),
         )
+    ],
+    *[
+        (OWN, f"docs/figures/sweep_{s}/summary.json", f"variants.{v}.metrics.ss_abs_e.{q}", fmt)
+        for s in ("circle", "survey")
+        for v in ("vcm_integral", "vcm_ilos", "ilos")
+        for q, fmt in (("p50", "| {:.3f} ("), ("p95", "({:.2f}) |"))
     ],
     *[(*FIT, f"fit.{p}.{k}", "| {:.6g} |") for p in FIT_PARAMS for k in ("true", "estimate")],
     *[(*FIT, f"fit.{p}.std", "| {:.2g} |") for p in FIT_PARAMS],
