@@ -283,6 +283,127 @@ def test_shell_blocks_name_real_commands_and_flags():
     assert checked >= 20
 
 
+# --------------------------------------------------------------------------- shown configs
+
+#: the command that reads each folder of example configs
+CONFIG_COMMANDS = {"sweeps": "sweep", "tuning": "tune", "fit": "fit"}
+EXAMPLE_CONFIGS = sorted((ROOT / "examples").rglob("*.toml"))
+
+
+def _check_config(command: str, path: Path) -> None:
+    """Parse and check ``path`` with the command's own loader: nothing is simulated, compiled
+    or fitted (a ``ConfigError`` naming the key if the command would refuse it)."""
+    if command == "sweep":
+        from vcjax.sweep.config import load_config
+
+        load_config(path)
+    elif command == "tune":
+        from tuning.config import load_config
+
+        load_config(path)
+    else:
+        from vcjax.identify.config import load_fit_config
+
+        load_fit_config(path)
+
+
+def test_every_example_config_is_in_a_folder_of_its_command():
+    assert EXAMPLE_CONFIGS
+    for path in EXAMPLE_CONFIGS:
+        assert path.parent.name in CONFIG_COMMANDS, f"{_rel(path)}: which command reads it?"
+
+
+@pytest.fixture
+def own_registry(monkeypatch):
+    """Loops and laws a config's ``[scenario] module`` registers stay inside the test."""
+    from vcjax.config import scenario
+    from vcjax.loops import registry
+
+    monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))
+    for cls in set(registry._REGISTRY.values()):
+        monkeypatch.setattr(cls, "laws", cls.laws)
+        monkeypatch.setattr(cls, "controllers", cls.controllers)
+    monkeypatch.setattr(scenario, "_IMPORTED", dict(scenario._IMPORTED))
+
+
+@pytest.mark.parametrize("path", EXAMPLE_CONFIGS, ids=_rel)
+def test_example_configs_pass_their_commands_checks(path, own_registry):
+    _check_config(CONFIG_COMMANDS[path.parent.name], path)
+
+
+def test_a_config_its_command_refuses_fails_the_check(tmp_path, own_registry):
+    """The check above can fail: a shipped config with one wrong key is refused by each
+    command's loader, naming the key."""
+    from vcjax.config import ConfigError
+
+    for folder, command in CONFIG_COMMANDS.items():
+        src = next(p for p in EXAMPLE_CONFIGS if p.parent.name == folder)
+        bad = tmp_path / folder / src.name
+        bad.parent.mkdir()
+        bad.write_text(src.read_text() + "\n[no_such_section]\nkey = 1\n")
+        with pytest.raises(ConfigError, match="no_such_section"):
+            _check_config(command, bad)
+
+
+def _config_argument(tokens: list[str]) -> tuple[str, str] | None:
+    """``(command, config)`` of a ``vcjax sweep|tune|fit CONFIG`` line (also under ``launch``)."""
+    if "--" in tokens:
+        tokens = tokens[tokens.index("--") + 1 :]
+    else:
+        tokens = tokens[1:]
+    if not tokens or tokens[0] not in ("sweep", "tune", "fit"):
+        return None
+    return tokens[0], next(t for t in tokens[1:] if not t.startswith("-"))
+
+
+def test_command_lines_name_an_existing_config_of_their_command():
+    """Every ``vcjax sweep|tune|fit`` line of a page names a shipped config in that command's
+    folder of ``examples/`` (checked above by the command's loader), or a placeholder in
+    capitals (``CONFIG``)."""
+    named = set()
+    for page, line in SHELL:
+        tokens = _strip_prefix(shlex.split(line))
+        if Path(tokens[0]).name != "vcjax" or not (found := _config_argument(tokens)):
+            continue
+        command, config = found
+        where = f"{_rel(page)}: {line}"
+        if config.isupper():
+            continue
+        folder = {v: k for k, v in CONFIG_COMMANDS.items()}[command]
+        assert config.startswith(f"examples/{folder}/"), f"{where}: not a config of {command}"
+        assert (ROOT / config).is_file(), f"{where}: {config} does not exist"
+        named.add(config)
+    assert {"examples/sweeps/quick.toml", "examples/tuning/acceptance.toml"} <= named
+    assert any(c.startswith("examples/fit/") for c in named)
+
+
+def _is_part(shown, full) -> bool:
+    """Every key of ``shown`` (nested tables included) has the same value in ``full``."""
+    if isinstance(shown, dict):
+        return isinstance(full, dict) and all(
+            k in full and _is_part(v, full[k]) for k, v in shown.items()
+        )
+    return shown == full
+
+
+TOML_BLOCKS = [(p, code) for p in PAGES for code in blocks(p, "toml")]
+
+
+@pytest.mark.parametrize(
+    "page, code", TOML_BLOCKS, ids=[f"{_rel(p)}:{i}" for i, (p, _) in enumerate(TOML_BLOCKS)]
+)
+def test_shown_toml_is_part_of_a_shipped_config(page, code):
+    """A TOML block on a page sets nothing that a shipped example config does not set to the
+    same value, so the loader checks above cover what the page shows (a block cannot drift
+    from the file it quotes, nor show a key or value the command would refuse)."""
+    import tomllib
+
+    shown = tomllib.loads(code)
+    assert shown, f"{_rel(page)}: an empty TOML block"
+    files = [p for p in EXAMPLE_CONFIGS if _is_part(shown, tomllib.loads(p.read_text()))]
+    assert files, f"{_rel(page)}: a TOML block is not part of any examples/**/*.toml"
+
+
 # --------------------------------------------------------------------------- links
 
 
@@ -450,6 +571,17 @@ def test_release_files_agree():
     assert "bash .ci/package" in (ROOT / ".ci" / "run").read_text()
 
 
+def test_pages_name_the_packages_version():
+    """Where a user page names the version to cite or install, it is the package's."""
+    import vcjax
+
+    for page in ("docs/index.md", "docs/getting-started.md"):
+        text = (ROOT / page).read_text()
+        named = set(re.findall(r"version (\d+\.\d+\.\d+)", text))
+        assert named == {vcjax.__version__}, (page, named)
+        assert "MIT licence" in text, page
+
+
 def test_ci_tools_are_pinned_and_docs_extra_bounded():
     """The tools CI runs are pinned exactly; the docs extra has upper bounds (a new major of the
     docstring parser must not turn a clean checkout red)."""
@@ -512,6 +644,15 @@ def test_cli_reference_is_generated_from_the_parser():
 SWEEP = ("docs/guides/sweeps.md", "docs/figures/sweep/summary.json")
 TUNE = ("docs/guides/tuning.md", "docs/figures/tune/summary.json")
 REMUS = ("docs/experiments/remus100.md", "docs/figures/remus100/metrics.json")
+SIM1 = ("docs/experiments/sim1.md", "docs/figures/sim1/metrics.json")
+SIM1X = ("docs/experiments/sim1.md", "docs/figures/sim1_cross_current/metrics.json")
+SIM1_LAWS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos", "alos")
+SIM2 = ("docs/experiments/sim2.md", "docs/figures/sim2/metrics.json")
+REMUS_LAWS = ("vcm3d_ilos", "vcm3d", "decoupled", "alos3d", "pvs_pid")
+OWN = "docs/guides/own-system.md"
+FIT = ("docs/guides/identification.md", "docs/figures/fit/study.json")
+STUDY = ("docs/experiments/identify-tune-verify.md", "docs/figures/fit/study.json")
+FIT_PARAMS = ("X_uu", "Y_uv", "Y_ur", "N_uv", "N_ur", "Y_uudr", "N_uudr", "cf_coeff")
 QUOTES = [
     (*SWEEP, "variants.vcm.metrics.ss_abs_e.p50", "{:.2f} m"),
     (*SWEEP, "variants.ilos.metrics.ss_abs_e.p50", "{:.3f} m"),
@@ -529,6 +670,48 @@ QUOTES = [
     (*REMUS, "variants.decoupled.ss_cross_track", "{:.3f} m"),
     (*REMUS, "variants.vcm3d_ilos.ss_dist_3d", "{:.3f} m"),
     (*REMUS, "variants.alos3d.ss_dist_3d", "{:.3f} m"),
+    *[
+        (*REMUS, f"variants.{v}.{k}", "| {:.3g} m |")
+        for v in REMUS_LAWS
+        for k in ("rms_dist_3d", "max_dist_3d")
+    ],
+    *[(*SIM1, f"{v}.ss_abs_e", "| {:.1e} |") for v in SIM1_LAWS if v != "los_pid"],
+    (*SIM1, "los_pid.ss_abs_e", "| {:.2f} |"),
+    *[
+        (*run, f"{v}.{k}", fmt)
+        for run in (SIM1, SIM1X)
+        for v in SIM1_LAWS
+        for k, fmt in (
+            ("iae_e", "| {:.1f} |"),
+            ("max_abs_tau_u", "| {:.1f} |"),
+            ("sat_fraction", "| {:.3f} |"),
+        )
+    ],
+    *[(*SIM1X, f"{v}.ss_abs_e", "| {:.1e} |") for v in ("ilos", "vcm_ilos", "alos")],
+    (*SIM1X, "los_pid.ss_abs_e", "| {:.2f} |"),
+    (*SIM1X, "vcm.ss_abs_e", "{:.2f} m (`vcm`)"),
+    (*SIM1X, "vcm_integral.ss_abs_e", "{:.2f} m (`vcm_integral`)"),
+    *[
+        (*SIM2, f"by_actuation.{a}.{k}", fmt)
+        for a in ("underactuated", "full")
+        for k, fmt in (
+            ("rms_dist_3d", "{:.2f} /"),
+            ("max_dist_3d", "/ {:.2f} m"),
+            ("mean_abs_sideslip_deg", "{:.1f}°"),
+        )
+    ],
+    *[
+        (OWN, f"docs/figures/sweep_{s}/summary.json", f"variants.{v}.metrics.ss_abs_e.{q}", fmt)
+        for s in ("circle", "survey")
+        for v in ("vcm_integral", "vcm_ilos", "ilos")
+        for q, fmt in (("p50", "| {:.3f} ("), ("p95", "({:.2f}) |"))
+    ],
+    *[(*FIT, f"fit.{p}.{k}", "| {:.6g} |") for p in FIT_PARAMS for k in ("true", "estimate")],
+    *[(*FIT, f"fit.{p}.std", "| {:.2g} |") for p in FIT_PARAMS],
+    (*STUDY, "heldout_loss_true_plant.default gains, nominal design model", "| {:.2f} |"),
+    (*STUDY, "heldout_loss_true_plant.tuned on the nominal model", "| {:.2f} |"),
+    (*STUDY, "heldout_loss_true_plant.default gains, identified design model", "| {:.2f} |"),
+    (*STUDY, "heldout_loss_true_plant.tuned on the identified model", "| **{:.2f}** |"),
 ]
 
 
@@ -539,7 +722,10 @@ def test_pages_quote_the_committed_results(page, results, key, fmt):
     value = json.loads((ROOT / results).read_text())
     for part in key.split("."):
         value = value[part]
-    assert fmt.format(value) in (ROOT / page).read_text(), (page, key, fmt.format(value))
+    quoted = fmt.format(value)
+    text = (ROOT / page).read_text()
+    # a page may typeset a negative number with the minus sign
+    assert quoted in text or quoted.replace("-", "\N{MINUS SIGN}") in text, (page, key, quoted)
 
 
 def test_the_registered_loops_table_lists_every_loop():
