@@ -1,4 +1,4 @@
-"""Waves reach the loops (issue 23): the seam between :mod:`vcjax.waves` and the closed loops
+"""Waves reach the loops (issue 23): the seam between :mod:`vcjax.environment.waves` and the closed loops
 (:attr:`vcjax.loops.Scenario.sea`, :meth:`vcjax.loops.Loop.plant_in_sea`), the ``[waves]``
 section of sweep and tune configs, the recorded wave columns, ``vcjax simulate --waves`` and the
 refusals of loops whose plant cannot feel a sea.
@@ -19,10 +19,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax import loops, sweep, waves
+from vcjax import loops, sweep
 from vcjax.cli import main
 from vcjax.config import ConfigError
 from vcjax.config.scenario import ScenarioChoice, import_module_file
+from vcjax.environment import waves
 from vcjax.linalg import Rzyx
 from vcjax.plots.sweep import sweep_figures
 from vcjax.rollout import RolloutConfig, rollout
@@ -86,7 +87,7 @@ def _same(a, b):
 
 def test_the_odin_loop_in_a_sea_is_the_plant_fed_the_water_and_a_calm_sea_changes_no_bit():
     """The rollout of ``loops.simulate`` with a sea against a rollout written here from the
-    plant and :mod:`vcjax.waves` directly: the water (current + orbital motion) evaluated at the
+    plant and :mod:`vcjax.environment.waves` directly: the water (current + orbital motion) evaluated at the
     vehicle's NED position shifted by ``origin_depth``, at each integrator stage's own time,
     through the plant's current door, plus the Froude–Krylov correction on the disturbance."""
     loop = _odin()

@@ -17,7 +17,7 @@ An experiment module provides:
 
 ``waves`` and ``wave_seed`` are the options of the experiments whose loops feel a sea
 (``remus100``, ``sim2``): ``--waves HS TP DIR_DEG`` puts every run in one random JONSWAP sea
-(:func:`vcjax.waves.sea_state`, 64 components, long-crested) drawn from
+(:func:`vcjax.environment.waves.sea_state`, 64 components, long-crested) drawn from
 ``PRNGKey(--wave-seed)`` (default 0); the others refuse them.
 
 The experiments: ``sim1`` (Simulation 1 of the paper: INFANTE-class on a line, every

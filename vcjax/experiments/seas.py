@@ -7,7 +7,7 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from vcjax import waves as wv
+from vcjax.environment import waves as wv
 
 #: the option's sea: spectrum, peak enhancement and number of components
 SPECTRUM = "jonswap"
@@ -17,7 +17,7 @@ COMPONENTS = 64
 
 def option_sea(waves, seed: int = 0) -> wv.Sea:
     """The sea of ``--waves HS TP DIR_DEG`` (``waves``: those three numbers, the direction in
-    degrees towards which the waves travel): :func:`vcjax.waves.sea_state` with
+    degrees towards which the waves travel): :func:`vcjax.environment.waves.sea_state` with
     :data:`SPECTRUM`, :data:`GAMMA` and :data:`COMPONENTS`, long-crested, from
     ``PRNGKey(seed)``."""
     hs, tp, direction_deg = (float(v) for v in waves)

@@ -273,7 +273,7 @@ WAVE_ORIGIN_DEPTH = 107.0
 def sim2_sea(waves, seed=0):
     """``(sea, origin_depth)`` of ``vcjax simulate sim2 --waves HS TP DIR_DEG``: a long-crested
     JONSWAP sea (``gamma = 3.3``, 64 components) drawn from ``PRNGKey(seed)``
-    (:func:`vcjax.waves.sea_state`), and :data:`WAVE_ORIGIN_DEPTH`."""
+    (:func:`vcjax.environment.waves.sea_state`), and :data:`WAVE_ORIGIN_DEPTH`."""
     return option_sea(waves, seed), WAVE_ORIGIN_DEPTH
 
 

@@ -12,7 +12,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from vcjax.currents import GaussMarkovCurrent, gm_init, gm_step, gm_value
+from vcjax.environment.current import GaussMarkovCurrent, gm_init, gm_step, gm_value
 from vcjax.loops.loop import Loop
 from vcjax.loops.scenario import check_disturbances
 from vcjax.loops.types import Scenario, Water
@@ -27,7 +27,8 @@ class Disturbances:
 
     Attributes:
         gauss_markov: the horizontal current is the Gauss–Markov process of
-            :mod:`vcjax.currents` around ``Scenario.current`` (per-step, exact discretisation,
+            :mod:`vcjax.environment.current` around ``Scenario.current`` (per-step, exact
+            discretisation,
             linear between samples); False: the constant ``Scenario.current``.
         sensor_noise: white Gaussian noise on what the controller measures
             (:meth:`Loop.measure`), drawn per step from ``fold_in(key, k)`` and held.
@@ -45,7 +46,8 @@ class DisturbanceParams(NamedTuple):
     """Traced parameters of :class:`Disturbances`.
 
     Attributes:
-        current: :class:`~vcjax.currents.GaussMarkovCurrent` (mean: the horizontal part of
+        current: :class:`~vcjax.environment.current.GaussMarkovCurrent` (mean: the horizontal part
+        of
             ``Scenario.current``); noise_std: (n,) sensor-noise standard deviations;
         key: (2,) PRNG key of the run's random processes.
     """

@@ -22,7 +22,7 @@ from typing import Any, ClassVar, Literal, NamedTuple
 
 import jax.numpy as jnp
 
-from vcjax import paths, waves
+from vcjax import paths
 from vcjax._checks import check_positive
 from vcjax.allocation import allocate
 from vcjax.control.attitude import roll_pitch_pd
@@ -37,6 +37,7 @@ from vcjax.control.vcm import (
     vcm_params,
     vcm_state,
 )
+from vcjax.environment import waves
 from vcjax.linalg import Rzyx
 from vcjax.loops.geometry import path_errors, path_poses
 from vcjax.loops.law import Law
@@ -351,7 +352,8 @@ class OdinLoop(Loop):
     def plant_in_sea(self, t, x, u, args, water):
         """The 6-DOF plant in a sea: the water's velocity and material acceleration at the
         vehicle's position (current + orbital motion) through the plant's (3,) current door,
-        the Froude–Krylov correction (:func:`vcjax.waves.current_door_correction`: the pendulum
+        the Froude–Krylov correction (:func:`vcjax.environment.waves.current_door_correction`: the
+        pendulum
         moment of the CG below the CB, plus the buoyancy excess if ``B != W``) added to the
         body disturbance. A calm sea changes nothing (every added term is exactly 0)."""
         v_w, a_w = water.at(t, x.eta[:3])

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax import waves
+from vcjax.environment import waves
 from vcjax.loops.geometry import start_parameter
 from vcjax.loops.loop import Loop
 from vcjax.loops.params import get_param, replace_params
@@ -77,7 +77,8 @@ def make_scenario(
             ``plant``).
         disturbance: constant generalised disturbance (default zeros).
         varpi0: initial particle (default: the path point nearest to the start).
-        sea: a :class:`vcjax.waves.Sea` (e.g. :func:`vcjax.waves.sea_state`) the plant feels,
+        sea: a :class:`vcjax.environment.waves.Sea` (e.g.
+        :func:`vcjax.environment.waves.sea_state`) the plant feels,
             or None (no waves; refused by a loop that cannot take waves).
         origin_depth: depth of the NED origin below the sea's mean free surface [m].
     """
@@ -141,9 +142,9 @@ def make_scenario(
 
 
 def _check_sea(sea, dtype):
-    """A :class:`~vcjax.waves.Sea` of five finite (N,) arrays cast to ``dtype``."""
+    """A :class:`~vcjax.environment.waves.Sea` of five finite (N,) arrays cast to ``dtype``."""
     if not isinstance(sea, waves.Sea):
-        raise ValueError(f"sea: expected a vcjax.waves.Sea, got {type(sea).__name__}")
+        raise ValueError(f"sea: expected a vcjax.environment.waves.Sea, got {type(sea).__name__}")
     arrs = [np.asarray(a, dtype=float) for a in sea]
     n = arrs[0].shape
     if (

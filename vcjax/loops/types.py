@@ -8,7 +8,7 @@ from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 
-from vcjax import waves
+from vcjax.environment import waves
 
 __all__ = ["Scenario", "Water", "GainSpec", "Signals"]
 
@@ -30,7 +30,8 @@ class Scenario(NamedTuple):
             from them); equal to ``plant`` unless a study perturbs the plant (model error).
         disturbance: (n_nu,) constant generalised disturbance force on the plant (body frame
             for craft) [N, N m]; zeros where the plant takes none.
-        sea: a :class:`vcjax.waves.Sea` (``N`` regular components, (N,) arrays) whose orbital
+        sea: a :class:`vcjax.environment.waves.Sea` (``N`` regular components, (N,) arrays) whose
+        orbital
             motion the plant feels on top of ``current`` (:meth:`Loop.plant_in_sea`), or
             ``None``: no waves. Whether it is ``None`` is static (it changes the program).
         origin_depth: () depth of the NED origin below the sea's mean free surface [m]: the sea
@@ -56,7 +57,8 @@ class Water(NamedTuple):
     :func:`vcjax.loops.simulate` for :meth:`Loop.plant_in_sea`).
 
     Attributes:
-        sea: :class:`vcjax.waves.Sea`; origin_depth: () depth of the NED origin below the mean
+        sea: :class:`vcjax.environment.waves.Sea`; origin_depth: () depth of the NED origin below
+        the mean
             free surface [m] (:attr:`Scenario.origin_depth`);
         current: (3,) uniform current in NED at this time [m/s];
         current_dot: (3,) its rate [m/s^2], or ``None`` (a constant current).
@@ -73,12 +75,13 @@ class Water(NamedTuple):
     def at(self, t, p_ned):
         """``(v_w (3,), a_w (3,))``: the water's velocity (current + orbital) [m/s] and material
         acceleration [m/s^2] at the NED point ``p_ned`` (3,) [m], time ``t`` [s]
-        (:func:`vcjax.waves.water_kinematics`)."""
+        (:func:`vcjax.environment.waves.water_kinematics`)."""
         return waves.water_kinematics(self.sea, t, self._at(p_ned), self.current, self.current_dot)
 
     def waves_at(self, t, p_ned):
         """``(u (3,), a (3,))``: the waves' share of :meth:`at`, the orbital velocity and its
-        material acceleration advected by the current (:func:`vcjax.waves.orbital_kinematics`);
+        material acceleration advected by the current
+        (:func:`vcjax.environment.waves.orbital_kinematics`);
         ``at = (current + u, current_dot + a)``."""
         return waves.orbital_kinematics(self.sea, t, self._at(p_ned), self.current)
 

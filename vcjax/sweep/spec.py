@@ -18,10 +18,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax import loops, waves
+from vcjax import loops
 from vcjax.config import ConfigError, as_choice, as_int, as_number, as_range
 from vcjax.config.scenario import ScenarioChoice
-from vcjax.currents import current_ned
+from vcjax.environment import waves
+from vcjax.environment.current import current_ned
 
 __all__ = [
     "ScenarioSpec",
@@ -57,7 +58,8 @@ class ScenarioSpec:
         disturbance: per component of the generalised disturbance force, a range [N, N m]
             (empty: none).
         wave_spectrum: ``"jonswap"`` or ``"pm"``: every scenario gets a random sea
-            (:func:`vcjax.waves.sea_state`) of ``wave_components`` components with its own
+            (:func:`vcjax.environment.waves.sea_state`) of ``wave_components`` components with its
+            own
             ``wave_hs`` [m], ``wave_tp`` [s], ``wave_direction_deg`` (towards, clockwise from
             north) and ``wave_origin_depth`` [m] drawn from the ranges; ``None``: no waves.
         wave_gamma: JONSWAP peak enhancement; wave_spreading: ``s`` of the ``cos^2s``
@@ -179,7 +181,7 @@ class ScenarioSpec:
 
 def check_wave_step(tp: float, dt: float, name: str = "wave_tp") -> None:
     """The step ``dt`` [s] resolves a sea of peak period ``tp`` [s]: its shortest component
-    (``tp / 4``, the top of :data:`vcjax.waves.BAND`) with 10 steps, ``tp >= 40 dt``
+    (``tp / 4``, the top of :data:`vcjax.environment.waves.BAND`) with 10 steps, ``tp >= 40 dt``
     (``ConfigError`` naming ``name``)."""
     if tp < 10.0 * waves.BAND[1] * dt:
         raise ConfigError(
@@ -320,7 +322,8 @@ class MCScenario(NamedTuple):
         wave_hs: () significant wave height [m]; wave_tp: () peak period [s];
         wave_direction_deg: () direction the waves travel towards [deg, clockwise from north];
         wave_origin_depth: () depth of the NED origin below the mean free surface [m];
-        sea: the scenario's :class:`vcjax.waves.Sea` ((N,) arrays), drawn from its own key.
+        sea: the scenario's :class:`vcjax.environment.waves.Sea` ((N,) arrays), drawn from its own
+        key.
         All five ``None`` without waves.
     """
 
