@@ -48,7 +48,7 @@ class DrifterLoop(loops.loop_class("puck")):
     for the plumbing, not a vehicle."""
 
     vehicle: ClassVar[str] = "test_wave_drifter"
-    takes_waves: ClassVar[bool] = True
+    feels: ClassVar[dict] = {**loops.loop_class("puck").feels, "waves": True}
 
     def plant_in_sea(self, t, x, u, args, water):
         v_w, _ = water.at(t, self.position(x[0], args.params))
@@ -128,7 +128,7 @@ _REMUS = loops.make_loop("remus100", "vcm3d_ilos")
 def _remus_fields(x, u, t, sea, cur, sc):
     """``(loop's plant_in_sea, the plant given the whole water as its (3,) current)``."""
     args = _REMUS.plant_args(sc._replace(current=cur), cur, jnp.zeros(3))
-    got = _REMUS.plant_in_sea(t, x, u, args, loops.Water(sea, 2.0, cur, None))
+    got = _REMUS.plant_in_sea(t, x, u, args, loops.Water.of_sea(sea, 2.0, cur, None))
     p = args.vehicle
     v_w, a_w = waves.water_kinematics(sea, t, x.eta[:3] + jnp.asarray([0, 0, 2.0]), cur)
     dx = remus100.remus100_plant(t, x, u, remus100.Remus100Args(p, v_w, a_w))

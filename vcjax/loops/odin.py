@@ -266,10 +266,8 @@ class OdinLoop(Loop):
         "velocity_std": 3,
         "rate_std_deg": 3,
     }
-    takes_disturbance: ClassVar[bool] = True
     default_speed: ClassVar[float] = 0.5
-    takes_current: ClassVar[bool] = True
-    takes_waves: ClassVar[bool] = True
+    feels: ClassVar[dict[str, bool | str]] = {"force": True, "current": True, "waves": True}
 
     def __post_init__(self):
         super().__post_init__()

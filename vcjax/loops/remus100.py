@@ -276,9 +276,11 @@ class Remus100Loop(Loop):
         "speed": 1.5,
     }
     default_speed: ClassVar[float] = 1.5
-    takes_current: ClassVar[bool] = True
-    takes_time_varying_current: ClassVar[bool] = True
-    takes_waves: ClassVar[bool] = True
+    feels: ClassVar[dict[str, bool | str]] = {
+        "current": True,
+        "varying_current": True,
+        "waves": True,
+    }
 
     def __post_init__(self):
         super().__post_init__()

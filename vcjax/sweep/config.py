@@ -184,7 +184,7 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
         sc_kw["noise"] = sections["sensor_noise"].values
         if "force" in raw.get("disturbance", {}):
             sc_kw["disturbance"] = sections["disturbance"].force
-        if not cls.takes_current and "current" not in raw:
+        if not cls.can_feel("current") and "current" not in raw:
             sc_kw["current_speed"] = (0.0, 0.0)  # the default current is Simulation 1's
         if "waves" in raw:
             check_waves(raw["waves"])

@@ -158,7 +158,7 @@ class ScenarioSpec:
             except ValueError as err:
                 raise ConfigError(str(err)) from None
         if self.disturbance:
-            if not loop.takes_disturbance:
+            if not loop.can_feel("force"):
                 raise ConfigError(f"disturbance: the {loop.vehicle} plant takes no disturbance")
             n_nu = int(np.shape(loop.initial_from(_zeros(loop))[1])[0])
             if len(self.disturbance) != n_nu:
