@@ -24,6 +24,7 @@ from vcjax.environment.component import (
     component,
     components,
     draw,
+    freeze,
     register,
     sample,
 )
@@ -58,6 +59,7 @@ __all__ = [
     "components",
     "current",
     "draw",
+    "freeze",
     "register",
     "sample",
     "waves",

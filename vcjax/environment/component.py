@@ -52,6 +52,7 @@ __all__ = [
     "component",
     "components",
     "draw",
+    "freeze",
     "register",
     "sample",
 ]
@@ -267,6 +268,16 @@ class Environment:
 
     def __add__(self, other: Environment) -> Environment:
         return Environment(self.components + other.components, self.params + other.params)
+
+
+def freeze(section: str, raw: Mapping | None) -> tuple:
+    """``(section, ((key, value), ...))``: the registered component's checked table in a
+    hashable form (for static configs); ``ValueError`` ``[section] key: message``."""
+    if isinstance(raw, tuple):  # already frozen: ((key, value), ...)
+        raw = dict(raw)
+    if raw is not None and not isinstance(raw, Mapping):
+        raise ValueError(f"[{section}]: expected a table, got {raw!r}")
+    return section, tuple(sorted(component(section).check(dict(raw or {})).items()))
 
 
 def sample(key, sections: Mapping[str, Mapping], loop=None, comps: Mapping | None = None):

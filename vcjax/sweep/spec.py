@@ -21,7 +21,7 @@ import numpy as np
 from vcjax import loops
 from vcjax.config import ConfigError, as_choice, as_int, as_number, as_range
 from vcjax.config.scenario import ScenarioChoice
-from vcjax.environment import waves
+from vcjax.environment import freeze, waves
 from vcjax.environment.current import current_ned
 
 __all__ = [
@@ -64,6 +64,10 @@ class ScenarioSpec:
             north) and ``wave_origin_depth`` [m] drawn from the ranges; ``None``: no waves.
         wave_gamma: JONSWAP peak enhancement; wave_spreading: ``s`` of the ``cos^2s``
             spreading (0: long-crested).
+        environment: ``((section, table), ...)``: further components of
+            :mod:`vcjax.environment` by their section name, each table checked by its
+            component (:func:`vcjax.environment.freeze`) and sampled per scenario from the
+            scenario's key.
     """
 
     current_speed: tuple[float, float] = (0.5, 0.5)
@@ -86,9 +90,14 @@ class ScenarioSpec:
     wave_spreading: float = 0.0
     wave_components: int = 64
     wave_origin_depth: tuple[float, float] = (0.0, 0.0)
+    environment: tuple = ()
 
     def __post_init__(self):
         s = object.__setattr__
+        try:
+            s(self, "environment", tuple(freeze(sec, t) for sec, t in self.environment))
+        except ValueError as err:
+            raise ConfigError(str(err)) from None
         s(self, "current_speed", as_range("current_speed", self.current_speed, lo_min=0.0))
         s(
             self,
@@ -269,6 +278,7 @@ class SweepSpec:
             model_fields=self.scenario.fields_for(self.loop(self.variants[0])),
             tail=self.tail,
             record_stride=stride,
+            environment=self.scenario.environment,
         )
 
 
@@ -284,6 +294,8 @@ class MCConfig:
         model_fields: plant fields scaled by ``MCScenario.model_factors`` (same order).
         tail: steady-state window (last fraction of the run).
         record_stride: keep every ``record_stride``-th sample of ``e`` and the path (0: none).
+        environment: ``((section, table), ...)`` further environment components
+            (:attr:`ScenarioSpec.environment`).
     """
 
     num_steps: int
@@ -294,6 +306,7 @@ class MCConfig:
     model_fields: tuple[str, ...] = ()
     tail: float = 0.2
     record_stride: int = 0
+    environment: tuple = ()
 
     @property
     def trace_steps(self) -> np.ndarray:
