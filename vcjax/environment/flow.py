@@ -73,7 +73,9 @@ class GaussMarkov(Component):
         "direction_deg": _DIRECTION,
         "sigma": Key(0.05, "stationary standard deviation per component [m/s]", lo=0.0),
         "tau": Key(300.0, "correlation time [s]", lo=0.0, strict_lo=True),
-        "max_speed": Key(2.0, "bound on the speed handed to the plant [m/s]", 0.0, True),
+        "max_speed": Key(
+            2.0, "bound on the speed handed to the plant [m/s]", lo=0.0, strict_lo=True
+        ),
     }
 
     def sample(self, key, section):
