@@ -75,7 +75,7 @@ def test_a_required_key_and_a_section_that_is_not_a_table():
     with pytest.raises(ValueError, match=r"^\[waves\] components: expected an integer"):
         Waves().check({"hs": 1.0, "tp": 8.0, "components": 2.5})
     with pytest.raises(ValueError, match=r"^\[nope\]: no such component; known: "):
-        environment.component("nope")
+        environment.lookup("nope")
 
 
 def test_a_frozen_section_is_hashable_and_freezes_again_to_itself():
@@ -150,7 +150,7 @@ def test_the_waves_component_is_a_sea_state_felt_at_the_origin_depth():
 
 def test_sensor_noise_binds_to_the_loops_channels_in_si_units():
     loop = loops.make_loop("infante", "vcm")
-    c = environment.component("sensor_noise").bind(loop)
+    c = environment.lookup("sensor_noise").bind(loop)
     assert c.channels == tuple(loop.noise_channels.items())
     raw = {k: 1.0 for k in loop.noise_channels}
     p = c.sample(jax.random.PRNGKey(0), c.check(raw))
@@ -164,9 +164,9 @@ def test_sensor_noise_binds_to_the_loops_channels_in_si_units():
 
 
 def test_the_force_binds_to_the_generalised_velocity_size():
-    assert environment.component("force").bind(loops.make_loop("puck", "vcm")).size == 2
+    assert environment.lookup("force").bind(loops.make_loop("puck", "vcm")).size == 2
     odin = loops.make_loop("odin", "vcm")
-    c = environment.component("force").bind(odin)
+    c = environment.lookup("force").bind(odin)
     assert c.size == 6 and set(c.schema) == {f"tau_{i}" for i in range(6)}
     p = c.sample(jax.random.PRNGKey(0), c.check({"tau_0": 5.0, "tau_5": [1.0, 1.0]}))
     np.testing.assert_array_equal(c.force(p), [5.0, 0, 0, 0, 0, 1.0])
@@ -265,7 +265,7 @@ def test_noise_and_force_components_give_the_older_route_bit_for_bit():
     loop = loops.make_loop("puck", "vcm")
     sc = loops.make_scenario(loop, initial={"x": 0.7})
     tau = jnp.asarray([0.3, -0.2])
-    force = environment.component("force").bind(loop)
+    force = environment.lookup("force").bind(loop)
     env = Environment((force,), (environment.ForceParams(tau),))
     _same(_run(loop, sc._replace(disturbance=tau)), _run(loop, sc._replace(environment=env)))
 

@@ -79,7 +79,7 @@ def _tidal_env(section=SECTION, loop=None, seed=0):
 
 def test_the_new_disturbance_is_listed_and_its_section_checked():
     assert "tidal" in environment.components()
-    assert environment.component("tidal") == Tidal()
+    assert environment.lookup("tidal") == Tidal()
     with pytest.raises(ValueError, match=r"\[tidal\] sped: unknown key \(did you mean 'speed'\?\)"):
         environment.freeze("tidal", {"sped": 1.0})
     with pytest.raises(ValueError, match=r"\[tidal\] period: 0.0 is outside \(0.0, inf\]"):

@@ -5,7 +5,8 @@
 * :class:`Component` (:mod:`vcjax.environment.component`): one disturbance — its TOML section
   and schema, ``sample(key, section) -> params`` (traced), an optional process
   (``init``/``advance``) and its contribution (water velocity + material acceleration at a NED
-  point, a body force, measurement noise); :func:`register` makes one known by its section.
+  point, a body force, measurement noise); :func:`register` makes one known by its
+  section, :func:`lookup` finds it.
 * The built-in components: :class:`ConstantCurrent` ``[current]``, :class:`GaussMarkov`
   ``[gauss_markov]``, :class:`Waves` ``[waves]``, :class:`SensorNoise` ``[sensor_noise]``,
   :class:`ConstantForce` ``[force]``.
@@ -21,10 +22,10 @@ from vcjax.environment.component import (
     Environment,
     Key,
     check_section,
-    component,
     components,
     draw,
     freeze,
+    lookup,
     register,
     sample,
 )
@@ -55,11 +56,11 @@ __all__ = [
     "SensorNoise",
     "Waves",
     "check_section",
-    "component",
     "components",
     "current",
     "draw",
     "freeze",
+    "lookup",
     "register",
     "sample",
     "waves",

@@ -49,8 +49,8 @@ __all__ = [
     "Environment",
     "Key",
     "check_section",
-    "component",
     "components",
+    "lookup",
     "draw",
     "freeze",
     "register",
@@ -217,7 +217,7 @@ def register(comp: Component, *, replace: bool = False) -> Component:
     return comp
 
 
-def component(section: str) -> Component:
+def lookup(section: str) -> Component:
     """The registered component of ``section`` (``ValueError`` listing the known ones)."""
     try:
         return _REGISTRY[section]
@@ -277,7 +277,7 @@ def freeze(section: str, raw: Mapping | None) -> tuple:
         raw = dict(raw)
     if raw is not None and not isinstance(raw, Mapping):
         raise ValueError(f"[{section}]: expected a table, got {raw!r}")
-    return section, tuple(sorted(component(section).check(dict(raw or {})).items()))
+    return section, tuple(sorted(lookup(section).check(dict(raw or {})).items()))
 
 
 def sample(key, sections: Mapping[str, Mapping], loop=None, comps: Mapping | None = None):
@@ -291,7 +291,7 @@ def sample(key, sections: Mapping[str, Mapping], loop=None, comps: Mapping | Non
     """
     found, params = [], []
     for i, (name, raw) in enumerate(sections.items()):
-        c = (comps or {}).get(name) or component(name)
+        c = (comps or {}).get(name) or lookup(name)
         c = c if loop is None else c.bind(loop)
         found.append(c)
         params.append(c.sample(jax.random.fold_in(key, i), c.check(raw)))

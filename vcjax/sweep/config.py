@@ -212,7 +212,7 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
                 sc_kw.get("current_model", ScenarioSpec.current_model) == "gauss_markov",
                 waves="waves" in raw,
             )
-            loops.check_environment(cls, [environment.component(sec) for sec, _ in env])
+            loops.check_environment(cls, [environment.lookup(sec) for sec, _ in env])
         except ValueError as err:
             raise ConfigError(refusal(err)) from None
         gains = raw.get("simulation", {}).get("gains")
