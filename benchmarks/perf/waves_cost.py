@@ -16,8 +16,7 @@ controller, so its ratio bounds a loop's from above):
 * ``current``: the plant as every loop uses it without waves, a constant (2,) current;
 * ``waves``: the same plant taking the water as its (3,) current, with
   ``vcjax.environment.waves.water_kinematics`` of a 64-component sea (one sea per scenario, drawn
-  inside
-  the jitted function by ``sea_state`` from the scenario's key) evaluated at the vehicle's
+  inside the jitted function by ``sea_state`` from the scenario's key) evaluated at the vehicle's
   position in every RK4 stage, plus ``current_door_correction`` (one extra Cholesky solve);
 * ``waves_door_only``: as ``waves`` without the correction (what a plant that adds the
   correction to its force sum, sharing its one solve, costs);

@@ -9,8 +9,7 @@ A *loop* assembles a vehicle's plant, the controller's design model, a law and t
 * the :class:`~vcjax.loops.Scenario` — traced, the same container for every loop: initial
   state ``eta0``/``nu0``, ``current`` (the water's NED velocity (3,) [m/s], built from a speed
   and a direction with :func:`vcjax.environment.current.current_ned`), ``u_d``, ``varpi0``, the
-  path's
-  coefficients, the ``plant`` and ``design`` parameters, a constant ``disturbance`` force,
+  path's coefficients, the ``plant`` and ``design`` parameters, a constant ``disturbance`` force,
   and optionally a ``sea`` (a :class:`vcjax.environment.waves.Sea`) with its ``origin_depth``;
 * the gains — a NamedTuple pytree, traced (a new gain value never recompiles).
 

@@ -38,8 +38,7 @@ class Disturbances:
     Attributes:
         gauss_markov: the horizontal current is the Gauss–Markov process of
             :mod:`vcjax.environment.current` around ``Scenario.current`` (per-step, exact
-            discretisation,
-            linear between samples); False: the constant ``Scenario.current``.
+            discretisation, linear between samples); False: the constant ``Scenario.current``.
         sensor_noise: white Gaussian noise on what the controller measures
             (:meth:`Loop.measure`), drawn per step from ``fold_in(key, k)`` and held.
     """
@@ -57,8 +56,7 @@ class DisturbanceParams(NamedTuple):
 
     Attributes:
         current: :class:`~vcjax.environment.current.GaussMarkovCurrent` (mean: the horizontal part
-        of
-            ``Scenario.current``); noise_std: (n,) sensor-noise standard deviations;
+            of ``Scenario.current``); noise_std: (n,) sensor-noise standard deviations;
         key: (2,) PRNG key of the run's random processes.
     """
 

@@ -219,8 +219,7 @@ class Loop:
         NED position (every integrator stage: the sea depends on where the vehicle is), hands
         the velocity and material acceleration to the plant's current door and adds the
         Froude–Krylov correction (:func:`vcjax.environment.waves.current_door_correction`). A calm
-        sea
-        (``hs = 0``) must give exactly :meth:`plant`'s result.
+        sea (``hs = 0``) must give exactly :meth:`plant`'s result.
         """
         raise NotImplementedError(f"{type(self).__name__}: no waves ({self.refusal('waves')})")
 

@@ -351,8 +351,7 @@ class OdinLoop(Loop):
         """The 6-DOF plant in a sea: the water's velocity and material acceleration at the
         vehicle's position (current + orbital motion) through the plant's (3,) current door,
         the Froude–Krylov correction (:func:`vcjax.environment.waves.current_door_correction`: the
-        pendulum
-        moment of the CG below the CB, plus the buoyancy excess if ``B != W``) added to the
+        pendulum moment of the CG below the CB, plus the buoyancy excess if ``B != W``) added to the
         body disturbance. A calm sea changes nothing (every added term is exactly 0)."""
         v_w, a_w = water.at(t, x.eta[:3])
         b = args.vehicle.body

@@ -333,8 +333,7 @@ class Remus100Loop(Loop):
         orbital motion at the hull's position goes through the full rotation on top of it
         (:attr:`~vcjax.vehicles.remus100.Remus100Args.v_w`), and the pendulum moment of the CG
         below the CB (:func:`vcjax.environment.waves.current_door_correction`; ``W = B``, CB at the
-        CO)
-        joins the force sum. A calm sea changes nothing (every added term is exactly 0)."""
+        CO) joins the force sum. A calm sea changes nothing (every added term is exactly 0)."""
         u_w, a_w = water.waves_at(t, x.eta[:3])
         b = args.vehicle.body
         m = b.M_RB[0, 0]

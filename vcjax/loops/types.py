@@ -31,8 +31,7 @@ class Scenario(NamedTuple):
         disturbance: (n_nu,) constant generalised disturbance force on the plant (body frame
             for craft) [N, N m]; zeros where the plant takes none.
         sea: a :class:`vcjax.environment.waves.Sea` (``N`` regular components, (N,) arrays) whose
-        orbital
-            motion the plant feels on top of ``current`` (:meth:`Loop.plant_in_sea`), or
+            orbital motion the plant feels on top of ``current`` (:meth:`Loop.plant_in_sea`), or
             ``None``: no waves. Whether it is ``None`` is static (it changes the program).
         origin_depth: () depth of the NED origin below the sea's mean free surface [m]: the sea
             is felt at depth ``origin_depth + z`` (the same mission at another survey depth);

@@ -8,8 +8,8 @@ comparison). A scenario draws:
 
 * the ocean current: mean speed [m/s] and direction [deg, towards which the water flows,
   clockwise from north]; constant, or slowly varying as a first-order Gauss–Markov process
-  around that mean (:mod:`vcjax.environment.current`, exact discretisation, clipped to a maximum
-  speed);
+  around that mean (:mod:`vcjax.environment.current`, exact discretisation, clipped to a
+  maximum speed);
 * the initial state: the vehicle's ``[initial]`` keys (INFANTE-class: position ``x, y`` [m],
   ``heading_deg``, surge ``speed`` [m/s]); and the desired speed ``u_d`` [m/s];
 * multiplicative model errors: each listed plant parameter is multiplied by

@@ -59,8 +59,7 @@ class ScenarioSpec:
             (empty: none).
         wave_spectrum: ``"jonswap"`` or ``"pm"``: every scenario gets a random sea
             (:func:`vcjax.environment.waves.sea_state`) of ``wave_components`` components with its
-            own
-            ``wave_hs`` [m], ``wave_tp`` [s], ``wave_direction_deg`` (towards, clockwise from
+            own ``wave_hs`` [m], ``wave_tp`` [s], ``wave_direction_deg`` (towards, clockwise from
             north) and ``wave_origin_depth`` [m] drawn from the ranges; ``None``: no waves.
         wave_gamma: JONSWAP peak enhancement; wave_spreading: ``s`` of the ``cos^2s``
             spreading (0: long-crested).
@@ -336,8 +335,7 @@ class MCScenario(NamedTuple):
         wave_direction_deg: () direction the waves travel towards [deg, clockwise from north];
         wave_origin_depth: () depth of the NED origin below the mean free surface [m];
         sea: the scenario's :class:`vcjax.environment.waves.Sea` ((N,) arrays), drawn from its own
-        key.
-        All five ``None`` without waves.
+        key. All five ``None`` without waves.
     """
 
     index: Any
