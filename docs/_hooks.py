@@ -63,7 +63,7 @@ CONCEPTS = [
         "Environment",
         "What the water and the world do to a vehicle: currents, random seas, sensor noise, "
         "forces.",
-        ["vcjax.environment", "vcjax.currents", "vcjax.waves"],
+        ["vcjax.environment"],
     ),
     (
         "rollouts",

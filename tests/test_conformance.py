@@ -96,7 +96,7 @@ def _case(vehicle, controller):
     shifted by a)."""
     loop = _loop(vehicle, controller)
     g = loop.default_gains()
-    cur = (0.1, -0.2, 0.0) if loop.takes_current else (0.0, 0.0, 0.0)
+    cur = (0.1, -0.2, 0.0) if loop.can_feel("current") else (0.0, 0.0, 0.0)
     sc = loops.make_scenario(loop, current=cur)
     spec = loop.gain_specs()[0]
     v0 = spec.get(g)
@@ -121,7 +121,7 @@ def test_one_step_is_finite_and_its_gradient_matches_finite_differences(vehicle,
     differences."""
     loop = _loop(vehicle, controller)
     g = loop.default_gains()
-    cur = (0.1, -0.2, 0.0) if loop.takes_current else (0.0, 0.0, 0.0)
+    cur = (0.1, -0.2, 0.0) if loop.can_feel("current") else (0.0, 0.0, 0.0)
     sc = loops.make_scenario(loop, current=cur, initial=_offset(loop))
     spec = loop.gain_specs()[0]
     v0 = spec.get(g)

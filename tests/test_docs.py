@@ -168,6 +168,18 @@ def _claims_gpu(ns):
     assert jax.default_backend() in {"cpu", "gpu", "cuda", "rocm", "tpu"}
 
 
+def _claims_disturbances(ns):
+    import jax
+
+    from vcjax import environment, loops
+
+    assert "tidal" in environment.components()
+    assert all(np.isfinite(np.asarray(a)).all() for a in jax.tree_util.tree_leaves(ns["traj"].x))
+    assert ns["train"].environment.params[0].speed.shape == (4,)
+    with pytest.raises(ValueError, match="^tidal: the odin loop cannot take a time-varying"):
+        loops.check_environment(loops.make_loop("odin", "vcm"), ns["env"])
+
+
 CLAIMS = {
     "README.md": _claims_first_loop,
     "docs/getting-started.md": _claims_first_loop,
@@ -177,23 +189,29 @@ CLAIMS = {
     "docs/reference/vehicles.md": _claims_vehicles,
     "docs/guides/gpu.md": _claims_gpu,
     "docs/guides/waves.md": _claims_waves,
+    "docs/guides/disturbances.md": _claims_disturbances,
 }
 
 
 @pytest.mark.parametrize("page", PY_PAGES, ids=_rel)
 def test_python_blocks_run_and_their_claims_hold(page):
     assert _rel(page) in CLAIMS, f"{_rel(page)}: a page with Python gets its claims checked here"
+    from vcjax.environment import component as env_registry
     from vcjax.loops import registry
 
-    # a page registers its example loop as a reader's fresh session would: take out what an
-    # earlier test registered under the same names (registering a taken name is refused)
+    # a page registers its example loop (or disturbance) as a reader's fresh session would:
+    # take out what an earlier test registered under the same names (a taken name is refused)
     saved = dict(registry._REGISTRY)
+    saved_env = dict(env_registry._REGISTRY)
     registry._REGISTRY.pop("puck", None)
+    env_registry._REGISTRY.pop("tidal", None)
     try:  # the claims too: they may look up what the page registered
         CLAIMS[_rel(page)](run_page(page))
     finally:
         registry._REGISTRY.clear()
         registry._REGISTRY.update(saved)
+        env_registry._REGISTRY.clear()
+        env_registry._REGISTRY.update(saved_env)
 
 
 def test_the_readme_example_is_the_getting_started_example():

@@ -14,7 +14,8 @@ ROOT = Path(__file__).resolve().parents[1] / "vcjax"
 #: (presets of ``vcjax simulate``) sit on top, below only the CLI.
 LAYERS = [
     {"_checks", "runtime", "linalg", "integrators"},
-    {"mechanics", "paths", "currents", "waves"},
+    {"mechanics", "paths"},
+    {"environment"},
     {"vehicles", "guidance", "allocation", "rollout"},
     {"control"},
     {"loops"},

@@ -96,7 +96,7 @@ def test_a_gauss_markov_current_reaches_the_puck():
 
 def test_a_loop_without_water_refuses_a_current():
     arm = loops.make_loop("arm", "vcm")
-    assert not arm.takes_current and loops.loop_class("puck").takes_time_varying_current
+    assert not arm.can_feel("current") and loops.loop_class("puck").can_feel("varying_current")
     with pytest.raises(ValueError, match="the arm loop takes no current"):
         loops.make_scenario(arm, current=(0.5, 0.0))
     with pytest.raises(ValueError, match="cannot take a time-varying"):

@@ -98,7 +98,7 @@ def test_which_loops_take_which_current():
 
     class SteadyOnly(loops.Loop):  # a plant that reads a constant current only
         vehicle = "steady"
-        takes_current = True
+        feels = {"current": True}
 
     loops.check_disturbances(SteadyOnly, True, False)
     with pytest.raises(

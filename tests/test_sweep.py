@@ -14,8 +14,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax import currents, experiments, loops
+from vcjax import experiments, loops
 from vcjax.config import ConfigError
+from vcjax.environment import current as currents
 from vcjax.metrics import metric_names
 from vcjax.plots.sweep import sweep_figures
 from vcjax.sweep import (
@@ -429,7 +430,7 @@ for k, a in sharded.metrics["ilos"].items():
 np.testing.assert_allclose(sharded.traces["ilos"]["e"], single.traces["ilos"]["e"], rtol=1e-6)
 # sea states drawn per scenario key: the same bits sharded over 4 devices as on one
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
-from vcjax import waves
+from vcjax.environment import waves
 keys = jax.random.split(jax.random.PRNGKey(11), 8)
 def draw(k, hs):
     sea = waves.sea_state(k, hs, 8.0, 0.3, spreading=2.0, components=16)

@@ -1,4 +1,4 @@
-"""Waves (vcjax.waves) against independent physics: quadrature of the spectra, the statistics of
+"""Waves (vcjax.environment.waves) against independent physics: quadrature of the spectra, the statistics of
 long realisations, the Airy potential differentiated by autodiff, the free-surface boundary
 condition, finite differences, and a body that must move with the water particles.
 
@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from scipy import integrate, optimize
 
-from vcjax import waves
+from vcjax.environment import waves
 from vcjax.vehicles import remus100, sixdof
 
 G = 9.81

@@ -1,4 +1,4 @@
-"""Waves reach the loops (issue 23): the seam between :mod:`vcjax.waves` and the closed loops
+"""Waves reach the loops (issue 23): the seam between :mod:`vcjax.environment.waves` and the closed loops
 (:attr:`vcjax.loops.Scenario.sea`, :meth:`vcjax.loops.Loop.plant_in_sea`), the ``[waves]``
 section of sweep and tune configs, the recorded wave columns, ``vcjax simulate --waves`` and the
 refusals of loops whose plant cannot feel a sea.
@@ -19,10 +19,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from vcjax import loops, sweep, waves
+from vcjax import loops, sweep
 from vcjax.cli import main
 from vcjax.config import ConfigError
 from vcjax.config.scenario import ScenarioChoice, import_module_file
+from vcjax.environment import waves
 from vcjax.linalg import Rzyx
 from vcjax.plots.sweep import sweep_figures
 from vcjax.rollout import RolloutConfig, rollout
@@ -47,7 +48,7 @@ class DrifterLoop(loops.loop_class("puck")):
     for the plumbing, not a vehicle."""
 
     vehicle: ClassVar[str] = "test_wave_drifter"
-    takes_waves: ClassVar[bool] = True
+    feels: ClassVar[dict] = {**loops.loop_class("puck").feels, "waves": True}
 
     def plant_in_sea(self, t, x, u, args, water):
         v_w, _ = water.at(t, self.position(x[0], args.params))
@@ -86,7 +87,7 @@ def _same(a, b):
 
 def test_the_odin_loop_in_a_sea_is_the_plant_fed_the_water_and_a_calm_sea_changes_no_bit():
     """The rollout of ``loops.simulate`` with a sea against a rollout written here from the
-    plant and :mod:`vcjax.waves` directly: the water (current + orbital motion) evaluated at the
+    plant and :mod:`vcjax.environment.waves` directly: the water (current + orbital motion) evaluated at the
     vehicle's NED position shifted by ``origin_depth``, at each integrator stage's own time,
     through the plant's current door, plus the Froude–Krylov correction on the disturbance."""
     loop = _odin()
@@ -127,7 +128,7 @@ _REMUS = loops.make_loop("remus100", "vcm3d_ilos")
 def _remus_fields(x, u, t, sea, cur, sc):
     """``(loop's plant_in_sea, the plant given the whole water as its (3,) current)``."""
     args = _REMUS.plant_args(sc._replace(current=cur), cur, jnp.zeros(3))
-    got = _REMUS.plant_in_sea(t, x, u, args, loops.Water(sea, 2.0, cur, None))
+    got = _REMUS.plant_in_sea(t, x, u, args, loops.Water.of_sea(sea, 2.0, cur, None))
     p = args.vehicle
     v_w, a_w = waves.water_kinematics(sea, t, x.eta[:3] + jnp.asarray([0, 0, 2.0]), cur)
     dx = remus100.remus100_plant(t, x, u, remus100.Remus100Args(p, v_w, a_w))

@@ -51,6 +51,7 @@ SCENARIO_AXES = loops.Scenario(
     disturbance=0,
     sea=0,
     origin_depth=0,
+    environment=0,
 )
 
 

@@ -12,7 +12,9 @@ The public API, by stage of the data flow (each module's docstring has the detai
 * :mod:`vcjax.integrators`, :mod:`vcjax.rollout` — ``euler``/``heun``/``rk4``; the scan rollout.
 * :mod:`vcjax.loops` — closed loops by name (vehicle x controller x path), one ``Scenario``
   type, disturbances wrapping any loop; :mod:`vcjax.metrics` — one metrics function for all.
-* :mod:`vcjax.sweep` — Monte-Carlo batches of any loop; :mod:`vcjax.currents` — current models.
+* :mod:`vcjax.environment` — what the world does to a vehicle, one seam: currents (constant,
+  Gauss–Markov), waves, sensor noise, forces; a new disturbance is one component + ``register``.
+* :mod:`vcjax.sweep` — Monte-Carlo batches of any loop.
 * :mod:`vcjax.config` — one configuration system (sections, types, units, older spellings).
 * :mod:`vcjax.experiments` — the presets of ``vcjax simulate`` as data (``Experiment``: the
   paper's two experiments, the REMUS 100 mission, the arm demo), on top of the loops;

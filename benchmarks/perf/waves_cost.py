@@ -15,8 +15,8 @@ controller, so its ratio bounds a loop's from above):
 
 * ``current``: the plant as every loop uses it without waves, a constant (2,) current;
 * ``waves``: the same plant taking the water as its (3,) current, with
-  ``vcjax.waves.water_kinematics`` of a 64-component sea (one sea per scenario, drawn inside
-  the jitted function by ``sea_state`` from the scenario's key) evaluated at the vehicle's
+  ``vcjax.environment.waves.water_kinematics`` of a 64-component sea (one sea per scenario, drawn
+  inside the jitted function by ``sea_state`` from the scenario's key) evaluated at the vehicle's
   position in every RK4 stage, plus ``current_door_correction`` (one extra Cholesky solve);
 * ``waves_door_only``: as ``waves`` without the correction (what a plant that adds the
   correction to its force sum, sharing its one solve, costs);
@@ -122,7 +122,7 @@ def _programs(components: int, steps: int):
     import jax
     import jax.numpy as jnp
 
-    from vcjax import waves
+    from vcjax.environment import waves
     from vcjax.linalg import spd_solve_small
     from vcjax.vehicles import remus100, sixdof
 

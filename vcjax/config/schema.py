@@ -180,8 +180,8 @@ class Disturbance:
 @dataclasses.dataclass(frozen=True)
 class Waves:
     """``[waves]``: a random sea in every scenario (linear Airy waves in deep water,
-    :mod:`vcjax.waves`; NED, depth positive down). Each scenario draws its ``hs``, ``tp``,
-    ``direction_deg`` and ``origin_depth`` from the ranges and its sea (frequencies, phases,
+    :mod:`vcjax.environment.waves`; NED, depth positive down). Each scenario draws its ``hs``,
+    ``tp``, ``direction_deg`` and ``origin_depth`` from the ranges and its sea (frequencies, phases,
     directions) from its own key, so a scenario's sea is the same whatever the chunk size or
     device count. ``hs`` and ``tp`` are required; ``hs = 0`` is a calm sea (the run is then
     exactly the run without waves). The integration step must resolve the shortest component

@@ -20,8 +20,8 @@ current, every controller; ``--diverge-e``, ``--waves``, ``--wave-seed``), ``arm
 arm drawing a circle with the generic engine; ``vcjax demo``).
 
 ``--waves HS TP DIR_DEG`` puts every run in one random JONSWAP sea
-(:func:`vcjax.waves.sea_state`, 64 components, long-crested) drawn from ``PRNGKey(--wave-seed)``
-(default 0), :mod:`vcjax.experiments.seas`.
+(:func:`vcjax.environment.waves.sea_state`, 64 components, long-crested) drawn from
+``PRNGKey(--wave-seed)`` (default 0), :mod:`vcjax.experiments.seas`.
 
 Importing this package initialises no JAX backend (the CLI builds its parser from the registry
 before it chooses the precision and the devices).

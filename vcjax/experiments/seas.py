@@ -10,7 +10,7 @@ import math
 import jax
 import numpy as np
 
-from vcjax import waves as wv
+from vcjax.environment import waves as wv
 from vcjax.experiments.base import Options, option
 from vcjax.runtime import sizing
 
@@ -67,7 +67,7 @@ class WaveOptions(Options):
 
 def option_sea(waves, seed: int = 0) -> wv.Sea:
     """The sea of ``--waves HS TP DIR_DEG`` (``waves``: those three numbers, the direction in
-    degrees towards which the waves travel): :func:`vcjax.waves.sea_state` with
+    degrees towards which the waves travel): :func:`vcjax.environment.waves.sea_state` with
     :data:`SPECTRUM`, :data:`GAMMA` and :data:`COMPONENTS`, long-crested, from
     ``PRNGKey(seed)``."""
     hs, tp, direction_deg = (float(v) for v in waves)

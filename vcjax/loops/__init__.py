@@ -8,14 +8,16 @@ A *loop* assembles a vehicle's plant, the controller's design model, a law and t
   kind, static law options such as ``edd``, ``smooth``): one compilation per loop;
 * the :class:`~vcjax.loops.Scenario` — traced, the same container for every loop: initial
   state ``eta0``/``nu0``, ``current`` (the water's NED velocity (3,) [m/s], built from a speed
-  and a direction with :func:`vcjax.currents.current_ned`), ``u_d``, ``varpi0``, the path's
-  coefficients, the ``plant`` and ``design`` parameters, a constant ``disturbance`` force,
-  and optionally a ``sea`` (a :class:`vcjax.waves.Sea`) with its ``origin_depth``;
+  and a direction with :func:`vcjax.environment.current.current_ned`), ``u_d``, ``varpi0``, the
+  path's coefficients, the ``plant`` and ``design`` parameters, a constant ``disturbance`` force,
+  and optionally a ``sea`` (a :class:`vcjax.environment.waves.Sea`) with its ``origin_depth``;
 * the gains — a NamedTuple pytree, traced (a new gain value never recompiles).
 
 :func:`~vcjax.loops.simulate` rolls any loop out, optionally with disturbances that wrap
 any loop (:class:`~vcjax.loops.Disturbances`: a Gauss–Markov current, sensor noise) and a
-sea when the scenario has one (loops with ``takes_waves``, :meth:`Loop.plant_in_sea`);
+sea when the scenario has one (loops that feel ``"waves"``, :meth:`Loop.plant_in_sea`), and
+the components of the scenario's ``environment`` (:mod:`vcjax.environment`: any current,
+sea, noise or force, one seam);
 model error is just a ``plant`` that differs from ``design``.
 :func:`vcjax.metrics.run_metrics` turns any loop's :class:`~vcjax.loops.Signals` into the
 one set of metrics and health flags.
@@ -46,10 +48,10 @@ defines a loop entirely inside the test file and sweeps and tunes it):
    (controller name -> :class:`~vcjax.loops.Law`; ``controllers`` follows), ``initial_keys``
    (the ``[initial]`` keys of sweep/tune configs with their defaults; keys ending in ``_deg``
    are given in degrees in configs and arrive in radians), ``noise_channels`` (sensor-noise
-   channel name -> entries; leave empty if you model no sensors), ``takes_disturbance``,
-   ``takes_current`` / ``takes_time_varying_current`` (False: configs asking for a current
-   are refused, :func:`check_disturbances`), ``takes_waves`` (with ``plant_in_sea``; else
-   a sea is refused with ``waves_refusal`` as the reason), ``default_speed``.
+   channel name -> entries; leave empty if you model no sensors), ``feels`` (what the plant
+   feels of the environment: ``{"current": True, "varying_current": True, "waves": "why
+   not", "force": True}``; a kind it does not feel is refused by name before any work,
+   :func:`check_environment`), ``default_speed``.
 2. Implement (``register`` refuses a class missing one, naming them):
    ``default_params(dtype)`` — the plant parameters (a NamedTuple; its field names, dotted for
    nested NamedTuples, are the names ``[model_error] fields`` and parameter files use;
@@ -122,7 +124,13 @@ from vcjax.loops.registry import (
     vehicles,
 )
 from vcjax.loops.remus100 import Remus100Loop
-from vcjax.loops.scenario import apply_params, check_disturbances, make_scenario, read_param_file
+from vcjax.loops.scenario import (
+    apply_params,
+    check_disturbances,
+    check_environment,
+    make_scenario,
+    read_param_file,
+)
 from vcjax.loops.types import GainSpec, Scenario, Signals, Water
 
 __all__ = [
@@ -173,6 +181,7 @@ __all__ = [
     "default_path",
     "make_scenario",
     "check_disturbances",
+    "check_environment",
     "read_param_file",
     "apply_params",
 ]

@@ -69,9 +69,12 @@ class ArmLoop(EngineLoop):
     noise_channels: ClassVar[dict[str, int]] = {"angle_std_deg": 2, "rate_std_deg": 2}
     default_speed: ClassVar[float] = 0.3
     #: an arm in air: no water current
-    takes_current: ClassVar[bool] = False
-    takes_time_varying_current: ClassVar[bool] = False
-    waves_refusal: ClassVar[str] = "an arm in air feels no sea"
+    feels: ClassVar[dict[str, bool | str]] = {
+        "force": True,
+        "current": "an arm in air feels no water",
+        "varying_current": "an arm in air feels no water",
+        "waves": "an arm in air feels no sea",
+    }
 
     @classmethod
     def default_path(cls):

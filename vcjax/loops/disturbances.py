@@ -1,7 +1,8 @@
-"""Disturbances that wrap any loop (a Gauss–Markov current, sensor noise, waves) and
-:func:`simulate`, which rolls any loop out with or without them: the current process and the
-noise through :func:`vcjax.rollout.rollout`'s exogenous hook, the sea (:attr:`Scenario.sea`)
-inside the plant's vector field."""
+""":func:`simulate`, which rolls any loop out in its environment: the components of
+:mod:`vcjax.environment` (:attr:`Scenario.environment`, and the older :class:`Disturbances`
+— a Gauss–Markov current, sensor noise — and :attr:`Scenario.sea` mapped onto them), their
+processes through :func:`vcjax.rollout.rollout`'s exogenous hook, the water inside the plant's
+vector field."""
 
 from __future__ import annotations
 
@@ -12,9 +13,18 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from vcjax.currents import GaussMarkovCurrent, gm_init, gm_step, gm_value
+from vcjax.environment import (
+    Environment,
+    GaussMarkov,
+    GaussMarkovParams,
+    NoiseParams,
+    SeaParams,
+    SensorNoise,
+    Waves,
+)
+from vcjax.environment.current import GaussMarkovCurrent
 from vcjax.loops.loop import Loop
-from vcjax.loops.scenario import check_disturbances
+from vcjax.loops.scenario import check_disturbances, check_environment
 from vcjax.loops.types import Scenario, Water
 from vcjax.rollout import Reduction, RolloutConfig, rollout, rollout_reduce
 
@@ -27,8 +37,8 @@ class Disturbances:
 
     Attributes:
         gauss_markov: the horizontal current is the Gauss–Markov process of
-            :mod:`vcjax.currents` around ``Scenario.current`` (per-step, exact discretisation,
-            linear between samples); False: the constant ``Scenario.current``.
+            :mod:`vcjax.environment.current` around ``Scenario.current`` (per-step, exact
+            discretisation, linear between samples); False: the constant ``Scenario.current``.
         sensor_noise: white Gaussian noise on what the controller measures
             (:meth:`Loop.measure`), drawn per step from ``fold_in(key, k)`` and held.
     """
@@ -45,8 +55,8 @@ class DisturbanceParams(NamedTuple):
     """Traced parameters of :class:`Disturbances`.
 
     Attributes:
-        current: :class:`~vcjax.currents.GaussMarkovCurrent` (mean: the horizontal part of
-            ``Scenario.current``); noise_std: (n,) sensor-noise standard deviations;
+        current: :class:`~vcjax.environment.current.GaussMarkovCurrent` (mean: the horizontal part
+            of ``Scenario.current``); noise_std: (n,) sensor-noise standard deviations;
         key: (2,) PRNG key of the run's random processes.
     """
 
@@ -57,58 +67,92 @@ class DisturbanceParams(NamedTuple):
 
 @dataclasses.dataclass(frozen=True)
 class _Wrapped:
-    """The loop with its disturbances: the current process and the noise through the rollout's
-    exogenous hook (once per step), the sea inside the plant (every integrator stage)."""
+    """The loop in its environment (static: the loop and the components). Processes advance
+    through the rollout's exogenous hook (once per step); uniform currents and fields are
+    evaluated in every integrator stage (the fields at the vehicle's position); noise is added
+    to what the controller measures."""
 
     loop: Loop
-    dist: Disturbances
-    waves: bool = False
+    comps: tuple
+
+    def _varying(self):
+        return any(c.kind == "varying_current" for c in self.comps)
 
     def exogenous(self, k, t, s, plant_params, ctrl_params):
-        args, gm_p, key_steps, dt, current, sea = plant_params
-        ctrl, noise_std, key_noise = ctrl_params
-        gm = None
-        if self.dist.gauss_markov:
-            # current on [t_k, t_k + dt]: linear between the exact GM samples, its rate the slope
-            d_next = gm_step(gm_p, s, dt, jax.random.fold_in(key_steps, k))
-            V0, V1 = gm_value(gm_p, s), gm_value(gm_p, d_next)
-            dV = (V1 - V0) / dt
-            vertical = current[2:]
-            gm = (jnp.concatenate([V0, vertical]), jnp.concatenate([dV, 0 * vertical]))
-            s = d_next
-        n = None
-        if self.dist.sensor_noise:
-            n = noise_std * jax.random.normal(
-                jax.random.fold_in(key_noise, k), noise_std.shape, noise_std.dtype
-            )
-        return s, (args, t, gm, current, sea), (ctrl, n)
+        args, env_params, base, dt, _ = plant_params
+        ctrl, _ = ctrl_params
+        states, held, j = [], [], 0
+        for c, p in zip(self.comps, env_params, strict=True):
+            h = None
+            if c.process:
+                s_j, h = c.advance(p, s[j], k, t, dt)
+                states.append(s_j)
+                j += 1
+            held.append(h)
+        held = tuple(held)
+        return tuple(states), (args, env_params, base, dt, held), (ctrl, (env_params, held))
 
     def plant(self, t, x, u, params):
-        args, t_k, gm, current, sea = params
-        current_dot = None
-        if gm is not None:
-            V, dV = gm
-            current, current_dot = V + (t - t_k) * dV, dV
-            args = self.loop.with_current(args, current, dV)
-        if self.waves:
-            sea, origin_depth = sea
-            return self.loop.plant_in_sea(
-                t, x, u, args, Water(sea, origin_depth, current, current_dot)
-            )
+        args, env_params, base, _, held = params
+        held = (None,) * len(self.comps) if held is None else held
+        cur, cur_dot, fields = base, None, []
+        for c, p, h in zip(self.comps, env_params, held, strict=True):
+            if c.kind == "varying_current":
+                v, a = c.water(p, h, t, None, cur)
+                cur, cur_dot = cur + v, a if cur_dot is None else cur_dot + a
+            elif c.kind == "waves":
+                fields.append((c, p, h))
+        if self._varying():
+            args = self.loop.with_current(args, cur, cur_dot)
+        if fields:
+            return self.loop.plant_in_sea(t, x, u, args, Water(tuple(fields), cur, cur_dot))
         return self.loop.plant(t, x, u, args)
 
     def control(self, t, x, z, params):
-        ctrl, n = params
-        if self.dist.sensor_noise:
-            x = self.loop.measure(x, n)
+        ctrl, (env_params, held) = params
+        held = (None,) * len(self.comps) if held is None else held
+        noise = None
+        for c, p, h in zip(self.comps, env_params, held, strict=True):
+            if c.kind == "noise":
+                n = c.noise(p, h)
+                noise = n if noise is None else noise + n
+        if noise is not None:
+            x = self.loop.measure(x, noise)
         return self.loop.control(t, x, z, ctrl)
 
 
 def _process_keys(key):
-    """(current init, current steps, noise) keys of a run (see ``gm_sample_path``)."""
+    """(current, noise) keys of a run (the current's: ``split`` into its initial draw and its
+    steps, see ``gm_sample_path``)."""
     k_cur, k_noise = jax.random.split(key)
-    k_init, k_steps = jax.random.split(k_cur)
-    return k_init, k_steps, k_noise
+    return k_cur, k_noise
+
+
+def _environment(loop: Loop, sc: Scenario, dist: Disturbances, dist_params):
+    """``(Environment, base current (3,))`` of a run: the :class:`Disturbances` and the
+    scenario's sea as components, then the scenario's own :attr:`Scenario.environment`."""
+    comps, params = [], []
+    base = sc.current
+    dtype = sc.eta0.dtype
+    if dist.active:
+        if dist_params is None:
+            raise ValueError("dist_params: required with disturbances")
+        k_cur, k_noise = _process_keys(dist_params.key)
+        if dist.gauss_markov:  # its mean is the scenario's current: it replaces it
+            comps.append(GaussMarkov())
+            params.append(GaussMarkovParams(dist_params.current, sc.current[2:], k_cur))
+            base = jnp.zeros(3, dtype)
+        if dist.sensor_noise:
+            comps.append(SensorNoise().bind(loop))
+            params.append(NoiseParams(dist_params.noise_std, k_noise))
+    if sc.sea is not None:
+        depth = jnp.zeros((), dtype) if sc.origin_depth is None else sc.origin_depth
+        comps.append(Waves())
+        params.append(SeaParams(sc.sea, depth))
+    env = Environment(comps, params)
+    if sc.environment is not None:
+        env = env + sc.environment
+    return env, base
 
 
 def simulate(
@@ -123,62 +167,58 @@ def simulate(
 ):
     """Roll ``loop`` out on scenario ``sc`` (pure, not jitted; vmap/grad it).
 
-    ``loop``, ``config`` and ``dist`` are static; ``gains``, ``sc``, ``dt`` and ``dist_params``
-    are traced. Without disturbances and waves this is one :func:`vcjax.rollout.rollout` of
-    ``loop.plant`` / ``loop.control``; with them the same loop gets a Gauss–Markov current
-    and/or measurement noise through the rollout's ``exogenous`` hook, and, when the scenario
-    has a sea (``sc.sea`` not None, a static choice), its plant feels the waves at the
-    vehicle's position in every integrator stage (:meth:`Loop.plant_in_sea`; a calm sea gives
-    exactly the run without one). A loop that cannot take what is asked raises ``ValueError``
-    (``current: ...`` / ``waves: ...``).
+    ``loop``, ``config``, ``dist`` and the components of ``sc.environment`` are static;
+    ``gains``, ``sc`` (the components' parameters included), ``dt`` and ``dist_params`` are
+    traced. Without an environment this is one :func:`vcjax.rollout.rollout` of
+    ``loop.plant`` / ``loop.control``. Otherwise every component enters through the one seam
+    (:mod:`vcjax.environment`): processes (a Gauss–Markov current, sensor noise) advance once
+    per step through the rollout's ``exogenous`` hook; uniform currents reach the plant through
+    :meth:`Loop.plant_args` (constant) or :meth:`Loop.with_current` (time-varying, every stage);
+    water that varies in space (a sea: ``sc.sea`` or a ``"waves"`` component) is evaluated at
+    the vehicle's position in every stage (:meth:`Loop.plant_in_sea`; a calm sea gives exactly
+    the run without one); forces add to :attr:`Scenario.disturbance`; noise is added to what
+    the controller measures (:meth:`Loop.measure`). ``dist``/``dist_params`` (a Gauss–Markov
+    current around ``sc.current`` and sensor noise) are mapped onto the same components. A
+    component the loop cannot feel raises ``ValueError`` naming it before any work.
 
     Returns the :class:`~vcjax.rollout.Trajectory`; with a ``reduction``
     (:class:`~vcjax.rollout.Reduction`) the record is folded segment by segment instead
     (:func:`~vcjax.rollout.rollout_reduce`) and ``(acc, outs)`` is returned.
     """
-    if dist.gauss_markov and not loop.takes_time_varying_current:
+    if dist.gauss_markov and not loop.can_feel("varying_current"):
         raise ValueError(
             f"current: the {loop.vehicle or type(loop).__name__} loop cannot take a "
             "time-varying (Gauss-Markov) current"
         )
-    waves = sc.sea is not None
-    if waves:
+    if sc.sea is not None:
         check_disturbances(loop, False, False, waves=True)
+    env, base = _environment(loop, sc, dist, dist_params)
+    check_environment(loop, env)
     run = rollout if reduction is None else functools.partial(rollout_reduce, reduction=reduction)
     x0, z0 = loop.initial_state(sc)
     ctrl = loop.ctrl_params(gains, sc)
     dtype = sc.eta0.dtype
-    if not dist.active and not waves:
-        args = loop.plant_args(sc, sc.current, jnp.zeros(3, dtype))
+    zero = jnp.zeros(3, dtype)
+    if not len(env):
+        args = loop.plant_args(sc, sc.current, zero)
         return run(loop.plant, loop.control, config, args, ctrl, x0, z0, dt)
-    w = _Wrapped(loop, dist, waves)
-    args = loop.plant_args(sc, sc.current, jnp.zeros(3, dtype))
-    sea = None
-    if waves:
-        depth = jnp.zeros((), dtype) if sc.origin_depth is None else sc.origin_depth
-        sea = (sc.sea, depth)
-    if not dist.active:  # waves only: no per-step process
-        plant_params = (args, None, None, sc.current, sea)
-        return run(w.plant, w.control, config, plant_params, (ctrl, None), x0, z0, dt)
-    if dist_params is None:
-        raise ValueError("dist_params: required with disturbances")
+    forces = [c.force(p) for c, p in env if c.kind == "force"]
+    if forces:
+        sc = sc._replace(disturbance=functools.reduce(jnp.add, forces, sc.disturbance))
+    for c, p in env:  # constant uniform currents: once
+        if c.kind == "current":
+            base = base + c.water(p, None, jnp.zeros((), dtype), zero, base)[0]
+    args = loop.plant_args(sc, base, zero)
+    w = _Wrapped(loop, env.components)
+    if not any(c.process for c in env.components):
+        plant_params = (args, env.params, base, dt, None)
+        return run(w.plant, w.control, config, plant_params, (ctrl, (env.params, None)), x0, z0, dt)
     dt = jnp.asarray(dt, dtype)
-    k_init, k_steps, k_noise = _process_keys(dist_params.key)
-    gm_p = dist_params.current
-    s0 = gm_init(gm_p, k_init) if dist.gauss_markov else None
-    plant_params = (args, gm_p, k_steps, dt, sc.current, sea)
-    return run(
-        w.plant,
-        w.control,
-        config,
-        plant_params,
-        (ctrl, dist_params.noise_std, k_noise),
-        x0,
-        z0,
-        dt,
-        exogenous=w.exogenous,
-        s0=s0,
-    )
+    s0 = tuple(c.init(p) for c, p in env if c.process)
+    plant_params = (args, env.params, base, dt, None)
+    ctrl_params = (ctrl, (env.params, None))
+    hook = {"exogenous": w.exogenous, "s0": s0}
+    return run(w.plant, w.control, config, plant_params, ctrl_params, x0, z0, dt, **hook)
 
 
 def gauss_markov_params(sc: Scenario, sigma, tau, max_speed) -> GaussMarkovCurrent:

@@ -34,10 +34,11 @@ velocity at which the point would move with the water: by default the solution o
 and ``V_c`` the current's first 2 or 3 NED components — right for a body whose drag is written on
 its velocity over ground (a puck, a craft in its own coordinates). The current's acceleration
 (added-mass force) is not modelled; a time-varying (Gauss–Markov) current is taken the same way.
-A system without water (:mod:`vcjax.loops.arm`) sets ``takes_current = False`` and
-``takes_time_varying_current = False``: configs asking for a current are then refused
-(:func:`vcjax.loops.check_disturbances`) and the plant ignores ``Scenario.current``. No engine
-loop takes waves (:attr:`~vcjax.loops.Loop.takes_waves` is False): the orbital motion's
+A system without water (:mod:`vcjax.loops.arm`) leaves ``"current"`` and
+``"varying_current"`` out of :attr:`~vcjax.loops.Loop.feels`: configs asking for a current are
+then refused (:func:`vcjax.loops.check_disturbances`) and the plant ignores
+``Scenario.current``. No engine loop feels waves (``feels["waves"]`` is its reason): the orbital
+motion's
 acceleration would need the added-mass and Froude–Krylov forces the engine's plant does not
 model, so a scenario or config with a sea is refused.
 """
@@ -176,13 +177,13 @@ class EngineLoop(Loop):
 
     laws: ClassVar[dict[str, Law]] = {"vcm": EngineLaw()}
     default_controller: ClassVar[str] = "vcm"
-    takes_disturbance: ClassVar[bool] = True
-    takes_current: ClassVar[bool] = True
-    takes_time_varying_current: ClassVar[bool] = True
-    waves_refusal: ClassVar[str] = (
-        "the engine's plant takes the water's velocity at its point only, not the orbital "
-        "motion's acceleration (added mass, Froude-Krylov) that waves need"
-    )
+    feels: ClassVar[dict[str, bool | str]] = {
+        "force": True,
+        "current": True,
+        "varying_current": True,
+        "waves": "the engine's plant takes the water's velocity at its point only, not the "
+        "orbital motion's acceleration (added mass, Froude-Krylov) that waves need",
+    }
 
     # ---------------------------------------------------------------- what a subclass gives
     def mass_matrix(self, q, p):
@@ -236,7 +237,7 @@ class EngineLoop(Loop):
         q, qd = x
         sat = smooth_saturate if self.smooth else saturate
         tau = sat(u, p.tau_max) + args.disturbance
-        qd_r = qd - self.water_velocity(q, args.current, p) if self.takes_current else qd
+        qd_r = qd - self.water_velocity(q, args.current, p) if self.can_feel("current") else qd
         qdd = spd_solve_small(self.mass_matrix(q, p), tau - self.bias_force(q, qd_r, p))
         return qd, qdd
 

@@ -209,12 +209,12 @@ class InfanteLoop(Loop):
     }
 
     default_speed: ClassVar[float] = 2.0
-    takes_current: ClassVar[bool] = True
-    takes_time_varying_current: ClassVar[bool] = True
-    waves_refusal: ClassVar[str] = (
-        "its plant is a horizontal-plane (3-DOF) model with no depth, while a wave's orbital "
-        "motion is as much vertical as horizontal and decays with depth"
-    )
+    feels: ClassVar[dict[str, bool | str]] = {
+        "current": True,
+        "varying_current": True,
+        "waves": "its plant is a horizontal-plane (3-DOF) model with no depth, while a wave's "
+        "orbital motion is as much vertical as horizontal and decays with depth",
+    }
 
     def __post_init__(self):
         super().__post_init__()

@@ -53,20 +53,34 @@ class Loop:
     initial_keys: ClassVar[dict[str, float]] = {}
     #: sensor-noise channels: name -> number of entries (see :meth:`measure`)
     noise_channels: ClassVar[dict[str, int]] = {}
-    #: True when the plant takes a constant disturbance force (:attr:`Scenario.disturbance`)
-    takes_disturbance: ClassVar[bool] = False
     #: desired speed of the nominal scenario [m/s]
     default_speed: ClassVar[float] = 1.0
-    #: True when the plant sees a constant current (:attr:`Scenario.current`); False: a config
-    #: with a non-zero current is refused (:func:`vcjax.loops.check_disturbances`)
-    takes_current: ClassVar[bool] = False
-    #: True when the plant sees a time-varying current (:meth:`with_current`; Gauss–Markov)
-    takes_time_varying_current: ClassVar[bool] = False
-    #: True when the plant feels a sea (:attr:`Scenario.sea`, :meth:`plant_in_sea`); False:
-    #: a config or scenario with waves is refused (:func:`vcjax.loops.check_disturbances`)
-    takes_waves: ClassVar[bool] = False
-    #: why a loop that takes no waves cannot (the end of its one-line refusal)
-    waves_refusal: ClassVar[str] = "its plant has no door for the water's orbital motion"
+    #: what the plant feels of the environment, by kind (:data:`vcjax.environment.KINDS`):
+    #: ``True``, or the one-line reason it cannot; a kind not named is refused with a generic
+    #: reason (:func:`vcjax.loops.check_environment`). ``"current"``: :meth:`plant_args` uses
+    #: its current; ``"varying_current"``: :meth:`with_current`; ``"waves"`` (water that varies
+    #: in space): :meth:`plant_in_sea`; ``"force"``: :attr:`Scenario.disturbance`. Sensor noise
+    #: (``"noise"``) is felt by a loop with :attr:`noise_channels` (and :meth:`measure`).
+    feels: ClassVar[Mapping[str, bool | str]] = {}
+
+    @classmethod
+    def can_feel(cls, kind: str) -> bool:
+        """Whether the plant (or, for ``"noise"``, the controller) feels ``kind``."""
+        if kind == "noise":
+            return bool(cls.noise_channels) or cls.feels.get(kind) is True
+        return cls.feels.get(kind) is True
+
+    @classmethod
+    def refusal(cls, kind: str) -> str:
+        """Why the loop cannot feel ``kind`` (its declared reason, or a generic one)."""
+        why = cls.feels.get(kind)
+        if isinstance(why, str):
+            return why
+        if kind == "waves":
+            return "its plant has no door for the water's orbital motion"
+        if kind == "noise":
+            return "it models no sensors (no noise_channels)"
+        return "its plant has no door for it"
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -194,7 +208,7 @@ class Loop:
         raise NotImplementedError(f"{type(self).__name__}: no time-varying current")
 
     def plant_in_sea(self, t, x, u, args, water):
-        """The plant's vector field in a sea (loops with :attr:`takes_waves`).
+        """The plant's vector field in a sea (loops that feel ``"waves"``).
 
         Args:
             t, x, u: as :meth:`plant`; args: the plant's arguments with the current already in
@@ -204,10 +218,10 @@ class Loop:
         The loop knows how its plant takes the water: it evaluates ``water`` at the vehicle's
         NED position (every integrator stage: the sea depends on where the vehicle is), hands
         the velocity and material acceleration to the plant's current door and adds the
-        Froude–Krylov correction (:func:`vcjax.waves.current_door_correction`). A calm sea
-        (``hs = 0``) must give exactly :meth:`plant`'s result.
+        Froude–Krylov correction (:func:`vcjax.environment.waves.current_door_correction`). A calm
+        sea (``hs = 0``) must give exactly :meth:`plant`'s result.
         """
-        raise NotImplementedError(f"{type(self).__name__}: no waves ({self.waves_refusal})")
+        raise NotImplementedError(f"{type(self).__name__}: no waves ({self.refusal('waves')})")
 
     def gains_to_json(self, gains) -> dict:
         return gains_to_json(gains)

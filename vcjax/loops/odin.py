@@ -22,7 +22,7 @@ from typing import Any, ClassVar, Literal, NamedTuple
 
 import jax.numpy as jnp
 
-from vcjax import paths, waves
+from vcjax import paths
 from vcjax._checks import check_positive
 from vcjax.allocation import allocate
 from vcjax.control.attitude import roll_pitch_pd
@@ -37,6 +37,7 @@ from vcjax.control.vcm import (
     vcm_params,
     vcm_state,
 )
+from vcjax.environment import waves
 from vcjax.linalg import Rzyx
 from vcjax.loops.geometry import path_errors, path_poses
 from vcjax.loops.law import Law
@@ -265,10 +266,8 @@ class OdinLoop(Loop):
         "velocity_std": 3,
         "rate_std_deg": 3,
     }
-    takes_disturbance: ClassVar[bool] = True
     default_speed: ClassVar[float] = 0.5
-    takes_current: ClassVar[bool] = True
-    takes_waves: ClassVar[bool] = True
+    feels: ClassVar[dict[str, bool | str]] = {"force": True, "current": True, "waves": True}
 
     def __post_init__(self):
         super().__post_init__()
@@ -351,8 +350,8 @@ class OdinLoop(Loop):
     def plant_in_sea(self, t, x, u, args, water):
         """The 6-DOF plant in a sea: the water's velocity and material acceleration at the
         vehicle's position (current + orbital motion) through the plant's (3,) current door,
-        the Froude–Krylov correction (:func:`vcjax.waves.current_door_correction`: the pendulum
-        moment of the CG below the CB, plus the buoyancy excess if ``B != W``) added to the
+        the Froude–Krylov correction (:func:`vcjax.environment.waves.current_door_correction`: the
+        pendulum moment of the CG below the CB, plus the buoyancy excess if ``B != W``) added to the
         body disturbance. A calm sea changes nothing (every added term is exactly 0)."""
         v_w, a_w = water.at(t, x.eta[:3])
         b = args.vehicle.body

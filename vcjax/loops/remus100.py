@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax import paths, waves
+from vcjax import paths
 from vcjax.control.baselines3d import (
     AutopilotConfig,
     DecoupledConfig,
@@ -45,6 +45,7 @@ from vcjax.control.vcm3d import (
     vcm3d_params,
     vcm3d_state,
 )
+from vcjax.environment import waves
 from vcjax.linalg import Rzyx, wrap_angle
 from vcjax.loops.law import Law
 from vcjax.loops.loop import Loop
@@ -275,9 +276,11 @@ class Remus100Loop(Loop):
         "speed": 1.5,
     }
     default_speed: ClassVar[float] = 1.5
-    takes_current: ClassVar[bool] = True
-    takes_time_varying_current: ClassVar[bool] = True
-    takes_waves: ClassVar[bool] = True
+    feels: ClassVar[dict[str, bool | str]] = {
+        "current": True,
+        "varying_current": True,
+        "waves": True,
+    }
 
     def __post_init__(self):
         super().__post_init__()
@@ -329,8 +332,8 @@ class Remus100Loop(Loop):
         """The PVS plant in a sea: the current keeps PVS's yaw-only door (``args.v_c``), the
         orbital motion at the hull's position goes through the full rotation on top of it
         (:attr:`~vcjax.vehicles.remus100.Remus100Args.v_w`), and the pendulum moment of the CG
-        below the CB (:func:`vcjax.waves.current_door_correction`; ``W = B``, CB at the CO)
-        joins the force sum. A calm sea changes nothing (every added term is exactly 0)."""
+        below the CB (:func:`vcjax.environment.waves.current_door_correction`; ``W = B``, CB at the
+        CO) joins the force sum. A calm sea changes nothing (every added term is exactly 0)."""
         u_w, a_w = water.waves_at(t, x.eta[:3])
         b = args.vehicle.body
         m = b.M_RB[0, 0]

@@ -11,13 +11,20 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax import waves
+from vcjax.environment import Environment, waves
+from vcjax.environment.component import KIND_WORDS
 from vcjax.loops.geometry import start_parameter
 from vcjax.loops.loop import Loop
 from vcjax.loops.params import get_param, replace_params
 from vcjax.loops.types import Scenario
 
-__all__ = ["make_scenario", "read_param_file", "apply_params", "check_disturbances"]
+__all__ = [
+    "make_scenario",
+    "read_param_file",
+    "apply_params",
+    "check_disturbances",
+    "check_environment",
+]
 
 
 def check_disturbances(
@@ -35,15 +42,30 @@ def check_disturbances(
     """
     cls = loop if isinstance(loop, type) else type(loop)
     name = cls.vehicle or cls.__name__
-    if waves and not cls.takes_waves:
-        raise ValueError(f"waves: the {name} loop cannot take waves: {cls.waves_refusal}")
-    if gauss_markov and not cls.takes_time_varying_current:
+    if waves and not cls.can_feel("waves"):
+        raise ValueError(f"waves: the {name} loop cannot take waves: {cls.refusal('waves')}")
+    if gauss_markov and not cls.can_feel("varying_current"):
         raise ValueError(
             f"current: the {name} loop cannot take a time-varying (Gauss-Markov) current"
-            + ("" if cls.takes_current else " (it takes no current at all)")
+            + ("" if cls.can_feel("current") else " (it takes no current at all)")
         )
-    if current_nonzero and not cls.takes_current:
+    if current_nonzero and not cls.can_feel("current"):
         raise ValueError(f"current: the {name} loop takes no current; set the current to zero")
+
+
+def check_environment(loop, environment) -> None:
+    """Refuse (``ValueError``, one line ``section: the X loop cannot take ...: reason``), before
+    any work, every component of ``environment`` (a :class:`vcjax.environment.Environment`, or
+    an iterable of components) the loop cannot feel (:attr:`Loop.feels`)."""
+    cls = loop if isinstance(loop, type) else type(loop)
+    name = cls.vehicle or cls.__name__
+    comps = getattr(environment, "components", environment) or ()
+    for c in comps:
+        if not cls.can_feel(c.kind):
+            words = KIND_WORDS.get(c.kind, c.kind)
+            raise ValueError(
+                f"{c.section}: the {name} loop cannot take {words}: {cls.refusal(c.kind)}"
+            )
 
 
 def make_scenario(
@@ -61,6 +83,7 @@ def make_scenario(
     varpi0=None,
     sea=None,
     origin_depth=0.0,
+    environment=None,
     dtype=None,
 ) -> Scenario:
     """A validated :class:`Scenario` for ``loop`` (eager; not for use under ``jit``).
@@ -77,9 +100,13 @@ def make_scenario(
             ``plant``).
         disturbance: constant generalised disturbance (default zeros).
         varpi0: initial particle (default: the path point nearest to the start).
-        sea: a :class:`vcjax.waves.Sea` (e.g. :func:`vcjax.waves.sea_state`) the plant feels,
+        sea: a :class:`vcjax.environment.waves.Sea` (e.g.
+        :func:`vcjax.environment.waves.sea_state`) the plant feels,
             or None (no waves; refused by a loop that cannot take waves).
         origin_depth: depth of the NED origin below the sea's mean free surface [m].
+        environment: a :class:`vcjax.environment.Environment` (e.g. from
+            :func:`vcjax.environment.sample`), or None; a component the loop cannot feel is
+            refused by its section name.
     """
     plant = loop.default_params(dtype) if plant is None else loop.validate_params(plant, "plant")
     design = plant if design is None else loop.validate_params(design, "design")
@@ -116,7 +143,7 @@ def make_scenario(
     disturbance = np.asarray(disturbance, dtype=float)
     if disturbance.shape != (n_nu,) or not np.all(np.isfinite(disturbance)):
         raise ValueError(f"disturbance: expected a finite ({n_nu},) force, got {disturbance!r}")
-    if np.any(disturbance != 0) and not loop.takes_disturbance:
+    if np.any(disturbance != 0) and not loop.can_feel("force"):
         raise ValueError(f"disturbance: the {loop.vehicle} plant takes no disturbance force")
     if varpi0 is None:
         varpi0 = start_parameter(loop.path, coeffs, loop.position(eta0, design))
@@ -125,6 +152,14 @@ def make_scenario(
         sea = _check_sea(sea, dt)
         if not np.isfinite(origin_depth):
             raise ValueError(f"origin_depth: expected a finite depth [m], got {origin_depth!r}")
+    if environment is not None:
+        if not isinstance(environment, Environment):
+            raise ValueError(
+                f"environment: expected a vcjax.environment.Environment, got "
+                f"{type(environment).__name__}"
+            )
+        check_environment(loop, environment)
+        environment = _cast(environment, dt)
     return Scenario(
         eta0=eta0,
         nu0=nu0,
@@ -137,13 +172,14 @@ def make_scenario(
         disturbance=jnp.asarray(disturbance, dt),
         sea=sea,
         origin_depth=None if sea is None else jnp.asarray(origin_depth, dt),
+        environment=environment,
     )
 
 
 def _check_sea(sea, dtype):
-    """A :class:`~vcjax.waves.Sea` of five finite (N,) arrays cast to ``dtype``."""
+    """A :class:`~vcjax.environment.waves.Sea` of five finite (N,) arrays cast to ``dtype``."""
     if not isinstance(sea, waves.Sea):
-        raise ValueError(f"sea: expected a vcjax.waves.Sea, got {type(sea).__name__}")
+        raise ValueError(f"sea: expected a vcjax.environment.waves.Sea, got {type(sea).__name__}")
     arrs = [np.asarray(a, dtype=float) for a in sea]
     n = arrs[0].shape
     if (

@@ -8,7 +8,7 @@ from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 
-from vcjax import waves
+from vcjax.environment import SeaParams, Waves
 
 __all__ = ["Scenario", "Water", "GainSpec", "Signals"]
 
@@ -30,12 +30,15 @@ class Scenario(NamedTuple):
             from them); equal to ``plant`` unless a study perturbs the plant (model error).
         disturbance: (n_nu,) constant generalised disturbance force on the plant (body frame
             for craft) [N, N m]; zeros where the plant takes none.
-        sea: a :class:`vcjax.waves.Sea` (``N`` regular components, (N,) arrays) whose orbital
-            motion the plant feels on top of ``current`` (:meth:`Loop.plant_in_sea`), or
+        sea: a :class:`vcjax.environment.waves.Sea` (``N`` regular components, (N,) arrays) whose
+            orbital motion the plant feels on top of ``current`` (:meth:`Loop.plant_in_sea`), or
             ``None``: no waves. Whether it is ``None`` is static (it changes the program).
         origin_depth: () depth of the NED origin below the sea's mean free surface [m]: the sea
             is felt at depth ``origin_depth + z`` (the same mission at another survey depth);
             ``None`` is 0. Unused without a sea.
+        environment: a :class:`vcjax.environment.Environment` (components with their sampled
+            parameters) the plant and the controller feel on top of the fields above, or
+            ``None``. Its components are static (part of the tree's structure).
     """
 
     eta0: Any
@@ -49,38 +52,55 @@ class Scenario(NamedTuple):
     disturbance: Any
     sea: Any = None
     origin_depth: Any = None
+    environment: Any = None
 
 
 class Water(NamedTuple):
     """The water a plant moves in during one integration step (traced; built by
-    :func:`vcjax.loops.simulate` for :meth:`Loop.plant_in_sea`).
+    :func:`vcjax.loops.simulate` for :meth:`Loop.plant_in_sea`): a uniform current plus the
+    environment's components that vary in space (kind ``"waves"``).
 
     Attributes:
-        sea: :class:`vcjax.waves.Sea`; origin_depth: () depth of the NED origin below the mean
-            free surface [m] (:attr:`Scenario.origin_depth`);
+        fields: tuple of ``(component, params, held)``: each
+            :class:`~vcjax.environment.Component` that varies in space, its parameters and
+            what its process holds over this step;
         current: (3,) uniform current in NED at this time [m/s];
         current_dot: (3,) its rate [m/s^2], or ``None`` (a constant current).
     """
 
-    sea: Any
-    origin_depth: Any
+    fields: tuple
     current: Any
     current_dot: Any = None
 
-    def _at(self, p_ned):
-        return jnp.asarray(p_ned).at[2].add(self.origin_depth)
-
-    def at(self, t, p_ned):
-        """``(v_w (3,), a_w (3,))``: the water's velocity (current + orbital) [m/s] and material
-        acceleration [m/s^2] at the NED point ``p_ned`` (3,) [m], time ``t`` [s]
-        (:func:`vcjax.waves.water_kinematics`)."""
-        return waves.water_kinematics(self.sea, t, self._at(p_ned), self.current, self.current_dot)
+    @classmethod
+    def of_sea(cls, sea, origin_depth, current, current_dot=None) -> Water:
+        """The water of one sea (:class:`vcjax.environment.waves.Sea`) whose NED origin is
+        ``origin_depth`` [m] below the mean free surface."""
+        params = SeaParams(sea, jnp.asarray(origin_depth, jnp.asarray(current).dtype))
+        return cls(((Waves(), params, None),), current, current_dot)
 
     def waves_at(self, t, p_ned):
-        """``(u (3,), a (3,))``: the waves' share of :meth:`at`, the orbital velocity and its
-        material acceleration advected by the current (:func:`vcjax.waves.orbital_kinematics`);
-        ``at = (current + u, current_dot + a)``."""
-        return waves.orbital_kinematics(self.sea, t, self._at(p_ned), self.current)
+        """``(u (3,), a (3,))``: the share of the fields in :meth:`at`, their velocity and
+        material acceleration (advected by the current, e.g. the orbital motion of a sea,
+        :func:`vcjax.environment.waves.orbital_kinematics`); ``at = (current + u,
+        current_dot + a)``."""
+        u = a = None
+        for comp, params, held in self.fields:
+            u_i, a_i = comp.water(params, held, t, p_ned, self.current)
+            u, a = (u_i, a_i) if u is None else (u + u_i, a + a_i)
+        if u is None:
+            u = jnp.zeros_like(self.current)
+            a = jnp.zeros_like(self.current)
+        return u, a
+
+    def at(self, t, p_ned):
+        """``(v_w (3,), a_w (3,))``: the water's velocity (current + fields) [m/s] and material
+        acceleration [m/s^2] at the NED point ``p_ned`` (3,) [m], time ``t`` [s]."""
+        u, a = self.waves_at(t, p_ned)
+        v = u + self.current
+        if self.current_dot is not None:
+            a = a + self.current_dot
+        return v, a
 
 
 class GainSpec(NamedTuple):

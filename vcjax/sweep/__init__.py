@@ -8,7 +8,8 @@ comparison). A scenario draws:
 
 * the ocean current: mean speed [m/s] and direction [deg, towards which the water flows,
   clockwise from north]; constant, or slowly varying as a first-order Gauss–Markov process
-  around that mean (:mod:`vcjax.currents`, exact discretisation, clipped to a maximum speed);
+  around that mean (:mod:`vcjax.environment.current`, exact discretisation, clipped to a
+  maximum speed);
 * the initial state: the vehicle's ``[initial]`` keys (INFANTE-class: position ``x, y`` [m],
   ``heading_deg``, surge ``speed`` [m/s]); and the desired speed ``u_d`` [m/s];
 * multiplicative model errors: each listed plant parameter is multiplied by
@@ -20,7 +21,7 @@ comparison). A scenario draws:
 * a random sea (``[waves]``; loops whose plant feels one, REMUS 100 and ODIN-class):
   significant height ``hs`` [m], peak period ``tp`` [s], direction [deg, towards which the
   waves travel] and the depth of the NED origin below the mean surface [m], then the sea's
-  frequencies, phases and directions (:func:`vcjax.waves.sea_state`).
+  frequencies, phases and directions (:func:`vcjax.environment.waves.sea_state`).
 
 Everything a scenario draws comes from ``jax.random.fold_in(PRNGKey(seed), index)``, so scenario
 ``i`` is the same whatever the chunk size, the number of devices or of hosts.
@@ -79,7 +80,7 @@ TOML schema (every key optional unless marked; a value written ``range`` is eith
     tau = 300.0                 # s, correlation time (GM only)
     max_speed = 2.0             # m/s, speed bound of the current handed to the plant (GM only)
 
-    [waves]                     # optional: a random sea per scenario (vcjax.waves)
+    [waves]                     # optional: a random sea per scenario (vcjax.environment.waves)
     spectrum = "jonswap"        # "jonswap" | "pm" (Pierson-Moskowitz)
     hs = [0.5, 3.0]             # range, m, significant wave height (required)
     tp = [5.0, 12.0]            # range, s, peak period (required; tp >= 40 dt)

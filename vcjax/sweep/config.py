@@ -11,7 +11,7 @@ from typing import Any
 
 import jax
 
-from vcjax import loops
+from vcjax import environment, loops
 from vcjax.config import (
     ConfigError,
     Current,
@@ -132,6 +132,20 @@ def _sections(raw: dict, where: str) -> dict:
     return out
 
 
+def environment_sections(raw: dict, schema, where: str) -> tuple[dict, tuple]:
+    """``(rest, environment)``: the sections of ``raw`` that are registered components of
+    :mod:`vcjax.environment` and not sections of the command itself, checked and frozen
+    (:func:`vcjax.environment.freeze`), and the rest of ``raw``."""
+    known = set(environment.components()) - set(schema)
+    env = []
+    for sec in [s for s in raw if s in known]:
+        try:
+            env.append(environment.freeze(sec, raw[sec]))
+        except ValueError as err:
+            raise ConfigError(f"{where}: {err}") from None
+    return {k: v for k, v in raw.items() if k not in known}, tuple(env)
+
+
 def load_config(config_path) -> tuple[SweepSpec, dict]:
     """Read and validate a sweep TOML file (schema: :mod:`vcjax.sweep`).
 
@@ -147,8 +161,9 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
     config_path = Path(config_path)
     raw = read_toml(config_path)
     where = str(config_path)
+    choice = parse_scenario(raw.get("scenario"), where, config_path)  # may register components
+    raw, env = environment_sections(raw, SCHEMA, where)
     check_schema(raw, SCHEMA, where)
-    choice = parse_scenario(raw.get("scenario"), where, config_path)
     cls = loops.loop_class(choice.vehicle)
     for sec, valid in (("initial", tuple(cls.initial_keys)), ("sensor_noise", cls.noise_channels)):
         for key in raw.get(sec, {}):
@@ -180,11 +195,12 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
         for (sec, key), field in _SCENARIO_KEYS.items():
             if key in raw.get(sec, {}):
                 sc_kw[field] = getattr(sections[sec], key)
+        sc_kw["environment"] = env
         sc_kw["initial"] = sections["initial"].values
         sc_kw["noise"] = sections["sensor_noise"].values
         if "force" in raw.get("disturbance", {}):
             sc_kw["disturbance"] = sections["disturbance"].force
-        if not cls.takes_current and "current" not in raw:
+        if not cls.can_feel("current") and "current" not in raw:
             sc_kw["current_speed"] = (0.0, 0.0)  # the default current is Simulation 1's
         if "waves" in raw:
             check_waves(raw["waves"])
@@ -196,6 +212,7 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
                 sc_kw.get("current_model", ScenarioSpec.current_model) == "gauss_markov",
                 waves="waves" in raw,
             )
+            loops.check_environment(cls, [environment.lookup(sec) for sec, _ in env])
         except ValueError as err:
             raise ConfigError(refusal(err)) from None
         gains = raw.get("simulation", {}).get("gains")

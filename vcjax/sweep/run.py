@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from vcjax import loops
+from vcjax import environment, loops
 from vcjax.config import ConfigError
 from vcjax.loops import DisturbanceParams, Disturbances, gauss_markov_params
 from vcjax.metrics import (
@@ -90,6 +90,10 @@ def to_scenario(loop, sc: MCScenario, plant, design, coeffs, config: MCConfig) -
     )
 
 
+#: the stream of a scenario's key its further environment components are drawn from
+_ENVIRONMENT_STREAM = 0x656E76
+
+
 def simulate_scenario(
     loop, gains, nominal_params, sc: MCScenario, config: MCConfig, dt, reduction=None
 ) -> tuple[Trajectory, loops.Scenario]:
@@ -118,6 +122,9 @@ def simulate_scenario(
         noise_std=sc.noise_std,
         key=sc.key,
     )
+    if config.environment:  # the further components, drawn from the scenario's own key
+        k_env = jax.random.fold_in(sc.key, _ENVIRONMENT_STREAM)
+        s = s._replace(environment=environment.sample(k_env, dict(config.environment), loop))
     red = None if reduction is None else reduction(s)
     return loops.simulate(loop, gains, s, rcfg, dt, dist, dp, reduction=red), s
 

@@ -18,10 +18,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from vcjax import loops, waves
+from vcjax import loops
 from vcjax.config import ConfigError, as_choice, as_int, as_number, as_range
 from vcjax.config.scenario import ScenarioChoice
-from vcjax.currents import current_ned
+from vcjax.environment import freeze, waves
+from vcjax.environment.current import current_ned
 
 __all__ = [
     "ScenarioSpec",
@@ -57,11 +58,15 @@ class ScenarioSpec:
         disturbance: per component of the generalised disturbance force, a range [N, N m]
             (empty: none).
         wave_spectrum: ``"jonswap"`` or ``"pm"``: every scenario gets a random sea
-            (:func:`vcjax.waves.sea_state`) of ``wave_components`` components with its own
-            ``wave_hs`` [m], ``wave_tp`` [s], ``wave_direction_deg`` (towards, clockwise from
+            (:func:`vcjax.environment.waves.sea_state`) of ``wave_components`` components with its
+            own ``wave_hs`` [m], ``wave_tp`` [s], ``wave_direction_deg`` (towards, clockwise from
             north) and ``wave_origin_depth`` [m] drawn from the ranges; ``None``: no waves.
         wave_gamma: JONSWAP peak enhancement; wave_spreading: ``s`` of the ``cos^2s``
             spreading (0: long-crested).
+        environment: ``((section, table), ...)``: further components of
+            :mod:`vcjax.environment` by their section name, each table checked by its
+            component (:func:`vcjax.environment.freeze`) and sampled per scenario from the
+            scenario's key.
     """
 
     current_speed: tuple[float, float] = (0.5, 0.5)
@@ -84,9 +89,14 @@ class ScenarioSpec:
     wave_spreading: float = 0.0
     wave_components: int = 64
     wave_origin_depth: tuple[float, float] = (0.0, 0.0)
+    environment: tuple = ()
 
     def __post_init__(self):
         s = object.__setattr__
+        try:
+            s(self, "environment", tuple(freeze(sec, t) for sec, t in self.environment))
+        except ValueError as err:
+            raise ConfigError(str(err)) from None
         s(self, "current_speed", as_range("current_speed", self.current_speed, lo_min=0.0))
         s(
             self,
@@ -156,7 +166,7 @@ class ScenarioSpec:
             except ValueError as err:
                 raise ConfigError(str(err)) from None
         if self.disturbance:
-            if not loop.takes_disturbance:
+            if not loop.can_feel("force"):
                 raise ConfigError(f"disturbance: the {loop.vehicle} plant takes no disturbance")
             n_nu = int(np.shape(loop.initial_from(_zeros(loop))[1])[0])
             if len(self.disturbance) != n_nu:
@@ -179,7 +189,7 @@ class ScenarioSpec:
 
 def check_wave_step(tp: float, dt: float, name: str = "wave_tp") -> None:
     """The step ``dt`` [s] resolves a sea of peak period ``tp`` [s]: its shortest component
-    (``tp / 4``, the top of :data:`vcjax.waves.BAND`) with 10 steps, ``tp >= 40 dt``
+    (``tp / 4``, the top of :data:`vcjax.environment.waves.BAND`) with 10 steps, ``tp >= 40 dt``
     (``ConfigError`` naming ``name``)."""
     if tp < 10.0 * waves.BAND[1] * dt:
         raise ConfigError(
@@ -267,6 +277,7 @@ class SweepSpec:
             model_fields=self.scenario.fields_for(self.loop(self.variants[0])),
             tail=self.tail,
             record_stride=stride,
+            environment=self.scenario.environment,
         )
 
 
@@ -282,6 +293,8 @@ class MCConfig:
         model_fields: plant fields scaled by ``MCScenario.model_factors`` (same order).
         tail: steady-state window (last fraction of the run).
         record_stride: keep every ``record_stride``-th sample of ``e`` and the path (0: none).
+        environment: ``((section, table), ...)`` further environment components
+            (:attr:`ScenarioSpec.environment`).
     """
 
     num_steps: int
@@ -292,6 +305,7 @@ class MCConfig:
     model_fields: tuple[str, ...] = ()
     tail: float = 0.2
     record_stride: int = 0
+    environment: tuple = ()
 
     @property
     def trace_steps(self) -> np.ndarray:
@@ -320,8 +334,8 @@ class MCScenario(NamedTuple):
         wave_hs: () significant wave height [m]; wave_tp: () peak period [s];
         wave_direction_deg: () direction the waves travel towards [deg, clockwise from north];
         wave_origin_depth: () depth of the NED origin below the mean free surface [m];
-        sea: the scenario's :class:`vcjax.waves.Sea` ((N,) arrays), drawn from its own key.
-        All five ``None`` without waves.
+        sea: the scenario's :class:`vcjax.environment.waves.Sea` ((N,) arrays), drawn from its own
+        key. All five ``None`` without waves.
     """
 
     index: Any

@@ -94,10 +94,10 @@ from vcjax._checks import (
     float_dtype,
     is_concrete,
 )
+from vcjax.environment.current import current_ned
 from vcjax.linalg import cho_solve_small, cholesky_small, safe_norm, saturate, smooth_saturate
 from vcjax.vehicles.sixdof import (
     SixDofParams,
-    current_ned,
     gvect,
     kinematics,
     m2c,
@@ -237,9 +237,11 @@ class Remus100Args(NamedTuple):
             factors it at every evaluation (the same numbers). Rebuild the arguments (or the
             factor) when ``vehicle`` changes.
         v_w: (3,) NED orbital velocity of waves on top of the current [m/s], rotated in full
-            (``R(Theta)^T``), or None (no waves); see :func:`vcjax.waves.orbital_kinematics`.
+            (``R(Theta)^T``), or None (no waves); see
+            :func:`vcjax.environment.waves.orbital_kinematics`.
         v_w_dot: (3,) its material acceleration [m/s^2] (with ``v_w``).
-        tau_w: (6,) extra body force of the waves (:func:`vcjax.waves.current_door_correction`,
+        tau_w: (6,) extra body force of the waves
+        (:func:`vcjax.environment.waves.current_door_correction`,
             the pendulum moment of the CG below the CB) [N, N m], or None.
     """
 
@@ -497,7 +499,7 @@ def current_in_body(eta, nu, v_c, v_c_dot=None):
     0, ...]``) and ``nu_c_dot = [r v_c, -r u_c, 0, ...]`` (+ ``Rz(psi)^T v_c_dot``).
 
     A (3,) ``v_c`` (the water's NED velocity, e.g. current + waves,
-    :func:`vcjax.waves.water_kinematics`) takes the full rotation instead,
+    :func:`vcjax.environment.waves.water_kinematics`) takes the full rotation instead,
     ``nu_c = [R(Theta)^T v_c; 0]`` (:func:`vcjax.vehicles.sixdof.current_in_body`).
 
     Args:

@@ -41,7 +41,6 @@ from vcjax._checks import (
     float_dtype,
     is_concrete,
 )
-from vcjax.currents import current_ned  # noqa: F401 (re-exported)
 from vcjax.linalg import Rzyx, spd_solve_small
 
 __all__ = [
@@ -53,7 +52,6 @@ __all__ = [
     "m2c",
     "gvect",
     "rigid_body_mass_matrix",
-    "current_ned",
     "current_in_body",
     "SixDofParams",
     "sixdof_params",

@@ -5,8 +5,9 @@ Frames, units and signs
 Inertial frame NED: ``north``, ``east`` [m] horizontal, ``depth`` [m] positive **down** below the
 mean free surface. The elevation ``zeta`` [m] is positive **up**. A wave *direction* ``beta``
 [rad] is the direction the waves travel **towards**, clockwise from north (the convention of
-:mod:`vcjax.currents`: a swell with ``beta = pi/2`` runs towards east). Frequencies ``omega``
-[rad/s], periods [s], wavenumbers ``k`` [rad/m]; one-sided spectra ``S(omega)`` [m^2 s/rad].
+:mod:`vcjax.environment.current`: a swell with ``beta = pi/2`` runs towards east).
+Frequencies ``omega`` [rad/s], periods [s], wavenumbers ``k`` [rad/m]; one-sided spectra
+``S(omega)`` [m^2 s/rad].
 
 A sea is a sum of ``N`` regular components (linear superposition)::
 

@@ -1,0 +1,298 @@
+"""The seam: :class:`Component` (one thing the world does to a vehicle), its registry, and
+:class:`Environment` (the components of a run with their sampled, traced parameters).
+
+A component is *static* (a frozen, hashable dataclass: what it is and its static options) and
+declares
+
+* ``section``: the name of its TOML section, and ``schema``: the section's keys
+  (:class:`Key`: default, bounds, unit, meaning), checked eagerly by :meth:`Component.check`;
+* ``kind``: what a loop must be able to feel to take it (one of :data:`KINDS`; a loop declares
+  what it feels in :attr:`vcjax.loops.Loop.feels`);
+* ``sample(key, section) -> params``: the traced parameters of one run, drawn from the checked
+  section (a key's value is a number, or a ``[lo, hi]`` range sampled uniformly); pure
+  ``jax`` so that it runs under ``vmap`` and differentiates through continuous values;
+* optionally a process: ``init(params) -> state`` and ``advance(params, state, k, t, dt) ->
+  (state, held)``, once per integration step ``k`` (``held`` is what the step's contribution
+  reads, e.g. a noise sample, or a current's value and slope on ``[t_k, t_k + dt]``);
+* its contribution: ``water(params, held, t, p_ned, current) -> (v (3,), a (3,))`` the water's
+  velocity [m/s] and material acceleration [m/s^2] in NED at the point ``p_ned`` (3,) [m] and
+  time ``t`` [s] (``current``: the uniform current the component's water is advected by),
+  ``force(params) -> (n_nu,)`` a constant generalised body force [N, N m], or
+  ``noise(params, held) -> (n,)`` what is added to the controller's measurement.
+
+What a kind means to the simulation (:func:`vcjax.loops.simulate`):
+
+========================  ===================================================================
+``current``               uniform, constant water velocity (``water`` at ``t = 0``)
+``varying_current``       uniform water velocity that varies in time (``water`` every stage)
+``waves``                 water that varies in space (evaluated at the vehicle, every stage)
+``force``                 a constant generalised force added to the plant's disturbance
+``noise``                 sensor noise added to what the controller measures
+========================  ===================================================================
+
+A new disturbance is one class and one line, ``register(MyComponent())``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+__all__ = [
+    "KINDS",
+    "Component",
+    "Environment",
+    "Key",
+    "check_section",
+    "components",
+    "lookup",
+    "draw",
+    "freeze",
+    "register",
+    "sample",
+]
+
+#: what a component asks of a loop (see the module docstring)
+KINDS = ("current", "varying_current", "waves", "force", "noise")
+
+#: how a refusal names each kind ("the X loop cannot take ...")
+KIND_WORDS = {
+    "current": "a current",
+    "varying_current": "a time-varying current",
+    "waves": "waves",
+    "force": "a disturbance force",
+    "noise": "sensor noise",
+}
+
+
+class Key(NamedTuple):
+    """One key of a component's section.
+
+    Attributes:
+        default: the value when the key is absent (a number, a string, or a ``(lo, hi)``
+            range); ``None``: required.
+        doc: meaning and unit, one line.
+        lo, hi: bounds every value (and both ends of a range) must respect.
+        choices: the allowed strings of a string key (static options), else empty.
+        strict_lo: ``lo`` itself is excluded (``> lo`` instead of ``>= lo``).
+    """
+
+    default: Any
+    doc: str
+    lo: float = -math.inf
+    hi: float = math.inf
+    choices: tuple = ()
+    strict_lo: bool = False
+
+
+def _bad(section: str, key: str, msg: str) -> ValueError:
+    return ValueError(f"[{section}] {key}: {msg}")
+
+
+def _check_number(section, name, spec: Key, x):
+    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+        raise _bad(section, name, f"expected a finite number, got {x!r}")
+    if x < spec.lo or (spec.strict_lo and x == spec.lo) or x > spec.hi:
+        lo = "(" if spec.strict_lo else "["
+        raise _bad(section, name, f"{x!r} is outside {lo}{spec.lo}, {spec.hi}]")
+    return float(x)
+
+
+def check_section(section: str, schema: Mapping[str, Key], raw: Mapping | None) -> dict:
+    """``raw`` (a TOML table) checked against ``schema``: unknown keys (with the closest
+    valid one), types and bounds; absent keys take their defaults. Numbers come back as
+    floats, ranges as ``(lo, hi)`` tuples. ``ValueError`` ``[section] key: message``."""
+    raw = dict(raw or {})
+    unknown = sorted(set(raw) - set(schema))
+    if unknown:
+        import difflib
+
+        near = difflib.get_close_matches(unknown[0], list(schema), n=1)
+        hint = f" (did you mean {near[0]!r}?)" if near else f"; valid: {sorted(schema)}"
+        raise _bad(section, unknown[0], f"unknown key{hint}")
+    out = {}
+    for name, spec in schema.items():
+        x = raw.get(name, spec.default)
+        if x is None:
+            raise _bad(section, name, "required")
+        if spec.choices:
+            if x not in spec.choices:
+                raise _bad(section, name, f"expected one of {list(spec.choices)}, got {x!r}")
+            out[name] = x
+        elif isinstance(x, (list, tuple)):
+            if len(x) != 2:
+                raise _bad(section, name, f"expected a number or a [lo, hi] range, got {x!r}")
+            lo, hi = (_check_number(section, name, spec, v) for v in x)
+            if lo > hi:
+                raise _bad(section, name, f"range [{lo}, {hi}] has lo > hi")
+            out[name] = (lo, hi)
+        else:
+            out[name] = _check_number(section, name, spec, x)
+    return out
+
+
+def draw(key, value, dtype=None):
+    """() a traced value of one section key: the number itself, or a uniform draw from a
+    ``(lo, hi)`` range (reparameterised, ``lo + (hi - lo) U``: differentiable in both ends)."""
+    dtype = jnp.asarray(0.0).dtype if dtype is None else dtype
+    if isinstance(value, tuple):
+        lo, hi = (jnp.asarray(v, dtype) for v in value)
+        return lo + (hi - lo) * jax.random.uniform(key, (), dtype)
+    return jnp.asarray(value, dtype)
+
+
+@dataclasses.dataclass(frozen=True)
+class Component:
+    """One thing the world does to a vehicle (static, hashable; see the module docstring).
+
+    Subclasses set :attr:`section`, :attr:`kind`, :attr:`schema` and define :meth:`sample`
+    and the contribution of their kind (:meth:`water`, :meth:`force` or :meth:`noise`); a
+    component with memory sets :attr:`process` and defines :meth:`init` and :meth:`advance`.
+    """
+
+    #: name of the TOML section (and of the component in the registry)
+    section: ClassVar[str] = ""
+    #: what a loop must feel to take it (one of :data:`KINDS`)
+    kind: ClassVar[str] = ""
+    #: the section's keys
+    schema: ClassVar[Mapping[str, Key]] = {}
+    #: True when the component has a per-step process (:meth:`init`, :meth:`advance`)
+    process: ClassVar[bool] = False
+
+    def bind(self, loop) -> Component:
+        """This component for ``loop`` (e.g. sensor noise over its channels); default: self."""
+        return self
+
+    def check(self, raw: Mapping | None) -> dict:
+        """The section checked against :attr:`schema` (eager; defaults filled in)."""
+        return check_section(self.section, self.schema, raw)
+
+    def sample(self, key, section: Mapping):
+        """Traced parameters of one run from the checked ``section`` and a PRNG ``key``."""
+        raise NotImplementedError(f"{type(self).__name__}.sample")
+
+    def init(self, params):
+        """Process state at ``t = 0`` (components with :attr:`process`)."""
+        return None
+
+    def advance(self, params, state, k, t, dt):
+        """``(state_next, held)`` over step ``k`` on ``[t, t + dt]``."""
+        return state, None
+
+    def water(self, params, held, t, p_ned, current):
+        """``(v (3,), a (3,))`` the water's velocity [m/s] and material acceleration [m/s^2]
+        in NED at ``p_ned`` (3,) [m], time ``t`` [s]; ``current`` (3,) [m/s] advects it."""
+        raise NotImplementedError(f"{type(self).__name__}.water")
+
+    def force(self, params):
+        """(n_nu,) constant generalised body force [N, N m]."""
+        raise NotImplementedError(f"{type(self).__name__}.force")
+
+    def noise(self, params, held):
+        """(n,) what is added to the controller's measurement (SI units)."""
+        raise NotImplementedError(f"{type(self).__name__}.noise")
+
+
+_REGISTRY: dict[str, Component] = {}
+
+
+def register(comp: Component, *, replace: bool = False) -> Component:
+    """Make ``comp`` known by its section name (one line per new disturbance)."""
+    if not isinstance(comp, Component):
+        raise ValueError(f"register: expected a Component, got {type(comp).__name__}")
+    if not comp.section or comp.kind not in KINDS:
+        raise ValueError(
+            f"register: {type(comp).__name__} needs a section and a kind in {list(KINDS)}"
+        )
+    if type(comp).sample is Component.sample:
+        raise ValueError(f"register: {type(comp).__name__} defines no sample()")
+    if comp.section in _REGISTRY and not replace and _REGISTRY[comp.section] != comp:
+        raise ValueError(f"register: section [{comp.section}] is taken")
+    _REGISTRY[comp.section] = comp
+    return comp
+
+
+def lookup(section: str) -> Component:
+    """The registered component of ``section`` (``ValueError`` listing the known ones)."""
+    try:
+        return _REGISTRY[section]
+    except KeyError:
+        raise ValueError(f"[{section}]: no such component; known: {sorted(_REGISTRY)}") from None
+
+
+def components() -> tuple[str, ...]:
+    """The registered section names."""
+    return tuple(sorted(_REGISTRY))
+
+
+@jax.tree_util.register_pytree_node_class
+class Environment:
+    """The components of a run (static: part of the tree's structure) with their traced
+    parameters (the leaves), so a batch of environments is one ``vmap``-able pytree and
+    gradients flow into every continuous parameter.
+
+    Attributes:
+        components: tuple of :class:`Component`.
+        params: tuple of their parameters (one pytree each, same order).
+    """
+
+    def __init__(self, components=(), params=()):
+        self.components = tuple(components)
+        self.params = tuple(params)
+        if len(self.components) != len(self.params):
+            raise ValueError("Environment: one params entry per component")
+
+    def tree_flatten(self):
+        return (self.params,), self.components
+
+    @classmethod
+    def tree_unflatten(cls, components, children):
+        return cls(components, children[0])
+
+    def __iter__(self):
+        return iter(zip(self.components, self.params, strict=True))
+
+    def __len__(self):
+        return len(self.components)
+
+    def __repr__(self):
+        return f"Environment({[c.section for c in self.components]})"
+
+    def kinds(self) -> tuple[str, ...]:
+        return tuple(c.kind for c in self.components)
+
+    def __add__(self, other: Environment) -> Environment:
+        return Environment(self.components + other.components, self.params + other.params)
+
+
+def freeze(section: str, raw: Mapping | None) -> tuple:
+    """``(section, ((key, value), ...))``: the registered component's checked table in a
+    hashable form (for static configs); ``ValueError`` ``[section] key: message``."""
+    if isinstance(raw, tuple):  # already frozen: ((key, value), ...)
+        raw = dict(raw)
+    if raw is not None and not isinstance(raw, Mapping):
+        raise ValueError(f"[{section}]: expected a table, got {raw!r}")
+    return section, tuple(sorted(lookup(section).check(dict(raw or {})).items()))
+
+
+def sample(key, sections: Mapping[str, Mapping], loop=None, comps: Mapping | None = None):
+    """:class:`Environment` of the named ``sections`` (``{section: raw table}``), each
+    checked and sampled from its own key ``fold_in(key, i)`` (``i`` its place in ``sections``).
+
+    ``loop``: the loop the environment is for (:meth:`Component.bind`); ``comps`` names
+    components not in the registry (default: the registry's). Checking is eager
+    (plain Python); the draws are traced, so ``vmap`` this over keys for a batch (the sections
+    are static: build the checked dict once with :meth:`Component.check` and close over it).
+    """
+    found, params = [], []
+    for i, (name, raw) in enumerate(sections.items()):
+        c = (comps or {}).get(name) or lookup(name)
+        c = c if loop is None else c.bind(loop)
+        found.append(c)
+        params.append(c.sample(jax.random.fold_in(key, i), c.check(raw)))
+    return Environment(found, params)
