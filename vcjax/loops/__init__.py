@@ -177,7 +177,7 @@ __all__ = [
     "apply_params",
 ]
 
-register(InfanteLoop)
-register(OdinLoop)
-register(ArmLoop)
-register(Remus100Loop)
+register(InfanteLoop, check=False)
+register(OdinLoop, check=False)
+register(ArmLoop, check=False)
+register(Remus100Loop, check=False)
