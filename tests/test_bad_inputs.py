@@ -379,9 +379,13 @@ def test_cli_bad_gains_file(capsys, tmp_path, content, fragment):
 
 
 def test_cli_missing_gains_file(capsys, tmp_path):
-    rc, _, err = _cli(capsys, "simulate", "sim1", "--gains", str(tmp_path / "no.json"))
+    out = tmp_path / "out"  # never the checkout's out/sim1 (the README's main job writes it)
+    rc, _, err = _cli(
+        capsys, "simulate", "sim1", "--gains", str(tmp_path / "no.json"), "--out", str(out)
+    )
     assert rc == 2
     _one_line_error(err, "no.json", "No such file")
+    assert not out.exists()  # the input is read before --out is touched
 
 
 @pytest.mark.parametrize("horizon", ["0", "-1", "nan", "inf", "0.001"])
