@@ -441,3 +441,44 @@ def test_netcdf_of_a_remus100_sweep_opens_in_xarray_and_scipy(tmp_path, monkeypa
     with xr.open_dataset(out / "results.nc", engine="scipy") as ds:
         assert ds.sizes["scenario"] == 2 and ds["ss_abs_e"].dims == ("variant", "scenario")
         assert "noise_std" in ds.attrs["empty_inputs"]
+
+
+# ------------------------------------------------------------------ the checkout stays as it was
+
+
+def test_a_test_run_that_writes_into_the_checkout_fails(tmp_path):
+    """tests/conftest.py watches the checkout: a test that writes there (here into a stand-in
+    checkout) fails the run, naming the file; caches (``__pycache__``) do not count."""
+    repo = tmp_path / "repo"
+    (repo / "__pycache__").mkdir(parents=True)
+    (repo / "kept.txt").write_text("x")
+    (tmp_path / "test_writes.py").write_text(
+        "from pathlib import Path\n"
+        f"REPO = Path({str(repo)!r})\n"
+        "def test_writes():\n"
+        "    (REPO / 'out').mkdir()\n"
+        "    (REPO / 'out' / 'sim1.png').write_text('x')\n"
+        "    (REPO / '__pycache__' / 'a.pyc').write_text('x')\n"
+    )
+    env = {
+        **os.environ,
+        "VCJAX_TEST_CHECKOUT": str(repo),
+        "PYTHONPATH": os.pathsep.join([str(ROOT / "tests"), str(ROOT)]),
+    }
+    env.pop("PYTEST_XDIST_WORKER", None)
+    own = tmp_path / "vcjax-test-jax-cache-inner"  # its own (it removes it at its end)
+    own.mkdir()
+    env["VCJAX_TEST_CACHE_DIR"] = str(own)
+    p = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "conftest", "-p", "no:cacheprovider"]
+        + ["-p", "no:xdist", str(tmp_path / "test_writes.py")],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert p.returncode == 1, p.stdout + p.stderr
+    assert "1 passed" in p.stdout
+    assert "wrote into the checkout" in p.stdout and "+ out/sim1.png" in p.stdout
+    assert "a.pyc" not in p.stdout and "kept.txt" not in p.stdout
