@@ -163,11 +163,12 @@ def _time_grid(
 def demo(args) -> int:
     from vcjax.experiments import ARM
 
-    _time_grid(args.horizon, ARM.dt)
-    out = _prepare(args, args.out, "demo")
+    _time_grid(args.horizon, ARM.dt)  # demo has no --max-steps: not advised
     _enable_x64(args.x64)
+    mod = ARM.load()  # imported (JAX started) before --out is touched
+    out = _prepare(args, args.out, "demo")
     with _early_end():
-        files = ARM.load().arm_demo(out, horizon=args.horizon)
+        files = mod.arm_demo(out, horizon=args.horizon)
         for f in files:
             print(f"wrote {f}")
     _record(out, "demo", args)
