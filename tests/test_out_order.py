@@ -482,3 +482,29 @@ def test_a_test_run_that_writes_into_the_checkout_fails(tmp_path):
     assert "1 passed" in p.stdout
     assert "wrote into the checkout" in p.stdout and "+ out/sim1.png" in p.stdout
     assert "a.pyc" not in p.stdout and "kept.txt" not in p.stdout
+
+
+def test_register_traces_every_law_of_a_new_vehicle():
+    """A new vehicle (here INFANTE's loop under another name) with a law whose force has
+    another shape than its other laws': refused naming the odd one out; a law whose z_dot
+    does not match its state: refused naming it. Neither vehicle is registered."""
+    base = loops.loop_class("infante")
+
+    @dataclasses.dataclass(frozen=True)
+    class Twin(base):
+        vehicle = "unit_twin"
+        laws = {"vcm": base.laws["vcm"], "ilos": base.laws["ilos"], "odd": _Wrap("tau2")}
+        controllers = ("vcm", "ilos", "odd")
+
+    with pytest.raises(ValueError, match=r"unit_twin: the force tau of law\(s\) \['odd'\]"):
+        loops.register(Twin)
+
+    @dataclasses.dataclass(frozen=True)
+    class Drift(base):
+        vehicle = "unit_drift"
+        laws = {"vcm": base.laws["vcm"], "bad": _Wrap("zdot")}
+        controllers = ("vcm", "bad")
+
+    with pytest.raises(ValueError, match=r"register: unit_drift law 'bad' \(_Wrap\): z_dot"):
+        loops.register(Drift)
+    assert "unit_twin" not in loops.vehicles() and "unit_drift" not in loops.vehicles()

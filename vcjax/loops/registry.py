@@ -83,8 +83,8 @@ def register(cls: type[Loop], *, replace: bool = False, check: bool = True) -> t
             "(choose another name, or pass replace=True)"
         )
     if check:
-        for name in cls.controllers:
-            check_step(cls, name, "register")
+        taus = {name: check_step(cls, name, "register", compare=False) for name in cls.controllers}
+        _same_force(cls, {k: v for k, v in taus.items() if v is not None})
     _REGISTRY[cls.vehicle] = cls
     return cls
 
@@ -147,6 +147,10 @@ def _same_shapes(a, b) -> bool:
     return ta == tb and all(x.shape == y.shape for x, y in zip(la, lb, strict=True))
 
 
+class _Wrong(ValueError):
+    """What :func:`check_step` found wrong before tracing (said as it is)."""
+
+
 class _Spy:
     """A law that records what its ``step`` returned (for :func:`check_step`)."""
 
@@ -181,7 +185,7 @@ def _trace(cls: type[Loop], controller: str):
         loop = cls(controller=controller, path=cls.default_path()[0])
         gains = loop.default_gains()
         if not (isinstance(gains, tuple) and hasattr(type(gains), "_fields")):
-            raise ValueError(
+            raise _Wrong(
                 f"default_gains returned a {type(gains).__name__}; expected a NamedTuple of "
                 "arrays (gains are a pytree with named fields)"
             )
@@ -201,14 +205,30 @@ def _trace(cls: type[Loop], controller: str):
     return x0, z0, u, z_dot, x_dot, (jax.eval_shape(lambda: seen[0]) if seen else None)
 
 
-def check_step(cls: type[Loop], controller: str, who: str = "check_step") -> None:
+def _same_force(cls: type[Loop], taus: dict) -> None:
+    """Refuse laws of one vehicle whose forces differ in shape (the odd ones out, against the
+    shape most of them give)."""
+    shapes = {k: _shapes(v) for k, v in taus.items()}
+    if len(set(shapes.values())) <= 1:
+        return
+    common = max(set(shapes.values()), key=list(shapes.values()).count)
+    odd = sorted(k for k, v in shapes.items() if v != common)
+    raise ValueError(
+        f"register: {cls.vehicle}: the force tau of law(s) {odd} has shape "
+        f"{shapes[odd[0]]}; the vehicle's other laws give {common}"
+    )
+
+
+def check_step(cls: type[Loop], controller: str, who: str = "check_step", compare: bool = True):
     """Trace one step of ``cls``'s loop with ``controller`` (:func:`jax.eval_shape`, default
     gains and scenario) before any work, and refuse (``ValueError`` naming the vehicle, the law
     and what is wrong) a law whose methods do not take the arguments the loop passes (a
     ``step`` without ``z``), whose gains are not a NamedTuple (a dict), whose ``z_dot`` does
     not match its state ``z``, whose force ``tau`` differs in shape from the vehicle's other
     laws' (a (2,) force for a 3-DOF plant, which indexing would silently clamp), or whose
-    plant derivative does not match the state."""
+    plant derivative does not match the state. Returns the shapes of the law's force ``tau``
+    (None for a loop without laws); ``compare=False`` leaves out the comparison with the other
+    laws (:func:`register` compares them all at once)."""
     law = cls.laws.get(controller)
     what = f"{who}: {cls.vehicle} " + (
         f"law {controller!r} ({type(law).__name__})" if law is not None else repr(controller)
@@ -224,6 +244,8 @@ def check_step(cls: type[Loop], controller: str, who: str = "check_step") -> Non
             pass
     try:
         x0, z0, u, z_dot, x_dot, out = _trace(cls, controller)
+    except _Wrong as err:
+        raise ValueError(f"{what}: {err}") from None
     except Exception as err:  # the user's code: whatever it raised, in one line
         msg = str(err).strip().splitlines()[0] if str(err).strip() else ""
         raise ValueError(
@@ -239,17 +261,19 @@ def check_step(cls: type[Loop], controller: str, who: str = "check_step") -> Non
             f"{what}: the plant's x_dot {_shapes(x_dot)} does not match the state "
             f"{_shapes(x0)} with this law's command {_shapes(u)}"
         )
-    if out is not None:
-        if not (isinstance(out, tuple) and len(out) == 3):
-            raise ValueError(f"{what}: step must return (tau, z_dot, aux), got {_shapes(out)}")
-        others = [c for c in cls.laws if c != controller]
-        if others:
-            ref = _trace(cls, others[0])[-1]
-            if ref is not None and not _same_shapes(out[0], ref[0]):
-                raise ValueError(
-                    f"{what}: step returns a force tau of shape {_shapes(out[0])}; the "
-                    f"{cls.vehicle} loop's law {others[0]!r} returns {_shapes(ref[0])}"
-                )
+    if out is None:
+        return None
+    if not (isinstance(out, tuple) and len(out) == 3):
+        raise ValueError(f"{what}: step must return (tau, z_dot, aux), got {_shapes(out)}")
+    others = [c for c in cls.laws if c != controller]
+    if compare and others:
+        ref = _trace(cls, others[0])[-1]
+        if ref is not None and not _same_shapes(out[0], ref[0]):
+            raise ValueError(
+                f"{what}: step returns a force tau of shape {_shapes(out[0])}; the "
+                f"{cls.vehicle} loop's law {others[0]!r} returns {_shapes(ref[0])}"
+            )
+    return out[0]
 
 
 def vehicles() -> tuple[str, ...]:
