@@ -508,3 +508,17 @@ def test_register_traces_every_law_of_a_new_vehicle():
     with pytest.raises(ValueError, match=r"register: unit_drift law 'bad' \(_Wrap\): z_dot"):
         loops.register(Drift)
     assert "unit_twin" not in loops.vehicles() and "unit_drift" not in loops.vehicles()
+
+
+@pytest.mark.parametrize("flags", [["--max-memory-gb", "1e-7"], []])
+def test_fit_checks_its_logs_and_size_before_overwrite(flags, tmp_path, capsys):
+    """A log in degrees, or more work than the memory limit: refused with the earlier fit's
+    files intact (the logs are read and the work sized before --out is touched)."""
+    from test_bad_inputs_cli import _deg, _fit_case
+
+    cfg = _fit_case(tmp_path, (lambda c: None) if flags else _deg("psi"))
+    out = tmp_path / "out"
+    before = _earlier_run(out, "run.json", "fit.json", "fit_prediction.png")
+    rc, err = _run(["fit", cfg, "--out", out, "--overwrite", "--quiet", *flags], capsys)
+    assert rc == 2 and err.startswith("vcjax: fit: "), err
+    assert _tree(out) == before

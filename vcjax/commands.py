@@ -434,6 +434,7 @@ def fit(args) -> int:
 
     try:
         cfg = load_fit_config(args.config)  # parsed once, recorded in run.json
+        _check_fit_inputs(args, cfg)
     except (OSError, ValueError) as err:
         return fail(f"fit: {err}")
     _prepare(args, args.out, "fit")  # every input checked: only now is --out touched
@@ -477,6 +478,25 @@ def fit(args) -> int:
             f"(converged: false) to {args.out}",
         )
     return 0
+
+
+def _check_fit_inputs(args, cfg) -> None:
+    """The logs read and checked (time and angle units, sampling) and the work sized, before
+    ``--out`` is touched (``fit_logs`` checks them again when it runs; both are cheap)."""
+    from vcjax.identify import get_fit_model, load_log
+    from vcjax.identify.checks import check_logs
+    from vcjax.identify.shooting import seg_count
+    from vcjax.runtime import sizing
+
+    model = get_fit_model(cfg.model.vehicle)
+    base = Path(args.config).parent
+    logs = [
+        load_log(base / name, model.state_columns, model.command_columns) for name in cfg.data.files
+    ]
+    check_logs(model, logs)
+    steps = cfg.fit.segment_steps
+    est = sizing.fit_estimate(seg_count(logs, steps), steps, model.n_x, len(cfg.fit.params))
+    sizing.check_estimate(est, "fit", max_memory_gb=args.max_memory_gb)
 
 
 def _print_metrics(metrics: dict) -> None:
