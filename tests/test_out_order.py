@@ -522,3 +522,21 @@ def test_fit_checks_its_logs_and_size_before_overwrite(flags, tmp_path, capsys):
     rc, err = _run(["fit", cfg, "--out", out, "--overwrite", "--quiet", *flags], capsys)
     assert rc == 2 and err.startswith("vcjax: fit: "), err
     assert _tree(out) == before
+
+
+@pytest.mark.parametrize("command", ["sweep", "tune"])
+def test_a_broken_gains_file_named_by_the_config_is_refused_before_overwrite(
+    command, tmp_path, capsys
+):
+    (tmp_path / "g.json").write_text('{"vcm": {"P_G": [1, 1, 1],}}')
+    if command == "sweep":
+        text = '[sweep]\nnum_scenarios = 2\nvariants = ["vcm"]\n[simulation]\ngains = "g.json"\n'
+    else:
+        text = (EXAMPLES / "tuning" / "quick.toml").read_text()
+        text = text.replace('variant = "vcm_integral"', 'variant = "vcm"\ninitial_gains = "g.json"')
+    cfg = _config(tmp_path, text)
+    out = tmp_path / "out"
+    before = _earlier_run(out, "run.json", "summary.json", "fig.png")
+    rc, err = _run([command, cfg, "--out", out, "--overwrite"], capsys)
+    assert rc == 2 and "g.json" in err and "Expecting" in err, err
+    assert _tree(out) == before

@@ -300,6 +300,13 @@ def sweep(args) -> int:
     try:
         spec, extras = loaded = load_config(args.config)  # parsed once, recorded in run.json
         _size_check(args, "sweep", spec=spec)
+        if args.netcdf:
+            from vcjax.sweep.labelled import _xr
+
+            _xr()  # xarray missing: said before --out is touched
+        if extras["gains"] is not None:
+            where = f"{args.config}: [simulation] gains: {extras['gains']}"
+            _check_gains_file(spec.loop(spec.variants[0]), extras["gains"], where)
     except (OSError, ValueError, ImportError) as err:
         return fail(f"sweep: {err}")
     _prepare(args, args.out, "sweep")  # every input checked: only now is --out touched
@@ -391,6 +398,10 @@ def tune(args) -> int:
     try:
         cfg = load_config(args.config)  # parsed once, recorded in run.json
         _size_check(args, "tune", cfg=cfg)
+        if cfg.problem.initial_gains:
+            loop = cfg.scenario.loop(cfg.problem.variant)
+            where = f"problem.initial_gains: cannot use {cfg.problem.initial_gains}"
+            _check_gains_file(loop, cfg.problem.initial_gains, where)
     except (OSError, ValueError) as err:
         return fail(f"tune: {err}")
     _prepare(args, args.out, "tune")  # every input checked: only now is --out touched
@@ -478,6 +489,17 @@ def fit(args) -> int:
             f"(converged: false) to {args.out}",
         )
     return 0
+
+
+def _check_gains_file(loop, path, where: str) -> None:
+    """A gains file a config names, read and checked for ``loop`` before ``--out`` is touched
+    (the run reads it again; ``ValueError`` naming ``where``)."""
+    import json
+
+    try:
+        loop.gains_from_json(json.loads(Path(path).read_text()))
+    except (OSError, json.JSONDecodeError, ValueError) as err:
+        raise ValueError(f"{where}: {err}") from None
 
 
 def _check_fit_inputs(args, cfg) -> None:
