@@ -540,3 +540,19 @@ def test_a_broken_gains_file_named_by_the_config_is_refused_before_overwrite(
     rc, err = _run([command, cfg, "--out", out, "--overwrite"], capsys)
     assert rc == 2 and "g.json" in err and "Expecting" in err, err
     assert _tree(out) == before
+
+
+def test_overwrite_keeps_the_fit_json_a_sweep_reads_from_its_own_out(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "out"
+    _earlier_run(out, "run.json", "fit.json", "fit_prediction.png")
+    (out / "fit.json").write_text(json.dumps({"estimates": {}}))  # the earlier fit's result
+    cfg = _config(
+        tmp_path,
+        '[scenario]\nvehicle = "remus100"\nplant_params = "out/fit.json"\n'
+        '[sweep]\nnum_scenarios = 2\nvariants = ["alos3d"]\n',
+    )
+    seen: dict = {}
+    _stub(monkeypatch, "vcjax.sweep", "run_sweep_config", seen)
+    rc, err = _run(["sweep", cfg, "--out", out, "--overwrite"], capsys)
+    assert rc == 2 and "stub: stopped after the checks" in err, err
+    assert seen["at_start"] == [outputs.LOCK, "fit.json"]
