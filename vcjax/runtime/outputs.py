@@ -315,10 +315,19 @@ def _create_whole(path: Path, text: str) -> None:
     tmp = _tmp_for(path)
     try:
         tmp.write_text(text)
-        os.link(tmp, path)
+        try:
+            os.link(tmp, path)
+            return
+        except FileExistsError:
+            raise
+        except OSError:  # a file system without hard links: create exclusively, then write
+            pass
     finally:
         with contextlib.suppress(OSError):
             tmp.unlink()
+    fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
 
 
 def _read_lock(lock: Path) -> dict | None:
