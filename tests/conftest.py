@@ -11,6 +11,12 @@ folder named after the run's id) and the ``vcjax`` subprocesses they start (thro
 test, another worker or a CLI run -- is read back instead of compiled again. Nothing outlives
 the session (the folder is removed at its end), so no test sees entries of an earlier run; the
 tests of the cache itself (``test_cache.py``) use folders of their own.
+
+The checkout stays as it was: tests write into ``tmp_path`` only. The run records every file of
+the repository (name, size, modification time; build outputs and caches left out:
+:data:`_NOT_WATCHED`) when it starts and again when it ends, and fails naming any file that was
+created, changed or removed (e.g. a command writing its default ``out/`` into the checkout, or
+depending on what the README's main job left there).
 """
 
 import os
@@ -19,6 +25,7 @@ import tempfile
 from pathlib import Path
 
 import jax
+import pytest
 
 from vcjax.runtime.cache import enable_compilation_cache
 from vcjax.runtime.compiler import prefer_fast_compile
@@ -48,8 +55,71 @@ jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 
 
+#: The checkout watched (``VCJAX_TEST_CHECKOUT``: another folder, for the test of this check).
+_REPO = Path(os.environ.get("VCJAX_TEST_CHECKOUT") or Path(__file__).resolve().parents[1])
+#: Folders of the checkout the tests may change: the interpreter's and tools' caches and the
+#: virtual environments (ignored build outputs, never results).
+_NOT_WATCHED = {
+    ".git",
+    ".venv",
+    ".venv-min",
+    "__pycache__",
+    ".pytest_cache",
+    ".ruff_cache",
+    ".mypy_cache",
+    ".hypothesis",
+}
+
+
+def _repo_files() -> dict[str, tuple[int, int]]:
+    """``relative path -> (size, mtime_ns)`` of every file of the checkout (:data:`_NOT_WATCHED`
+    folders and ``*.egg-info`` left out)."""
+    files = {}
+    for root, dirs, names in os.walk(_REPO):
+        dirs[:] = [d for d in dirs if d not in _NOT_WATCHED and not d.endswith(".egg-info")]
+        for n in names:
+            p = os.path.join(root, n)
+            try:
+                st = os.stat(p)
+            except OSError:
+                continue
+            files[os.path.relpath(p, _REPO)] = (st.st_size, st.st_mtime_ns)
+    return files
+
+
+def checkout_changes(before: dict, after: dict) -> list[str]:
+    """Files created (``+``), changed (``~``) or removed (``-``) between two
+    :func:`_repo_files` snapshots."""
+    return sorted(
+        [f"+ {k}" for k in after.keys() - before.keys()]
+        + [f"- {k}" for k in before.keys() - after.keys()]
+        + [f"~ {k}" for k in after.keys() & before.keys() if after[k] != before[k]]
+    )
+
+
+def pytest_sessionstart(session):
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:  # the controller, or a run without workers
+        session.config._vcjax_checkout = _repo_files()
+
+
 def pytest_sessionfinish(session):
     # the controller (or a run without workers) removes the folder once every test is done
     path = Path(os.environ["VCJAX_TEST_CACHE_DIR"])
     if os.environ.get("PYTEST_XDIST_WORKER") is None and path.name.startswith(_PREFIX):
         shutil.rmtree(path, ignore_errors=True)
+    before = getattr(session.config, "_vcjax_checkout", None)
+    if before is None:
+        return
+    changed = checkout_changes(before, _repo_files())
+    if changed:
+        tr = session.config.pluginmanager.get_plugin("terminalreporter")
+        lines = [f"the test run wrote into the checkout {_REPO} (tests must use tmp_path):"]
+        lines += [f"  {c}" for c in changed[:20]] + (
+            [f"  ... {len(changed) - 20} more"] * (len(changed) > 20)
+        )
+        for line in lines:
+            if tr is not None:
+                tr.write_line(line, red=True)
+            else:
+                print(line)
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

@@ -379,9 +379,13 @@ def test_cli_bad_gains_file(capsys, tmp_path, content, fragment):
 
 
 def test_cli_missing_gains_file(capsys, tmp_path):
-    rc, _, err = _cli(capsys, "simulate", "sim1", "--gains", str(tmp_path / "no.json"))
+    out = tmp_path / "out"  # never the checkout's out/sim1 (the README's main job writes it)
+    rc, _, err = _cli(
+        capsys, "simulate", "sim1", "--gains", str(tmp_path / "no.json"), "--out", str(out)
+    )
     assert rc == 2
     _one_line_error(err, "no.json", "No such file")
+    assert not out.exists()  # the input is read before --out is touched
 
 
 @pytest.mark.parametrize("horizon", ["0", "-1", "nan", "inf", "0.001"])
@@ -462,12 +466,14 @@ record_points = 10
 
 
 @pytest.mark.parametrize("command", ["sweep", "tune", "fit"])
-def test_cli_out_checked_before_any_work(capsys, tmp_path, command):
-    f = tmp_path / "file"
-    f.write_text("x")
-    rc, _, err = _cli(capsys, command, str(tmp_path / "missing.toml"), "--out", str(f / "sub"))
+def test_cli_inputs_checked_before_out(capsys, tmp_path, command):
+    """Every input is read and checked before --out is touched (a bad --out with good inputs:
+    tests/test_bad_inputs_cli.py)."""
+    out = tmp_path / "out"
+    rc, _, err = _cli(capsys, command, str(tmp_path / "missing.toml"), "--out", str(out))
     assert rc == 2
-    _one_line_error(err, f"vcjax: {command}: --out {f / 'sub'}", "is a file")
+    _one_line_error(err, f"vcjax: {command}:", "missing.toml")
+    assert not out.exists()
 
 
 def test_cli_sweep_malformed_gains_file_is_named(capsys, tmp_path):

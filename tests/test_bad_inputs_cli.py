@@ -25,14 +25,20 @@ COMMANDS = ("sweep", "tune", "fit")
 ALL_COMMANDS = COMMANDS + ("simulate", "demo")
 
 
-def _argv(command: str, out) -> list[str]:
-    """A command line writing to ``out`` (the config file need not exist: ``--out`` is checked
-    first)."""
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _argv(command: str, out, tmp_path) -> list[str]:
+    """A valid command line writing to ``out`` (every input is checked before ``--out``, so
+    the inputs must be good for ``--out`` to be what is refused)."""
     if command == "simulate":
         return ["simulate", "sim1", "--out", str(out)]
     if command == "demo":
         return ["demo", "--out", str(out)]
-    return [command, "no-such-config.toml", "--out", str(out)]
+    if command == "fit":
+        return ["fit", str(_fit_case(tmp_path, lambda c: None)), "--out", str(out), "--quiet"]
+    config = {"sweep": "sweeps/quick.toml", "tune": "tuning/quick.toml"}[command]
+    return [command, str(EXAMPLES / config), "--out", str(out)]
 
 
 def _run(argv, capsys) -> tuple[int, str]:
@@ -47,7 +53,7 @@ def _run(argv, capsys) -> tuple[int, str]:
 def test_out_that_is_a_file_is_refused_first(command, tmp_path, capsys):
     f = tmp_path / "taken"
     f.write_text("user data\n")
-    rc, err = _run(_argv(command, f), capsys)
+    rc, err = _run(_argv(command, f, tmp_path), capsys)
     assert rc == 2
     assert f"--out {f}: exists and is not a directory" in err
     assert f.read_text() == "user data\n"
@@ -57,13 +63,13 @@ def test_out_that_is_a_file_is_refused_first(command, tmp_path, capsys):
 def test_out_below_a_file_is_refused(command, tmp_path, capsys):
     f = tmp_path / "file"
     f.write_text("x")
-    rc, err = _run(_argv(command, f / "sub"), capsys)
+    rc, err = _run(_argv(command, f / "sub", tmp_path), capsys)
     assert rc == 2
     assert f"cannot create the directory: {f} is a file" in err
 
 
 @pytest.mark.parametrize("command", ALL_COMMANDS)
-def test_out_that_cannot_be_created_is_refused(command, capsys):
+def test_out_that_cannot_be_created_is_refused(command, tmp_path, capsys):
     target = Path("/sys/vcjax-test-out")
     try:
         target.mkdir()
@@ -71,7 +77,7 @@ def test_out_that_cannot_be_created_is_refused(command, capsys):
         pytest.skip("/sys is writable here")
     except OSError:
         pass
-    rc, err = _run(_argv(command, target), capsys)
+    rc, err = _run(_argv(command, target, tmp_path), capsys)
     assert rc == 2
     assert f"--out {target}: cannot create the directory" in err
 
@@ -86,7 +92,7 @@ def test_out_that_is_not_writable_is_refused(command, tmp_path, capsys):
         ro = tmp_path / "ro"
         ro.mkdir()
         ro.chmod(0o555)
-    rc, err = _run(_argv(command, ro), capsys)
+    rc, err = _run(_argv(command, ro, tmp_path), capsys)
     assert rc == 2
     assert f"--out {ro}: not writable" in err
 
@@ -101,7 +107,7 @@ def _probe_ok(d: Path) -> bool:
 
 
 def test_empty_out_is_refused(capsys):
-    rc, err = _run(["sweep", "x.toml", "--out", ""], capsys)
+    rc, err = _run(["sweep", str(EXAMPLES / "sweeps/quick.toml"), "--out", ""], capsys)
     assert rc == 2
     assert "--out: expected a folder name" in err
 
@@ -115,7 +121,7 @@ def test_out_holding_another_run_is_refused(command, marker, tmp_path, capsys):
     out = tmp_path / "out"
     out.mkdir()
     (out / marker).write_text("{}")
-    rc, err = _run(_argv(command, out), capsys)
+    rc, err = _run(_argv(command, out, tmp_path), capsys)
     assert rc == 2
     assert f"--out {out}: holds another vcjax run's files ({marker})" in err
     assert "--overwrite" in err
@@ -174,15 +180,21 @@ def test_overwrite_removes_vcjax_files_and_keeps_user_files(tmp_path):
     }
 
 
-def test_overwrite_without_manifest_keeps_unknown_figures(tmp_path):
-    """A folder from an older vcjax (no manifest): its data files go, figures stay (they
-    might be the user's)."""
+def test_overwrite_without_manifest_removes_nothing(tmp_path):
+    """A folder from an older vcjax (no manifest): refused without --overwrite; with it,
+    nothing is removed (nothing says vcjax wrote these files: matched by name only, they
+    might be the user's); the new run's files replace those of the same name."""
     out = tmp_path / "out"
     out.mkdir()
     (out / "run.json").write_text("{}")
+    (out / "metrics.json").write_text("mine")
     (out / "paths.png").write_text("?")
-    outputs.prepare_out(out, overwrite=True, command="t").release()
-    assert sorted(p.name for p in out.iterdir()) == ["paths.png"]
+    with pytest.raises(outputs.OutputError, match="holds another vcjax run's files"):
+        outputs.prepare_out(out, overwrite=False, command="t")
+    d = outputs.prepare_out(out, overwrite=True, command="t")
+    d.release()
+    assert d.removed == []
+    assert sorted(p.name for p in out.iterdir()) == ["metrics.json", "paths.png", "run.json"]
 
 
 def test_non_zero_process_does_not_lock_or_clear(tmp_path):
@@ -193,18 +205,29 @@ def test_non_zero_process_does_not_lock_or_clear(tmp_path):
     assert not d.writer and (out / "run.json").exists() and not (out / outputs.LOCK).exists()
 
 
-@pytest.mark.parametrize(
-    "env, expected",
-    [
-        ({}, 0),
-        ({"VCJAX_PROCESS_ID": "3"}, 3),
-        ({"SLURM_PROCID": "2", "SLURM_NTASKS": "4"}, 2),
-        ({"SLURM_PROCID": "2", "SLURM_NTASKS": "1"}, 0),
-        ({"VCJAX_PROCESS_ID": "x"}, 0),
-    ],
-)
-def test_process_id_from_env(env, expected):
-    assert outputs.process_id_from_env(env) == expected
+def test_rank_comes_from_the_distributed_runtime_not_the_environment(monkeypatch):
+    from vcjax.runtime import distributed
+
+    for k, v in {"SLURM_PROCID": "1", "SLURM_NTASKS": "2", "VCJAX_PROCESS_ID": "3"}.items():
+        monkeypatch.setenv(k, v)
+    monkeypatch.delenv("SLURM_STEP_ID", raising=False)
+    assert not distributed.joined()
+    assert outputs.process_rank() == 0
+
+
+@pytest.mark.parametrize("env", [{"SLURM_PROCID": "1", "SLURM_NTASKS": "2"}])
+def test_slurm_variables_outside_a_step_do_not_skip_the_out_checks(env, tmp_path, monkeypatch):
+    """SLURM_PROCID/SLURM_NTASKS set outside a real step (no run joined): the process is
+    still the writer, so an earlier run in --out is refused, not silently replaced."""
+    for k, v in env.items():
+        monkeypatch.setenv(k, v)
+    monkeypatch.delenv("SLURM_STEP_ID", raising=False)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "run.json").write_text('{"earlier": true}')
+    rc = cli.main(["demo", "--out", str(out), "--horizon", "0.1"])
+    assert rc == 2
+    assert (out / "run.json").read_text() == '{"earlier": true}'
 
 
 # ------------------------------------------------------------------ the lock
@@ -223,7 +246,7 @@ def test_second_writer_of_one_out_gets_exit_2(tmp_path, capsys):
     )
     try:
         assert p.stdout.readline().strip() == "locked"  # a condition, not a sleep
-        rc, err = _run(["sweep", "x.toml", "--out", str(out)], capsys)
+        rc, err = _run(["sweep", str(EXAMPLES / "sweeps/quick.toml"), "--out", str(out)], capsys)
         assert rc == 2
         assert f"--out {out}: in use by process {p.pid}" in err
         assert "(sweep;" in err
@@ -254,8 +277,11 @@ def test_lock_of_a_live_process_on_this_host_is_respected(tmp_path):
 
     out = tmp_path / "out"
     out.mkdir()
+    start = outputs._start_time(os.getppid())  # as a vcjax process records it
     (out / outputs.LOCK).write_text(
-        json.dumps({"pid": os.getppid(), "host": socket.gethostname(), "command": "tune"})
+        json.dumps(
+            {"pid": os.getppid(), "host": socket.gethostname(), "command": "tune", "start": start}
+        )
     )
     with pytest.raises(outputs.OutputError, match=rf"in use by process {os.getppid()}"):
         outputs.prepare_out(out, False, "t")

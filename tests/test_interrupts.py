@@ -286,3 +286,45 @@ def test_the_interrupts_duplicate_after_the_guard_is_swallowed_and_a_later_one_i
         assert signal.getsignal(signal.SIGINT) is old
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def test_second_interrupt_while_sweep_figures_are_written_keeps_run_json_and_manifest(
+    tmp_path, monkeypatch, capsys
+):
+    """Two SIGINTs more than SAME_INTERRUPT_S apart while the figures are drawn: the second
+    stops the run at once (exit 130), yet ``run.json`` (``ended_early``) and the manifest are
+    written; the next ``--overwrite`` removes the stray figure and keeps the user's file."""
+    from vcjax import cli
+    from vcjax.plots import sweep as sweep_plots
+    from vcjax.runtime import interrupts
+
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(
+        SWEEP.replace("num_scenarios = 400", "num_scenarios = 2").replace(
+            "figures = false", "figures = true"
+        )
+    )
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    monkeypatch.setattr(interrupts, "SAME_INTERRUPT_S", -1.0)  # every signal is a new one
+
+    def draw(result, out_dir):
+        (Path(out_dir) / "sweep_stray.png").write_text("the first of the figures")
+        signal.raise_signal(signal.SIGINT)  # the first: asks the (finished) loop to stop
+        signal.raise_signal(signal.SIGINT)  # the second: stops at once
+        raise AssertionError("not reached")
+
+    monkeypatch.setattr(sweep_plots, "sweep_figures", draw)
+    assert cli.main(["sweep", str(cfg), "--out", str(out)]) == 130
+    assert "stopped at once" in capsys.readouterr().err
+    info = json.loads((out / "run.json").read_text())
+    assert info["ended_early"] == "KeyboardInterrupt" and info["interrupted"] is True
+    manifest = json.loads((out / outputs.MANIFEST).read_text())["files"]
+    assert "sweep_stray.png" in manifest and "run.json" in manifest
+    assert "notes.txt" not in manifest and not (out / outputs.LOCK).exists()
+
+    monkeypatch.setattr(sweep_plots, "sweep_figures", lambda result, out_dir: [])
+    assert cli.main(["sweep", str(cfg), "--out", str(out), "--overwrite"]) == 0
+    assert not (out / "sweep_stray.png").exists()
+    assert (out / "notes.txt").read_text() == "mine"

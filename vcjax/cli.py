@@ -269,6 +269,12 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except CLIError as err:
         return fail(f"{args.command}: {err}")
+    except (AssertionError, RuntimeError):  # JAX_PLATFORMS=cuda without a GPU: one line
+        from vcjax.runtime.devices import backend_error
+
+        if (why := backend_error()) is None:
+            raise
+        return fail(f"{args.command}: {why}")
     except KeyboardInterrupt:  # a signal outside the long loops, or a second one
         print(
             f"vcjax: {args.command}: interrupted: stopped at once (the files written so far "

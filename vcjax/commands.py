@@ -6,8 +6,11 @@ interruptible long loops."""
 
 from __future__ import annotations
 
+import contextlib
 import math
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -34,25 +37,78 @@ def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
     parsed command-line options."""
     from vcjax.runtime.runinfo import write_run_json
 
-    config = {k: v for k, v in vars(args).items() if k != "func"} if config is None else config
+    config = _args_config(args) if config is None else config
     config.pop("func", None)
     wall = {"total": time.perf_counter() - args.t_start, **wall}
-    path = write_run_json(out, command, config=config, seeds=seeds, wall_s=wall)
-    if path is not None:
-        print(f"wrote {path}")
-    _outputs_done()
+    with _signals_held():  # a second Ctrl-C now cannot lose run.json or the manifest
+        path = write_run_json(out, command, config=config, seeds=seeds, wall_s=wall)
+        if path is not None:
+            print(f"wrote {path}")
+        _outputs_done()
 
 
-def _prepare(args, path, command: str) -> Path:
-    """Check, clear (``--overwrite``) and lock ``--out`` before any work
-    (:mod:`vcjax.runtime.outputs`)."""
-    from vcjax.runtime.outputs import OutputError, prepare_out
+def _args_config(args) -> dict:
+    return {k: v for k, v in vars(args).items() if k != "func"}
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """SIGINT / SIGTERM held back (delivered when the block ends): for the few writes that
+    must happen together (``run.json`` and the manifest). Main thread only (elsewhere: no-op)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _config_inputs(config) -> list[str]:
+    """Every existing file a TOML config names (relative to its folder, or as given): the
+    command's inputs, which ``--overwrite`` must never remove (a gains file, a ``fit.json``,
+    a loop module, logs ... that may sit in the folder being overwritten)."""
+    import tomllib
 
     try:
-        inputs = [getattr(args, k, None) for k in ("config", "gains")]  # never removed
-        _OUT[:] = [prepare_out(path, getattr(args, "overwrite", False), command, keep=inputs)]
+        raw = tomllib.loads(Path(config).read_text())
+    except (OSError, ValueError, TypeError):
+        return []
+    found: list[str] = []
+
+    def walk(v):
+        if isinstance(v, dict):
+            for x in v.values():
+                walk(x)
+        elif isinstance(v, list):
+            for x in v:
+                walk(x)
+        elif isinstance(v, str) and v.strip():
+            for p in (Path(config).parent / v, Path(v)):
+                with contextlib.suppress(OSError, ValueError):
+                    if p.is_file():
+                        found.append(str(p))
+
+    walk(raw)
+    return found
+
+
+def _prepare(args, path, command: str, inputs=()) -> Path:
+    """Check, clear (``--overwrite``) and lock ``--out``; called once every input has been
+    read and checked, before any work (:mod:`vcjax.runtime.outputs`). ``inputs``: files the
+    command reads besides ``--config``/``--gains`` (never removed)."""
+    from vcjax.runtime.outputs import OutputError, prepare_out
+
+    keep = [getattr(args, k, None) for k in ("config", "gains")] + list(inputs)
+    if getattr(args, "config", None):
+        keep += _config_inputs(args.config)
+    try:
+        _OUT[:] = [prepare_out(path, getattr(args, "overwrite", False), command, keep=keep)]
     except OutputError as err:
         raise CLIError(str(err)) from None
+    _OUT[0].run = (command, args)
     return _OUT[0].path
 
 
@@ -67,12 +123,39 @@ def _outputs_done() -> None:
         _OUT.pop().release()
 
 
+def _ended_early(why: str) -> None:
+    """A command that stopped before recording its run (a second Ctrl-C while figures were
+    written, an error): its ``run.json`` (marked ``ended_early``) and manifest are written
+    anyway, with signals held, so a later ``--overwrite`` removes exactly what it wrote."""
+    if not _OUT:
+        return
+    d = _OUT[0]
+    with _signals_held():
+        try:
+            if d.writer and d.written():
+                from vcjax.runtime.runinfo import write_run_json
+
+                command, args = getattr(d, "run", ("vcjax", None))
+                config = _args_config(args) if args is not None else None
+                wall = time.perf_counter() - args.t_start if args is not None else None
+                extra = {"ended_early": why, "interrupted": True}
+                write_run_json(d.path, command, config=config, wall_s=wall, extra=extra)
+        except Exception:  # noqa: BLE001 - best effort: the manifest below matters more
+            pass
+        finally:
+            d.record_written()
+
+
 class CLIError(Exception):
     """A bad input of the command line: printed as one line, exit code 2."""
 
 
-def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
-    """Number of steps of ``horizon`` in steps of ``dt``; both finite, ``0 < dt <= horizon``."""
+def _time_grid(
+    horizon: float, dt: float, max_steps: int = 10_000_000, limit_option: str | None = None
+) -> int:
+    """Number of steps of ``horizon`` in steps of ``dt``; both finite, ``0 < dt <= horizon``.
+    ``limit_option``: the command's option that raises ``max_steps`` (named in the advice; a
+    command without one is not told to use it)."""
     if not (math.isfinite(horizon) and math.isfinite(dt)):
         raise CLIError(f"need finite --dt and --horizon, got dt={dt}, horizon={horizon}")
     if not (horizon > 0 and dt > 0 and horizon >= dt):
@@ -81,8 +164,8 @@ def _time_grid(horizon: float, dt: float, max_steps: int = 10_000_000) -> int:
     if n > max_steps:
         raise CLIError(
             f"--horizon {horizon:g} / --dt {dt:g} = {n} steps: more than {max_steps} "
-            "(the trajectory is kept in memory); use a larger --dt or a shorter --horizon, "
-            "or raise the limit with --max-steps"
+            "(the trajectory is kept in memory); use a larger --dt or a shorter --horizon"
+            + (f", or raise the limit with {limit_option}" if limit_option else "")
         )
     return n
 
@@ -129,7 +212,7 @@ def _setup(exp, args, where: str):
     dt = exp.dt if args.dt is None else args.dt
     if args.max_steps is not None and args.max_steps < 1:
         raise CLIError(f"--max-steps: expected an integer >= 1, got {args.max_steps}")
-    _time_grid(horizon, dt, args.max_steps or 10_000_000)
+    _time_grid(horizon, dt, args.max_steps or 10_000_000, limit_option="--max-steps")
     import dataclasses
 
     given = {
@@ -159,17 +242,18 @@ def simulate(args) -> int:
     _enable_x64(args.x64)
     gains_file = getattr(args, "gains", None)
     gains = None
-    if gains_file:
+    if gains_file:  # read and checked before --out is touched
         try:
             gains = exp.load_gains(json.loads(Path(gains_file).read_text()), setup.options)
         except (OSError, json.JSONDecodeError, ValueError) as err:
             return fail(f"{where}: cannot use gains file {gains_file}: {err}")
     out = _prepare(args, args.out, where)
-    result = exp.run(out, gains, setup)
-    if result["printed"]:
-        _print_metrics(result["printed"])
-    for f in result["files"]:
-        print(f"wrote {f}")
+    with _early_end():
+        result = exp.run(out, gains, setup)
+        if result["printed"]:
+            _print_metrics(result["printed"])
+        for f in result["files"]:
+            print(f"wrote {f}")
     config = {
         "experiment": exp.name,
         "horizon": setup.horizon,
@@ -206,7 +290,6 @@ def _use_cores(args, command: str) -> int | None:
 
 
 def sweep(args) -> int:
-    _prepare(args, args.out, "sweep")
     if (rc := _use_cores(args, "sweep")) is not None:
         return rc
     _enable_x64(args.x64)
@@ -216,7 +299,18 @@ def sweep(args) -> int:
     try:
         spec, extras = loaded = load_config(args.config)  # parsed once, recorded in run.json
         _size_check(args, "sweep", spec=spec)
-        with interruptible():
+        if args.netcdf:
+            from vcjax.sweep.labelled import _xr
+
+            _xr()  # xarray missing: said before --out is touched
+        if extras["gains"] is not None:
+            where = f"{args.config}: [simulation] gains: {extras['gains']}"
+            _check_gains_file(spec.loop(spec.variants[0]), extras["gains"], where)
+    except (OSError, ValueError, ImportError) as err:
+        return fail(f"sweep: {err}")
+    _prepare(args, args.out, "sweep")  # every input checked: only now is --out touched
+    try:
+        with _early_end(), interruptible():
             result = run_sweep_config(
                 args.config, args.out, progress=True, netcdf=args.netcdf, loaded=loaded, draw=draw
             )
@@ -294,7 +388,6 @@ def _size_check(args, command: str, spec=None, cfg=None) -> None:
 
 
 def tune(args) -> int:
-    _prepare(args, args.out, "tune")
     if (rc := _use_cores(args, "tune")) is not None:
         return rc
     _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
@@ -304,7 +397,15 @@ def tune(args) -> int:
     try:
         cfg = load_config(args.config)  # parsed once, recorded in run.json
         _size_check(args, "tune", cfg=cfg)
-        with interruptible():
+        if cfg.problem.initial_gains:
+            loop = cfg.scenario.loop(cfg.problem.variant)
+            where = f"problem.initial_gains: cannot use {cfg.problem.initial_gains}"
+            _check_gains_file(loop, cfg.problem.initial_gains, where)
+    except (OSError, ValueError) as err:
+        return fail(f"tune: {err}")
+    _prepare(args, args.out, "tune")  # every input checked: only now is --out touched
+    try:
+        with _early_end(), interruptible():
             result = run_tune_config(args.config, args.out, cfg=cfg)
     except (OSError, ValueError) as err:
         return fail(f"tune: {err}")
@@ -332,7 +433,6 @@ def tune(args) -> int:
 
 
 def fit(args) -> int:
-    _prepare(args, args.out, "fit")
     from vcjax.runtime.sizing import check_limits_options
 
     try:
@@ -342,10 +442,15 @@ def fit(args) -> int:
     _enable_x64(args.x64)
     from vcjax.identify import load_fit_config, run_fit_config
 
-    print(f"fit: {args.config} (compiling the multiple-shooting Jacobian first)")
     try:
         cfg = load_fit_config(args.config)  # parsed once, recorded in run.json
-        with interruptible():
+        _check_fit_inputs(args, cfg)
+    except (OSError, ValueError) as err:
+        return fail(f"fit: {err}")
+    _prepare(args, args.out, "fit")  # every input checked: only now is --out touched
+    print(f"fit: {args.config} (compiling the multiple-shooting Jacobian first)")
+    try:
+        with _early_end(), interruptible():
             result = run_fit_config(
                 args.config,
                 args.out,
@@ -385,6 +490,36 @@ def fit(args) -> int:
     return 0
 
 
+def _check_gains_file(loop, path, where: str) -> None:
+    """A gains file a config names, read and checked for ``loop`` before ``--out`` is touched
+    (the run reads it again; ``ValueError`` naming ``where``)."""
+    import json
+
+    try:
+        loop.gains_from_json(json.loads(Path(path).read_text()))
+    except (OSError, json.JSONDecodeError, ValueError) as err:
+        raise ValueError(f"{where}: {err}") from None
+
+
+def _check_fit_inputs(args, cfg) -> None:
+    """The logs read and checked (time and angle units, sampling) and the work sized, before
+    ``--out`` is touched (``fit_logs`` checks them again when it runs; both are cheap)."""
+    from vcjax.identify import get_fit_model, load_log
+    from vcjax.identify.checks import check_logs
+    from vcjax.identify.shooting import seg_count
+    from vcjax.runtime import sizing
+
+    model = get_fit_model(cfg.model.vehicle)
+    base = Path(args.config).parent
+    logs = [
+        load_log(base / name, model.state_columns, model.command_columns) for name in cfg.data.files
+    ]
+    check_logs(model, logs)
+    steps = cfg.fit.segment_steps
+    est = sizing.fit_estimate(seg_count(logs, steps), steps, model.n_x, len(cfg.fit.params))
+    sizing.check_estimate(est, "fit", max_memory_gb=args.max_memory_gb)
+
+
 def _print_metrics(metrics: dict) -> None:
     """A table: one row per variant, one column per numeric metric."""
     keys = [k for k, v in next(iter(metrics.values())).items() if _is_number(v)]
@@ -396,6 +531,17 @@ def _print_metrics(metrics: dict) -> None:
             for k, w in zip(keys, widths, strict=True)
         )
         print(name.ljust(14) + "".join(cells))
+
+
+@contextlib.contextmanager
+def _early_end():
+    """Around a command's work after :func:`_prepare`: if it ends by an exception (a second
+    Ctrl-C, an error), what it wrote is recorded (:func:`_ended_early`) before it goes on."""
+    try:
+        yield
+    except BaseException as err:
+        _ended_early(f"{type(err).__name__}: {err}".rstrip(": "))
+        raise
 
 
 def release_outputs() -> None:

@@ -28,9 +28,12 @@ Parameter files (paths relative to the config file) are JSON: a flat ``{name: va
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib.util
+import signal
 import sys
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -102,8 +105,17 @@ def _option(name: str, v, opt: dict):
 
 
 def import_module_file(path) -> None:
-    """Import a Python file once (by its resolved path), e.g. one that registers loops."""
-    path = Path(path).resolve()
+    """Import a Python file once (by its resolved path), e.g. one that registers loops.
+
+    The module's own ``sys.exit()`` or ``raise KeyboardInterrupt`` at import is its failure
+    (``ValueError`` naming the file), not the command's exit nor the user's Ctrl-C; a real
+    Ctrl-C during the import still interrupts."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(
+            f"{path} is a folder; expected a Python file (.py) that registers loops or laws"
+        )
+    path = path.resolve()
     if str(path) in _IMPORTED:
         return
     name = f"vcjax_user_{len(_IMPORTED)}_{path.stem}"
@@ -112,8 +124,49 @@ def import_module_file(path) -> None:
         raise ValueError(f"module: cannot import {path}")
     mod = importlib.util.module_from_spec(spec)
     sys.modules[name] = mod
-    spec.loader.exec_module(mod)
+    ctrl_c: list[int] = []
+    try:
+        with _noting_ctrl_c(ctrl_c):
+            spec.loader.exec_module(mod)
+    except SystemExit as err:
+        sys.modules.pop(name, None)
+        raise ValueError(
+            f"{path}: called sys.exit({err.code!r}) while being imported (a module that "
+            "registers loops or laws must not exit)"
+        ) from None
+    except KeyboardInterrupt:
+        sys.modules.pop(name, None)
+        if ctrl_c:  # the user's Ctrl-C
+            raise
+        raise ValueError(f"{path}: raised KeyboardInterrupt while being imported") from None
+    except BaseException:
+        sys.modules.pop(name, None)
+        raise
     _IMPORTED[str(path)] = mod
+
+
+@contextlib.contextmanager
+def _noting_ctrl_c(seen: list):
+    """While importing a user's module: a real SIGINT is noted in ``seen`` (then raises
+    ``KeyboardInterrupt`` as Python's default handler does), so that a ``KeyboardInterrupt``
+    the module raises itself can be told from the user's Ctrl-C. Main thread, default
+    handler only; elsewhere a no-op."""
+    if (
+        threading.current_thread() is not threading.main_thread()
+        or signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    ):
+        yield
+        return
+
+    def handler(signum, frame):
+        seen.append(signum)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 _IMPORTED: dict[str, Any] = {}
@@ -267,10 +320,19 @@ def parse_scenario(raw: dict | None, where: str, config_path) -> ScenarioChoice:
         return ScenarioChoice()
     module = None
     if "module" in raw:
-        module = str(resolve_file(f"{where}: [scenario] module", raw["module"], Path(config_path)))
+        given = raw["module"]
+        if isinstance(given, str) and (Path(config_path).parent / given).is_dir():
+            raise ConfigError(
+                f"{where}: [scenario] module: {given!r} is a folder "
+                f"({(Path(config_path).parent / given).resolve()}); expected a Python file "
+                "(.py) that registers loops or laws"
+            )
+        module = str(resolve_file(f"{where}: [scenario] module", given, Path(config_path)))
         try:
             import_module_file(module)
         except Exception as err:  # the user's file: report whatever it raised, in one line
+            if isinstance(err, ValueError) and str(err).startswith(str(module)):
+                raise ConfigError(f"{where}: [scenario] module: {err}") from None  # names it
             raise ConfigError(f"{where}: [scenario] module: {module}: {err!r}") from None
     vehicle = raw.get("vehicle", DEFAULT_SCENARIO["vehicle"])
     try:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["ENV_VAR", "usable_cores", "cpu_device_count", "use_cpu_cores"]
+__all__ = ["ENV_VAR", "backend_error", "usable_cores", "cpu_device_count", "use_cpu_cores"]
 
 #: Environment variable that sets the number of host CPU devices.
 ENV_VAR = "VCJAX_CPU_DEVICES"
@@ -111,3 +111,25 @@ def use_cpu_cores(n=None) -> int | None:
                 f"the count ({count}) must be set before the first JAX computation"
             ) from None
     return count
+
+
+def backend_error() -> str | None:
+    """Why JAX's backend cannot start here (one line), or None if it can.
+
+    For the CLI after a command failed: a platform asked for that this machine lacks
+    (``JAX_PLATFORMS=cuda`` on a CPU-only machine) surfaces inside JAX as a bare
+    ``AssertionError``; this names the setting instead. Starts the backend if it was not."""
+    import jax
+
+    try:
+        jax.devices()
+    except Exception as err:  # noqa: BLE001 - whatever the backend raised, said in one line
+        asked = os.environ.get("JAX_PLATFORMS") or jax.config.jax_platforms
+        why = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        if asked:
+            return (
+                f"JAX_PLATFORMS={asked}: JAX cannot start that platform on this machine ({why}); "
+                "unset JAX_PLATFORMS, or set it to a platform this machine has (cpu)"
+            )
+        return f"JAX cannot start its backend: {why}"
+    return None

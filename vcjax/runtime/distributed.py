@@ -42,6 +42,7 @@ __all__ = [
     "in_slurm_step",
     "initialize_from_env",
     "joined",
+    "process_index",
     "warm_up",
     "free_port",
     "spawn",
@@ -111,6 +112,13 @@ def initialize_from_env(environ=None, timeout_s: int = 120) -> bool:
         jax.distributed.initialize(addr, n, i, initialization_timeout=timeout_s)
     _initialized = True
     return True
+
+
+def process_index() -> int:
+    """This process's rank: ``jax.process_index()`` in a run :func:`initialize_from_env` joined,
+    else 0 (no environment variable is read: ``SLURM_PROCID`` set outside a real step, or a
+    ``VCJAX_PROCESS_ID`` without its coordinator, does not make a rank)."""
+    return int(jax.process_index()) if _initialized else 0
 
 
 def joined() -> bool:

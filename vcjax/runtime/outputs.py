@@ -7,21 +7,24 @@ Every ``vcjax`` command that writes a folder (``simulate``, ``sweep``, ``tune``,
 * ``--out`` must be creatable and writable (a file in the way, a read-only parent, a folder
   without write permission: exit 2 naming it). Checked by creating the folder and writing (then
   removing) a probe file, so what is reported is what the operating system allows.
-* A non-empty ``--out`` that holds another vcjax run's files (:data:`MARKERS`: ``run.json``,
-  ``summary.json``, ``results.npz``, ``fit.json``, ... or the manifest :data:`MANIFEST`) is
-  refused unless ``--overwrite`` is given. With it, vcjax's own files are removed first: the
-  data files of :data:`MARKERS` (and the per-process ``results.part*.npz``), and every file the
-  earlier run listed in its manifest (its figures). A file vcjax did not write is never
-  removed: a folder that holds only user files is used as it is.
-* A lock file (:data:`LOCK`, holding ``pid`` and host) makes one writer per folder: a second
-  process writing the same ``--out`` gets exit 2 naming the holder. The lock is released when
-  the process ends (``atexit``; also by :meth:`OutDir.release`). A lock left by a process that
-  no longer exists (same host) is taken over.
+* A non-empty ``--out`` that holds another vcjax run (its manifest :data:`MANIFEST`, or one of
+  :data:`MARKERS` from a vcjax that wrote no manifest) is refused unless ``--overwrite`` is
+  given. With it, exactly the files the earlier run's manifest lists are removed (its data
+  files and figures): nothing is matched by name, so a user's own ``metrics.json`` stays, and a
+  file that is an input of the command (``keep``: the config, a gains file, every file the
+  config names) is never removed. The commands call :func:`prepare_out` only after every
+  check of their inputs passed, so a bad input leaves the earlier results untouched.
+* A lock file (:data:`LOCK`, holding ``pid``, host, the process's start time and the command)
+  makes one writer per folder: a second process writing the same ``--out`` gets exit 2 naming
+  the holder. The lock is created whole (a temporary file hard-linked into place) and released
+  when the process ends (``atexit``; also by :meth:`OutDir.release`). A lock that is empty or
+  unparsable, or whose process (same host) is gone or is now another program (a reused PID:
+  another start time), is stale and taken over.
 
 In a multi-process run (``vcjax launch``) only process 0 checks contents, locks and writes the
 shared files; the others only check that the folder is writable (they write their
-``results.part`` files there). The process id is read from the environment (the JAX backend
-must not start before the devices are set up).
+``results.part`` files there). The rank is the distributed runtime's (:func:`process_rank`):
+environment variables alone never make a process skip the checks.
 
 Writes are atomic (:func:`write_json_atomic`, :func:`save_npz_atomic`, :func:`savefig_atomic`):
 a temporary file in the same folder, then ``os.replace``, so a killed run never leaves a
@@ -48,7 +51,7 @@ __all__ = [
     "MARKERS",
     "OutDir",
     "OutputError",
-    "process_id_from_env",
+    "process_rank",
     "prepare_out",
     "save_npz_atomic",
     "savefig_atomic",
@@ -161,20 +164,34 @@ def savefig_atomic(fig, path, **kwargs) -> Path:
 # --------------------------------------------------------------------------- output folder
 
 
-def process_id_from_env(environ=None) -> int:
-    """This process's index in a multi-process run, from the environment (``vcjax launch``:
-    ``VCJAX_PROCESS_ID``; a SLURM step: ``SLURM_PROCID``), else 0. Does not start JAX."""
-    env = os.environ if environ is None else environ
-    for key in ("VCJAX_PROCESS_ID", "SLURM_PROCID"):
-        if key == "SLURM_PROCID" and int(env.get("SLURM_NTASKS", "1") or 1) <= 1:
-            continue
-        v = env.get(key)
-        if v not in (None, ""):
-            try:
-                return int(v)
-            except ValueError:
-                return 0
-    return 0
+def process_rank() -> int:
+    """This process's index in a multi-process run: the distributed runtime's
+    (``jax.process_index()`` once :func:`vcjax.runtime.distributed.initialize_from_env` has
+    joined one), else 0. Environment variables alone (``SLURM_PROCID`` outside a real step, a
+    stray ``VCJAX_PROCESS_ID``) never make a process a non-writer: only a joined run does."""
+    from vcjax.runtime import distributed
+
+    return distributed.process_index()
+
+
+def _start_time(pid: int) -> str | None:
+    """The start time of process ``pid`` (clock ticks since boot, ``/proc/PID/stat`` field
+    22), or None where ``/proc`` cannot tell. A PID reused by another program has another."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    fields = stat[stat.rfind(")") + 2 :].split()  # after the command name (may hold spaces)
+    return fields[19] if len(fields) > 19 else None
+
+
+def _runs_vcjax(pid: int) -> bool | None:
+    """Whether process ``pid``'s command line mentions vcjax (None: cannot tell)."""
+    try:
+        cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return None
+    return b"vcjax" in cmd
 
 
 def _pid_alive(pid: int) -> bool:
@@ -189,6 +206,25 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
+def _lock_is_stale(holder: dict | None) -> bool:
+    """A lock nobody holds: empty or unparsable (locks are created whole, never half-written),
+    no integer PID, or on this host a PID that is gone or now another program (its start time
+    differs from the one recorded; a lock without one: a process that does not run vcjax)."""
+    if holder is None or not isinstance(holder.get("pid"), int) or isinstance(holder["pid"], bool):
+        return True
+    pid, host = holder["pid"], holder.get("host")
+    if host not in (None, socket.gethostname()):
+        return False  # another machine's process: cannot tell, respected
+    if pid == os.getpid():
+        return True  # left by an earlier command of this process
+    if not _pid_alive(pid):
+        return True
+    if holder.get("start") is not None:
+        now = _start_time(pid)
+        return now is not None and now != str(holder["start"])
+    return _runs_vcjax(pid) is False
+
+
 class OutDir:
     """A checked, locked output folder (from :func:`prepare_out`).
 
@@ -201,6 +237,8 @@ class OutDir:
         self.path, self.writer, self.removed = path, writer, removed
         self._locked = False
         self._before: dict[str, int] = {}
+        #: ``(command, args)`` of the run writing here (set by the CLI; for ``run.json``)
+        self.run = None
 
     def _snapshot(self) -> dict[str, int]:
         """``relative name -> mtime_ns`` of every file below the folder (lock, manifest and
@@ -221,28 +259,30 @@ class OutDir:
         was there before and left alone is not listed)."""
         if not self.writer:
             return None
-        now = self._snapshot()
-        new = [n for n, t in now.items() if self._before.get(n) != t]
-        names = sorted(set(new) | set(_read_manifest(self.path)))
+        names = sorted(set(self.written()) | set(_read_manifest(self.path)))
+        if not names:  # wrote nothing (a run that failed at once): no manifest either
+            return None
         return write_json_atomic(self.path / MANIFEST, {"files": names})
+
+    def written(self) -> list[str]:
+        """Files (relative names) created or rewritten since :func:`prepare_out`."""
+        now = self._snapshot()
+        return [n for n, t in now.items() if self._before.get(n) != t]
 
     def _lock(self, command: str) -> None:
         lock = self.path / LOCK
         me = {"pid": os.getpid(), "host": socket.gethostname(), "command": command}
+        me["start"] = _start_time(os.getpid())
         for _ in range(3):
             try:
-                fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+                _create_whole(lock, json.dumps(me))
             except FileExistsError:
                 holder = _read_lock(lock)
-                if holder is None:  # being written this instant, or unreadable: look again
-                    holder = {}
-                pid, host = holder.get("pid"), holder.get("host")
-                same_host = host in (None, socket.gethostname())
-                mine = pid == os.getpid()  # left by an earlier command of this process
-                if isinstance(pid, int) and same_host and (mine or not _pid_alive(pid)):
+                if _lock_is_stale(holder):
                     with contextlib.suppress(FileNotFoundError):
-                        lock.unlink()  # stale: its process is gone
+                        lock.unlink()
                     continue
+                pid, host = holder.get("pid"), holder.get("host")
                 who = f"process {pid}" + (f" on {host}" if host else "")
                 what = holder.get("command", "another vcjax run")
                 raise OutputError(
@@ -253,8 +293,6 @@ class OutDir:
                 raise OutputError(
                     f"--out {self.path}: cannot create the lock file: {err.strerror}"
                 ) from None
-            with os.fdopen(fd, "w") as f:
-                json.dump(me, f)
             self._locked = True
             atexit.register(self.release)
             return
@@ -269,6 +307,27 @@ class OutDir:
                 with contextlib.suppress(OSError):
                     lock.unlink()
             self._locked = False
+
+
+def _create_whole(path: Path, text: str) -> None:
+    """Create ``path`` holding ``text``, all at once (``FileExistsError`` if it exists): written
+    to a temporary file, then hard-linked into place, so nobody ever reads it half-written."""
+    tmp = _tmp_for(path)
+    try:
+        tmp.write_text(text)
+        try:
+            os.link(tmp, path)
+            return
+        except FileExistsError:
+            raise
+        except OSError:  # a file system without hard links: create exclusively, then write
+            pass
+    finally:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+    fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
 
 
 def _read_lock(lock: Path) -> dict | None:
@@ -288,13 +347,23 @@ def _read_manifest(path: Path) -> list[str]:
         return []
 
 
+def _earlier_run(path: Path) -> list[str]:
+    """Names that show ``path`` holds an earlier vcjax run: its manifest, or (a folder from a
+    vcjax without manifests) one of :data:`MARKERS`. Only for refusing to write there without
+    ``--overwrite``: what ``--overwrite`` removes comes from the manifest alone."""
+    found = [m for m in MARKERS if (path / m).is_file()]
+    return found + ([MANIFEST] if (path / MANIFEST).is_file() else [])
+
+
 def _vcjax_files(path: Path) -> list[Path]:
-    """The files of an earlier vcjax run in ``path``: markers, part files, manifest entries."""
-    found = [path / m for m in MARKERS if (path / m).is_file()]
-    found += sorted(path.glob("results.part*-of-*.npz"))
+    """The files an earlier vcjax run wrote in ``path``: those its manifest lists (and that are
+    still inside ``path``), then the manifest itself. Nothing is matched by name: a user's own
+    ``metrics.json`` in a folder without a manifest entry for it stays."""
+    found: list[Path] = []
+    root = path.resolve()
     for rel in _read_manifest(path):
         p = (path / rel).resolve()
-        if p.is_file() and path.resolve() in p.parents and p not in [q.resolve() for q in found]:
+        if p.is_file() and root in p.parents and p not in found:
             found.append(p)
     if (path / MANIFEST).is_file():
         found.append(path / MANIFEST)
@@ -331,7 +400,7 @@ def prepare_out(
         overwrite: remove an earlier vcjax run's files first instead of refusing.
         command: what runs (written into the lock file, named in messages).
         writer: whether this process writes the shared outputs (default: process 0 of a
-            multi-process run, :func:`process_id_from_env`).
+            multi-process run, :func:`process_rank`).
         keep: files never removed (the command's inputs, e.g. ``--gains out/gains.json``).
 
     Raises:
@@ -341,7 +410,7 @@ def prepare_out(
     if path is None or str(path).strip() == "":
         raise OutputError("--out: expected a folder name, got an empty string")
     out = Path(path)
-    writer = process_id_from_env() == 0 if writer is None else bool(writer)
+    writer = process_rank() == 0 if writer is None else bool(writer)
     _check_writable(out, path)
     d = OutDir(out, writer, [])
     if not writer:
@@ -350,8 +419,9 @@ def prepare_out(
     try:
         kept = {Path(k).resolve() for k in keep if k}
         old = [p for p in _vcjax_files(out) if p.resolve() not in kept]
-        if old and not overwrite:
-            names = ", ".join(sorted({p.name for p in old})[:4])
+        shown = [n for n in _earlier_run(out) if (out / n).resolve() not in kept]
+        if shown and not overwrite:
+            names = ", ".join(sorted(shown)[:4])
             raise OutputError(
                 f"--out {path}: holds another vcjax run's files ({names}); "
                 "pass --overwrite to replace them, or choose another --out"

@@ -90,11 +90,15 @@ def to_xarray(result):
     variants = list(result.metrics)
     coords = {"variant": variants, "scenario": np.asarray(result.index)}
     data = {}
+    empty: list[str] = []
     fields = spec.scenario.fields_for(spec.loop(spec.variants[0]))
     for k, v in result.scenarios.items():
         if k in _SKIP:
             continue
         v = np.asarray(v)
+        if 0 in v.shape[1:]:  # nothing sampled (e.g. no sensor noise): no zero-length dimension
+            empty.append(k)  # (netCDF 3 would read it as a second, invalid record dimension)
+            continue
         units, labels = INPUT_UNITS.get(k, (None, None))
         attrs = {"long_name": f"sampled input {k}"}
         if units:
@@ -145,6 +149,8 @@ def to_xarray(result):
         "wall_s": float(result.wall_s),
         "metrics": " ".join(METRICS),
     }
+    if empty:
+        attrs["empty_inputs"] = " ".join(empty)
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
