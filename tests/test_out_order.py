@@ -194,16 +194,15 @@ def test_second_ctrl_c_while_figures_are_written_keeps_run_json_and_manifest(
     ``--overwrite`` removes the stray figure and keeps the user's file."""
     from vcjax.experiments import ARM
 
-    mod = ARM.load()
     out = tmp_path / "demo"
     out.mkdir()
     (out / "notes.txt").write_text("mine")
 
-    def interrupted(out, horizon=6.0, dt=None):
+    def interrupted(self, out, gains=None, setup=None, progress=print):
         (Path(out) / "stray.png").write_text("half the figures")
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(mod, "arm_demo", interrupted)
+    monkeypatch.setattr(type(ARM), "run", interrupted)
     rc, err = _run(["demo", "--out", out], capsys)
     assert rc == 130 and "interrupted" in err
     info = json.loads((out / "run.json").read_text())
@@ -212,11 +211,11 @@ def test_second_ctrl_c_while_figures_are_written_keeps_run_json_and_manifest(
     assert manifest == ["run.json", "stray.png"]
     assert not (out / outputs.LOCK).exists()
 
-    def complete(out, horizon=6.0, dt=None):
+    def complete(self, out, gains=None, setup=None, progress=print):
         (Path(out) / "arm_demo.png").write_text("figure")
-        return [Path(out) / "arm_demo.png"]
+        return _ran([Path(out) / "arm_demo.png"])
 
-    monkeypatch.setattr(mod, "arm_demo", complete)
+    monkeypatch.setattr(type(ARM), "run", complete)
     rc, err = _run(["demo", "--out", out, "--overwrite"], capsys)
     assert rc == 0, err
     assert sorted(p.name for p in out.iterdir()) == sorted(
@@ -228,10 +227,15 @@ def test_second_ctrl_c_while_figures_are_written_keeps_run_json_and_manifest(
 # ------------------------------------------------------------------ locks
 
 
+def _ran(files):
+    """What ``Experiment.run`` returns, for a stand-in run that wrote ``files``."""
+    return {"metrics": {}, "files": files, "printed": None, "unhealthy": [], "config": {}}
+
+
 def _demo_stub(monkeypatch):
     from vcjax.experiments import ARM
 
-    monkeypatch.setattr(ARM.load(), "arm_demo", lambda out, horizon=6.0, dt=None: [])
+    monkeypatch.setattr(type(ARM), "run", lambda self, out, *a, **k: _ran([]))
 
 
 @pytest.mark.parametrize("content", ["", "{", "[1, 2]", '{"pid": "12"}', '{"pid": null}'])
@@ -288,13 +292,24 @@ def test_the_lock_file_is_created_whole(tmp_path):
 # ------------------------------------------------------------------ the --max-steps advice
 
 
-def test_demo_is_not_advised_an_option_it_lacks(tmp_path, capsys):
-    rc, err = _run(["demo", "--horizon", "1e12", "--out", tmp_path / "o"], capsys)
-    assert rc == 2 and "steps: more than" in err
-    assert "--max-steps" not in err
-    rc, err = _run(["simulate", "sim1", "--horizon", "1e12", "--out", tmp_path / "o"], capsys)
-    assert rc == 2 and "raise the limit with --max-steps" in err
+def test_the_step_limit_advice_names_only_an_option_the_command_has(tmp_path, capsys):
+    """The advice "raise the limit with --max-steps" is given only where that option exists
+    (demo once advised it without having it; it has it now, as every experiment does), and the
+    option it names raises the limit."""
+    from vcjax.cli import build_parser
+
+    for argv in (["demo"], ["simulate", "sim1"]):
+        rc, err = _run([*argv, "--horizon", "1e12", "--out", tmp_path / "o"], capsys)
+        assert rc == 2 and "steps: more than" in err
+        assert "raise the limit with --max-steps" in err
+        help_text = build_parser().parse_known_args([*argv, "--out", "x"])[0]
+        assert hasattr(help_text, "max_steps"), argv
     assert not (tmp_path / "o").exists()
+    from vcjax.commands import CLIError, _time_grid
+
+    with pytest.raises(CLIError) as err:
+        _time_grid(1e12, 0.05, 10, limit_option=None)
+    assert "--max-steps" not in str(err.value)
 
 
 # ------------------------------------------------------------------ user code
@@ -433,7 +448,7 @@ def test_netcdf_of_a_remus100_sweep_opens_in_xarray_and_scipy(tmp_path, monkeypa
         "[simulation]\nhorizon = 0.2\ndt = 0.05\n[output]\nrecord_points = 2\nfigures = false\n",
     )
     out = tmp_path / "out"
-    rc = cli.main(["sweep", str(cfg), "--out", str(out), "--netcdf", "--cpu-devices", "1"])
+    rc = cli.main(["sweep", str(cfg), "--out", str(out), "--netcdf"])
     assert rc == 0
     with netcdf_file(out / "results.nc", "r", mmap=False) as f:
         assert all(n > 0 for n in f.dimensions.values() if n is not None)
