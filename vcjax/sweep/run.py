@@ -25,6 +25,7 @@ from vcjax.metrics import (
     window_start,
 )
 from vcjax.rollout import Reduction, RolloutConfig, Trajectory
+from vcjax.runtime import programs
 from vcjax.runtime.interrupts import stop_requested
 from vcjax.runtime.progress import ProgressBar
 from vcjax.sweep.results import SweepResult, run_timing
@@ -207,6 +208,15 @@ def _run_batch(loop, gains, nominal_params, scenarios, config, dt, diverge_e):
     return jax.vmap(one)(scenarios)
 
 
+def _batch_program(loop, config):
+    """:func:`_run_batch` with its static inputs bound (what :func:`programs.build` compiles)."""
+
+    def program(gains, nominal_params, scenarios, dt, diverge_e):
+        return _run_batch(loop, gains, nominal_params, scenarios, config, dt, diverge_e)
+
+    return program
+
+
 def run_batch(loop, gains, nominal_params, scenarios: MCScenario, config: MCConfig, dt, diverge_e):
     """Jitted ``vmap`` of :func:`simulate_scenario` + :func:`scenario_metrics` over a batch.
 
@@ -331,8 +341,12 @@ def run_sweep(
             dyn = (gains_d, nom_d, sc_d, dt_d, div_d)
             if v not in compiled:  # trace, lower and compile once per variant, timed apart
                 t0 = time.perf_counter()
-                lowered = _run_batch.lower(loops_[v], gains_d, nom_d, sc_d, config, dt_d, div_d)
-                compiled[v] = lowered.compile()
+                compiled[v], _ = programs.build(  # from the program store when warm
+                    f"sweep:{v}",
+                    _batch_program(loops_[v], config),
+                    (loops_[v], config),
+                    (gains_d, nom_d, sc_d, dt_d, div_d),
+                )
                 compile_s[v] = time.perf_counter() - t0
             t0 = time.perf_counter()
             m, tr = jax.device_get(compiled[v](*dyn))
