@@ -48,6 +48,7 @@ import numpy as np
 __all__ = [
     "MAX_BYTES",
     "build",
+    "build_all",
     "describe",
     "evict",
     "off_reason",
@@ -61,6 +62,8 @@ __all__ = [
 MAX_BYTES = 512 * 1024**2
 #: the file name's suffix (one file per program)
 SUFFIX = ".jaxexport"
+#: the environment variable that caps :func:`build_all`'s threads (1: serial)
+WORKERS_ENV = "VCJAX_COMPILE_WORKERS"
 _FORMAT = 1  # bump when the key's material or the file layout changes
 
 _STORE: list[Path | None] = [None]
@@ -274,6 +277,25 @@ def build(name: str, fn, static, args: tuple):
     with _LOCK:
         _REPORT.append(info)
     return call, dict(info)
+
+
+def build_all(jobs, workers: int | None = None) -> list:
+    """:func:`build` every ``(name, fn, static, args)`` of ``jobs`` concurrently (threads: XLA
+    compiles outside Python's lock, so independent programs compile in parallel on several
+    cores); returns their ``(call, info)`` in order. ``workers`` defaults to
+    ``$VCJAX_COMPILE_WORKERS`` (1: one after another), else the CPU count; ``info["build_s"]``
+    is each program's own wall time (they overlap)."""
+    jobs = list(jobs)
+    if workers is None:
+        env = os.environ.get(WORKERS_ENV, "").strip()
+        workers = int(env) if env.isdigit() and int(env) > 0 else (os.cpu_count() or 1)
+    workers = min(len(jobs), workers)
+    if workers <= 1:
+        return [build(*job) for job in jobs]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="vcjax-compile") as pool:
+        return list(pool.map(lambda job: build(*job), jobs))
 
 
 def _path(folder: Path, key: str) -> Path:

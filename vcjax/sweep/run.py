@@ -337,17 +337,15 @@ def run_sweep(
                 if getattr(host_sc, f) is not None
             }
         )
+        dyn = (gains_d, nom_d, sc_d, dt_d, div_d)
+        if not compiled:  # every variant's program, built concurrently, once (timed apart)
+            jobs = [
+                (f"sweep:{v}", _batch_program(loops_[v], config), (loops_[v], config), dyn)
+                for v in spec.variants
+            ]
+            for v, (call, info) in zip(spec.variants, programs.build_all(jobs), strict=True):
+                compiled[v], compile_s[v] = call, info["build_s"]
         for v in spec.variants:
-            dyn = (gains_d, nom_d, sc_d, dt_d, div_d)
-            if v not in compiled:  # trace, lower and compile once per variant, timed apart
-                t0 = time.perf_counter()
-                compiled[v], _ = programs.build(  # from the program store when warm
-                    f"sweep:{v}",
-                    _batch_program(loops_[v], config),
-                    (loops_[v], config),
-                    (gains_d, nom_d, sc_d, dt_d, div_d),
-                )
-                compile_s[v] = time.perf_counter() - t0
             t0 = time.perf_counter()
             m, tr = jax.device_get(compiled[v](*dyn))
             run_s[v] += time.perf_counter() - t0
