@@ -368,3 +368,28 @@ def test_off_turns_the_store_off(tmp_path):
         cache.enable_compilation_cache({"VCJAX_CACHE_DIR": "off"})
         jax.config.update("jax_compilation_cache_dir", None)
         jax.config.update("jax_enable_compilation_cache", before)
+
+
+def test_the_tuners_value_and_grad_is_stored_and_reused(store):
+    """``vcjax tune``'s L-BFGS step: the batch value-and-gradient comes from the store on a
+    second identical run (not traced), with the same iterates as without a store."""
+    import jax.numpy as jnp
+
+    from tuning.optim import run_gradient_tuner
+    from vcjax.runtime import programs
+
+    def loss(theta, target, w):
+        return jnp.sum(w * (theta - target) ** 2) + 0.1 * jnp.sum(jnp.sin(theta) ** 2)
+
+    args = (jnp.asarray([1.0, -2.0, 0.5]), jnp.asarray([1.0, 3.0, 0.5]))
+    kw = dict(optimizer="lbfgs", steps=5)
+    runs = [
+        run_gradient_tuner(loss, jnp.zeros(3), args, program_static=("quadratic", 1), **kw)
+        for _ in range(2)
+    ]
+    assert [r["reused"] for r in programs.report()] == [False, True]
+    programs.set_store(None)
+    plain = run_gradient_tuner(loss, jnp.zeros(3), args, **kw)
+    for res in runs:
+        assert jnp.array_equal(res.theta, plain.theta)
+        assert [h["loss"] for h in res.history] == [h["loss"] for h in plain.history]

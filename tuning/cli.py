@@ -285,6 +285,8 @@ def run_tune_config(
         on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
         progress=bar,
         should_stop=stop_requested_everywhere,  # all processes stop at the same step
+        # what fixes the loss (the config, the gains' tiling): warm runs load the program
+        program_static=("vcjax tune", cfg.to_dict(), bool(problem.tile_gains)),
     )
     interrupted = res.reason == "interrupted"
     if bar is not None and len(res.history) < o["steps"]:

@@ -48,6 +48,7 @@ import numpy as np
 __all__ = [
     "MAX_BYTES",
     "build",
+    "argument_spec",
     "build_all",
     "describe",
     "evict",
@@ -211,18 +212,18 @@ def _leaf_spec(leaf) -> tuple:
             str(sharding), bool(getattr(leaf, "weak_type", False)))  # fmt: skip
 
 
+def argument_spec(args) -> tuple:
+    """The part of the key that ``args`` give: tree structure and each leaf's shape, dtype,
+    sharding and weak type (a program built for one spec runs only on arguments of that spec)."""
+    leaves, treedef = jax.tree_util.tree_flatten(args)
+    return (str(treedef), tuple(_leaf_spec(leaf) for leaf in leaves))
+
+
 def program_key(name: str, static, args) -> str:
     """The store's key of program ``name`` with static inputs ``static`` at ``args`` (a tuple of
     pytrees: only their structure, shapes, dtypes and shardings count); raises
     :class:`Unstable` when ``static`` cannot be described."""
-    leaves, treedef = jax.tree_util.tree_flatten(args)
-    material = (
-        ("name", name),
-        ("static", describe(static)),
-        ("tree", str(treedef)),
-        ("leaves", tuple(_leaf_spec(leaf) for leaf in leaves)),
-        environment(),
-    )
+    material = (("name", name), ("static", describe(static)), argument_spec(args), environment())
     return hashlib.sha256(repr(material).encode()).hexdigest()
 
 
