@@ -63,6 +63,9 @@ __all__ = [
 MAX_BYTES = 512 * 1024**2
 #: the file name's suffix (one file per program)
 SUFFIX = ".jaxexport"
+#: the environment variable that turns the store off alone (the compilation cache stays on)
+STORE_ENV = "VCJAX_PROGRAM_STORE"
+_OFF = ("off", "none", "0", "false", "no")
 #: the environment variable that caps :func:`build_all`'s threads (1: serial)
 WORKERS_ENV = "VCJAX_COMPILE_WORKERS"
 _FORMAT = 1  # bump when the key's material or the file layout changes
@@ -80,10 +83,13 @@ class Unstable(Exception):
 def set_store(path) -> Path | None:
     """Use ``path`` (a folder, created on demand) for the store; None turns it off. Called by
     :func:`vcjax.runtime.cache.enable_compilation_cache` with ``<cache>/programs``. Stays off
-    (:func:`off_reason` says why) where :mod:`jax.export` cannot serialise: it needs the
-    ``flatbuffers`` package."""
+    (:func:`off_reason` says why) with ``VCJAX_PROGRAM_STORE=off`` and where :mod:`jax.export`
+    cannot serialise (it needs the ``flatbuffers`` package)."""
     _REPORT.clear()
     _OFF_REASON.clear()
+    if path is not None and os.environ.get(STORE_ENV, "").strip().lower() in _OFF:
+        _OFF_REASON.append(f"{STORE_ENV}={os.environ[STORE_ENV]}")
+        path = None
     if path is not None and importlib.util.find_spec("flatbuffers") is None:
         _OFF_REASON.append("the 'flatbuffers' package (jax.export's serialisation) is missing")
         path = None
