@@ -341,7 +341,7 @@ class LBFGSStep:
     def _eval(self, theta, args):
         """``self._vg``, or with a store and ``program_static`` its stored program (built from
         the store, or exported to it, at the first call; the jitted one for other shapes)."""
-        if self._program_static is None or programs.store_dir() is None:
+        if self._stored is None and (self._program_static is None or programs.store_dir() is None):
             return self._vg(theta, args)
         spec = programs.argument_spec((theta, args))
         if self._stored is None:
@@ -369,6 +369,18 @@ class LBFGSStep:
                 (theta, state, value, grad, d, dir_state, ls, jnp.zeros((), jnp.int32)),
             ),
         }
+
+    def prebuild(self, theta, args) -> None:
+        """Build the batch ``value_and_grad`` for arguments like ``(theta, args)`` now (from
+        the store when it holds it), e.g. in a thread while other programs compile; a call
+        with other shapes or placements still traces and compiles its own."""
+        spec = programs.argument_spec((theta, args))
+        static = self._program_static if programs.store_dir() is not None else None
+        if static is None:
+            self._stored = (spec, jax.jit(self._vg_fn).lower(theta, args).compile())
+        else:
+            call, _ = programs.build("tune:value_and_grad", self._vg_fn, static, (theta, args))
+            self._stored = (spec, call)
 
     def _cache_size(self) -> int:
         """How often the largest program (the batch ``value_and_grad``) compiled."""
