@@ -15,7 +15,8 @@ by a SHA-256 of everything that can change it:
   versions, ``XLA_FLAGS``, JAX's configuration (x64, dtype promotion, matmul precision, ...),
   the backend and its devices.
 
-A static input that cannot be described stably (an object whose ``repr`` holds a memory address,
+Multi-process runs (``vcjax launch``) build their programs as before, one after another. A
+static input that cannot be described stably (an object whose ``repr`` holds a memory address,
 a function closing over something else) is not stored: the program is built as before.
 
 :func:`build` is the one entry point. With the store on, a program is always compiled from its
@@ -246,7 +247,8 @@ def build(name: str, fn, static, args: tuple):
     form, so the persistent compilation cache finds the executable a previous run compiled.
     """
     t0 = time.perf_counter()
-    folder = store_dir()
+    # one process only: a multi-process run's arguments are global arrays (not exported here)
+    folder = store_dir() if jax.process_count() == 1 else None
     key = None
     if folder is not None:
         try:
@@ -296,6 +298,8 @@ def build_all(jobs, workers: int | None = None) -> list:
     if workers is None:
         env = os.environ.get(WORKERS_ENV, "").strip()
         workers = int(env) if env.isdigit() and int(env) > 0 else (os.cpu_count() or 1)
+    if jax.process_count() > 1:  # every process builds its programs in the same order
+        workers = 1
     workers = min(len(jobs), workers)
     if workers <= 1:
         return [build(*job) for job in jobs]
