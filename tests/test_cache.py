@@ -14,6 +14,11 @@ from vcjax.runtime.cache import default_cache_dir
 ROOT = Path(__file__).parents[1]
 
 
+def _pythonpath() -> str:
+    """This checkout first, then the caller's own ``PYTHONPATH``."""
+    return os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH", "")]))
+
+
 def test_cache_folder_from_the_environment(tmp_path):
     home = Path.home()
     assert default_cache_dir({}) == home / ".cache" / "vcjax" / "jax"
@@ -55,7 +60,7 @@ sys.exit(rc)
 
 def _run(cfg, out, cache):
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
-    env.update(JAX_PLATFORMS="cpu", VCJAX_CACHE_DIR=str(cache), PYTHONPATH=str(ROOT))
+    env.update(JAX_PLATFORMS="cpu", VCJAX_CACHE_DIR=str(cache), PYTHONPATH=_pythonpath())
     r = subprocess.run(
         [sys.executable, "-c", RUN, "sweep", str(cfg), "--out", str(out), "--no-x64"],
         env=env,
@@ -94,6 +99,16 @@ def test_second_identical_run_compiles_nothing(tmp_path):
     assert _entries(cache).keys() == first.keys()  # nothing new written
     info = json.loads((tmp_path / "o2" / "run.json").read_text())
     assert info["compilation_cache"] == str(cache)
+    # the batch program was not traced again: loaded from the program store, and its
+    # executable (compiled from the loaded form in both runs) read back from XLA's cache
+    progs = info["programs"]
+    if progs.get("store_off"):  # no flatbuffers: the store stays off, the run as before
+        assert progs["store"] is None and not any(b["reused"] for b in progs["built"])
+    else:
+        assert progs["store"] == str(cache / "programs")
+        assert [b["reused"] for b in progs["built"]] == [True]
+        first_run = json.loads((tmp_path / "o1" / "run.json").read_text())["programs"]
+        assert [b["reused"] for b in first_run["built"]] == [False]
 
 
 def test_off_disables_and_run_json_says_so(tmp_path):
@@ -155,3 +170,226 @@ def test_a_gamma_program_read_back_from_the_cache_draws_the_same_numbers(tmp_pat
     first, second = (o.stdout.splitlines() for o in outs)
     assert first[1] == second[1]  # cached (or, where the cache stays off, compiled again)
     assert len(set(json.loads(first[1]))) == 4  # four different draws, not a constant
+
+
+# ----------------------------------------------------------------------------- program store
+
+
+def _loop_static(horizon=1.0, controller="vcm", **choice):
+    from vcjax.sweep.spec import SweepSpec
+
+    spec = SweepSpec(num_scenarios=2, variants=(controller,), horizon=horizon, dt=0.1, **choice)
+    return spec.loop(controller), spec.mc_config()
+
+
+def test_the_program_key_changes_with_everything_that_changes_the_program(monkeypatch):
+    """Exact invalidation: the static inputs (loop, rollout settings), the arguments' shapes and
+    dtypes, the code (vcjax version, source hash), XLA_FLAGS and JAX's settings each change the
+    key; new values of the same shapes do not."""
+    import jax.numpy as jnp
+
+    from vcjax.runtime import programs
+
+    static = _loop_static()
+    args = (jnp.ones(3), {"a": jnp.zeros((2, 2))})
+    key = programs.program_key("p", static, args)
+    assert programs.program_key("p", _loop_static(), (jnp.ones(3) * 7.0, {"a": jnp.ones((2, 2))}))\
+        == key  # fmt: skip
+    changed = {
+        "name": programs.program_key("q", static, args),
+        "horizon": programs.program_key("p", _loop_static(horizon=2.0), args),
+        "controller": programs.program_key("p", _loop_static(controller="ilos"), args),
+        "shape": programs.program_key("p", static, (jnp.ones(4), {"a": jnp.zeros((2, 2))})),
+        "dtype": programs.program_key("p", static, (jnp.ones(3, jnp.float32), args[1])),
+        "weak type": programs.program_key("p", static, (jnp.full(3, 1.0), args[1])),
+        "tree": programs.program_key("p", static, (jnp.ones(3), {"b": jnp.zeros((2, 2))})),
+    }
+    flags = os.environ.get("XLA_FLAGS", "")
+    monkeypatch.setenv("XLA_FLAGS", f"{flags} --xla_cpu_use_fusion_emitters=true".strip())
+    changed["xla_flags"] = programs.program_key("p", static, args)
+    monkeypatch.undo()
+    monkeypatch.setattr(programs, "source_hash", lambda: "edited")
+    changed["source"] = programs.program_key("p", static, args)
+    monkeypatch.undo()
+    import vcjax
+
+    monkeypatch.setattr(vcjax, "__version__", "9.9.9")
+    changed["version"] = programs.program_key("p", static, args)
+    monkeypatch.undo()
+    import jax
+
+    before = jax.config.jax_default_matmul_precision
+    try:
+        jax.config.update("jax_default_matmul_precision", "highest")
+        changed["jax config"] = programs.program_key("p", static, args)
+    finally:
+        jax.config.update("jax_default_matmul_precision", before)
+    assert programs.program_key("p", static, args) == key  # all undone
+    stale = [what for what, k in changed.items() if k == key]
+    assert not stale, f"the key ignores: {stale}"
+    assert len(set(changed.values())) == len(changed)
+
+
+def test_the_program_key_is_the_same_in_a_new_process():
+    """What makes a second run find the program: the key does not depend on the process
+    (no memory addresses: the loop's path function is described by module, name and code)."""
+    code = (
+        "import jax; jax.config.update('jax_enable_x64', True)\n"
+        "jax.config.update('jax_numpy_dtype_promotion', 'strict')\n"
+        "import jax.numpy as jnp\n"
+        "from tests.test_cache import _loop_static\n"
+        "from vcjax.runtime import programs\n"
+        "print(programs.program_key('p', _loop_static(), (jnp.ones(3),)))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    env.update(JAX_PLATFORMS="cpu", PYTHONPATH=_pythonpath())
+    keys = []
+    for _ in range(2):
+        r = subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True,
+                           text=True, timeout=300)  # fmt: skip
+        assert r.returncode == 0, r.stderr[-2000:]
+        keys.append(r.stdout.split()[-1])
+    import jax.numpy as jnp
+
+    from vcjax.runtime import programs
+
+    here = os.environ.get("XLA_FLAGS") is None and programs.program_key(
+        "p", _loop_static(), (jnp.ones(3),)
+    )
+    assert keys[0] == keys[1] and len(keys[0]) == 64
+    if here:  # the test session itself has the same settings (x64, strict promotion, flags)
+        assert here == keys[0]
+
+
+_OPAQUE = object()
+
+
+def test_an_unstable_static_input_is_not_stored():
+    from vcjax.runtime import programs
+
+    with pytest.raises(programs.Unstable):
+        programs.describe(object())
+    with pytest.raises(programs.Unstable):
+        programs.describe(lambda x, o=_OPAQUE: x)
+
+
+@pytest.fixture
+def store(tmp_path):
+    from vcjax.runtime import programs
+
+    pytest.importorskip("flatbuffers")  # jax.export's serialisation
+    folder = programs.set_store(tmp_path / "programs")
+    try:
+        yield folder
+    finally:
+        programs.set_store(None)
+
+
+def test_a_stored_program_is_reused_and_gives_the_same_numbers(store):
+    """The first build exports and stores, the second loads (no tracing: the Python function
+    is not called again); both give the numbers of the plain jitted function."""
+    import jax
+    import jax.numpy as jnp
+
+    from vcjax.runtime import programs
+
+    traced = []
+
+    def f(x, p):
+        traced.append(1)
+        return {"y": jnp.sin(x) * p["k"] + jnp.cumsum(x)}
+
+    x, p = jnp.linspace(0.0, 1.0, 5), {"k": jnp.asarray(3.0)}
+    ref = jax.jit(f)(x, p)["y"]
+    n0 = len(traced)
+    call1, info1 = programs.build("f", f, ("f", 1), (x, p))
+    assert not info1["reused"] and len(traced) == n0 + 1
+    assert len(list(store.glob("*" + programs.SUFFIX))) == 1
+    call2, info2 = programs.build("f", f, ("f", 1), (x, p))
+    assert info2["reused"] and len(traced) == n0 + 1  # not traced again
+    assert info2["key"] == info1["key"]
+    x2 = x + 1.0
+    assert jnp.array_equal(call1(x, p)["y"], ref) and jnp.array_equal(call2(x, p)["y"], ref)
+    assert jnp.array_equal(call2(x2, p)["y"], jax.jit(f)(x2, p)["y"])  # new values, same program
+    # another static input: a new program, not the stored one
+    _, info3 = programs.build("f", f, ("f", 2), (x, p))
+    assert not info3["reused"] and info3["key"] != info1["key"]
+    assert [r["reused"] for r in programs.report()] == [False, True, False]
+
+
+def test_a_damaged_file_is_rebuilt(store):
+    import jax.numpy as jnp
+
+    from vcjax.runtime import programs
+
+    f = lambda x: x * 2.0  # noqa: E731
+    _, info = programs.build("g", f, "g", (jnp.ones(2),))
+    (path,) = store.glob("*" + programs.SUFFIX)
+    path.write_bytes(b"not a program")
+    call, info2 = programs.build("g", f, "g", (jnp.ones(2),))
+    assert not info2["reused"] and jnp.array_equal(call(jnp.ones(2)), jnp.full(2, 2.0))
+
+
+def test_the_store_is_bounded_least_recently_used_first(tmp_path):
+    from vcjax.runtime import programs
+
+    for i, name in enumerate(("old", "mid", "new")):
+        path = tmp_path / f"{name}{programs.SUFFIX}"
+        path.write_bytes(b"x" * 100)
+        os.utime(path, (1000.0 + i, 1000.0 + i))
+    (tmp_path / "other.txt").write_bytes(b"x" * 1000)  # not a program: never removed
+    removed = programs.evict(tmp_path, 250)
+    assert [p.name for p in removed] == [f"old{programs.SUFFIX}"]
+    assert (tmp_path / "other.txt").exists()
+    assert programs.evict(tmp_path, 250) == []
+    removed = programs.evict(tmp_path, 0)
+    assert sorted(p.name for p in removed) == sorted(
+        f"{n}{programs.SUFFIX}" for n in ("mid", "new")
+    )
+
+
+def test_off_turns_the_store_off(tmp_path):
+    import jax
+
+    from vcjax.runtime import cache, programs, runinfo
+
+    before = jax.config.jax_enable_compilation_cache
+    try:
+        cache.enable_compilation_cache({"VCJAX_CACHE_DIR": "off"})
+        assert programs.store_dir() is None
+        assert runinfo.run_info("test")["programs"]["store"] is None
+        if cache.unsafe_version() is None:
+            cache.enable_compilation_cache({"VCJAX_CACHE_DIR": str(tmp_path / "c")})
+            if programs.off_reason() is None:
+                assert programs.store_dir() == tmp_path / "c" / "programs"
+            else:
+                assert programs.store_dir() is None and "flatbuffers" in programs.off_reason()
+    finally:
+        cache.enable_compilation_cache({"VCJAX_CACHE_DIR": "off"})
+        jax.config.update("jax_compilation_cache_dir", None)
+        jax.config.update("jax_enable_compilation_cache", before)
+
+
+def test_the_tuners_value_and_grad_is_stored_and_reused(store):
+    """``vcjax tune``'s L-BFGS step: the batch value-and-gradient comes from the store on a
+    second identical run (not traced), with the same iterates as without a store."""
+    import jax.numpy as jnp
+
+    from tuning.optim import run_gradient_tuner
+    from vcjax.runtime import programs
+
+    def loss(theta, target, w):
+        return jnp.sum(w * (theta - target) ** 2) + 0.1 * jnp.sum(jnp.sin(theta) ** 2)
+
+    args = (jnp.asarray([1.0, -2.0, 0.5]), jnp.asarray([1.0, 3.0, 0.5]))
+    kw = dict(optimizer="lbfgs", steps=5)
+    runs = [
+        run_gradient_tuner(loss, jnp.zeros(3), args, program_static=("quadratic", 1), **kw)
+        for _ in range(2)
+    ]
+    assert [r["reused"] for r in programs.report()] == [False, True]
+    programs.set_store(None)
+    plain = run_gradient_tuner(loss, jnp.zeros(3), args, **kw)
+    for res in runs:
+        assert jnp.array_equal(res.theta, plain.theta)
+        assert [h["loss"] for h in res.history] == [h["loss"] for h in plain.history]

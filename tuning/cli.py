@@ -142,6 +142,38 @@ def _realised_hs(batch) -> list[float]:
     return [round(float(h), 3) for h in 4.0 * np.sqrt(0.5 * np.sum(a * a, axis=-1))]
 
 
+def _training_step(loss_fn, o, cfg, problem, start, args):
+    """``(step, future)``: the training step of :func:`run_gradient_tuner`, its batch
+    ``value_and_grad`` keyed in the program store by what fixes the loss (the config, the
+    gains' tiling: a warm run loads it), and for L-BFGS in a single process that program
+    building in a thread (``future``; None: built at the first step)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from tuning.optim import init_state, make_optimizer, make_step, replicate_like
+
+    opts = tuner_options(o)
+    opt = make_optimizer(
+        opts["optimizer"], opts["learning_rate"], opts["memory_size"], opts["max_linesearch_steps"]
+    )
+    static = ("vcjax tune", cfg.to_dict(), bool(problem.tile_gains))
+    step = make_step(loss_fn, opt, opts["optimizer"], opts["grad_mode"], static)
+    if not hasattr(step, "prebuild") or jax.process_count() > 1:
+        return step, None
+    theta = jnp.asarray(start)
+    theta, _ = replicate_like(args, theta, init_state(opt, theta))  # as the tuner will
+
+    def build():
+        try:
+            step.prebuild(theta, args)
+        except Exception:  # the first step builds it again and reports any error itself
+            pass
+
+    pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vcjax-compile")
+    future = pool.submit(build)
+    pool.shutdown(wait=False)
+    return step, future
+
+
 def _evaluate(eval_fn, theta, data, batch) -> dict:
     loss, (losses, terms) = jax.device_get(eval_fn(theta, data, batch))
     losses = np.asarray(losses)
@@ -268,25 +300,33 @@ def run_tune_config(
         "and evaluating the initial gains ..."
     )
     t0 = time.perf_counter()
+    start = theta0 + space.symmetry_break(data.base)
+    train_d, data_d, start = distribute(train, data, start)
+    sharded = train_d is not train
+    if sharded:
+        # gains copied per scenario: their gradient reduces across devices once, not per step
+        problem = dataclasses.replace(problem, tile_gains=True)
+    loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
+    # the training step's largest program builds in a thread while the held-out evaluation
+    # compiles and runs (XLA compiles outside Python's lock)
+    step, building = _training_step(loss_fn, o, cfg, problem, start, (data_d, train_d))
     before = _evaluate(eval_fn, theta0, data, heldout)
     say(
         f"held-out loss before: {before['loss']:.6g} ({time.perf_counter() - t0:.1f} s incl. "
         f"compiling); compiling the training step ({o['name']}: loss and {o['grad_mode']}-mode "
         f"gradient through {B} rollouts x {N} steps) - the first step includes it ..."
     )
+    if building is not None:
+        building.result()
 
     bar = ProgressBar(o["steps"], label="tune ", stream=progress, warmup=1) if progress else None
-    start = theta0 + space.symmetry_break(data.base)
-    train_d, data_d, start = distribute(train, data, start)
-    if train_d is not train:
+    if sharded:
         say(f"training batch sharded over {jax.device_count()} devices")
-        # gains copied per scenario: their gradient reduces across devices once, not per step
-        problem = dataclasses.replace(problem, tile_gains=True)
-    loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
     res = run_gradient_tuner(
         loss_fn,
         start,
         (data_d, train_d),
+        step_fn=step,
         **tuner_options(o),
         on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
         progress=bar,

@@ -33,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from vcjax.runtime import distributed
+from vcjax.runtime import distributed, programs
 
 __all__ = [
     "OPTIMIZERS",
@@ -169,7 +169,13 @@ def _finite(tree):
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree_util.tree_leaves(tree)]))
 
 
-def make_step(loss_fn: Callable, opt, optimizer: str = "lbfgs", grad_mode: str = "reverse"):
+def make_step(
+    loss_fn: Callable,
+    opt,
+    optimizer: str = "lbfgs",
+    grad_mode: str = "reverse",
+    program_static=None,
+):
     """``step(theta, opt_state, scale, args) -> (theta, opt_state, StepInfo)``.
 
     Args:
@@ -177,6 +183,9 @@ def make_step(loss_fn: Callable, opt, optimizer: str = "lbfgs", grad_mode: str =
         opt: the optimiser (from :func:`make_optimizer`).
         optimizer: ``"lbfgs"`` or ``"adam"`` (how the step calls ``opt``).
         grad_mode: ``"reverse"`` or ``"forward"``.
+        program_static: L-BFGS: a plain description of everything that fixes ``loss_fn`` (e.g.
+            the tuning config): warm runs then load the batch ``value_and_grad`` from
+            :mod:`vcjax.runtime.programs`' store instead of tracing it (None: never stored).
 
     ``scale`` () multiplies the update (the guard's backtracking factor; 1 normally); ``args``
     is a tuple of traced arguments of ``loss_fn`` (e.g. problem data and scenarios), so a new
@@ -191,7 +200,8 @@ def make_step(loss_fn: Callable, opt, optimizer: str = "lbfgs", grad_mode: str =
     if optimizer == "lbfgs":
         if not isinstance(opt, LBFGS):
             raise ValueError("opt: L-BFGS steps need make_optimizer('lbfgs', ...)")
-        return LBFGSStep(f, opt.memory_size, opt.max_linesearch_steps)
+        static = None if program_static is None else (program_static, grad_mode)
+        return LBFGSStep(f, opt.memory_size, opt.max_linesearch_steps, static)
 
     def step(theta, state, scale, args):
         # optax's own arithmetic (e.g. Adam's bias correction, float ** int32 count) is not
@@ -256,9 +266,16 @@ class LBFGSStep:
     ``LBFGS.init``'s. ``scale`` is not used (the line search already backtracks).
     """
 
-    def __init__(self, f: Callable, memory_size: int, max_linesearch_steps: int):
+    def __init__(
+        self, f: Callable, memory_size: int, max_linesearch_steps: int, program_static=None
+    ):
         self._f = f
-        self._vg = jax.jit(lambda theta, args: jax.value_and_grad(lambda p: f(p, *args))(theta))
+        self._vg_fn = lambda theta, args: jax.value_and_grad(lambda p: f(p, *args))(theta)
+        self._vg = jax.jit(self._vg_fn)
+        # program_static: what fixes loss_fn (e.g. the tuning config), the key of the batch
+        # value_and_grad in vcjax.runtime.programs' store (None: traced every run)
+        self._program_static = program_static
+        self._stored: tuple | None = None  # (argument spec, compiled call) from the store
         init_ls, step_ls, cond_ls = _zoom(max_linesearch_steps)
         direction = optax.chain(
             optax.scale_by_lbfgs(memory_size=memory_size, scale_init_precond=True),
@@ -319,7 +336,22 @@ class LBFGSStep:
 
     def value_and_grad(self, theta, args):
         """The batch loss and its gradient at ``theta`` (the one compiled program)."""
-        return self._vg(theta, args)
+        return self._eval(theta, args)
+
+    def _eval(self, theta, args):
+        """``self._vg``, or with a store and ``program_static`` its stored program (built from
+        the store, or exported to it, at the first call; the jitted one for other shapes)."""
+        if self._stored is None and (self._program_static is None or programs.store_dir() is None):
+            return self._vg(theta, args)
+        spec = programs.argument_spec((theta, args))
+        if self._stored is None:
+            call, _ = programs.build(
+                "tune:value_and_grad", self._vg_fn, self._program_static, (theta, args)
+            )
+            self._stored = (spec, call)
+        if spec != self._stored[0]:
+            return self._vg(theta, args)
+        return self._stored[1](theta, args)
 
     def programs(self, theta, state, args) -> dict:
         """``{name: (jitted, arguments)}`` of every program a step runs (compile-time budgets:
@@ -338,9 +370,21 @@ class LBFGSStep:
             ),
         }
 
+    def prebuild(self, theta, args) -> None:
+        """Build the batch ``value_and_grad`` for arguments like ``(theta, args)`` now (from
+        the store when it holds it), e.g. in a thread while other programs compile; a call
+        with other shapes or placements still traces and compiles its own."""
+        spec = programs.argument_spec((theta, args))
+        static = self._program_static if programs.store_dir() is not None else None
+        if static is None:
+            self._stored = (spec, jax.jit(self._vg_fn).lower(theta, args).compile())
+        else:
+            call, _ = programs.build("tune:value_and_grad", self._vg_fn, static, (theta, args))
+            self._stored = (spec, call)
+
     def _cache_size(self) -> int:
         """How often the largest program (the batch ``value_and_grad``) compiled."""
-        return self._vg._cache_size()
+        return self._vg._cache_size() + (self._stored is not None)
 
     def __call__(self, theta, state, scale, args):
         stored = state[2].value
@@ -348,11 +392,11 @@ class LBFGSStep:
         if np.isfinite(float(jax.device_get(stored))):
             value, grad = stored, state[2].grad  # where the last line search ended
         else:
-            value, grad = self._vg(theta, args)
+            value, grad = self._eval(theta, args)
             evals += 1
         d, dir_state, ls, point, go = self._start(theta, state, value, grad)
         while bool(jax.device_get(go)):
-            v, g = self._vg(point, args)
+            v, g = self._eval(point, args)
             ls, point, go = self._advance(ls, v, g)
         evals += int(jax.device_get(ls.count))
         return self._finish(theta, state, value, grad, d, dir_state, ls, evals)
@@ -408,6 +452,7 @@ def run_gradient_tuner(
     progress: Callable | None = None,
     step_fn: Callable | None = None,
     should_stop: Callable[[], bool] | None = None,
+    program_static=None,
 ) -> TuneResult:
     """Minimise ``loss_fn(theta, *args)`` from ``theta0`` (n,).
 
@@ -428,13 +473,14 @@ def run_gradient_tuner(
         step_fn: a step from :func:`make_step` to reuse (avoids recompiling).
         should_stop: polled after each step; True ends the loop there (``reason``
             ``"interrupted"``; the best parameters so far are returned, no further evaluation).
+        program_static: see :func:`make_step`.
     """
     if not (isinstance(steps, int) and steps >= 1):
         raise ValueError(f"steps: expected a positive int, got {steps!r}")
     if not (isinstance(max_bad_steps, int) and max_bad_steps >= 1):
         raise ValueError(f"max_bad_steps: expected a positive int, got {max_bad_steps!r}")
     opt = make_optimizer(optimizer, learning_rate, memory_size, max_linesearch_steps)
-    step = step_fn or make_step(loss_fn, opt, optimizer, grad_mode)
+    step = step_fn or make_step(loss_fn, opt, optimizer, grad_mode, program_static)
     theta = jnp.asarray(theta0)
     state = init_state(opt, theta)
     theta, state = replicate_like(args, theta, state)  # compile the step once, not twice

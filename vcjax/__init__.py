@@ -21,7 +21,9 @@ The public API, by stage of the data flow (each module's docstring has the detai
   :mod:`vcjax.plots` — figures.
 * :mod:`vcjax.identify` — ``vcjax fit``: plant parameters from logged runs by multiple shooting.
 
-The library never enables float64 and never jits for you.
+The library never enables float64 and never jits for you. ``vcjax.fast_compile()``, called before
+the first JAX computation, makes XLA's CPU compiles about twice as fast, as the ``vcjax`` command
+line does (:mod:`vcjax.runtime.compiler`).
 """
 
 from vcjax.integrators import euler, get_integrator, heun, rk4
@@ -38,6 +40,7 @@ from vcjax.mechanics import (
 )
 from vcjax.paths import Path, PathFrame, path_frame
 from vcjax.rollout import RolloutConfig, Trajectory
+from vcjax.runtime.compiler import fast_compile
 
 __all__ = [
     "Diagnostics",
@@ -51,6 +54,7 @@ __all__ = [
     "VirtualConstraints",
     "constraint_terms",
     "euler",
+    "fast_compile",
     "get_integrator",
     "heun",
     "path_frame",

@@ -13,6 +13,15 @@ shared: compare runs of one invocation). Outputs go to a temporary folder.
 
     python -m benchmarks.perf.cli_times --runs 3 --json benchmarks/results/cli_times.json
     python -m benchmarks.perf.cli_times --commands "tune examples/tuning/remus100.toml" --runs 1
+
+``--before REV`` measures an older revision against this checkout (or ``--after REV``) in one
+run: each round runs the command cold then warm with the before tree, then with the after tree
+(each revision's ``vcjax``, ``tuning``, ``benchmarks`` and ``examples`` extracted with ``git
+archive``), so both sides see the same load; the JSON holds ``{command: {side: {cold, warm}}}``.
+A ``PYTHONPATH`` of the caller is kept after the tree's own folder.
+
+    python -m benchmarks.perf.cli_times --before 7a685b9 --runs 1 \
+        --commands "sweep examples/sweeps/remus100.toml" --json benchmarks/results/cli_times_ba.json
 """
 
 from __future__ import annotations
@@ -47,22 +56,27 @@ def parse_args(argv=None):
     p.add_argument("--runs", type=int, default=3, help="runs of each (default 3)")
     p.add_argument("--no-warm", action="store_true", help="cold runs only")
     p.add_argument("--json", type=Path, default=DEFAULT_JSON, help="output JSON file")
+    p.add_argument("--before", default=None, help="git revision to compare against (same run)")
+    p.add_argument(
+        "--after", default=None, help="with --before: the revision measured as after (default: "
+        "this checkout)"
+    )  # fmt: skip
     args = p.parse_args(argv)
     if args.runs < 1:
         p.error("--runs: expected a positive int")
     return args
 
 
-def run_once(command: str, cache: Path, out: Path) -> dict:
-    """One ``vcjax`` process; ``{"wall_s", "load", "rc"}``."""
+def run_once(command: str, cache: Path, out: Path, root: Path = ROOT) -> dict:
+    """One ``vcjax`` process of the tree ``root``; ``{"wall_s", "load", "rc"}``."""
     env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "VCJAX_CPU_DEVICES")}
-    env["PYTHONPATH"] = str(ROOT)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")]))
     env["VCJAX_CACHE_DIR"] = str(cache)
     cmd = [sys.executable, "-m", "vcjax.cli", *shlex.split(command), "--out", str(out)]
     cmd += ["--overwrite"]
     load = C.load_average()
     t0 = time.perf_counter()
-    res = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
+    res = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if res.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed ({res.returncode}):\n{res.stderr[-3000:]}")
@@ -72,6 +86,44 @@ def run_once(command: str, cache: Path, out: Path) -> dict:
 def _stats(runs: list[dict]) -> dict:
     walls = [r["wall_s"] for r in runs]
     return {"min_s": min(walls), "median_s": statistics.median(walls), "runs": runs}
+
+
+def before_after(args, doc: dict) -> dict:
+    """``--before``: both trees, cold then warm, alternating within each round."""
+    from benchmarks.perf.compile_times import _extract
+
+    with tempfile.TemporaryDirectory() as tmp:
+        roots = {"before": Path(tmp) / "before", "after": ROOT}
+        roots["before"].mkdir()
+        doc["machine"]["before"] = _extract(args.before, roots["before"])
+        doc["machine"]["after"] = "this checkout"
+        if args.after:
+            roots["after"] = Path(tmp) / "after"
+            roots["after"].mkdir()
+            doc["machine"]["after"] = _extract(args.after, roots["after"])
+        for command in args.commands:
+            runs = {side: {"cold": [], "warm": []} for side in roots}
+            for _ in range(args.runs):
+                for side, root in roots.items():
+                    with tempfile.TemporaryDirectory() as t:
+                        cache, out = Path(t) / "cache", Path(t) / "out"
+                        runs[side]["cold"].append(run_once(command, cache, out, root))
+                        if not args.no_warm:
+                            runs[side]["warm"].append(run_once(command, cache, out, root))
+            doc[command] = {
+                side: {k: _stats(v) for k, v in r.items() if v} for side, r in runs.items()
+            }
+            for kind in ("cold", "warm"):
+                if kind not in doc[command]["before"]:
+                    continue
+                b, a = doc[command]["before"][kind], doc[command]["after"][kind]
+                loads = ", ".join(f"{r['load']:.1f}" for s in (b, a) for r in s["runs"])
+                print(
+                    f"vcjax {command}: {kind} before {b['min_s']:.1f} s, after {a['min_s']:.1f} s "
+                    f"({b['min_s'] / a['min_s']:.2f}x; load {loads})",
+                    flush=True,
+                )
+    return doc
 
 
 def main(argv=None) -> dict:
@@ -84,7 +136,9 @@ def main(argv=None) -> dict:
             "load_average_1min_at_start": C.load_average(),
         }
     }
-    for command in args.commands:
+    if args.before:
+        before_after(args, doc)
+    for command in [] if args.before else args.commands:
         cold, warm = [], []
         for _ in range(args.runs):
             with tempfile.TemporaryDirectory() as tmp:

@@ -28,8 +28,9 @@ directional spreading) as one that returns a constant -- silently wrong results 
 run. Checked: 0.5.1 wrong, 0.6.2 and 0.10.2 right; below :data:`SAFE_FROM` the cache stays off
 and :func:`cache_off_reason` says why (``run.json`` records it).
 
-Tracing is not cached (JAX traces before it computes the cache key): the trace time of the big
-loops has to come down in the code itself (see ``benchmarks/perf/compile_times.py``).
+JAX traces before it computes its cache key, so the cache alone does not spare a run the tracing;
+the lowered programs themselves are kept in ``programs/`` inside the same folder
+(:mod:`vcjax.runtime.programs`), turned on and off with it.
 """
 
 from __future__ import annotations
@@ -114,8 +115,11 @@ def enable_compilation_cache(environ=None) -> str | None:
             path.mkdir(parents=True, exist_ok=True)
         except OSError:
             path = None
+    from vcjax.runtime import programs
+
     if path is None:
         _update("jax_enable_compilation_cache", False)
+        programs.set_store(None)
         _ACTIVE = None
     else:
         _update("jax_enable_compilation_cache", True)
@@ -124,6 +128,7 @@ def enable_compilation_cache(environ=None) -> str | None:
         _update("jax_persistent_cache_min_entry_size_bytes", 0)
         if _has_filelock():  # JAX needs it to evict entries safely
             _update("jax_compilation_cache_max_size", MAX_BYTES)
+        programs.set_store(path / "programs")
         _ACTIVE = str(path)
     _reset()
     return _ACTIVE

@@ -143,6 +143,7 @@ def run_info(
         "compilation_cache": cache_dir(),
         **({"compilation_cache_off": cache_off_reason()} if cache_off_reason() else {}),
         "xla_flags": os.environ.get("XLA_FLAGS", ""),
+        "programs": _programs(),
         "config": to_jsonable(config),
         "seeds": to_jsonable(seeds or {}),
         "wall_s": to_jsonable(wall_s),
@@ -150,6 +151,17 @@ def run_info(
     if extra:
         info.update(to_jsonable(extra))
     return info
+
+
+def _programs() -> dict:
+    """The lowered-program store's folder and what this run built or reused from it."""
+    from vcjax.runtime import programs
+
+    folder = programs.store_dir()
+    out = {"store": None if folder is None else str(folder), "built": programs.report()}
+    if programs.off_reason():
+        out["store_off"] = programs.off_reason()
+    return out
 
 
 def write_run_json(out_dir, command: str, **kwargs) -> Path | None:

@@ -25,6 +25,7 @@ from vcjax.metrics import (
     window_start,
 )
 from vcjax.rollout import Reduction, RolloutConfig, Trajectory
+from vcjax.runtime import programs
 from vcjax.runtime.interrupts import stop_requested
 from vcjax.runtime.progress import ProgressBar
 from vcjax.sweep.results import SweepResult, run_timing
@@ -254,6 +255,15 @@ def _run_batch(loop, gains, nominal_params, scenarios, config, dt, diverge_e):
     return jax.vmap(one)(scenarios)
 
 
+def _batch_program(loop, config):
+    """:func:`_run_batch` with its static inputs bound (what :func:`programs.build` compiles)."""
+
+    def program(gains, nominal_params, scenarios, dt, diverge_e):
+        return _run_batch(loop, gains, nominal_params, scenarios, config, dt, diverge_e)
+
+    return program
+
+
 def run_batch(loop, gains, nominal_params, scenarios: MCScenario, config: MCConfig, dt, diverge_e):
     """Jitted ``vmap`` of :func:`simulate_scenario` + :func:`scenario_metrics` over a batch.
 
@@ -377,13 +387,16 @@ def run_sweep(
                 if getattr(host_sc, f) is not None
             }
         )
+        dyns = {v: (gains_d[v], nom_d, sc_d, dt_d, div_d) for v in spec.variants}
+        if not compiled:  # every variant's program, built concurrently, once (timed apart)
+            jobs = [
+                (f"sweep:{v}", _batch_program(loops_[v], config), (loops_[v], config), dyns[v])
+                for v in spec.variants
+            ]
+            for v, (call, info) in zip(spec.variants, programs.build_all(jobs), strict=True):
+                compiled[v], compile_s[v] = call, info["build_s"]
         for v in spec.variants:
-            dyn = (gains_d[v], nom_d, sc_d, dt_d, div_d)
-            if v not in compiled:  # trace, lower and compile once per variant, timed apart
-                t0 = time.perf_counter()
-                lowered = _run_batch.lower(loops_[v], *dyn[:3], config, *dyn[3:])
-                compiled[v] = lowered.compile()
-                compile_s[v] = time.perf_counter() - t0
+            dyn = dyns[v]
             t0 = time.perf_counter()
             m, tr = jax.device_get(compiled[v](*dyn))
             run_s[v] += time.perf_counter() - t0

@@ -1,0 +1,67 @@
+"""Graph size as a test: every registered loop's forward and gradient program stays within its
+StableHLO line budget (issue 30).
+
+The line count of the lowered program (``jax.jit(f).lower(...).as_text()``) is deterministic,
+unlike compile seconds (those live in ``benchmarks/perf/compile_times.py``, whose helpers build
+the very programs counted here), and XLA's compile time follows it. Lowering only, nothing is
+compiled. The horizon is 2 steps: a rollout is one ``lax.scan`` whose body does not depend on its
+length (checked: 5 and 250 steps give the same counts for every loop, and
+``test_the_count_does_not_depend_on_the_horizon`` keeps checking it on one loop).
+
+Budgets: the counts of float64 programs under jax 0.10.2 plus about 10 %, rounded up to 100
+lines (REMUS 100 ``vcm3d``: 6,898 / 24,304 lines, the issue's budget 8 k / 30 k). A change that
+grows a program past its budget has to say why here; one that shrinks it should tighten it.
+"""
+
+import pytest
+
+from benchmarks.perf.compile_times import build_times, loop_programs
+
+#: "vehicle/controller": (forward, gradient) budgets in StableHLO lines; measured counts in
+#: the comments (float64, jax 0.10.2, ``python -m benchmarks.perf.compile_times --no-compile``)
+BUDGETS = {
+    "arm/vcm": (2400, 8900),  # 2175 / 8041
+    "infante/vcm": (1300, 3700),  # 1124 / 3361
+    "infante/vcm_integral": (1300, 3900),  # 1139 / 3478
+    "infante/vcm_ilos": (1300, 4100),  # 1161 / 3703
+    "infante/ilos": (1100, 3300),  # 990 / 2946
+    "infante/los_pid": (1200, 3400),  # 1010 / 3030
+    "infante/alos": (1100, 3300),  # 990 / 2932
+    "odin/vcm": (4400, 12700),  # 3961 / 11461
+    "odin/vcm_full": (4400, 12600),  # 3932 / 11403
+    "remus100/vcm3d_ilos": (7900, 28400),  # 7156 / 25755
+    "remus100/vcm3d": (7600, 26800),  # 6898 / 24304
+    "remus100/decoupled": (6300, 15000),  # 5646 / 13626
+    "remus100/alos3d": (3400, 10100),  # 3076 / 9172
+    "remus100/pvs_pid": (3400, 9900),  # 3042 / 8940
+}
+STEPS = 2
+
+
+def _lines(vehicle, controller, steps=STEPS, kinds=("forward", "gradient")):
+    fwd, grad, gains, sc = loop_programs(vehicle, controller, steps, "continuous")
+    progs = {"forward": fwd, "gradient": grad}
+    return [build_times(progs[k], gains, sc, compile=False)["hlo_lines"] for k in kinds]
+
+
+def test_every_registered_loop_has_a_budget():
+    from vcjax import loops
+
+    every = {f"{v}/{c}" for v in loops.vehicles() for c in loops.controllers(v)}
+    assert every == set(BUDGETS), "add the new loop's budget (or drop the removed one's)"
+
+
+@pytest.mark.parametrize("name", sorted(BUDGETS))
+def test_forward_and_gradient_within_budget(name):
+    vehicle, controller = name.split("/")
+    forward, gradient = _lines(vehicle, controller)
+    budget_f, budget_g = BUDGETS[name]
+    assert forward <= budget_f, f"{name} forward: {forward} StableHLO lines > {budget_f}"
+    assert gradient <= budget_g, f"{name} gradient: {gradient} StableHLO lines > {budget_g}"
+    # the reverse pass is a second scan over stored residuals: always the larger program
+    assert gradient > forward
+
+
+def test_the_count_does_not_depend_on_the_horizon():
+    """What lets the budgets be checked on a 2-step rollout: the scan body is the program."""
+    assert _lines("infante", "vcm_integral", 2) == _lines("infante", "vcm_integral", 40)

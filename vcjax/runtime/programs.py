@@ -1,0 +1,368 @@
+"""Lowered programs kept on disk, so that a second identical ``vcjax`` command does not trace.
+
+JAX's persistent compilation cache (:mod:`vcjax.runtime.cache`) keeps XLA's executables, but it
+finds them by hashing the lowered program: every run still traces the closed loop in Python and
+lowers it first (REMUS 100's batch program: seconds). This store keeps the lowered program itself,
+serialised with :mod:`jax.export`, in ``programs/`` inside the compilation cache's folder, keyed
+by a SHA-256 of everything that can change it:
+
+* the program's name and its static inputs, described field by field (:func:`describe`: the loop
+  dataclass with its path function's module, name, code and closure, the rollout settings);
+* the argument pytree's structure and every leaf's shape, dtype and sharding (values are traced
+  inputs: gains and scenarios never enter the key, so new values reuse the program);
+* the vcjax version and a hash of every ``.py`` file of the ``vcjax`` and ``tuning`` packages
+  (so an edited checkout never reuses a program its old code traced), the jax and jaxlib
+  versions, ``XLA_FLAGS``, JAX's configuration (x64, dtype promotion, matmul precision, ...),
+  the backend and its devices.
+
+Multi-process runs (``vcjax launch``) build their programs as before, one after another. A
+static input that cannot be described stably (an object whose ``repr`` holds a memory address,
+a function closing over something else) is not stored: the program is built as before.
+
+:func:`build` is the one entry point. With the store on, a program is always compiled from its
+exported form (the first run exports and saves it, then compiles the loaded form exactly as the
+second run will), so the first and second runs compile the same module and the second reads
+XLA's executable back from the persistent cache: no tracing, no compiling. With the store off
+(``VCJAX_CACHE_DIR=off``, or the compilation cache off) it is ``jax.jit(f).lower(...).compile()``
+as before. The store is bounded (:data:`MAX_BYTES`; least recently used files removed first) and
+the library never turns it on by itself: :func:`vcjax.runtime.cache.enable_compilation_cache`
+(the command line) does. :func:`report` lists what this process built or reused (``run.json``'s
+``"programs"``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import functools
+import hashlib
+import importlib.util
+import os
+import threading
+import time
+import types
+from pathlib import Path
+
+import jax
+import numpy as np
+
+__all__ = [
+    "MAX_BYTES",
+    "build",
+    "argument_spec",
+    "build_all",
+    "describe",
+    "evict",
+    "off_reason",
+    "program_key",
+    "report",
+    "set_store",
+    "store_dir",
+]
+
+#: the store's size bound (least recently used programs removed beyond it)
+MAX_BYTES = 512 * 1024**2
+#: the file name's suffix (one file per program)
+SUFFIX = ".jaxexport"
+#: the environment variable that turns the store off alone (the compilation cache stays on)
+STORE_ENV = "VCJAX_PROGRAM_STORE"
+_OFF = ("off", "none", "0", "false", "no")
+#: the environment variable that caps :func:`build_all`'s threads (1: serial)
+WORKERS_ENV = "VCJAX_COMPILE_WORKERS"
+_FORMAT = 1  # bump when the key's material or the file layout changes
+
+_STORE: list[Path | None] = [None]
+_REPORT: list[dict] = []
+_OFF_REASON: list[str] = []
+_LOCK = threading.Lock()
+
+
+class Unstable(Exception):
+    """A static input whose description would not be the same in another process."""
+
+
+def set_store(path) -> Path | None:
+    """Use ``path`` (a folder, created on demand) for the store; None turns it off. Called by
+    :func:`vcjax.runtime.cache.enable_compilation_cache` with ``<cache>/programs``. Stays off
+    (:func:`off_reason` says why) with ``VCJAX_PROGRAM_STORE=off`` and where :mod:`jax.export`
+    cannot serialise (it needs the ``flatbuffers`` package)."""
+    _REPORT.clear()
+    _OFF_REASON.clear()
+    if path is not None and os.environ.get(STORE_ENV, "").strip().lower() in _OFF:
+        _OFF_REASON.append(f"{STORE_ENV}={os.environ[STORE_ENV]}")
+        path = None
+    if path is not None and importlib.util.find_spec("flatbuffers") is None:
+        _OFF_REASON.append("the 'flatbuffers' package (jax.export's serialisation) is missing")
+        path = None
+    _STORE[0] = None if path is None else Path(path)
+    return _STORE[0]
+
+
+def off_reason() -> str | None:
+    """Why :func:`set_store` left the store off although asked for a folder (None: it did not)."""
+    return _OFF_REASON[0] if _OFF_REASON else None
+
+
+def store_dir() -> Path | None:
+    """The folder of the store in this process (None: off)."""
+    return _STORE[0]
+
+
+def report() -> list[dict]:
+    """What :func:`build` did in this process, one entry per program: ``name``, ``key`` (None:
+    not storable), ``reused`` (loaded from the store, not traced), ``build_s`` (export or load,
+    lower and compile)."""
+    with _LOCK:
+        return [dict(r) for r in _REPORT]
+
+
+# ----------------------------------------------------------------------------- the key
+
+
+def describe(x, _depth: int = 0):
+    """A plain, process-independent description of a static value (raises :class:`Unstable`)."""
+    if _depth > 40:
+        raise Unstable("too deep")
+    d = _depth + 1
+    if x is None or isinstance(x, (bool, int, float, complex, str, bytes)):
+        return (type(x).__name__, repr(x))
+    if isinstance(x, enum.Enum):
+        return ("enum", _qualname(type(x)), x.name)
+    if isinstance(x, type):
+        return ("type", _qualname(x))
+    if isinstance(x, (np.ndarray, np.generic, jax.Array)):
+        a = np.asarray(x)
+        return ("array", str(a.dtype), a.shape, hashlib.sha256(a.tobytes()).hexdigest())
+    if isinstance(x, np.dtype):
+        return ("dtype", str(x))
+    if dataclasses.is_dataclass(x):
+        return (
+            "dataclass",
+            _qualname(type(x)),
+            tuple((f.name, describe(getattr(x, f.name), d)) for f in dataclasses.fields(x)),
+        )
+    if isinstance(x, tuple) and hasattr(x, "_fields"):  # NamedTuple
+        return ("namedtuple", _qualname(type(x)), tuple(describe(v, d) for v in x))
+    if isinstance(x, (tuple, list)):
+        return (type(x).__name__, tuple(describe(v, d) for v in x))
+    if isinstance(x, (frozenset, set)):
+        return ("set", tuple(sorted(repr(describe(v, d)) for v in x)))
+    if isinstance(x, dict):
+        return ("dict", tuple(sorted((repr(describe(k, d)), describe(v, d)) for k, v in x.items())))
+    if isinstance(x, functools.partial):
+        return ("partial", describe(x.func, d), describe(x.args, d), describe(x.keywords, d))
+    if isinstance(x, types.FunctionType):
+        code = x.__code__
+        cells = tuple(describe(c.cell_contents, d) for c in (x.__closure__ or ()))
+        return (
+            "function",
+            x.__module__,
+            x.__qualname__,
+            hashlib.sha256(code.co_code + repr(code.co_consts).encode()).hexdigest(),
+            cells,
+            describe(x.__defaults__, d),
+            describe(x.__kwdefaults__, d),
+        )
+    if isinstance(x, (types.BuiltinFunctionType, types.ModuleType)):
+        return ("named", getattr(x, "__module__", None), getattr(x, "__name__", None))
+    r = repr(x)
+    if " at 0x" in r or "object at" in r:
+        raise Unstable(f"cannot describe {type(x).__qualname__}")
+    return ("repr", _qualname(type(x)), r)
+
+
+def _qualname(t: type) -> str:
+    return f"{t.__module__}.{t.__qualname__}"
+
+
+@functools.cache
+def source_hash() -> str:
+    """SHA-256 over every ``.py`` file of the ``vcjax`` and ``tuning`` packages (path and bytes)."""
+    h = hashlib.sha256()
+    root = Path(__file__).resolve().parents[2]
+    for pkg in ("vcjax", "tuning"):
+        for path in sorted((root / pkg).rglob("*.py")):
+            h.update(str(path.relative_to(root)).encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+_SKIP_CONFIG = ("cache", "log", "dump", "pprint", "traceback", "debug_info", "explain")
+
+
+def environment() -> tuple:
+    """What outside the program changes its lowering or compilation in this process."""
+    import jaxlib
+
+    import vcjax
+
+    cfg = tuple(
+        (k, repr(v))
+        for k, v in sorted(jax.config.values.items())
+        if not any(s in k for s in _SKIP_CONFIG)
+    )
+    devs = jax.devices()
+    return (
+        ("format", _FORMAT),
+        ("vcjax", vcjax.__version__, source_hash()),
+        ("jax", jax.__version__, jaxlib.__version__),
+        ("xla_flags", os.environ.get("XLA_FLAGS", "")),
+        ("config", cfg),
+        ("backend", jax.default_backend(), len(devs), tuple(sorted({d.device_kind for d in devs}))),
+        ("processes", jax.process_count()),
+    )
+
+
+def _leaf_spec(leaf) -> tuple:
+    sharding = getattr(leaf, "sharding", None)
+    return (tuple(np.shape(leaf)), str(np.asarray(leaf).dtype if sharding is None else leaf.dtype),
+            str(sharding), bool(getattr(leaf, "weak_type", False)))  # fmt: skip
+
+
+def argument_spec(args) -> tuple:
+    """The part of the key that ``args`` give: tree structure and each leaf's shape, dtype,
+    sharding and weak type (a program built for one spec runs only on arguments of that spec)."""
+    leaves, treedef = jax.tree_util.tree_flatten(args)
+    return (str(treedef), tuple(_leaf_spec(leaf) for leaf in leaves))
+
+
+def program_key(name: str, static, args) -> str:
+    """The store's key of program ``name`` with static inputs ``static`` at ``args`` (a tuple of
+    pytrees: only their structure, shapes, dtypes and shardings count); raises
+    :class:`Unstable` when ``static`` cannot be described."""
+    material = (("name", name), ("static", describe(static)), argument_spec(args), environment())
+    return hashlib.sha256(repr(material).encode()).hexdigest()
+
+
+# ----------------------------------------------------------------------------- building
+
+
+def build(name: str, fn, static, args: tuple):
+    """Compile ``fn(*args)`` (``fn`` with its static inputs bound; ``static``: those inputs, for
+    the key) and return ``(call, info)``: ``call(*args)`` runs the compiled program on new values
+    of the same shapes; ``info`` is this program's :func:`report` entry.
+
+    With the store on, the program is loaded from it when an identical one was stored (no
+    tracing), else exported, stored and loaded back; either way compiled from the exported
+    form, so the persistent compilation cache finds the executable a previous run compiled.
+    """
+    t0 = time.perf_counter()
+    # one process only: a multi-process run's arguments are global arrays (not exported here)
+    folder = store_dir() if jax.process_count() == 1 else None
+    key = None
+    if folder is not None:
+        try:
+            key = program_key(name, static, args)
+        except Unstable:
+            key = None
+    if key is None:
+        compiled = jax.jit(fn).lower(*args).compile()
+        info = {"name": name, "key": None, "reused": False}
+        call = compiled
+    else:
+        leaves, treedef = jax.tree_util.tree_flatten(args)
+        exp, reused = _load(folder, key), True
+        if exp is None:
+            reused = False
+
+            def flat(*xs):
+                return fn(*jax.tree_util.tree_unflatten(treedef, xs))
+
+            shardings = tuple(getattr(x, "sharding", None) for x in leaves)
+            if any(s is None for s in shardings):
+                jitted = jax.jit(flat)
+            else:
+                jitted = jax.jit(flat, in_shardings=shardings)
+            blob = jax.export.export(jitted)(*leaves).serialize()
+            _save(folder, key, bytes(blob))
+            exp = jax.export.deserialize(blob)
+        compiled = jax.jit(exp.call).lower(*leaves).compile()
+
+        def call(*a):
+            return compiled(*jax.tree_util.tree_leaves(a))
+
+        info = {"name": name, "key": key[:16], "reused": reused}
+    info["build_s"] = round(time.perf_counter() - t0, 3)
+    with _LOCK:
+        _REPORT.append(info)
+    return call, dict(info)
+
+
+def build_all(jobs, workers: int | None = None) -> list:
+    """:func:`build` every ``(name, fn, static, args)`` of ``jobs`` concurrently (threads: XLA
+    compiles outside Python's lock, so independent programs compile in parallel on several
+    cores); returns their ``(call, info)`` in order. ``workers`` defaults to
+    ``$VCJAX_COMPILE_WORKERS`` (1: one after another), else the CPU count; ``info["build_s"]``
+    is each program's own wall time (they overlap)."""
+    jobs = list(jobs)
+    if workers is None:
+        env = os.environ.get(WORKERS_ENV, "").strip()
+        workers = int(env) if env.isdigit() and int(env) > 0 else (os.cpu_count() or 1)
+    if jax.process_count() > 1:  # every process builds its programs in the same order
+        workers = 1
+    workers = min(len(jobs), workers)
+    if workers <= 1:
+        return [build(*job) for job in jobs]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="vcjax-compile") as pool:
+        return list(pool.map(lambda job: build(*job), jobs))
+
+
+def _path(folder: Path, key: str) -> Path:
+    return folder / f"{key}{SUFFIX}"
+
+
+def _load(folder: Path, key: str):
+    path = _path(folder, key)
+    try:
+        blob = path.read_bytes()
+    except OSError:
+        return None
+    try:
+        exp = jax.export.deserialize(bytearray(blob))
+    except Exception:  # a truncated or foreign file: rebuild (and overwrite it)
+        return None
+    try:
+        os.utime(path)  # most recently used
+    except OSError:
+        pass
+    return exp
+
+
+def _save(folder: Path, key: str, blob: bytes) -> None:
+    """Write atomically (a temporary file renamed), then keep the folder under :data:`MAX_BYTES`
+    by removing the least recently used files. A folder that cannot be written is skipped."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        tmp = folder / f".{key}.{os.getpid()}.{threading.get_ident()}.tmp"
+        tmp.write_bytes(blob)
+        os.replace(tmp, _path(folder, key))
+        evict(folder, MAX_BYTES)
+    except OSError:
+        pass
+
+
+def evict(folder: Path, max_bytes: int) -> list[Path]:
+    """Remove the least recently used programs of ``folder`` until the rest fit in
+    ``max_bytes``; returns the removed files."""
+    files = []
+    for p in Path(folder).glob(f"*{SUFFIX}"):
+        try:
+            st = p.stat()
+        except OSError:
+            continue
+        files.append((st.st_mtime, st.st_size, p))
+    files.sort()
+    total = sum(size for _, size, _ in files)
+    removed = []
+    for _, size, p in files:
+        if total <= max_bytes:
+            break
+        try:
+            p.unlink()
+        except OSError:
+            continue
+        total -= size
+        removed.append(p)
+    return removed
