@@ -112,6 +112,7 @@ from vcjax.config import (
     Simulation,
     Waves,
     as_range,
+    as_seed,
     parse_section,
     read_toml,
 )
@@ -171,8 +172,8 @@ def _check_value(sec: str, key: str, v, default):
             raise ConfigError(f"{where}: expected an integer, got {_type_name(v)} {v!r}")
         if key in _INT_MIN1 and v < 1:
             raise ConfigError(f"{where}: expected an integer >= 1, got {v}")
-        if key == "seed" and v < 0:
-            raise ConfigError(f"{where}: expected an integer >= 0, got {v}")
+        if key == "seed":
+            return as_seed(where, v)
         if key == "plot_scenarios" and v < 0:
             raise ConfigError(f"{where}: expected an integer >= 0, got {v}")
         return v

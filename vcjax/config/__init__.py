@@ -39,21 +39,27 @@ from vcjax.config.schema import (
     parse_section,
 )
 from vcjax.config.values import (
+    SEED_MAX,
     ConfigError,
     as_bool,
     as_choice,
     as_int,
     as_number,
     as_range,
+    as_seed,
     as_str,
     as_str_list,
     check_schema,
+    closest,
     read_toml,
     resolve_file,
 )
 
 __all__ = [
     "ConfigError",
+    "SEED_MAX",
+    "as_seed",
+    "closest",
     "read_toml",
     "check_schema",
     "as_range",

@@ -26,7 +26,16 @@ __all__ = [
     "as_str",
     "as_str_list",
     "resolve_file",
+    "SEED_MAX",
+    "as_seed",
+    "closest",
 ]
+
+#: the largest seed of a study: the scenario sampler (:func:`vcjax.sweep.sample_scenarios`)
+#: builds its JAX PRNG key from ``jnp.uint32(seed)``, in float64 and float32 mode alike, so
+#: every seed of a config or of the Python API lies in ``0 .. SEED_MAX`` (checked by
+#: :func:`as_seed`, here and in the sampler: one bound)
+SEED_MAX = 2**32 - 1
 
 
 class ConfigError(ValueError):
@@ -107,6 +116,28 @@ def as_int(name, v, lo) -> int:
     if v < lo:
         raise ConfigError(f"{name}: expected an integer >= {lo}, got {v}")
     return v
+
+
+def as_seed(name, v) -> int:
+    """An integer seed in ``0 .. SEED_MAX`` (what the sampler's ``jnp.uint32`` key takes)."""
+    if isinstance(v, bool) or not hasattr(v, "__index__"):
+        raise ConfigError(f"{name}: expected an integer seed, got {v!r}")
+    v = int(v.__index__())
+    if not 0 <= v <= SEED_MAX:
+        raise ConfigError(
+            f"{name}: {v} is outside the seed range 0 .. {SEED_MAX} (2**32 - 1: the scenario "
+            "sampler's PRNG key is a 32-bit unsigned integer)"
+        )
+    return v
+
+
+def closest(key: str, valid) -> str:
+    """`` (did you mean 'x'?)`` for the valid key closest to a mistyped ``key`` (difflib), or
+    ``""``."""
+    import difflib
+
+    near = difflib.get_close_matches(str(key), [str(v) for v in valid], n=1, cutoff=0.6)
+    return f" (did you mean {near[0]!r}?)" if near else ""
 
 
 def as_choice(name, v, choices) -> str:

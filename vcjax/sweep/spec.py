@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops, waves
-from vcjax.config import ConfigError, as_choice, as_int, as_number, as_range
+from vcjax.config import ConfigError, as_choice, as_int, as_number, as_range, as_seed
 from vcjax.config.scenario import ScenarioChoice
 from vcjax.currents import current_ned
 
@@ -218,7 +218,7 @@ class SweepSpec:
 
     def __post_init__(self):
         as_int("num_scenarios", self.num_scenarios, 1)
-        as_int("seed", self.seed, 0)
+        object.__setattr__(self, "seed", as_seed("seed", self.seed))
         as_int("chunk_size", self.chunk_size, 1)
         as_int("record_points", self.record_points, 0)
         variants = tuple(self.variants)
@@ -448,8 +448,9 @@ def sample_scenarios(
     (default: Simulation 1's INFANTE-class loop; any loop of the same vehicle gives the same
     draws).
 
-    Scenario ``i`` depends only on ``(spec, seed, i)``. ``dtype``: float dtype (default: JAX's
-    default float). Returns an :class:`MCScenario` with a leading batch axis B.
+    Scenario ``i`` depends only on ``(spec, seed, i)``; ``seed`` is an integer in
+    ``0 .. vcjax.config.SEED_MAX`` (``ConfigError`` otherwise). ``dtype``: float dtype
+    (default: JAX's default float). Returns an :class:`MCScenario` with a leading batch axis B.
     """
     if not isinstance(spec, ScenarioSpec):
         raise ConfigError(f"spec: expected ScenarioSpec, got {type(spec).__name__}")
@@ -459,7 +460,7 @@ def sample_scenarios(
     indices = jnp.asarray(indices, dtype=jnp.int32)
     arrays = _spec_arrays(spec, loop, dtype)
     nf = len(spec.fields_for(loop))
-    seed = jnp.asarray(seed, jnp.uint32)
+    seed = jnp.asarray(as_seed("seed", seed), jnp.uint32)  # the one seed bound (SEED_MAX)
     return _sample(loop, arrays, seed, indices, nf, _wave_static(spec))
 
 
