@@ -212,6 +212,20 @@ def _check_value(sec: str, key: str, v, default):
     raise AssertionError(where)  # pragma: no cover
 
 
+def _tune_current(cur: Current, table: dict, current_max: float) -> dict:
+    """The current a tune samples, both keys resolved (what ``run.json`` records is what runs).
+
+    Without ``[current] speed`` and ``direction_deg`` the current is ``[scenarios]
+    current_max``'s: speed ``[0, current_max]`` in any direction ``[0, 360]``; writing either
+    key switches to ``[current]``, whose other key then takes its section default (0.5 m/s,
+    90 deg). ``model = "constant"`` (the default, and the only model a tune samples) changes
+    nothing: a default means the same written or omitted.
+    """
+    if "speed" not in table and "direction_deg" not in table:
+        return {"speed": [0.0, float(current_max)], "direction_deg": [0.0, 360.0]}
+    return {"speed": list(cur.speed), "direction_deg": list(cur.direction_deg)}
+
+
 def _shared_sections(raw: dict, cfg: dict) -> None:
     """Fold the shared ``[simulation]`` and ``[current]`` (vcjax.config.schema) into ``cfg``.
 
@@ -234,15 +248,14 @@ def _shared_sections(raw: dict, cfg: dict) -> None:
     cfg["simulation"] = {"u_d": None if sim.u_d is None else list(sim.u_d)}
     cur_raw = raw.get("current", {})
     cur = parse_section(Current, cur_raw, "current")
-    if cur_raw and "current_max" in raw.get("scenarios", {}):
-        raise ConfigError("current: give [current] or [scenarios] current_max, not both")
+    if {"speed", "direction_deg"} & set(cur_raw) and "current_max" in raw.get("scenarios", {}):
+        raise ConfigError(
+            "[current] speed: also given as [scenarios] current_max (its older spelling); "
+            "give [current] or [scenarios] current_max, not both"
+        )
     if cur.model != "constant":
         raise ConfigError("[current] model: vcjax tune samples constant currents only")
-    cfg["current"] = {
-        k: list(v) if isinstance(v, tuple) else v
-        for k, v in dataclasses.asdict(cur).items()
-        if k in cur_raw
-    }
+    cfg["current"] = _tune_current(cur, cur_raw, cfg["scenarios"]["current_max"])
     cfg["waves"] = None
     if "waves" in raw:  # every key, the defaults filled in (the section's presence is the switch)
         wav_raw = raw["waves"]
@@ -302,13 +315,17 @@ def validate_config(raw: dict, config_path=None) -> TuneConfig:
             f"{choice.controller!r}"
         )
     p["variant"] = ctrl
-    if "edd" in loop_options(cls):  # [problem] edd: the older spelling of [scenario] edd
+    if "edd" in loop_options(cls):  # [problem]/[simulation] edd: older spellings of [scenario] edd
         given = dict(choice.options)
-        if "edd" in given and "edd" in raw.get("problem", {}) and given["edd"] != p["edd"]:
+        old = [f"[{sec}] edd" for sec in ("problem", "simulation") if "edd" in raw.get(sec, {})]
+        if "edd" in given and old and given["edd"] != p["edd"]:
             raise ConfigError(
-                f"problem.edd: {p['edd']!r} contradicts [scenario] edd {given['edd']!r}"
+                f"{old[0]}: {p['edd']!r} contradicts [scenario] edd {given['edd']!r} (its newer "
+                "spelling); give one of them"
             )
-        if "edd" not in given:
+        if "edd" in given:
+            p["edd"] = given["edd"]  # what runs is what run.json records
+        else:
             choice = dataclasses.replace(choice, options=(*choice.options, ("edd", p["edd"])))
     loop = choice.loop(ctrl)
     try:  # a sea the loop cannot take is refused, never silently ignored

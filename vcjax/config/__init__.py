@@ -41,6 +41,7 @@ from vcjax.config.schema import (
 from vcjax.config.values import (
     SEED_MAX,
     ConfigError,
+    ConfigNote,
     as_bool,
     as_choice,
     as_int,
@@ -51,12 +52,15 @@ from vcjax.config.values import (
     as_str_list,
     check_schema,
     closest,
+    note,
     read_toml,
     resolve_file,
 )
 
 __all__ = [
     "ConfigError",
+    "ConfigNote",
+    "note",
     "SEED_MAX",
     "as_seed",
     "closest",

@@ -27,6 +27,7 @@ from vcjax.config.values import (
     as_range,
     as_str,
     as_str_list,
+    closest,
 )
 
 __all__ = [
@@ -202,7 +203,12 @@ class Waves:
     )
     gamma: float = key(3.3, "float", "", "JONSWAP peak enhancement (1: Pierson-Moskowitz)", lo=1.0)
     spreading: float = key(
-        0.0, "float", "", "s of the cos^2s directional spreading (0: long-crested)", lo=0.0
+        0.0,
+        "float",
+        "",
+        "s of the cos^2s directional spreading: 0 = long-crested (every component towards "
+        "direction_deg), else s >= 1 (1: cos^2, the widest; larger s: narrower)",
+        lo=0.0,
     )
     components: int = key(64, "int", "", "regular components of each sea", lo=1)
     origin_depth: tuple[float, float] = key(
@@ -250,6 +256,43 @@ def check_value(name: str, v, meta) -> Any:
     raise AssertionError(t)  # pragma: no cover
 
 
+#: the smallest positive ``[waves] spreading``: ``s -> 0+`` tends to a uniform spread over the
+#: whole +-90 deg half-plane (the widest), while ``s = 0`` is long-crested (one direction), so a
+#: tiny positive ``s`` would silently mean the opposite of what 0 means
+MIN_SPREADING = 1.0
+
+
+def _current_applies(cur: Current, table: dict, name) -> None:
+    """The Gauss-Markov keys are refused with a constant current (they would be ignored)."""
+    if cur.model == "constant":
+        for k in ("sigma", "tau", "max_speed"):
+            if k in table:
+                raise ConfigError(
+                    f"{name(k)}: applies to model = 'gauss_markov' only; with the constant "
+                    "current (model = 'constant', the default) it would be ignored"
+                )
+
+
+def _waves_apply(wav: Waves, table: dict, name) -> None:
+    """``gamma`` is JONSWAP's; a positive ``spreading`` is at least :data:`MIN_SPREADING`."""
+    if wav.spectrum == "pm" and "gamma" in table:
+        raise ConfigError(
+            f"{name('gamma')}: the peak enhancement of the JONSWAP spectrum; spectrum = 'pm' "
+            "(Pierson-Moskowitz) has none and would ignore it"
+        )
+    if 0.0 < wav.spreading < MIN_SPREADING:
+        raise ConfigError(
+            f"{name('spreading')}: 0 is long-crested (one direction) and s >= {MIN_SPREADING:g} "
+            f"spreads as cos^2s (1 the widest); got {wav.spreading:g}, which would spread the "
+            "components over the whole +-90 deg half-plane"
+        )
+
+
+#: section class -> check of the keys that depend on each other (a key that does not apply
+#: to the values of the others is refused, never silently ignored)
+CROSS_CHECKS = {Current: _current_applies, Waves: _waves_apply}
+
+
 def parse_section(cls: type, table: dict | None, section: str, where: str = ""):
     """The section object of one TOML table (missing keys: defaults).
 
@@ -270,6 +313,12 @@ def parse_section(cls: type, table: dict | None, section: str, where: str = ""):
     kw = {}
     for k, v in table.items():
         if k not in fields:
-            raise ConfigError(f"{pre}unknown key [{section}] {k!r}; expected one of {list(fields)}")
+            raise ConfigError(
+                f"{pre}unknown key [{section}] {k!r}{closest(k, fields)}; "
+                f"expected one of {list(fields)}"
+            )
         kw[k] = check_value(f"{pre}[{section}] {k}", v, fields[k].metadata)
-    return cls(**kw)
+    obj = cls(**kw)
+    if cls in CROSS_CHECKS:
+        CROSS_CHECKS[cls](obj, table, lambda k: f"{pre}[{section}] {k}")
+    return obj

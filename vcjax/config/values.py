@@ -16,6 +16,8 @@ from typing import Any
 
 __all__ = [
     "ConfigError",
+    "ConfigNote",
+    "note",
     "read_toml",
     "check_schema",
     "as_range",
@@ -40,6 +42,18 @@ SEED_MAX = 2**32 - 1
 
 class ConfigError(ValueError):
     """An invalid configuration (the message names the file, section and key)."""
+
+
+class ConfigNote(UserWarning):
+    """A one-line note about a valid config: an older spelling (naming the new one), or a
+    config whose meaning changed since such configs were written (:func:`note`)."""
+
+
+def note(message: str) -> None:
+    """Issue ``message`` as a :class:`ConfigNote` warning (shown once per message)."""
+    import warnings
+
+    warnings.warn(message, ConfigNote, stacklevel=3)
 
 
 def read_toml(path) -> dict:

@@ -24,6 +24,7 @@ from vcjax.config import (
     as_bool,
     as_str_list,
     check_schema,
+    note,
     parse_section,
     read_toml,
     resolve_file,
@@ -132,6 +133,36 @@ def _sections(raw: dict, where: str) -> dict:
     return out
 
 
+#: the note of a sweep of an engine loop (vcjax.loops.EngineLoop: the puck, the point mass, a
+#: loop of your own) without [current]: such configs were written when the engine felt no
+#: current and ran in still water; the engine now feels the default current
+ENGINE_CURRENT_NOTE = (
+    "{where}: [current] not given: the {vehicle} scenarios run in the default current, 0.5 m/s "
+    "towards 90 deg (Simulation 1's); engine loops feel it since the engine took the current "
+    "(before, such a config ran in still water): write [current] speed = 0 for still water"
+)
+
+
+def _check_spellings(raw: dict, choice, spec_kw: dict) -> None:
+    """Old and new spellings of one setting given together must agree (refused naming both);
+    ``spec_kw["edd"]`` becomes what runs: ``[scenario] edd`` when given (``run.json`` and
+    ``summary.json`` record the mode the loop used)."""
+    ctrl = choice.controller
+    if ctrl is not None and "variants" in spec_kw and tuple(spec_kw["variants"]) != (ctrl,):
+        raise ConfigError(
+            f"[sweep] variants: {list(spec_kw['variants'])} contradicts [scenario] controller "
+            f"{ctrl!r} (its newer spelling); give one of them"
+        )
+    given = dict(choice.options)
+    if "edd" in given:
+        if "edd" in spec_kw and spec_kw["edd"] != given["edd"]:
+            raise ConfigError(
+                f"[simulation] edd: {spec_kw['edd']!r} contradicts [scenario] edd "
+                f"{given['edd']!r} (its newer spelling); give one of them"
+            )
+        spec_kw["edd"] = given["edd"]
+
+
 def load_config(config_path) -> tuple[SweepSpec, dict]:
     """Read and validate a sweep TOML file (schema: :mod:`vcjax.sweep`).
 
@@ -173,6 +204,7 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
                 if field == "variants":
                     v = as_str_list(f"[{sec}] {key}", v)
                 spec_kw[field] = v
+        _check_spellings(raw, choice, spec_kw)
         if "variants" not in spec_kw:
             spec_kw["variants"] = (choice.controller,) if choice.controller else SweepSpec.variants
             if not choice.controller and choice.vehicle != "infante":
@@ -186,6 +218,8 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
             sc_kw["disturbance"] = sections["disturbance"].force
         if not cls.takes_current and "current" not in raw:
             sc_kw["current_speed"] = (0.0, 0.0)  # the default current is Simulation 1's
+        elif issubclass(cls, loops.EngineLoop) and "current" not in raw:
+            note(ENGINE_CURRENT_NOTE.format(where=where, vehicle=choice.vehicle))
         if "waves" in raw:
             check_waves(raw["waves"])
             sc_kw["wave_spectrum"] = sections["waves"].spectrum
