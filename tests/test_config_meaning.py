@@ -261,18 +261,20 @@ def test_engine_loop_sweep_without_current_says_its_meaning_changed(tmp_path):
     from vcjax.config import ConfigNote
     from vcjax.sweep import load_config
 
-    puck = Path(__file__).resolve().parents[1] / "examples" / "sweeps" / "puck.toml"
-    with pytest.warns(ConfigNote, match=r"\[current\] not given: the puck scenarios run in"):
-        spec = load_config(puck)[0]
-    assert spec.scenario.current_speed == (0.5, 0.5)  # numbers unchanged (committed figure)
+    module = Path(__file__).resolve().parents[1] / "examples" / "loops" / "puck.py"
     f = tmp_path / "puck.toml"
-    text = puck.read_text().replace("../loops/puck.py", str(puck.parents[1] / "loops/puck.py"))
-    f.write_text(text + "\n[current]\nspeed = 0.0\n")
+    text = f"[scenario]\nmodule = '{module}'\nvehicle = 'puck'\n[sweep]\nnum_scenarios = 2\n"
+    f.write_text(text)
+    with pytest.warns(ConfigNote, match=r"\[current\] not given: the puck scenarios run in"):
+        spec = load_config(f)[0]
+    assert spec.scenario.current_speed == (0.5, 0.5)  # numbers unchanged (committed figure)
     import warnings
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", ConfigNote)
-        assert load_config(f)[0].scenario.current_speed == (0.0, 0.0)
+    for current in ("speed = 0.0", "speed = 0.5\ndirection_deg = 90.0"):
+        f.write_text(f"{text}[current]\n{current}\n")
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", ConfigNote)
+            assert load_config(f)[0].scenario.current_speed[0] == float(current.split()[2])
 
 
 def test_unknown_key_suggests_the_closest():
