@@ -451,7 +451,7 @@ def test_tune_seed_outside_the_sampler_range(seed, flags, tmp_path, capsys):
     cfg = _cfg(tmp_path, TUNE.format(h=10.0, b=4, seed=seed, extra=""))
     rc, err = _run(["tune", str(cfg), "--out", str(tmp_path / "o"), *flags], capsys)
     assert rc == 2
-    assert f"train.seed: {seed} {_RANGE}" in err
+    assert f"[train] seed: {seed} {_RANGE}" in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 
@@ -461,7 +461,7 @@ def test_tune_heldout_seed_outside_the_sampler_range(seed, tmp_path, capsys):
     cfg = _cfg(tmp_path, text)
     rc, err = _run(["tune", str(cfg), "--out", str(tmp_path / "o")], capsys)
     assert rc == 2
-    assert f"heldout.seed: {seed} {_RANGE}" in err
+    assert f"[heldout] seed: {seed} {_RANGE}" in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 

@@ -58,7 +58,7 @@ def test_tune_simulation_section_equals_problem_spelling():
     old = validate_config({"problem": {"horizon": 4.0, "dt": 0.2, "timing": "sampled"}})
     new = validate_config({"simulation": {"horizon": 4.0, "dt": 0.2, "timing": "sampled"}})
     assert old["problem"] == new["problem"]
-    with pytest.raises(ConfigError, match="simulation.dt: also given as problem.dt"):
+    with pytest.raises(ConfigError, match=r"\[simulation\] dt: also given as \[problem\] dt"):
         validate_config({"simulation": {"dt": 0.2}, "problem": {"dt": 0.1}})
     with pytest.raises(ConfigError, match="current_max, not both"):
         validate_config({"current": {"speed": 1.0}, "scenarios": {"current_max": 1.0}})

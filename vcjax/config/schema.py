@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+from vcjax.config.frozen import FrozenSection
 from vcjax.config.values import (
     ConfigError,
     as_bool,
@@ -25,6 +26,7 @@ from vcjax.config.values import (
     as_int,
     as_number,
     as_range,
+    as_seed,
     as_str,
     as_str_list,
     closest,
@@ -142,13 +144,17 @@ class Initial:
 
 
 @dataclasses.dataclass(frozen=True)
-class ModelError:
+class ModelError(FrozenSection):
     """``[model_error]``: plant-only multiplicative parameter errors, each field scaled by
     ``1 + relative * U(-1, 1)`` (the controller keeps the nominal model)."""
 
     relative: float = key(0.0, "float", "", "relative error bound", lo=0.0, hi=1.0, hi_open=True)
     fields: tuple[str, ...] | None = key(
-        None, "str_list", "", "the vehicle's parameter names (default: its default set)"
+        None,
+        "str_list",
+        "",
+        "the vehicle's parameter names (default: its default set)",
+        unique=True,
     )
 
 
@@ -169,7 +175,7 @@ class SensorNoise:
 
 
 @dataclasses.dataclass(frozen=True)
-class Disturbance:
+class Disturbance(FrozenSection):
     """``[disturbance]``: a constant generalised force on the plant, one range per component
     (N, N m; empty: none)."""
 
@@ -247,8 +253,13 @@ def check_value(name: str, v, meta) -> Any:
         return as_choice(name, v, meta["choices"]) if meta.get("choices") else v
     if t == "range":
         return as_range(name, v, lo_min=meta.get("lo"), positive=meta.get("positive", False))
+    if t == "seed":
+        return as_seed(name, v)
     if t == "str_list":
-        return as_str_list(name, v)
+        v = as_str_list(name, v)
+        if meta.get("unique") and len(set(v)) != len(v):
+            raise ConfigError(f"{name}: duplicate names in {list(v)}")
+        return v
     if t == "range_list":
         if not isinstance(v, list | tuple):
             raise ConfigError(f"{name}: expected a list, got {v!r}")

@@ -80,8 +80,9 @@ def check_schema(raw: dict, schema: dict[str, tuple[str, ...] | None], where: st
         raise ConfigError(f"{where}: expected a table of sections")
     for sec, body in raw.items():
         if sec not in schema:
+            top = [s for s in schema if "." not in s]
             raise ConfigError(
-                f"{where}: unknown section [{sec}]; expected {[s for s in schema if '.' not in s]}"
+                f"{where}: unknown section [{sec}]{closest(sec, top)}; expected {top}"
             )
         if not isinstance(body, dict):
             raise ConfigError(f"{where}: [{sec}] must be a table, got {body!r}")
@@ -90,7 +91,8 @@ def check_schema(raw: dict, schema: dict[str, tuple[str, ...] | None], where: st
         for key in body:
             if key not in schema[sec] and f"{sec}.{key}" not in schema:
                 raise ConfigError(
-                    f"{where}: unknown key [{sec}] {key!r}; expected one of {list(schema[sec])}"
+                    f"{where}: unknown key [{sec}] {key!r}{closest(key, schema[sec])}; "
+                    f"expected one of {list(schema[sec])}"
                 )
 
 
