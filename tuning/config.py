@@ -114,6 +114,7 @@ from vcjax.config import (
     parse_section,
     read_toml,
 )
+from vcjax.config.aliases import note_old_spellings
 from vcjax.config.frozen import freeze, thaw
 from vcjax.config.scenario import loop_options, parse_scenario
 from vcjax.config.schema import check_value
@@ -244,7 +245,7 @@ def _controller(raw: dict, sec: dict, choice):
         else:
             choice = dataclasses.replace(choice, options=(*choice.options, ("edd", p.edd)))
     sec["problem"] = dataclasses.replace(p, variant=ctrl, edd=edd)
-    return choice
+    return dataclasses.replace(choice, controller=ctrl)  # run.json records what runs
 
 
 def _vehicle_keys(raw: dict, sec: dict, loop, waves) -> dict:
@@ -311,6 +312,7 @@ def load_config(path) -> TuneConfig:
     raw = read_toml(path)
     try:
         cfg = validate_config(raw, path)
+        note_old_spellings(raw, str(path))
     except ConfigError as err:
         raise ConfigError(f"{path}: {err}") from None
     g = cfg.problem.initial_gains

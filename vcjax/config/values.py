@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -50,10 +51,22 @@ class ConfigNote(UserWarning):
 
 
 def note(message: str) -> None:
-    """Issue ``message`` as a :class:`ConfigNote` warning (shown once per message)."""
-    import warnings
-
+    """Issue ``message`` as a :class:`ConfigNote` warning (shown once per message, on stderr
+    as one line ``vcjax: note: MESSAGE``)."""
     warnings.warn(message, ConfigNote, stacklevel=3)
+
+
+_FORMAT = warnings.formatwarning
+
+
+def _format_note(message, category, filename, lineno, line=None):
+    """A :class:`ConfigNote` as one line (other warnings keep Python's format)."""
+    if isinstance(category, type) and issubclass(category, ConfigNote):
+        return f"vcjax: note: {message}\n"
+    return _FORMAT(message, category, filename, lineno, line)
+
+
+warnings.formatwarning = _format_note
 
 
 def read_toml(path) -> dict:

@@ -29,6 +29,7 @@ from vcjax.config import (
     read_toml,
     resolve_file,
 )
+from vcjax.config.aliases import note_old_spellings
 from vcjax.config.scenario import parse_scenario
 from vcjax.sweep.results import load_results, merge_results, save_results, summarize
 from vcjax.sweep.run import run_sweep
@@ -179,6 +180,7 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
     raw = read_toml(config_path)
     where = str(config_path)
     check_schema(raw, SCHEMA, where)
+    note_old_spellings(raw, where)
     choice = parse_scenario(raw.get("scenario"), where, config_path)
     cls = loops.loop_class(choice.vehicle)
     for sec, valid in (("initial", tuple(cls.initial_keys)), ("sensor_noise", cls.noise_channels)):
