@@ -282,3 +282,21 @@ def test_unknown_key_suggests_the_closest():
 
     with pytest.raises(ConfigError, match=r"unknown key \[current\] 'sped' \(did you mean 'speed'"):
         config.parse_section(config.Current, {"sped": 1.0}, "current")
+
+
+def test_empty_model_error_fields_is_refused_in_sweep_and_tune(tmp_path):
+    """`fields = []` meant the default set in tune and no field at all in sweep; omitting the
+    key (the default set) is the one way to say the default."""
+    from tuning.config import validate_config
+    from vcjax.sweep import load_config
+
+    with pytest.raises(ConfigError, match=r"\[model_error\] fields: an empty list"):
+        validate_config({"model_error": {"relative": 0.1, "fields": []}})
+    f = tmp_path / "s.toml"
+    f.write_text("[sweep]\nnum_scenarios = 2\n[model_error]\nrelative = 0.1\nfields = []\n")
+    with pytest.raises(ConfigError, match=r"\[model_error\] fields: an empty list"):
+        load_config(f)
+    f.write_text("[sweep]\nnum_scenarios = 2\n[model_error]\nrelative = 0.1\n")
+    spec = load_config(f)[0]
+    loop = spec.loop("vcm")
+    assert spec.scenario.fields_for(loop) == loop.default_model_fields()

@@ -21,7 +21,10 @@ command) naming the file and the offending ``section.key``::
 
     [current]                       # shared with sweeps (constant model only): replaces
     speed = [0.0, 1.0]              # [scenarios] current_max = 1.0, which means exactly this
-    direction_deg = [0.0, 360.0]    # speed and direction range
+    direction_deg = [0.0, 360.0]    # speed and direction range. Without speed and
+                                    # direction_deg the current is current_max's; with one
+                                    # of them, the other takes its section default (0.5 m/s,
+                                    # 90 deg); run.json records both as they ran
 
     [problem]                       # what is tuned and how a rollout is simulated
     variant = ""                    # the controller ("" = [scenario] controller, else the
@@ -72,7 +75,7 @@ command) naming the file and the offending ``section.key``::
 
     [model_error]                   # plant-only multiplicative errors, as in sweep configs
     relative = 0.0
-    fields = []                     # the vehicle's parameter names ([] = its default set)
+    # fields = [...]                # the vehicle's parameter names (omitted: its default set)
 
     [train]
     size = 16

@@ -299,9 +299,19 @@ def _waves_apply(wav: Waves, table: dict, name) -> None:
         )
 
 
+def _model_error_applies(err: ModelError, table: dict, name) -> None:
+    """An empty ``fields`` list is refused: it meant the default set in tune configs and no
+    field at all in sweep configs; omitting the key means the vehicle's default set in both."""
+    if err.fields == ():
+        raise ConfigError(
+            f"{name('fields')}: an empty list perturbs no parameter; omit the key for the "
+            "vehicle's default set (or set relative = 0 for no model error)"
+        )
+
+
 #: section class -> check of the keys that depend on each other (a key that does not apply
 #: to the values of the others is refused, never silently ignored)
-CROSS_CHECKS = {Current: _current_applies, Waves: _waves_apply}
+CROSS_CHECKS = {Current: _current_applies, Waves: _waves_apply, ModelError: _model_error_applies}
 
 
 def parse_section(cls: type, table: dict | None, section: str, where: str = ""):

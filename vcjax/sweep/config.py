@@ -326,7 +326,12 @@ def run_sweep_config(
 KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     ("sweep", "num_scenarios"): ("", "number of sampled scenarios (required; int >= 1)"),
     ("sweep", "seed"): ("", "seed of the scenario draws (scenario i uses fold_in(seed, i))"),
-    ("sweep", "variants"): ("", "the controllers to compare (default: the vehicle's)"),
+    ("sweep", "variants"): (
+        "",
+        "the controllers to compare (default: [scenario] controller if given, else the "
+        "vehicle's controllers; INFANTE-class: the paper's vcm, vcm_integral, ilos, los_pid, "
+        "vcm_ilos); must agree with [scenario] controller when both are given",
+    ),
     ("sweep", "chunk_size"): ("", "scenarios per compiled batch (rounded to the device count)"),
     ("simulation", "edd"): ("", "VCM e_ddot mode: paper or implied"),
     ("simulation", "gains"): ("file", "the vehicle's gains JSON (what vcjax tune writes)"),
