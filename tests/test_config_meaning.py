@@ -265,7 +265,7 @@ def test_engine_loop_sweep_without_current_says_its_meaning_changed(tmp_path):
     f = tmp_path / "puck.toml"
     text = f"[scenario]\nmodule = '{module}'\nvehicle = 'puck'\n[sweep]\nnum_scenarios = 2\n"
     f.write_text(text)
-    with pytest.warns(ConfigNote, match=r"\[current\] not given: the puck scenarios run in"):
+    with pytest.warns(ConfigNote, match=r"\[current\] speed not given: the puck scenarios run in"):
         spec = load_config(f)[0]
     assert spec.scenario.current_speed == (0.5, 0.5)  # numbers unchanged (committed figure)
     import warnings
@@ -300,3 +300,17 @@ def test_empty_model_error_fields_is_refused_in_sweep_and_tune(tmp_path):
     spec = load_config(f)[0]
     loop = spec.loop("vcm")
     assert spec.scenario.fields_for(loop) == loop.default_model_fields()
+
+
+def test_current_model_written_as_its_default_on_a_loop_without_currents(tmp_path):
+    """The arm feels no current: omitted [current] ran in still water, while writing the
+    default model = "constant" switched on the 0.5 m/s default and was refused."""
+    from vcjax.sweep import load_config
+
+    f = tmp_path / "s.toml"
+    base = "[scenario]\nvehicle = 'arm'\n[sweep]\nnum_scenarios = 2\n"
+    f.write_text(base)
+    omitted = load_config(f)[0]
+    f.write_text(base + "[current]\nmodel = 'constant'\n")
+    assert load_config(f)[0] == omitted
+    assert omitted.scenario.current_speed == (0.0, 0.0)

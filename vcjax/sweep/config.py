@@ -138,9 +138,10 @@ def _sections(raw: dict, where: str) -> dict:
 #: loop of your own) without [current]: such configs were written when the engine felt no
 #: current and ran in still water; the engine now feels the default current
 ENGINE_CURRENT_NOTE = (
-    "{where}: [current] not given: the {vehicle} scenarios run in the default current, 0.5 m/s "
-    "towards 90 deg (Simulation 1's); engine loops feel it since the engine took the current "
-    "(before, such a config ran in still water): write [current] speed = 0 for still water"
+    "{where}: [current] speed not given: the {vehicle} scenarios run in the default current, "
+    "0.5 m/s towards 90 deg (Simulation 1's); engine loops feel it since the engine took the "
+    "current (before, such a config ran in still water): write [current] speed = 0 for still "
+    "water"
 )
 
 
@@ -218,9 +219,9 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
         sc_kw["noise"] = sections["sensor_noise"].values
         if "force" in raw.get("disturbance", {}):
             sc_kw["disturbance"] = sections["disturbance"].force
-        if not cls.takes_current and "current" not in raw:
+        if not cls.takes_current and "speed" not in raw.get("current", {}):
             sc_kw["current_speed"] = (0.0, 0.0)  # the default current is Simulation 1's
-        elif issubclass(cls, loops.EngineLoop) and "current" not in raw:
+        elif issubclass(cls, loops.EngineLoop) and "speed" not in raw.get("current", {}):
             note(ENGINE_CURRENT_NOTE.format(where=where, vehicle=choice.vehicle))
         if "waves" in raw:
             check_waves(raw["waves"])
