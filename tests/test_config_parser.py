@@ -143,3 +143,80 @@ def test_fit_config_goes_through_the_one_validator(tmp_path):
 def test_closest_suggests_only_near_names():
     assert closest("horizn", ["horizon", "dt"]) == " (did you mean 'horizon'?)"
     assert closest("zzz", ["horizon", "dt"]) == ""
+
+
+# ------------------------------------------------------------------ registered sections
+
+
+@dataclasses.dataclass(frozen=True)
+class Tidal:
+    """``[tidal]``: a current that turns with the tide (a test's own section)."""
+
+    from vcjax.config.schema import key as _key
+
+    amplitude: float = _key(0.0, "float", "m/s", "tidal speed amplitude", lo=0.0)
+    period: float = _key(44700.0, "float", "s", "tidal period", lo=0.0, lo_open=True)
+    phase_deg: tuple = _key((0.0, 0.0), "range", "deg", "phase at t = 0")
+    del _key
+
+
+def _tidal_check(obj, table, name):
+    if obj.amplitude == 0.0 and "phase_deg" in table:
+        raise ConfigError(f"{name('phase_deg')}: no tide (amplitude 0) has no phase")
+
+
+@pytest.fixture
+def tidal():
+    from vcjax.config.schema import CROSS_CHECKS, REGISTERED, SECTIONS, register_section
+
+    register_section("tidal", Tidal, _tidal_check)
+    try:
+        yield
+    finally:
+        for table in (SECTIONS, REGISTERED):
+            table.pop("tidal")
+        CROSS_CHECKS.pop(Tidal)
+
+
+def test_registered_section_is_parsed_by_sweep_and_tune_and_listed(tidal, tmp_path):
+    from tuning.config import validate_config
+    from vcjax import config
+    from vcjax.sweep import load_config
+
+    f = tmp_path / "s.toml"
+    f.write_text("[sweep]\nnum_scenarios = 2\n[tidal]\namplitude = 0.3\nphase_deg = [0, 90]\n")
+    tide = load_config(f)[1]["sections"]["tidal"]
+    assert tide == Tidal(amplitude=0.3, phase_deg=(0.0, 90.0))
+    for text, message in (
+        ("[tidal]\namplitud = 0.3\n", r"unknown key \[tidal\] 'amplitud' \(did you mean"),
+        ("[tidal]\nperiod = 0\n", r"\[tidal\] period: expected a value > 0"),
+        ("[tidal]\nphase_deg = 10\n", r"\[tidal\] phase_deg: no tide"),
+    ):
+        f.write_text("[sweep]\nnum_scenarios = 2\n" + text)
+        with pytest.raises(ConfigError, match=message):
+            load_config(f)
+    validate_config({"tidal": {"amplitude": 0.1}})
+    with pytest.raises(ConfigError, match=r"\[tidal\] amplitude: expected a value >= 0"):
+        validate_config({"tidal": {"amplitude": -0.1}})
+    assert config.schema()["tidal"]["keys"]["period"]["unit"] == "s"
+    assert "### [tidal]" in config.reference_markdown()
+
+
+def test_register_section_refusals(tidal):
+    from vcjax.config import register_section
+
+    with pytest.raises(ValueError, match=r"\[tidal\] is taken"):
+        register_section("tidal", Tidal)
+    with pytest.raises(ValueError, match=r"\[current\] is taken"):
+        register_section("current", Tidal)
+    with pytest.raises(ValueError, match="expected a section name"):
+        register_section("a b", Tidal)
+
+    @dataclasses.dataclass(frozen=True)
+    class Bare:
+        x: float = 1.0
+
+    with pytest.raises(TypeError, match=r"\[bare\] x: declare it with key\(\)"):
+        register_section("bare", Bare)
+    with pytest.raises(TypeError, match="expected a dataclass"):
+        register_section("bare", dict)

@@ -120,7 +120,7 @@ from vcjax.config import (
 from vcjax.config.aliases import note_old_spellings
 from vcjax.config.frozen import freeze, thaw
 from vcjax.config.scenario import loop_options, parse_scenario
-from vcjax.config.schema import check_value
+from vcjax.config.schema import REGISTERED, check_value
 from vcjax.sweep.config import check_waves, refusal
 from vcjax.sweep.spec import check_wave_step
 
@@ -148,7 +148,7 @@ def _sections(raw: dict) -> dict:
     (:func:`vcjax.config.parse_section`); unknown sections suggest the closest."""
     if not isinstance(raw, dict):
         raise ConfigError("config: expected a table of sections")
-    known = sorted([*_SECTIONS, *_SPECIAL])
+    known = sorted([*_SECTIONS, *_SPECIAL, *REGISTERED])
     for name, table in raw.items():
         if name not in known:
             raise ConfigError(
@@ -156,6 +156,8 @@ def _sections(raw: dict) -> dict:
             )
         if not isinstance(table, dict):
             raise ConfigError(f"[{name}]: expected a table, got {type(table).__name__} {table!r}")
+    for name, cls in REGISTERED.items():  # sections added by vcjax.config.register_section
+        parse_section(cls, raw.get(name), name)
     return {name: parse_section(cls, raw.get(name), name) for name, cls in _SECTIONS.items()}
 
 

@@ -34,6 +34,8 @@ from vcjax.config.values import (
 
 __all__ = [
     "DEFAULT_SCENARIO",
+    "REGISTERED",
+    "register_section",
     "Simulation",
     "Current",
     "Waves",
@@ -312,6 +314,36 @@ def _model_error_applies(err: ModelError, table: dict, name) -> None:
 #: section class -> check of the keys that depend on each other (a key that does not apply
 #: to the values of the others is refused, never silently ignored)
 CROSS_CHECKS = {Current: _current_applies, Waves: _waves_apply, ModelError: _model_error_applies}
+
+
+#: the sections added by :func:`register_section` (e.g. an environment component's), beyond
+#: the built-in ones
+REGISTERED: dict[str, type] = {}
+
+
+def register_section(name: str, cls: type, check=None, replace: bool = False) -> type:
+    """Add a shared section ``[name]`` (e.g. an environment component's): ``cls`` is a frozen
+    dataclass whose fields are declared with :func:`key` (type, default, unit, doc, bounds);
+    ``check(obj, table, name_of)`` optionally refuses keys that do not apply to the others'
+    values (``name_of(key)`` gives ``"[name] key"``). From then on ``vcjax sweep`` and ``vcjax
+    tune`` configs accept the section, parse it with :func:`parse_section` (the one validator)
+    and the configuration reference lists it. A taken name is refused unless ``replace``.
+    Returns ``cls``."""
+    if not (isinstance(name, str) and name.isidentifier()):
+        raise ValueError(f"register_section: expected a section name, got {name!r}")
+    if not (dataclasses.is_dataclass(cls) and isinstance(cls, type)):
+        raise TypeError(f"register_section: {name}: expected a dataclass, got {cls!r}")
+    for f in dataclasses.fields(cls):
+        if "type" not in f.metadata:
+            raise TypeError(f"register_section: [{name}] {f.name}: declare it with key()")
+        if f.default is dataclasses.MISSING:
+            raise TypeError(f"register_section: [{name}] {f.name}: needs a default")
+    if name in SECTIONS and not replace:
+        raise ValueError(f"register_section: [{name}] is taken (replace=True to replace it)")
+    SECTIONS[name] = REGISTERED[name] = cls
+    if check is not None:
+        CROSS_CHECKS[cls] = check
+    return cls
 
 
 def parse_section(cls: type, table: dict | None, section: str, where: str = ""):

@@ -31,6 +31,7 @@ from vcjax.config import (
 )
 from vcjax.config.aliases import note_old_spellings
 from vcjax.config.scenario import parse_scenario
+from vcjax.config.schema import REGISTERED
 from vcjax.sweep.results import load_results, merge_results, save_results, summarize
 from vcjax.sweep.run import run_sweep
 from vcjax.sweep.spec import ScenarioSpec, SweepSpec
@@ -170,7 +171,8 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
 
     Returns:
         ``(spec, extras)``: the :class:`~vcjax.sweep.spec.SweepSpec` and ``extras = {"gains":
-        path or None, "figures": bool}``.
+        path or None, "figures": bool, "sections": {name: section}}`` (``sections``: the
+        sections added by :func:`vcjax.config.register_section`, parsed).
 
     Raises:
         ConfigError: naming the file, section and key (unknown section or key, wrong type,
@@ -180,8 +182,10 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
     config_path = Path(config_path)
     raw = read_toml(config_path)
     where = str(config_path)
-    check_schema(raw, SCHEMA, where)
+    registered = {n: tuple(f.name for f in dataclasses.fields(c)) for n, c in REGISTERED.items()}
+    check_schema(raw, {**SCHEMA, **registered}, where)
     note_old_spellings(raw, where)
+    own = {n: parse_section(c, raw.get(n), n, where) for n, c in REGISTERED.items()}
     choice = parse_scenario(raw.get("scenario"), where, config_path)
     cls = loops.loop_class(choice.vehicle)
     for sec, valid in (("initial", tuple(cls.initial_keys)), ("sensor_noise", cls.noise_channels)):
@@ -243,7 +247,7 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
     gains_path = None
     if gains is not None:
         gains_path = resolve_file(f"{where}: [simulation] gains", gains, config_path)
-    return spec, {"gains": gains_path, "figures": figures}
+    return spec, {"gains": gains_path, "figures": figures, "sections": own}
 
 
 def run_sweep_config(
