@@ -106,8 +106,10 @@ class Current:
     water flows towards, clockwise from north).
 
     ``model = "gauss_markov"`` lets the speed wander around the sampled one (``sigma``, ``tau``,
-    clipped to ``[0, max_speed]``). In tune configs ``[scenarios] current_max = m`` is the older
-    spelling of ``speed = [0, m]``, ``direction_deg = [0, 360]``.
+    clipped to ``[0, max_speed]``); these three keys are refused with the constant model (they
+    would be ignored). In tune configs ``[scenarios] current_max = m`` is the older spelling of
+    ``speed = [0, m]``, ``direction_deg = [0, 360]`` (the tune's current without ``speed`` and
+    ``direction_deg``); giving either key uses ``[current]``, the other key at its default.
     """
 
     model: str = key("constant", "str", "", "current model", choices=("constant", "gauss_markov"))
