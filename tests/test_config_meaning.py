@@ -186,8 +186,15 @@ SWEEP = "[sweep]\nnum_scenarios = 2\n"
 def test_sweep_conflicting_spellings_are_refused_naming_both(text, message, tmp_path, capsys):
     f = tmp_path / "s.toml"
     f.write_text(text)
-    rc, err = _run(["sweep", str(f), "--out", str(tmp_path / "o")], capsys)
+    import warnings
+
+    from vcjax.config import ConfigNote
+
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        rc, err = _run(["sweep", str(f), "--out", str(tmp_path / "o")], capsys)
     assert rc == 2 and message in err
+    assert not [w for w in rec if w.category is ConfigNote]  # the refusal alone, no note
 
 
 def test_sweep_records_the_edd_that_runs(tmp_path):

@@ -184,7 +184,6 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
     where = str(config_path)
     registered = {n: tuple(f.name for f in dataclasses.fields(c)) for n, c in REGISTERED.items()}
     check_schema(raw, {**SCHEMA, **registered}, where)
-    note_old_spellings(raw, where)
     own = {n: parse_section(c, raw.get(n), n, where) for n, c in REGISTERED.items()}
     choice = parse_scenario(raw.get("scenario"), where, config_path)
     cls = loops.loop_class(choice.vehicle)
@@ -247,6 +246,7 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
     gains_path = None
     if gains is not None:
         gains_path = resolve_file(f"{where}: [simulation] gains", gains, config_path)
+    note_old_spellings(raw, where)  # once the config is known to be valid
     return spec, {"gains": gains_path, "figures": figures, "sections": own}
 
 
