@@ -449,61 +449,73 @@ def test_sweep_estimate_hand_count():
         sizing.check_estimate(e, "x", max_steps=99)
 
 
+_RANGE = "is outside the seed range 0 .. 4294967295"
+
+
 @pytest.mark.parametrize(
     "seed, flags, message",
     [
-        (
-            2**31,
-            ["--no-x64"],
-            f"[sweep] seed: {2**31} is outside the PRNG's seed range 0 .. {2**31 - 1}",
-        ),
-        (2**40, ["--no-x64"], f"[sweep] seed: {2**40} is outside the PRNG's seed range"),
-        (2**63, [], f"[sweep] seed: {2**63} is outside the PRNG's seed range 0 .. {2**63 - 1}"),
+        # the sampler keys its PRNG with jnp.uint32(seed): 2**32 .. 2**63 - 1 used to pass the
+        # range check and crash in jnp.asarray (traceback), in float64 mode as with --no-x64
+        (2**32, [], f"[sweep] seed: {2**32} {_RANGE}"),
+        (2**63 - 1, [], f"[sweep] seed: {2**63 - 1} {_RANGE}"),
+        (2**40, ["--no-x64"], f"[sweep] seed: {2**40} {_RANGE}"),
+        (2**63, [], f"[sweep] seed: {2**63} {_RANGE}"),
+        (-1, [], f"[sweep] seed: -1 {_RANGE}"),
     ],
 )
-def test_sweep_seed_outside_the_prng_range(seed, flags, message, tmp_path, capsys):
+def test_sweep_seed_outside_the_sampler_range(seed, flags, message, tmp_path, capsys):
     cfg = _cfg(tmp_path, SWEEP.format(n=4, seed=seed, h=10.0))
     rc, err = _run(["sweep", str(cfg), "--out", str(tmp_path / "o"), *flags], capsys)
-    assert rc == 2
-    assert message in err
-
-
-@pytest.mark.parametrize("seed, flags", [(2**31, ["--no-x64"]), (2**63, [])])
-def test_tune_seed_outside_the_prng_range(seed, flags, tmp_path, capsys):
-    cfg = _cfg(tmp_path, TUNE.format(h=10.0, b=4, seed=seed, extra=""))
-    rc, err = _run(["tune", str(cfg), "--out", str(tmp_path / "o"), *flags], capsys)
-    assert rc == 2
-    assert f"train.seed: {seed} is outside the PRNG's seed range" in err
-
-
-@pytest.mark.parametrize(
-    "seed, flags, message",
-    [
-        (2**31, ["--no-x64"], f"heldout.seed: {2**31} is outside the PRNG's seed range"),
-        (2**63, [], f"heldout.seed: {2**63} is outside the PRNG's seed range 0 .. {2**63 - 1}"),
-        (-1, [], "heldout.seed: expected an integer >= 0, got -1"),
-    ],
-)
-def test_tune_heldout_seed_outside_the_prng_range(seed, flags, message, tmp_path, capsys):
-    text = TUNE.format(h=10.0, b=4, seed=0, extra="").replace("seed = 1001", f"seed = {seed}")
-    cfg = _cfg(tmp_path, text)
-    rc, err = _run(["tune", str(cfg), "--out", str(tmp_path / "o"), *flags], capsys)
     assert rc == 2
     assert message in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 
-def test_largest_seed_is_accepted_by_jax():
-    """The bound of check_seed is what PRNGKey takes (float64 mode), and one more is not."""
+@pytest.mark.parametrize("seed, flags", [(2**32, ["--no-x64"]), (2**63 - 1, []), (2**63, [])])
+def test_tune_seed_outside_the_sampler_range(seed, flags, tmp_path, capsys):
+    cfg = _cfg(tmp_path, TUNE.format(h=10.0, b=4, seed=seed, extra=""))
+    rc, err = _run(["tune", str(cfg), "--out", str(tmp_path / "o"), *flags], capsys)
+    assert rc == 2
+    assert f"[train] seed: {seed} {_RANGE}" in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+@pytest.mark.parametrize("seed", [2**32, 2**63 - 1, -1])
+def test_tune_heldout_seed_outside_the_sampler_range(seed, tmp_path, capsys):
+    text = TUNE.format(h=10.0, b=4, seed=0, extra="").replace("seed = 1001", f"seed = {seed}")
+    cfg = _cfg(tmp_path, text)
+    rc, err = _run(["tune", str(cfg), "--out", str(tmp_path / "o")], capsys)
+    assert rc == 2
+    assert f"[heldout] seed: {seed} {_RANGE}" in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_largest_seed_runs_a_sweep_in_both_precisions(tmp_path, capsys):
+    """SEED_MAX itself is a seed the sampler takes: the CLI runs a tiny sweep with it, in
+    float64 mode and with --no-x64 (where the older check refused everything above 2**31 - 1),
+    and the draws equal those of the same key built by hand."""
     import jax
+    import numpy as np
 
-    from vcjax.runtime import sizing
+    from vcjax import loops
+    from vcjax.config import SEED_MAX
+    from vcjax.sweep import ScenarioSpec, sample_scenarios
 
-    assert jax.config.jax_enable_x64  # tests run in float64 (conftest)
-    sizing.check_seed("s", 2**63 - 1, x64=True)
-    jax.random.PRNGKey(2**63 - 1)
-    with pytest.raises(OverflowError):
-        jax.random.PRNGKey(2**63)
+    assert SEED_MAX == 2**32 - 1
+    for flags in (["--no-x64"], []):  # float64 last: the in-process CLI sets the mode
+        text = SWEEP.format(n=2, seed=SEED_MAX, h=0.2) + "[output]\nfigures = false\n"
+        cfg = _cfg(tmp_path, text)
+        out = tmp_path / f"o{len(flags)}"
+        rc, err = _run(["sweep", str(cfg), "--out", str(out), *flags], capsys)
+        assert rc == 0, err
+        assert json.loads((out / "summary.json").read_text())["spec"]["seed"] == SEED_MAX
+    spec = ScenarioSpec(current_speed=(0.0, 1.0))
+    sc = sample_scenarios(spec, SEED_MAX, np.arange(2))
+    key = jax.random.fold_in(jax.random.PRNGKey(np.uint32(SEED_MAX)), 1)
+    n = 3 + len(loops.make_loop("infante", "vcm").initial_keys)  # speed, direction, keys, u_d
+    u = jax.random.uniform(jax.random.split(key, 9)[0], (n,), np.float64)
+    assert float(sc.current_speed[1]) == float(u[0])
 
 
 # ------------------------------------------------------------------ vcjax launch

@@ -58,7 +58,7 @@ def test_tune_simulation_section_equals_problem_spelling():
     old = validate_config({"problem": {"horizon": 4.0, "dt": 0.2, "timing": "sampled"}})
     new = validate_config({"simulation": {"horizon": 4.0, "dt": 0.2, "timing": "sampled"}})
     assert old["problem"] == new["problem"]
-    with pytest.raises(ConfigError, match="simulation.dt: also given as problem.dt"):
+    with pytest.raises(ConfigError, match=r"\[simulation\] dt: also given as \[problem\] dt"):
         validate_config({"simulation": {"dt": 0.2}, "problem": {"dt": 0.1}})
     with pytest.raises(ConfigError, match="current_max, not both"):
         validate_config({"current": {"speed": 1.0}, "scenarios": {"current_max": 1.0}})
@@ -156,7 +156,10 @@ def test_tune_config_is_frozen_hashable_and_reads_as_before():
     assert {**cfg["weights"]} == dict(cfg.weights.to_dict())
     # the older dict form: [scenario], [initial], [current] as plain dicts, defaults filled in
     assert cfg["scenario"]["vehicle"] == "infante" and cfg.scenario.vehicle == "infante"
-    assert cfg["initial"] == {"x": [0.0, 1.0]} and cfg["current"] == {"speed": [0.0, 0.3]}
+    assert cfg["initial"] == {"x": [0.0, 1.0]} and cfg["current"] == {
+        "speed": [0.0, 0.3],
+        "direction_deg": [90.0, 90.0],  # resolved: run.json records the current that runs
+    }
     d = json.loads(json.dumps(cfg.to_dict()))  # what run.json records
     assert d["problem"]["tune"] == ["P_G", "sigma"] and d["simulation"] == {"u_d": None}
     assert TuneConfig.from_dict(d) == cfg

@@ -297,19 +297,19 @@ def test_blackbox_drivers_on_a_jax_objective():
 @pytest.mark.parametrize(
     ("raw", "match"),
     [
-        ({"problme": {}}, "unknown sections"),
-        ({"problem": {"horizn": 1.0}}, "problem: unknown keys"),
-        ({"problem": {"horizon": -1.0}}, "problem.horizon"),
-        ({"problem": {"dt": "0.1"}}, "problem.dt: expected a number"),
-        ({"problem": {"variant": "pid"}}, "problem.variant"),
-        ({"problem": {"tune": ["P_K"]}}, "problem.tune: unknown gains"),
-        ({"problem": {"alpha": 1.5}}, "problem.alpha"),
-        ({"weights": {"eps": -1.0}}, "weights.eps"),
-        ({"train": {"size": 0}}, "train.size"),
-        ({"train": {"size": 2.5}}, "train.size: expected an integer"),
-        ({"optimizer": {"name": "sgd"}}, "optimizer.name"),
-        ({"optimizer": {"grad_mode": "both"}}, "optimizer.grad_mode"),
-        ({"heldout": {"smooth": 1}}, "heldout.smooth"),
+        ({"problme": {}}, r"unknown section \[problme\] \(did you mean 'problem'\?\)"),
+        ({"problem": {"horizn": 1.0}}, r"unknown key \[problem\] 'horizn' \(did you mean"),
+        ({"problem": {"horizon": -1.0}}, r"\[problem\] horizon"),
+        ({"problem": {"dt": "0.1"}}, r"\[problem\] dt: expected a finite number"),
+        ({"problem": {"variant": "pid"}}, r"\[problem\] variant"),
+        ({"problem": {"tune": ["P_K"]}}, r"\[problem\] tune: unknown gains"),
+        ({"problem": {"alpha": 1.5}}, r"\[problem\] alpha"),
+        ({"weights": {"eps": -1.0}}, r"\[weights\] eps"),
+        ({"train": {"size": 0}}, r"\[train\] size"),
+        ({"train": {"size": 2.5}}, r"\[train\] size: expected an integer"),
+        ({"optimizer": {"name": "sgd"}}, r"\[optimizer\] name"),
+        ({"optimizer": {"grad_mode": "both"}}, r"\[optimizer\] grad_mode"),
+        ({"heldout": {"smooth": 1}}, r"\[heldout\] smooth"),
         ({"problem": {"horizon": 0.05, "dt": 0.1}}, "horizon"),
         ({"problem": 3}, "expected a table"),
     ],
@@ -329,7 +329,7 @@ def test_config_defaults_and_file_errors(tmp_path):
         run_tune_config(bad, tmp_path / "out", progress=None)
     same = tmp_path / "same.toml"
     same.write_text("[train]\nseed = 3\n[heldout]\nseed = 3\n")
-    with pytest.raises(ConfigError, match="heldout.seed"):
+    with pytest.raises(ConfigError, match=r"\[heldout\] seed: must differ from \[train\] seed"):
         run_tune_config(same, tmp_path / "out", progress=None)
     with pytest.raises(ConfigError, match="cannot read"):
         run_tune_config(tmp_path / "missing.toml", tmp_path / "out", progress=None)
@@ -437,13 +437,13 @@ def test_tuning_batch_is_the_sweeps_scenarios():
 @pytest.mark.parametrize(
     ("raw", "match"),
     [
-        ({"scenario": {"vehicle": "arm"}, "problem": {"tune": ["Delta"]}}, "problem.tune"),
-        ({"scenario": {"vehicle": "arm"}, "initial": {"x": 1.0}}, r"initial.x: unknown key"),
+        ({"scenario": {"vehicle": "arm"}, "problem": {"tune": ["Delta"]}}, r"\[problem\] tune"),
+        ({"scenario": {"vehicle": "arm"}, "initial": {"x": 1.0}}, r"\[initial\] x: unknown key"),
         ({"scenario": {"vehicle": "odin"}, "model_error": {"fields": ["mass"]}}, "fields"),
-        ({"scenario": {"vehicle": "odin"}, "problem": {"variant": "ilos"}}, "problem.variant"),
+        ({"scenario": {"vehicle": "odin"}, "problem": {"variant": "ilos"}}, r"\[problem\] variant"),
         ({"scenario": {"controller": "vcm"}, "problem": {"variant": "ilos"}}, "contradicts"),
-        ({"model_error": {"relative": 1.0}}, "model_error.relative"),
-        ({"disturbance": {"force": 3.0}}, "disturbance.force"),
+        ({"model_error": {"relative": 1.0}}, r"\[model_error\] relative"),
+        ({"disturbance": {"force": 3.0}}, r"\[disturbance\] force"),
     ],
 )
 def test_tune_config_scenario_errors(raw, match):

@@ -91,7 +91,7 @@ def build(cfg: TuneConfig):
     weights = make_weights(**cfg.weights, dtype=dtype)
     data = problem_data(problem, base, weights, p.dt, p.log_box, p.box_weight)
     if cfg.train.seed == cfg.heldout.seed:
-        raise ConfigError("heldout.seed: must differ from train.seed (held-out scenarios)")
+        raise ConfigError("[heldout] seed: must differ from [train] seed (held-out scenarios)")
     plant, design = choice.nominal(loop, dtype)
     extra = {"initial": cfg.initial}
     if cfg.disturbance.force:

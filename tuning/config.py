@@ -21,7 +21,10 @@ command) naming the file and the offending ``section.key``::
 
     [current]                       # shared with sweeps (constant model only): replaces
     speed = [0.0, 1.0]              # [scenarios] current_max = 1.0, which means exactly this
-    direction_deg = [0.0, 360.0]    # speed and direction range
+    direction_deg = [0.0, 360.0]    # speed and direction range. Without speed and
+                                    # direction_deg the current is current_max's; with one
+                                    # of them, the other takes its section default (0.5 m/s,
+                                    # 90 deg); run.json records both as they ran
 
     [problem]                       # what is tuned and how a rollout is simulated
     variant = ""                    # the controller ("" = [scenario] controller, else the
@@ -72,7 +75,7 @@ command) naming the file and the offending ``section.key``::
 
     [model_error]                   # plant-only multiplicative errors, as in sweep configs
     relative = 0.0
-    fields = []                     # the vehicle's parameter names ([] = its default set)
+    # fields = [...]                # the vehicle's parameter names (omitted: its default set)
 
     [train]
     size = 16
@@ -99,12 +102,10 @@ command) naming the file and the offending ``section.key``::
 
 from __future__ import annotations
 
-import copy
 import dataclasses
-import math
 from pathlib import Path
 
-from tuning.spec import DEFAULTS, KEY_DOCS, TuneConfig
+from tuning.spec import _SECTIONS, DEFAULTS, KEY_DOCS, Problem, TuneConfig, TuneSimulation
 from vcjax import loops
 from vcjax.config import (
     ConfigError,
@@ -112,10 +113,14 @@ from vcjax.config import (
     Simulation,
     Waves,
     as_range,
+    closest,
     parse_section,
     read_toml,
 )
+from vcjax.config.aliases import note_old_spellings
+from vcjax.config.frozen import freeze, thaw
 from vcjax.config.scenario import loop_options, parse_scenario
+from vcjax.config.schema import REGISTERED, check_value
 from vcjax.sweep.config import check_waves, refusal
 from vcjax.sweep.spec import check_wave_step
 
@@ -130,126 +135,152 @@ __all__ = [
 
 
 #: sections parsed on their own: [scenario] (vcjax.config.scenario), [initial] (vehicle keys),
-#: the shared [simulation] and [current] (vcjax.config.schema)
+#: the shared [simulation], [current] and [waves] (vcjax.config.schema)
 _SPECIAL = ("scenario", "initial", "simulation", "current", "waves")
 #: [simulation] keys that tune configs may also write under [problem] (the older spelling)
 _SIM_IN_PROBLEM = ("horizon", "dt", "integrator", "timing", "smooth", "edd")
-
-_CHOICES = {
-    ("problem", "integrator"): ("euler", "heun", "rk4"),
-    ("problem", "timing"): ("continuous", "sampled"),
-    ("problem", "edd"): ("paper", "implied"),
-    ("problem", "risk"): ("mean", "cvar"),
-    ("optimizer", "name"): ("lbfgs", "adam"),
-    ("optimizer", "grad_mode"): ("reverse", "forward"),
-}
-# (section, key): (lower bound, strict) for numbers
-_POSITIVE = {"horizon", "dt", "log_box", "box_weight", "learning_rate", "sat_width"}
-_NONNEG = {"current_max", "position_offset", "heading_offset_deg", "grad_tol"}
-_INT_MIN1 = {
-    "size",
-    "steps",
-    "memory_size",
-    "max_linesearch_steps",
-    "max_bad_steps",
-    "checkpoint_every",
-}
+_PROBLEM_KEYS = {f.name: f for f in dataclasses.fields(Problem)}
 
 
-def _type_name(v) -> str:
-    return type(v).__name__
+def _sections(raw: dict) -> dict:
+    """The sections declared in :mod:`tuning.spec` (the tune's own and the shared
+    ``[disturbance]``, ``[model_error]``), parsed by the one validator
+    (:func:`vcjax.config.parse_section`); unknown sections suggest the closest."""
+    if not isinstance(raw, dict):
+        raise ConfigError("config: expected a table of sections")
+    known = sorted([*_SECTIONS, *_SPECIAL, *REGISTERED])
+    for name, table in raw.items():
+        if name not in known:
+            raise ConfigError(
+                f"unknown section [{name}]{closest(name, known)}; expected one of {known}"
+            )
+        if not isinstance(table, dict):
+            raise ConfigError(f"[{name}]: expected a table, got {type(table).__name__} {table!r}")
+    for name, cls in REGISTERED.items():  # sections added by vcjax.config.register_section
+        parse_section(cls, raw.get(name), name)
+    return {name: parse_section(cls, raw.get(name), name) for name, cls in _SECTIONS.items()}
 
 
-def _check_value(sec: str, key: str, v, default):
-    where = f"{sec}.{key}"
-    if isinstance(default, bool):
-        if not isinstance(v, bool):
-            raise ConfigError(f"{where}: expected true or false, got {v!r}")
-        return v
-    if isinstance(default, int):
-        if isinstance(v, bool) or not isinstance(v, int):
-            raise ConfigError(f"{where}: expected an integer, got {_type_name(v)} {v!r}")
-        if key in _INT_MIN1 and v < 1:
-            raise ConfigError(f"{where}: expected an integer >= 1, got {v}")
-        if key == "seed" and v < 0:
-            raise ConfigError(f"{where}: expected an integer >= 0, got {v}")
-        if key == "plot_scenarios" and v < 0:
-            raise ConfigError(f"{where}: expected an integer >= 0, got {v}")
-        return v
-    if isinstance(default, float):
-        if isinstance(v, bool) or not isinstance(v, int | float):
-            raise ConfigError(f"{where}: expected a number, got {_type_name(v)} {v!r}")
-        v = float(v)
-        if not math.isfinite(v):
-            raise ConfigError(f"{where}: expected a finite number, got {v}")
-        if key in _POSITIVE and not v > 0:
-            raise ConfigError(f"{where}: expected a number > 0, got {v}")
-        if (key in _NONNEG or sec == "weights") and not v >= 0:
-            raise ConfigError(f"{where}: expected a number >= 0, got {v}")
-        if key == "relative" and not v < 1:
-            raise ConfigError(f"{where}: expected a number in [0, 1), got {v}")
-        if key == "alpha" and not 0 < v <= 1:
-            raise ConfigError(f"{where}: expected a number in (0, 1], got {v}")
-        return v
-    if isinstance(default, str):
-        if not isinstance(v, str):
-            raise ConfigError(f"{where}: expected a string, got {_type_name(v)} {v!r}")
-        choices = _CHOICES.get((sec, key))
-        if choices and v not in choices:
-            raise ConfigError(f"{where}: expected one of {list(choices)}, got {v!r}")
-        return v
-    if isinstance(default, list) and key == "force":  # disturbance.force
-        if not isinstance(v, list):
-            raise ConfigError(f"{where}: expected a list of ranges, got {v!r}")
-        return [list(as_range(where, r)) for r in v]
-    if isinstance(default, list):  # problem.tune, model_error.fields
-        if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
-            raise ConfigError(f"{where}: expected a list of names, got {v!r}")
-        if len(set(v)) != len(v):
-            raise ConfigError(f"{where}: duplicate names in {v}")
-        return list(v)
-    raise AssertionError(where)  # pragma: no cover
-
-
-def _shared_sections(raw: dict, cfg: dict) -> None:
-    """Fold the shared ``[simulation]`` and ``[current]`` (vcjax.config.schema) into ``cfg``.
-
-    ``[simulation] horizon/dt/integrator/timing/smooth/edd`` land in ``cfg["problem"]`` (the
-    older spelling; both at once is refused), ``[simulation] u_d`` in ``cfg["simulation"]``;
-    ``[current]`` replaces ``[scenarios] current_max`` (``cfg["current"]``: the keys given).
-    """
+def _simulation(raw: dict, sec: dict):
+    """Fold ``[simulation]`` into ``sec["problem"]`` (its keys horizon, dt, integrator, timing,
+    smooth, edd may instead be written under ``[problem]``, the older spelling; both at once is
+    refused) and return ``u_d``."""
     sim_raw = raw.get("simulation", {})
-    if not isinstance(sim_raw, dict):
-        raise ConfigError(f"simulation: expected a table ([simulation]), got {sim_raw!r}")
-    edd = sim_raw.get("edd")
     sim = parse_section(Simulation, {k: v for k, v in sim_raw.items() if k != "edd"}, "simulation")
+    over = {}
     for k in sim_raw:
         if k in raw.get("problem", {}) and k in _SIM_IN_PROBLEM:
-            raise ConfigError(f"simulation.{k}: also given as problem.{k}; write it once")
+            raise ConfigError(
+                f"[simulation] {k}: also given as [problem] {k} (its older spelling); write it once"
+            )
         if k == "edd":
-            cfg["problem"]["edd"] = _check_value("simulation", "edd", edd, "paper")
+            over["edd"] = check_value("[simulation] edd", sim_raw[k], _PROBLEM_KEYS[k].metadata)
         elif k in _SIM_IN_PROBLEM:
-            cfg["problem"][k] = getattr(sim, k)
-    cfg["simulation"] = {"u_d": None if sim.u_d is None else list(sim.u_d)}
+            over[k] = getattr(sim, k)
+    p = dataclasses.replace(sec["problem"], **over)
+    if p.horizon / p.dt < 1:
+        raise ConfigError(f"[simulation] horizon: must be >= dt ({p.dt:g} s), got {p.horizon:g}")
+    sec["problem"] = p
+    return sim.u_d
+
+
+def _tune_current(cur: Current, table: dict, current_max: float) -> dict:
+    """The current a tune samples, both keys resolved (what ``run.json`` records is what runs).
+
+    Without ``[current] speed`` and ``direction_deg`` the current is ``[scenarios]
+    current_max``'s: speed ``[0, current_max]`` in any direction ``[0, 360]``; writing either
+    key switches to ``[current]``, whose other key then takes its section default (0.5 m/s,
+    90 deg). ``model = "constant"`` (the default, and the only model a tune samples) changes
+    nothing: a default means the same written or omitted.
+    """
+    if "speed" not in table and "direction_deg" not in table:
+        return {"speed": [0.0, float(current_max)], "direction_deg": [0.0, 360.0]}
+    return {"speed": list(cur.speed), "direction_deg": list(cur.direction_deg)}
+
+
+def _current_and_waves(raw: dict, sec: dict) -> tuple[dict, dict | None]:
+    """``[current]`` (resolved, :func:`_tune_current`) and ``[waves]`` (every key, defaults
+    filled in: the section's presence is the switch; ``None`` without it)."""
     cur_raw = raw.get("current", {})
     cur = parse_section(Current, cur_raw, "current")
-    if cur_raw and "current_max" in raw.get("scenarios", {}):
-        raise ConfigError("current: give [current] or [scenarios] current_max, not both")
+    if {"speed", "direction_deg"} & set(cur_raw) and "current_max" in raw.get("scenarios", {}):
+        raise ConfigError(
+            "[current] speed: also given as [scenarios] current_max (its older spelling); "
+            "give [current] or [scenarios] current_max, not both"
+        )
     if cur.model != "constant":
         raise ConfigError("[current] model: vcjax tune samples constant currents only")
-    cfg["current"] = {
-        k: list(v) if isinstance(v, tuple) else v
-        for k, v in dataclasses.asdict(cur).items()
-        if k in cur_raw
-    }
-    cfg["waves"] = None
-    if "waves" in raw:  # every key, the defaults filled in (the section's presence is the switch)
-        wav_raw = raw["waves"]
-        wav = parse_section(Waves, wav_raw, "waves")
-        check_waves(wav_raw)
-        cfg["waves"] = {
-            k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(wav).items()
-        }
+    current = _tune_current(cur, cur_raw, sec["scenarios"].current_max)
+    if "waves" not in raw:
+        return current, None
+    wav = parse_section(Waves, raw["waves"], "waves")
+    check_waves(raw["waves"])
+    check_wave_step(wav.tp[0], sec["problem"].dt, "[waves] tp")
+    return current, {k: thaw(v) for k, v in dataclasses.asdict(wav).items()}
+
+
+def _controller(raw: dict, sec: dict, choice):
+    """The controller (``[problem] variant`` is the older spelling of ``[scenario]
+    controller``) and the ``edd`` that runs (``[problem]``/``[simulation] edd`` are older
+    spellings of ``[scenario] edd``): disagreeing spellings are refused naming both."""
+    p = sec["problem"]
+    cls = loops.loop_class(choice.vehicle)
+    ctrl = p.variant or choice.controller or cls.default_controller or cls.controllers[0]
+    if ctrl not in cls.controllers:
+        raise ConfigError(
+            f"[problem] variant: vehicle {choice.vehicle!r} supports {list(cls.controllers)}, "
+            f"got {ctrl!r}"
+        )
+    if choice.controller and p.variant and p.variant != choice.controller:
+        raise ConfigError(
+            f"[problem] variant: {p.variant!r} contradicts [scenario] controller "
+            f"{choice.controller!r} (its newer spelling); give one of them"
+        )
+    edd = p.edd
+    if "edd" in loop_options(cls):
+        given = dict(choice.options)
+        old = [f"[{s}] edd" for s in ("problem", "simulation") if "edd" in raw.get(s, {})]
+        if "edd" in given and old and given["edd"] != p.edd:
+            raise ConfigError(
+                f"{old[0]}: {p.edd!r} contradicts [scenario] edd {given['edd']!r} (its newer "
+                "spelling); give one of them"
+            )
+        if "edd" in given:
+            edd = given["edd"]  # what runs is what run.json records
+        else:
+            choice = dataclasses.replace(choice, options=(*choice.options, ("edd", p.edd)))
+    sec["problem"] = dataclasses.replace(p, variant=ctrl, edd=edd)
+    return dataclasses.replace(choice, controller=ctrl)  # run.json records what runs
+
+
+def _vehicle_keys(raw: dict, sec: dict, loop, waves) -> dict:
+    """The keys whose valid names are the vehicle's (gain groups, parameter names, initial
+    keys) and the disturbances it can feel; returns the ``[initial]`` ranges."""
+    try:  # a sea the loop cannot take is refused, never silently ignored
+        loops.check_disturbances(loop, False, False, waves=waves is not None)
+    except ValueError as err:
+        raise ConfigError(refusal(err)) from None
+    names = [g.name for g in loop.gain_specs()]
+    bad = [t for t in sec["problem"].tune if t not in names]
+    if bad:
+        raise ConfigError(
+            f"[problem] tune: unknown gains {bad} for {loop.describe()}; choose from {names}"
+        )
+    valid = loop.param_names()
+    bad = [f for f in sec["model_error"].fields or () if f not in valid]
+    if bad:
+        raise ConfigError(
+            f"[model_error] fields: unknown {loop.vehicle} parameters {bad}; valid: {list(valid)}"
+        )
+    init = {}
+    for k, v in raw.get("initial", {}).items():
+        if k not in loop.initial_keys:
+            raise ConfigError(
+                f"[initial] {k}: unknown key for vehicle {loop.vehicle!r}"
+                f"{closest(k, loop.initial_keys)}; expected one of {list(loop.initial_keys)}"
+            )
+        init[k] = as_range(f"[initial] {k}", v)
+    return init
 
 
 def validate_config(raw: dict, config_path=None) -> TuneConfig:
@@ -259,84 +290,24 @@ def validate_config(raw: dict, config_path=None) -> TuneConfig:
     ``config_path`` resolves the files a config names (default: the working directory).
 
     Raises:
-        ConfigError: unknown section/key, wrong type, value out of range, a controller or gain
-            the vehicle does not have.
+        ConfigError: ``[section] key: message`` for an unknown section/key (the closest valid
+            one suggested), a wrong type, a value out of range, a controller or gain the
+            vehicle does not have, two spellings of one setting that disagree.
     """
-    if not isinstance(raw, dict):
-        raise ConfigError("config: expected a table of sections")
-    unknown = sorted(set(raw) - set(DEFAULTS) - set(_SPECIAL))
-    if unknown:
-        raise ConfigError(
-            f"config: unknown sections {unknown}; expected {sorted([*DEFAULTS, *_SPECIAL])}"
-        )
-    cfg = copy.deepcopy(DEFAULTS)
-    for sec, table in raw.items():
-        if not isinstance(table, dict):
-            raise ConfigError(f"{sec}: expected a table ([{sec}]), got {_type_name(table)}")
-        if sec in _SPECIAL:
-            continue
-        bad = sorted(set(table) - set(DEFAULTS[sec]))
-        if bad:
-            known = sorted(DEFAULTS[sec])
-            raise ConfigError(f"{sec}: unknown keys {bad}; expected some of {known}")
-        for key, v in table.items():
-            cfg[sec][key] = _check_value(sec, key, v, DEFAULTS[sec][key])
-    p = cfg["problem"]
-    _shared_sections(raw, cfg)
-    if p["horizon"] / p["dt"] < 1:
-        raise ConfigError(f"problem.horizon: must be >= problem.dt, got {p['horizon']}")
-    if cfg["waves"] is not None:
-        check_wave_step(cfg["waves"]["tp"][0], p["dt"], "[waves] tp")
+    sec = _sections(raw)
+    u_d = _simulation(raw, sec)
+    current, waves = _current_and_waves(raw, sec)
     choice = parse_scenario(raw.get("scenario"), "scenario", config_path or Path("config"))
-    cls = loops.loop_class(choice.vehicle)
-    ctrl = p["variant"] or choice.controller or cls.default_controller or cls.controllers[0]
-    if ctrl not in cls.controllers:
-        raise ConfigError(
-            f"problem.variant: vehicle {choice.vehicle!r} supports {list(cls.controllers)}, "
-            f"got {ctrl!r}"
-        )
-    if choice.controller and p["variant"] and p["variant"] != choice.controller:
-        raise ConfigError(
-            f"problem.variant: {p['variant']!r} contradicts [scenario] controller "
-            f"{choice.controller!r}"
-        )
-    p["variant"] = ctrl
-    if "edd" in loop_options(cls):  # [problem] edd: the older spelling of [scenario] edd
-        given = dict(choice.options)
-        if "edd" in given and "edd" in raw.get("problem", {}) and given["edd"] != p["edd"]:
-            raise ConfigError(
-                f"problem.edd: {p['edd']!r} contradicts [scenario] edd {given['edd']!r}"
-            )
-        if "edd" not in given:
-            choice = dataclasses.replace(choice, options=(*choice.options, ("edd", p["edd"])))
-    loop = choice.loop(ctrl)
-    try:  # a sea the loop cannot take is refused, never silently ignored
-        loops.check_disturbances(loop, False, False, waves=cfg["waves"] is not None)
-    except ValueError as err:
-        raise ConfigError(refusal(err)) from None
-    names = [g.name for g in loop.gain_specs()]
-    bad = [t for t in p["tune"] if t not in names]
-    if bad:
-        raise ConfigError(
-            f"problem.tune: unknown gains {bad} for {loop.describe()}; choose from {names}"
-        )
-    valid = loop.param_names()
-    bad = [f for f in cfg["model_error"]["fields"] if f not in valid]
-    if bad:
-        raise ConfigError(
-            f"model_error.fields: unknown {choice.vehicle} parameters {bad}; valid: {list(valid)}"
-        )
-    init = raw.get("initial", {})
-    for k, v in init.items():
-        if k not in loop.initial_keys:
-            raise ConfigError(
-                f"initial.{k}: unknown key for vehicle {choice.vehicle!r}; "
-                f"expected one of {list(loop.initial_keys)}"
-            )
-        init[k] = list(as_range(f"initial.{k}", v))
-    cfg["initial"] = dict(init)
-    cfg["scenario"] = choice.to_dict()
-    return TuneConfig.from_dict(cfg)
+    choice = _controller(raw, sec, choice)
+    init = _vehicle_keys(raw, sec, choice.loop(sec["problem"].variant), waves)
+    return TuneConfig(
+        **sec,
+        simulation=TuneSimulation(u_d=u_d),
+        current=freeze(current),
+        waves=None if waves is None else freeze(waves),
+        initial=freeze(init),
+        scenario=choice,
+    )
 
 
 def load_config(path) -> TuneConfig:
@@ -346,6 +317,7 @@ def load_config(path) -> TuneConfig:
     raw = read_toml(path)
     try:
         cfg = validate_config(raw, path)
+        note_old_spellings(raw, str(path))
     except ConfigError as err:
         raise ConfigError(f"{path}: {err}") from None
     g = cfg.problem.initial_gains

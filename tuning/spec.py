@@ -11,6 +11,7 @@ from typing import Any
 
 from vcjax.config.frozen import FrozenSection, freeze, thaw
 from vcjax.config.scenario import ScenarioChoice
+from vcjax.config.schema import Disturbance, ModelError, key
 
 __all__ = [
     "DEFAULTS",
@@ -29,102 +30,140 @@ __all__ = [
 ]
 
 
+_POS = {"lo": 0.0, "lo_open": True}
+_NONNEG = {"lo": 0.0}
+_OLD = "older spelling of [simulation] "
+
+
 @dataclasses.dataclass(frozen=True)
 class Problem(FrozenSection):
     """``[problem]``: what is tuned and how a rollout is simulated (module docstring)."""
 
-    variant: str = ""
-    tune: tuple[str, ...] = ()
-    initial_gains: str = ""
-    horizon: float = 80.0
-    dt: float = 0.1
-    integrator: str = "rk4"
-    timing: str = "continuous"
-    smooth: bool = True
-    checkpoint: bool = False
-    checkpoint_every: int = 10
-    edd: str = "paper"
-    risk: str = "mean"
-    alpha: float = 0.2
-    log_box: float = 3.0
-    box_weight: float = 10.0
+    variant: str = key("", "str", "", "the controller (older spelling of [scenario] controller)")
+    tune: tuple[str, ...] = key(
+        (), "str_list", "", "gain groups to tune ([] = all of the controller's)", unique=True
+    )
+    initial_gains: str = key("", "str", "file", 'gains JSON to start from ("" = the defaults)')
+    horizon: float = key(80.0, "float", "s", "simulated time (" + _OLD + "horizon)", **_POS)
+    dt: float = key(0.1, "float", "s", "integration step (" + _OLD + "dt)", **_POS)
+    integrator: str = key("rk4", "str", "", _OLD + "integrator", choices=("euler", "heun", "rk4"))
+    timing: str = key("continuous", "str", "", _OLD + "timing", choices=("continuous", "sampled"))
+    smooth: bool = key(True, "bool", "", _OLD + "smooth")
+    checkpoint: bool = key(
+        False, "bool", "", "jax.checkpoint segments of the rollout under reverse mode"
+    )
+    checkpoint_every: int = key(10, "int", "", "steps per checkpointed segment", lo=1)
+    edd: str = key(
+        "paper",
+        "str",
+        "",
+        "VCM e_ddot mode: paper or implied (older spelling of [scenario] edd)",
+        choices=("paper", "implied"),
+    )
+    risk: str = key(
+        "mean",
+        "str",
+        "",
+        "mean loss over the batch, or cvar (the worst alpha fraction)",
+        choices=("mean", "cvar"),
+    )
+    alpha: float = key(0.2, "float", "", "CVaR level: fraction of worst scenarios", hi=1.0, **_POS)
+    log_box: float = key(
+        3.0, "float", "", "gains kept within e^log_box of the initial ones (penalty)", **_POS
+    )
+    box_weight: float = key(10.0, "float", "", "weight of that penalty", **_POS)
 
 
 @dataclasses.dataclass(frozen=True)
 class Weights(FrozenSection):
     """``[weights]``: the loss weights (:mod:`tuning.loss`)."""
 
-    eps: float = 1.0
-    u_tilde: float = 1.0
-    psi_tilde: float = 1.0
-    sat_excess: float = 1.0
-    sat_time: float = 5.0
-    effort: float = 0.0
-    unhealthy: float = 1000.0
-    sat_width: float = 0.05
-    depth: float = 0.0
+    eps: float = key(1.0, "float", "1/m^2", "weight of the path errors s^2 + e^2", **_NONNEG)
+    u_tilde: float = key(1.0, "float", "s^2/m^2", "weight of the speed error", **_NONNEG)
+    psi_tilde: float = key(
+        1.0, "float", "1/rad^2", "weight of the heading (attitude) error", **_NONNEG
+    )
+    sat_excess: float = key(
+        1.0, "float", "", "weight of the squared command excess over the limits", **_NONNEG
+    )
+    sat_time: float = key(
+        5.0, "float", "", "weight of the (smooth) time over the limits", **_NONNEG
+    )
+    effort: float = key(
+        0.0, "float", "", "weight of the squared commands over their limits", **_NONNEG
+    )
+    unhealthy: float = key(1000.0, "float", "", "penalty of a run that diverged", **_NONNEG)
+    sat_width: float = key(
+        0.05, "float", "", "width of the smooth step counting time over the limits", **_POS
+    )
+    depth: float = key(
+        0.0, "float", "1/m^2", "weight of the depth error (3-D loops; e.g. in waves)", **_NONNEG
+    )
 
 
 @dataclasses.dataclass(frozen=True)
 class ScenarioOffsets(FrozenSection):
     """``[scenarios]``: the older distribution keys (current speed bound, start offsets)."""
 
-    current_max: float = 1.0
-    position_offset: float = 5.0
-    heading_offset_deg: float = 45.0
+    current_max: float = key(
+        1.0, "float", "m/s", "current speed ~ U(0, current_max), any direction", **_NONNEG
+    )
+    position_offset: float = key(5.0, "float", "m", "initial x, y offsets ~ U(-o, o)", **_NONNEG)
+    heading_offset_deg: float = key(
+        45.0, "float", "deg", "initial heading offset ~ U(-o, o)", **_NONNEG
+    )
 
 
 @dataclasses.dataclass(frozen=True)
 class Train(FrozenSection):
     """``[train]``: the training batch."""
 
-    size: int = 16
-    seed: int = 0
+    size: int = key(16, "int", "", "training scenarios", lo=1)
+    seed: int = key(0, "seed", "", "seed of the training scenarios")
 
 
 @dataclasses.dataclass(frozen=True)
 class Heldout(FrozenSection):
     """``[heldout]``: the held-out batch (hard-clipped plant unless ``smooth``)."""
 
-    size: int = 64
-    seed: int = 1001
-    smooth: bool = False
+    size: int = key(64, "int", "", "held-out scenarios (reported before and after)", lo=1)
+    seed: int = key(1001, "seed", "", "seed of the held-out scenarios (must differ from train's)")
+    smooth: bool = key(
+        False, "bool", "", "smooth saturation on the held-out batch (default: hard clip)"
+    )
 
 
 @dataclasses.dataclass(frozen=True)
 class Optimizer(FrozenSection):
     """``[optimizer]`` (:func:`tuning.optim.tuner_options`)."""
 
-    name: str = "lbfgs"
-    steps: int = 40
-    learning_rate: float = 0.05
-    memory_size: int = 10
-    max_linesearch_steps: int = 15
-    grad_mode: str = "reverse"
-    max_bad_steps: int = 5
-    grad_tol: float = 1e-8
+    name: str = key(
+        "lbfgs", "str", "", "lbfgs (zoom line search) or adam", choices=("lbfgs", "adam")
+    )
+    steps: int = key(40, "int", "", "optimiser iterations", lo=1)
+    learning_rate: float = key(0.05, "float", "", "Adam's step size", **_POS)
+    memory_size: int = key(10, "int", "", "L-BFGS history length", lo=1)
+    max_linesearch_steps: int = key(15, "int", "", "L-BFGS line-search evaluations per step", lo=1)
+    grad_mode: str = key(
+        "reverse",
+        "str",
+        "",
+        "reverse mode, or forward (jax.jacfwd) for few gains",
+        choices=("reverse", "forward"),
+    )
+    max_bad_steps: int = key(5, "int", "", "non-finite steps tolerated before aborting", lo=1)
+    grad_tol: float = key(
+        1e-8, "float", "", "stop when the gradient norm falls below this", **_NONNEG
+    )
 
 
 @dataclasses.dataclass(frozen=True)
 class Report(FrozenSection):
     """``[report]``."""
 
-    plot_scenarios: int = 4
-
-
-@dataclasses.dataclass(frozen=True)
-class ForceRanges(FrozenSection):
-    """``[disturbance]``: one ``(lo, hi)`` range per generalised force component."""
-
-    force: tuple[tuple[float, float], ...] = ()
-
-
-@dataclasses.dataclass(frozen=True)
-class PlantError(FrozenSection):
-    """``[model_error]``: plant parameters scaled by ``1 + relative U(-1, 1)``."""
-
-    relative: float = 0.0
-    fields: tuple[str, ...] = ()
+    plot_scenarios: int = key(
+        4, "int", "", "held-out scenarios drawn in the before/after figures", lo=0
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,6 +171,11 @@ class TuneSimulation(FrozenSection):
     """What ``[simulation]`` adds to ``[problem]``: the desired-speed range [m/s]."""
 
     u_d: tuple[float, float] | None = None
+
+
+#: the older names of the shared sections' classes (one declaration: vcjax.config.schema)
+ForceRanges = Disturbance
+PlantError = ModelError
 
 
 #: the sections of :class:`TuneConfig` read from a table of their own name (and their keys)
@@ -167,8 +211,8 @@ class TuneConfig(FrozenSection):
     heldout: Heldout = Heldout()
     optimizer: Optimizer = Optimizer()
     report: Report = Report()
-    disturbance: ForceRanges = ForceRanges()
-    model_error: PlantError = PlantError()
+    disturbance: Disturbance = Disturbance()
+    model_error: ModelError = ModelError()
     simulation: TuneSimulation = TuneSimulation()
     current: tuple[tuple[str, Any], ...] = ()
     waves: tuple[tuple[str, Any], ...] | None = None
@@ -209,51 +253,11 @@ _PLAIN = ("current", "waves", "initial", "scenario")
 DEFAULTS: dict[str, dict[str, Any]] = {name: cls().to_dict() for name, cls in _SECTIONS.items()}
 
 
-#: (section, key) -> (unit, description) of the tune-only keys (the shared sections are
-#: described in :mod:`vcjax.config.schema`); the configuration reference is generated from it
+#: (section, key) -> (unit, description) of the tune-only keys, read from the sections'
+#: declarations (the shared sections are described in :mod:`vcjax.config.schema`); the
+#: configuration reference is generated from it
 KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
-    ("problem", "variant"): ("", "the controller (older spelling of [scenario] controller)"),
-    ("problem", "tune"): ("", "gain groups to tune ([] = all of the controller's)"),
-    ("problem", "initial_gains"): ("file", 'gains JSON to start from ("" = the defaults)'),
-    ("problem", "horizon"): ("s", "simulated time (older spelling of [simulation] horizon)"),
-    ("problem", "dt"): ("s", "integration step (older spelling of [simulation] dt)"),
-    ("problem", "integrator"): ("", "older spelling of [simulation] integrator"),
-    ("problem", "timing"): ("", "older spelling of [simulation] timing"),
-    ("problem", "smooth"): ("", "older spelling of [simulation] smooth"),
-    ("problem", "checkpoint"): ("", "jax.checkpoint segments of the rollout under reverse mode"),
-    ("problem", "checkpoint_every"): ("", "steps per checkpointed segment"),
-    ("problem", "edd"): ("", "VCM e_ddot mode: paper or implied"),
-    ("problem", "risk"): ("", "mean loss over the batch, or cvar (the worst alpha fraction)"),
-    ("problem", "alpha"): ("", "CVaR level: fraction of worst scenarios"),
-    ("problem", "log_box"): ("", "gains kept within e^log_box of the initial ones (penalty)"),
-    ("problem", "box_weight"): ("", "weight of that penalty"),
-    ("weights", "eps"): ("1/m^2", "weight of the path errors s^2 + e^2"),
-    ("weights", "u_tilde"): ("s^2/m^2", "weight of the speed error"),
-    ("weights", "psi_tilde"): ("1/rad^2", "weight of the heading (attitude) error"),
-    ("weights", "sat_excess"): ("", "weight of the squared command excess over the limits"),
-    ("weights", "sat_time"): ("", "weight of the (smooth) time over the limits"),
-    ("weights", "effort"): ("", "weight of the squared commands over their limits"),
-    ("weights", "unhealthy"): ("", "penalty of a run that diverged"),
-    ("weights", "sat_width"): ("", "width of the smooth step counting time over the limits"),
-    ("weights", "depth"): ("1/m^2", "weight of the depth error (3-D loops; e.g. in waves)"),
-    ("scenarios", "current_max"): ("m/s", "current speed ~ U(0, current_max), any direction"),
-    ("scenarios", "position_offset"): ("m", "initial x, y offsets ~ U(-o, o)"),
-    ("scenarios", "heading_offset_deg"): ("deg", "initial heading offset ~ U(-o, o)"),
-    ("train", "size"): ("", "training scenarios"),
-    ("train", "seed"): ("", "seed of the training scenarios"),
-    ("heldout", "size"): ("", "held-out scenarios (reported before and after)"),
-    ("heldout", "seed"): ("", "seed of the held-out scenarios (must differ from train's)"),
-    ("heldout", "smooth"): ("", "smooth saturation on the held-out batch (default: hard clip)"),
-    ("optimizer", "name"): ("", "lbfgs (zoom line search) or adam"),
-    ("optimizer", "steps"): ("", "optimiser iterations"),
-    ("optimizer", "learning_rate"): ("", "Adam's step size"),
-    ("optimizer", "memory_size"): ("", "L-BFGS history length"),
-    ("optimizer", "max_linesearch_steps"): ("", "L-BFGS line-search evaluations per step"),
-    ("optimizer", "grad_mode"): ("", "reverse mode, or forward (jax.jacfwd) for few gains"),
-    ("optimizer", "max_bad_steps"): ("", "non-finite steps tolerated before aborting"),
-    ("optimizer", "grad_tol"): ("", "stop when the gradient norm falls below this"),
-    ("report", "plot_scenarios"): ("", "held-out scenarios drawn in the before/after figures"),
-    ("disturbance", "force"): ("N, N m", "one range per generalised force component"),
-    ("model_error", "relative"): ("", "plant parameters scaled by 1 + relative U(-1, 1)"),
-    ("model_error", "fields"): ("", "the parameters perturbed ([] = the vehicle's default set)"),
+    (name, f.name): (f.metadata["unit"], f.metadata["doc"])
+    for name, cls in _SECTIONS.items()
+    for f in dataclasses.fields(cls)
 }

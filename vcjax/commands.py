@@ -372,17 +372,15 @@ def _interrupted(command: str, what: str) -> int:
 
 
 def _size_check(args, command: str, spec=None, cfg=None) -> None:
-    """Refuse (ValueError, exit 2) work that cannot fit or seeds the PRNG cannot take
-    (:mod:`vcjax.runtime.sizing`), before anything is compiled."""
+    """Refuse (ValueError, exit 2) work that cannot fit (:mod:`vcjax.runtime.sizing`), before
+    anything is compiled. Seeds were checked by the config parser against the sampler's range
+    (:data:`vcjax.config.SEED_MAX`, the same in both precisions)."""
     from vcjax.runtime import sizing
 
     sizing.check_limits_options(args.max_steps, args.max_memory_gb)
     if spec is not None:
-        sizing.check_seed(f"{args.config}: [sweep] seed", spec.seed, args.x64)
         est = sizing.sweep_estimate(spec)
     else:
-        for sec in ("train", "heldout"):
-            sizing.check_seed(f"{args.config}: {sec}.seed", cfg[sec]["seed"], args.x64)
         est = sizing.tune_estimate(cfg)
     sizing.check_estimate(est, f"{args.config}", args.max_steps, args.max_memory_gb)
 

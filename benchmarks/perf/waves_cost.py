@@ -71,9 +71,7 @@ def _sweep_rows(args, batch: int, steps: int, repeats: int) -> list[dict]:
     sc = dataclasses.replace(base.scenario, wave_components=args.components)
     specs = {
         "sweep_waves": dataclasses.replace(base, scenario=sc),
-        "sweep_calm_water": dataclasses.replace(
-            base, scenario=dataclasses.replace(sc, wave_spectrum=None)
-        ),
+        "sweep_calm_water": dataclasses.replace(base, scenario=sc.without_waves()),
     }
     rows, total = [], dict.fromkeys(specs, 0.0)
     for variant in spec.variants:

@@ -1,12 +1,23 @@
 """One configuration system for ``vcjax sweep``, ``vcjax tune`` and ``vcjax fit``.
 
 * :mod:`vcjax.config.values` -- :class:`ConfigError` (the one error class of every command; its
-  message names the file, the section and the key), :func:`read_toml` and one checker per value.
+  message names the file, the section and the key: ``[section] key: message``, the closest valid
+  key suggested for a typo), :class:`ConfigNote` (one-line notes: older spellings, changed
+  meanings), :func:`read_toml` and one checker per value; :data:`SEED_MAX` is the one seed bound
+  (the sampler's ``uint32`` key: ``0 .. 2**32 - 1``), checked by :func:`as_seed` in the parsers
+  and in the sampler.
 * :mod:`vcjax.config.schema` -- the shared sections as typed, frozen objects, each key with its
   type, default, unit, description and older spellings: ``[simulation]`` (horizon, dt,
   integrator, timing, u_d, smooth), ``[current]``, ``[waves]``, ``[initial]``,
   ``[model_error]``, ``[sensor_noise]``, ``[disturbance]``; :data:`DEFAULT_SCENARIO` is the
   scenario of a config without ``[scenario]`` (Simulation 1).
+  Every section of every command (sweep, tune, fit) is declared with :func:`~vcjax.config.
+  schema.key` (type, default, unit, doc, bounds, choices) and parsed by :func:`parse_section`,
+  the one validator; keys that do not apply to the others' values are refused there
+  (``CROSS_CHECKS``). :func:`register_section` adds a section (an environment component's):
+  sweep and tune configs then accept and check it.
+* :mod:`vcjax.config.aliases` -- :data:`~vcjax.config.aliases.ALIASES`, the older spellings in
+  one table (read from the declarations), each used one giving a note naming the new spelling.
 * :mod:`vcjax.config.reference` -- :func:`schema` returns every section for a reference table,
   :func:`reference_markdown` renders the tables.
 * :mod:`vcjax.config.scenario` -- ``[scenario]`` (:class:`ScenarioChoice`: vehicle,
@@ -37,23 +48,34 @@ from vcjax.config.schema import (
     Simulation,
     Waves,
     parse_section,
+    register_section,
 )
 from vcjax.config.values import (
+    SEED_MAX,
     ConfigError,
+    ConfigNote,
     as_bool,
     as_choice,
     as_int,
     as_number,
     as_range,
+    as_seed,
     as_str,
     as_str_list,
     check_schema,
+    closest,
+    note,
     read_toml,
     resolve_file,
 )
 
 __all__ = [
     "ConfigError",
+    "ConfigNote",
+    "note",
+    "SEED_MAX",
+    "as_seed",
+    "closest",
     "read_toml",
     "check_schema",
     "as_range",
@@ -74,6 +96,7 @@ __all__ = [
     "SensorNoise",
     "Disturbance",
     "parse_section",
+    "register_section",
     "schema",
     "reference_markdown",
 ]

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+from vcjax.config.frozen import FrozenSection
 from vcjax.config.values import (
     ConfigError,
     as_bool,
@@ -25,12 +26,16 @@ from vcjax.config.values import (
     as_int,
     as_number,
     as_range,
+    as_seed,
     as_str,
     as_str_list,
+    closest,
 )
 
 __all__ = [
     "DEFAULT_SCENARIO",
+    "REGISTERED",
+    "register_section",
     "Simulation",
     "Current",
     "Waves",
@@ -101,8 +106,10 @@ class Current:
     water flows towards, clockwise from north).
 
     ``model = "gauss_markov"`` lets the speed wander around the sampled one (``sigma``, ``tau``,
-    clipped to ``[0, max_speed]``). In tune configs ``[scenarios] current_max = m`` is the older
-    spelling of ``speed = [0, m]``, ``direction_deg = [0, 360]``.
+    clipped to ``[0, max_speed]``); these three keys are refused with the constant model (they
+    would be ignored). In tune configs ``[scenarios] current_max = m`` is the older spelling of
+    ``speed = [0, m]``, ``direction_deg = [0, 360]`` (the tune's current without ``speed`` and
+    ``direction_deg``); giving either key uses ``[current]``, the other key at its default.
     """
 
     model: str = key("constant", "str", "", "current model", choices=("constant", "gauss_markov"))
@@ -141,13 +148,17 @@ class Initial:
 
 
 @dataclasses.dataclass(frozen=True)
-class ModelError:
+class ModelError(FrozenSection):
     """``[model_error]``: plant-only multiplicative parameter errors, each field scaled by
     ``1 + relative * U(-1, 1)`` (the controller keeps the nominal model)."""
 
     relative: float = key(0.0, "float", "", "relative error bound", lo=0.0, hi=1.0, hi_open=True)
     fields: tuple[str, ...] | None = key(
-        None, "str_list", "", "the vehicle's parameter names (default: its default set)"
+        None,
+        "str_list",
+        "",
+        "the vehicle's parameter names (default: its default set)",
+        unique=True,
     )
 
 
@@ -168,7 +179,7 @@ class SensorNoise:
 
 
 @dataclasses.dataclass(frozen=True)
-class Disturbance:
+class Disturbance(FrozenSection):
     """``[disturbance]``: a constant generalised force on the plant, one range per component
     (N, N m; empty: none)."""
 
@@ -202,7 +213,12 @@ class Waves:
     )
     gamma: float = key(3.3, "float", "", "JONSWAP peak enhancement (1: Pierson-Moskowitz)", lo=1.0)
     spreading: float = key(
-        0.0, "float", "", "s of the cos^2s directional spreading (0: long-crested)", lo=0.0
+        0.0,
+        "float",
+        "",
+        "s of the cos^2s directional spreading: 0 = long-crested (every component towards "
+        "direction_deg), else s >= 1 (1: cos^2, the widest; larger s: narrower)",
+        lo=0.0,
     )
     components: int = key(64, "int", "", "regular components of each sea", lo=1)
     origin_depth: tuple[float, float] = key(
@@ -241,13 +257,95 @@ def check_value(name: str, v, meta) -> Any:
         return as_choice(name, v, meta["choices"]) if meta.get("choices") else v
     if t == "range":
         return as_range(name, v, lo_min=meta.get("lo"), positive=meta.get("positive", False))
+    if t == "seed":
+        return as_seed(name, v)
     if t == "str_list":
-        return as_str_list(name, v)
+        v = as_str_list(name, v)
+        if meta.get("unique") and len(set(v)) != len(v):
+            raise ConfigError(f"{name}: duplicate names in {list(v)}")
+        return v
     if t == "range_list":
         if not isinstance(v, list | tuple):
             raise ConfigError(f"{name}: expected a list, got {v!r}")
         return tuple(as_range(name, r) for r in v)
     raise AssertionError(t)  # pragma: no cover
+
+
+#: the smallest positive ``[waves] spreading``: ``s -> 0+`` tends to a uniform spread over the
+#: whole +-90 deg half-plane (the widest), while ``s = 0`` is long-crested (one direction), so a
+#: tiny positive ``s`` would silently mean the opposite of what 0 means
+MIN_SPREADING = 1.0
+
+
+def _current_applies(cur: Current, table: dict, name) -> None:
+    """The Gauss-Markov keys are refused with a constant current (they would be ignored)."""
+    if cur.model == "constant":
+        for k in ("sigma", "tau", "max_speed"):
+            if k in table:
+                raise ConfigError(
+                    f"{name(k)}: applies to model = 'gauss_markov' only; with the constant "
+                    "current (model = 'constant', the default) it would be ignored"
+                )
+
+
+def _waves_apply(wav: Waves, table: dict, name) -> None:
+    """``gamma`` is JONSWAP's; a positive ``spreading`` is at least :data:`MIN_SPREADING`."""
+    if wav.spectrum == "pm" and "gamma" in table:
+        raise ConfigError(
+            f"{name('gamma')}: the peak enhancement of the JONSWAP spectrum; spectrum = 'pm' "
+            "(Pierson-Moskowitz) has none and would ignore it"
+        )
+    if 0.0 < wav.spreading < MIN_SPREADING:
+        raise ConfigError(
+            f"{name('spreading')}: 0 is long-crested (one direction) and s >= {MIN_SPREADING:g} "
+            f"spreads as cos^2s (1 the widest); got {wav.spreading:g}, which would spread the "
+            "components over the whole +-90 deg half-plane"
+        )
+
+
+def _model_error_applies(err: ModelError, table: dict, name) -> None:
+    """An empty ``fields`` list is refused: it meant the default set in tune configs and no
+    field at all in sweep configs; omitting the key means the vehicle's default set in both."""
+    if err.fields == ():
+        raise ConfigError(
+            f"{name('fields')}: an empty list perturbs no parameter; omit the key for the "
+            "vehicle's default set (or set relative = 0 for no model error)"
+        )
+
+
+#: section class -> check of the keys that depend on each other (a key that does not apply
+#: to the values of the others is refused, never silently ignored)
+CROSS_CHECKS = {Current: _current_applies, Waves: _waves_apply, ModelError: _model_error_applies}
+
+
+#: the sections added by :func:`register_section` (e.g. an environment component's), beyond
+#: the built-in ones
+REGISTERED: dict[str, type] = {}
+
+
+def register_section(name: str, cls: type, check=None, replace: bool = False) -> type:
+    """Add a shared section ``[name]`` (e.g. an environment component's): ``cls`` is a frozen
+    dataclass whose fields are declared with :func:`key` (type, default, unit, doc, bounds);
+    ``check(obj, table, name_of)`` optionally refuses keys that do not apply to the others'
+    values (``name_of(key)`` gives ``"[name] key"``). From then on ``vcjax sweep`` and ``vcjax
+    tune`` configs accept the section, parse it with :func:`parse_section` (the one validator)
+    and the configuration reference lists it. A taken name is refused unless ``replace``.
+    Returns ``cls``."""
+    if not (isinstance(name, str) and name.isidentifier()):
+        raise ValueError(f"register_section: expected a section name, got {name!r}")
+    if not (dataclasses.is_dataclass(cls) and isinstance(cls, type)):
+        raise TypeError(f"register_section: {name}: expected a dataclass, got {cls!r}")
+    for f in dataclasses.fields(cls):
+        if "type" not in f.metadata:
+            raise TypeError(f"register_section: [{name}] {f.name}: declare it with key()")
+        if f.default is dataclasses.MISSING:
+            raise TypeError(f"register_section: [{name}] {f.name}: needs a default")
+    if name in SECTIONS and not replace:
+        raise ValueError(f"register_section: [{name}] is taken (replace=True to replace it)")
+    SECTIONS[name] = REGISTERED[name] = cls
+    if check is not None:
+        CROSS_CHECKS[cls] = check
+    return cls
 
 
 def parse_section(cls: type, table: dict | None, section: str, where: str = ""):
@@ -270,6 +368,12 @@ def parse_section(cls: type, table: dict | None, section: str, where: str = ""):
     kw = {}
     for k, v in table.items():
         if k not in fields:
-            raise ConfigError(f"{pre}unknown key [{section}] {k!r}; expected one of {list(fields)}")
+            raise ConfigError(
+                f"{pre}unknown key [{section}] {k!r}{closest(k, fields)}; "
+                f"expected one of {list(fields)}"
+            )
         kw[k] = check_value(f"{pre}[{section}] {k}", v, fields[k].metadata)
-    return cls(**kw)
+    obj = cls(**kw)
+    if cls in CROSS_CHECKS:
+        CROSS_CHECKS[cls](obj, table, lambda k: f"{pre}[{section}] {k}")
+    return obj

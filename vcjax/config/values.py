@@ -11,11 +11,14 @@ from __future__ import annotations
 
 import math
 import tomllib
+import warnings
 from pathlib import Path
 from typing import Any
 
 __all__ = [
     "ConfigError",
+    "ConfigNote",
+    "note",
     "read_toml",
     "check_schema",
     "as_range",
@@ -26,11 +29,44 @@ __all__ = [
     "as_str",
     "as_str_list",
     "resolve_file",
+    "SEED_MAX",
+    "as_seed",
+    "closest",
 ]
+
+#: the largest seed of a study: the scenario sampler (:func:`vcjax.sweep.sample_scenarios`)
+#: builds its JAX PRNG key from ``jnp.uint32(seed)``, in float64 and float32 mode alike, so
+#: every seed of a config or of the Python API lies in ``0 .. SEED_MAX`` (checked by
+#: :func:`as_seed`, here and in the sampler: one bound)
+SEED_MAX = 2**32 - 1
 
 
 class ConfigError(ValueError):
     """An invalid configuration (the message names the file, section and key)."""
+
+
+class ConfigNote(UserWarning):
+    """A one-line note about a valid config: an older spelling (naming the new one), or a
+    config whose meaning changed since such configs were written (:func:`note`)."""
+
+
+def note(message: str) -> None:
+    """Issue ``message`` as a :class:`ConfigNote` warning (shown once per message, on stderr
+    as one line ``vcjax: note: MESSAGE``)."""
+    warnings.warn(message, ConfigNote, stacklevel=3)
+
+
+_FORMAT = warnings.formatwarning
+
+
+def _format_note(message, category, filename, lineno, line=None):
+    """A :class:`ConfigNote` as one line (other warnings keep Python's format)."""
+    if isinstance(category, type) and issubclass(category, ConfigNote):
+        return f"vcjax: note: {message}\n"
+    return _FORMAT(message, category, filename, lineno, line)
+
+
+warnings.formatwarning = _format_note
 
 
 def read_toml(path) -> dict:
@@ -57,8 +93,9 @@ def check_schema(raw: dict, schema: dict[str, tuple[str, ...] | None], where: st
         raise ConfigError(f"{where}: expected a table of sections")
     for sec, body in raw.items():
         if sec not in schema:
+            top = [s for s in schema if "." not in s]
             raise ConfigError(
-                f"{where}: unknown section [{sec}]; expected {[s for s in schema if '.' not in s]}"
+                f"{where}: unknown section [{sec}]{closest(sec, top)}; expected {top}"
             )
         if not isinstance(body, dict):
             raise ConfigError(f"{where}: [{sec}] must be a table, got {body!r}")
@@ -67,7 +104,8 @@ def check_schema(raw: dict, schema: dict[str, tuple[str, ...] | None], where: st
         for key in body:
             if key not in schema[sec] and f"{sec}.{key}" not in schema:
                 raise ConfigError(
-                    f"{where}: unknown key [{sec}] {key!r}; expected one of {list(schema[sec])}"
+                    f"{where}: unknown key [{sec}] {key!r}{closest(key, schema[sec])}; "
+                    f"expected one of {list(schema[sec])}"
                 )
 
 
@@ -107,6 +145,28 @@ def as_int(name, v, lo) -> int:
     if v < lo:
         raise ConfigError(f"{name}: expected an integer >= {lo}, got {v}")
     return v
+
+
+def as_seed(name, v) -> int:
+    """An integer seed in ``0 .. SEED_MAX`` (what the sampler's ``jnp.uint32`` key takes)."""
+    if isinstance(v, bool) or not hasattr(v, "__index__"):
+        raise ConfigError(f"{name}: expected an integer seed, got {v!r}")
+    v = int(v.__index__())
+    if not 0 <= v <= SEED_MAX:
+        raise ConfigError(
+            f"{name}: {v} is outside the seed range 0 .. {SEED_MAX} (2**32 - 1: the scenario "
+            "sampler's PRNG key is a 32-bit unsigned integer)"
+        )
+    return v
+
+
+def closest(key: str, valid) -> str:
+    """`` (did you mean 'x'?)`` for the valid key closest to a mistyped ``key`` (difflib), or
+    ``""``."""
+    import difflib
+
+    near = difflib.get_close_matches(str(key), [str(v) for v in valid], n=1, cutoff=0.6)
+    return f" (did you mean {near[0]!r}?)" if near else ""
 
 
 def as_choice(name, v, choices) -> str:

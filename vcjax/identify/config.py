@@ -28,17 +28,9 @@ import dataclasses
 import math
 from pathlib import Path
 
-from vcjax.config import (
-    ConfigError,
-    as_bool,
-    as_int,
-    as_number,
-    as_str,
-    as_str_list,
-    check_schema,
-    read_toml,
-)
+from vcjax.config import ConfigError, check_schema, parse_section, read_toml
 from vcjax.config.frozen import FrozenSection
+from vcjax.config.schema import key
 from vcjax.identify.data import load_log
 from vcjax.identify.fit import FitResult, fit_logs
 from vcjax.identify.models import get_fit_model, scalar_fields
@@ -54,51 +46,50 @@ __all__ = [
     "FIT_SCHEMA",
 ]
 
-#: section -> key -> default (``...`` = required)
-FIT_SCHEMA: dict[str, dict[str, object]] = {
-    "data": {"files": ...},
-    "model": {
-        "vehicle": ...,
-        "step": "rk4",
-        "current_speed": 0.0,
-        "current_direction_deg": 0.0,
-    },
-    "fit": {
-        "params": ...,
-        "fit_current": False,
-        "initial_scale": 1.0,
-        "segment_steps": 50,
-        "max_iters": 50,
-    },
-}
-
 
 @dataclasses.dataclass(frozen=True)
 class FitData(FrozenSection):
     """``[data]``: the logs, relative to the config file's folder."""
 
-    files: tuple[str, ...] = ()
+    files: tuple[str, ...] = key(
+        (), "str_list", "file", "the logs (.csv or .npz), relative to the config", required=True
+    )
 
 
 @dataclasses.dataclass(frozen=True)
 class FitModel(FrozenSection):
     """``[model]``: the vehicle, its step, and the known (or first-guess) current."""
 
-    vehicle: str = ""
-    step: str = "rk4"
-    current_speed: float = 0.0
-    current_direction_deg: float = 0.0
+    vehicle: str = key("", "str", "", "remus100 or infante", required=True)
+    step: str = key("rk4", "str", "", "pvs (REMUS 100 only) or euler, heun, rk4")
+    current_speed: float = key(
+        0.0, "float", "m/s", "known current (initial guess with fit_current)", lo=0.0
+    )
+    current_direction_deg: float = key(
+        0.0, "float", "deg", "direction the water flows towards (from north towards east)"
+    )
 
 
 @dataclasses.dataclass(frozen=True)
 class FitOptions(FrozenSection):
     """``[fit]``: what is estimated and how."""
 
-    params: tuple[str, ...] = ()
-    fit_current: bool = False
-    initial_scale: float = 1.0
-    segment_steps: int = 50
-    max_iters: int = 50
+    params: tuple[str, ...] = key(
+        (), "str_list", "", "scalar parameters to estimate", required=True, unique=True
+    )
+    fit_current: bool = key(False, "bool", "", "also estimate the current's speed and direction")
+    initial_scale: float = key(1.0, "float", "", "start from nominal * scale", lo=0.0, lo_open=True)
+    segment_steps: int = key(50, "int", "", "steps per multiple-shooting segment", lo=2)
+    max_iters: int = key(50, "int", "", "Levenberg-Marquardt iterations", lo=1)
+
+
+_SECTION_TYPES = {"data": FitData, "model": FitModel, "fit": FitOptions}
+
+#: section -> key -> default (``...`` = required), read from the declarations above
+FIT_SCHEMA: dict[str, dict[str, object]] = {
+    sec: {f.name: ... if f.metadata.get("required") else f.default for f in dataclasses.fields(c)}
+    for sec, c in _SECTION_TYPES.items()
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,11 +104,10 @@ class FitConfig(FrozenSection):
     path: Path = dataclasses.field(default=Path("config.toml"), metadata={"record": False})
 
 
-_SECTION_TYPES = {"data": FitData, "model": FitModel, "fit": FitOptions}
-
-
 def load_fit_config(path) -> FitConfig:
-    """Parse and check a ``vcjax fit`` config (nothing is loaded or compiled).
+    """Parse and check a ``vcjax fit`` config (nothing is loaded or compiled): the sections
+    declared above through the one validator (:func:`vcjax.config.parse_section`), then the
+    names against the vehicle.
 
     Raises:
         vcjax.config.ConfigError (a ``ValueError``): ``"CONFIG: [section] key: ..."`` for the
@@ -126,63 +116,47 @@ def load_fit_config(path) -> FitConfig:
     path = Path(path)
     raw = read_toml(path)
     check_schema(raw, {sec: tuple(keys) for sec, keys in FIT_SCHEMA.items()}, str(path))
-    cfg: dict[str, dict] = {}
     for section, keys in FIT_SCHEMA.items():
-        given = raw.get(section, {})
-        cfg[section] = {}
-        for key, default in keys.items():
-            if key not in given and default is ...:
-                raise ConfigError(f"{path}: [{section}] {key}: required key is missing")
-            cfg[section][key] = given.get(key, default)
-    _check_values(path, cfg)
-    sections = {sec: _SECTION_TYPES[sec](**vals) for sec, vals in cfg.items()}
-    return FitConfig(**sections, path=path)
+        for k, default in keys.items():
+            if default is ... and k not in raw.get(section, {}):
+                raise ConfigError(f"{path}: [{section}] {k}: required key is missing")
+    sections = {
+        sec: parse_section(cls, raw.get(sec), sec, str(path)) for sec, cls in _SECTION_TYPES.items()
+    }
+    cfg = FitConfig(**sections, path=path)
+    _check_names(path, cfg)
+    return cfg
 
 
-def _check_values(path: Path, cfg: dict) -> None:
-    """Types and ranges, then the names against the vehicle (``ConfigError`` naming the key)."""
-    d, m, f = cfg["data"], cfg["model"], cfg["fit"]
+def _check_names(path: Path, cfg: FitConfig) -> None:
+    """The names against the vehicle, and the keys that depend on each other
+    (``ConfigError`` naming the key)."""
+    d, m, f = cfg.data, cfg.model, cfg.fit
     w = lambda sec, key: f"{path}: [{sec}] {key}"
-    d["files"] = list(as_str_list(w("data", "files"), d["files"]))
-    if not d["files"] or not all(d["files"]):
+    if not d.files or not all(d.files):
         raise ConfigError(f"{w('data', 'files')}: expected a non-empty list of file names")
-    m["vehicle"] = as_str(w("model", "vehicle"), m["vehicle"])
     try:
-        model = get_fit_model(m["vehicle"])
+        model = get_fit_model(m.vehicle)
     except ValueError as err:
         raise ConfigError(f"{path}: [model] {err}") from None
-    m["step"] = as_str(w("model", "step"), m["step"])
-    if m["step"] not in model.steps:
+    if m.step not in model.steps:
         raise ConfigError(
-            f"{w('model', 'step')}: {m['step']!r} is not available for {m['vehicle']!r}; "
+            f"{w('model', 'step')}: {m.step!r} is not available for {m.vehicle!r}; "
             f"choose one of {list(model.steps)}"
         )
-    m["current_speed"] = as_number(w("model", "current_speed"), m["current_speed"], lo=0.0)
-    m["current_direction_deg"] = as_number(
-        w("model", "current_direction_deg"), m["current_direction_deg"]
-    )
-    f["fit_current"] = as_bool(w("fit", "fit_current"), f["fit_current"])
-    if f["fit_current"] and not m["current_speed"] > 0:
+    if f.fit_current and not m.current_speed > 0:
         raise ConfigError(
             f"{w('model', 'current_speed')}: fit_current = true needs a positive initial guess"
         )
-    f["params"] = list(as_str_list(w("fit", "params"), f["params"]))
-    if not f["params"] and not f["fit_current"]:
+    if not f.params and not f.fit_current:
         raise ConfigError(f"{w('fit', 'params')}: nothing to fit")
     scalars = scalar_fields(model.nominal(None))
-    for p in f["params"]:
+    for p in f.params:
         if p not in scalars:
             raise ConfigError(
-                f"{w('fit', 'params')}: {p!r} is not a scalar parameter of {m['vehicle']!r} "
+                f"{w('fit', 'params')}: {p!r} is not a scalar parameter of {m.vehicle!r} "
                 f"(choose from {', '.join(scalars)})"
             )
-    if len(set(f["params"])) != len(f["params"]):
-        raise ConfigError(f"{w('fit', 'params')}: names must be unique, got {f['params']}")
-    f["initial_scale"] = as_number(
-        w("fit", "initial_scale"), f["initial_scale"], lo=0.0, lo_open=True
-    )
-    f["segment_steps"] = as_int(w("fit", "segment_steps"), f["segment_steps"], lo=2)
-    f["max_iters"] = as_int(w("fit", "max_iters"), f["max_iters"], lo=1)
 
 
 def run_fit_config(

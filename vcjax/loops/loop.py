@@ -224,11 +224,25 @@ class Loop:
         raise NotImplementedError(f"{type(self).__name__}: no waves ({self.refusal('waves')})")
 
     def gains_to_json(self, gains) -> dict:
-        return gains_to_json(gains)
+        """The gains-JSON object, with the ``"vehicle"`` and ``"controller"`` they are for."""
+        return {"vehicle": self.vehicle, "controller": self.controller, **gains_to_json(gains)}
 
     def gains_from_json(self, d: dict, base=None):
         """Gains from a JSON object (entries missing keep ``base``, default the defaults): the
-        one reader (:func:`~vcjax.loops.params.gains_from_json`) with the law's checks."""
+        one reader (:func:`~vcjax.loops.params.gains_from_json`) with the law's checks.
+
+        A file that records its ``"vehicle"`` (what :meth:`gains_to_json` writes) is refused
+        for another vehicle, and one whose ``"controller"`` is not a controller of this vehicle
+        too (``ValueError`` naming both); a vehicle's controllers share its gains (a sweep runs
+        one gains file with every variant). Older files without these keys still load."""
+        if isinstance(d, dict) and ("vehicle" in d or "controller" in d):
+            d = dict(d)
+            vehicle, ctrl = d.pop("vehicle", self.vehicle), d.pop("controller", None)
+            if vehicle != self.vehicle or (ctrl is not None and ctrl not in self.controllers):
+                raise ValueError(
+                    f"gains file: these are gains of vehicle {vehicle!r} (controller {ctrl!r}), "
+                    f"not of {self.vehicle!r} (controllers {list(self.controllers)})"
+                )
         if self.law is not None:
             return self.law.gains_from_json(self, d, base)
         return gains_from_json(d, self.default_gains() if base is None else base)

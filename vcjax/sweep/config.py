@@ -24,11 +24,14 @@ from vcjax.config import (
     as_bool,
     as_str_list,
     check_schema,
+    note,
     parse_section,
     read_toml,
     resolve_file,
 )
+from vcjax.config.aliases import note_old_spellings
 from vcjax.config.scenario import parse_scenario
+from vcjax.config.schema import REGISTERED
 from vcjax.sweep.results import load_results, merge_results, save_results, summarize
 from vcjax.sweep.run import run_sweep
 from vcjax.sweep.spec import ScenarioSpec, SweepSpec
@@ -146,12 +149,44 @@ def environment_sections(raw: dict, schema, where: str) -> tuple[dict, tuple]:
     return {k: v for k, v in raw.items() if k not in known}, tuple(env)
 
 
+#: the note of a sweep of an engine loop (vcjax.loops.EngineLoop: the puck, the point mass, a
+#: loop of your own) without [current]: such configs were written when the engine felt no
+#: current and ran in still water; the engine now feels the default current
+ENGINE_CURRENT_NOTE = (
+    "{where}: [current] speed not given: the {vehicle} scenarios run in the default current, "
+    "0.5 m/s towards 90 deg (Simulation 1's); engine loops feel it since the engine took the "
+    "current (before, such a config ran in still water): write [current] speed = 0 for still "
+    "water"
+)
+
+
+def _check_spellings(raw: dict, choice, spec_kw: dict) -> None:
+    """Old and new spellings of one setting given together must agree (refused naming both);
+    ``spec_kw["edd"]`` becomes what runs: ``[scenario] edd`` when given (``run.json`` and
+    ``summary.json`` record the mode the loop used)."""
+    ctrl = choice.controller
+    if ctrl is not None and "variants" in spec_kw and tuple(spec_kw["variants"]) != (ctrl,):
+        raise ConfigError(
+            f"[sweep] variants: {list(spec_kw['variants'])} contradicts [scenario] controller "
+            f"{ctrl!r} (its newer spelling); give one of them"
+        )
+    given = dict(choice.options)
+    if "edd" in given:
+        if "edd" in spec_kw and spec_kw["edd"] != given["edd"]:
+            raise ConfigError(
+                f"[simulation] edd: {spec_kw['edd']!r} contradicts [scenario] edd "
+                f"{given['edd']!r} (its newer spelling); give one of them"
+            )
+        spec_kw["edd"] = given["edd"]
+
+
 def load_config(config_path) -> tuple[SweepSpec, dict]:
     """Read and validate a sweep TOML file (schema: :mod:`vcjax.sweep`).
 
     Returns:
         ``(spec, extras)``: the :class:`~vcjax.sweep.spec.SweepSpec` and ``extras = {"gains":
-        path or None, "figures": bool}``.
+        path or None, "figures": bool, "sections": {name: section}}`` (``sections``: the
+        sections added by :func:`vcjax.config.register_section`, parsed).
 
     Raises:
         ConfigError: naming the file, section and key (unknown section or key, wrong type,
@@ -163,7 +198,9 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
     where = str(config_path)
     choice = parse_scenario(raw.get("scenario"), where, config_path)  # may register components
     raw, env = environment_sections(raw, SCHEMA, where)
-    check_schema(raw, SCHEMA, where)
+    registered = {n: tuple(f.name for f in dataclasses.fields(c)) for n, c in REGISTERED.items()}
+    check_schema(raw, {**SCHEMA, **registered}, where)
+    own = {n: parse_section(c, raw.get(n), n, where) for n, c in REGISTERED.items()}
     cls = loops.loop_class(choice.vehicle)
     for sec, valid in (("initial", tuple(cls.initial_keys)), ("sensor_noise", cls.noise_channels)):
         for key in raw.get(sec, {}):
@@ -188,6 +225,7 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
                 if field == "variants":
                     v = as_str_list(f"[{sec}] {key}", v)
                 spec_kw[field] = v
+        _check_spellings(raw, choice, spec_kw)
         if "variants" not in spec_kw:
             spec_kw["variants"] = (choice.controller,) if choice.controller else SweepSpec.variants
             if not choice.controller and choice.vehicle != "infante":
@@ -200,8 +238,10 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
         sc_kw["noise"] = sections["sensor_noise"].values
         if "force" in raw.get("disturbance", {}):
             sc_kw["disturbance"] = sections["disturbance"].force
-        if not cls.can_feel("current") and "current" not in raw:
+        if not cls.can_feel("current") and "speed" not in raw.get("current", {}):
             sc_kw["current_speed"] = (0.0, 0.0)  # the default current is Simulation 1's
+        elif issubclass(cls, loops.EngineLoop) and "speed" not in raw.get("current", {}):
+            note(ENGINE_CURRENT_NOTE.format(where=where, vehicle=choice.vehicle))
         if "waves" in raw:
             check_waves(raw["waves"])
             sc_kw["wave_spectrum"] = sections["waves"].spectrum
@@ -223,7 +263,8 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
     gains_path = None
     if gains is not None:
         gains_path = resolve_file(f"{where}: [simulation] gains", gains, config_path)
-    return spec, {"gains": gains_path, "figures": figures}
+    note_old_spellings(raw, where)  # once the config is known to be valid
+    return spec, {"gains": gains_path, "figures": figures, "sections": own}
 
 
 def run_sweep_config(
@@ -307,7 +348,12 @@ def run_sweep_config(
 KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     ("sweep", "num_scenarios"): ("", "number of sampled scenarios (required; int >= 1)"),
     ("sweep", "seed"): ("", "seed of the scenario draws (scenario i uses fold_in(seed, i))"),
-    ("sweep", "variants"): ("", "the controllers to compare (default: the vehicle's)"),
+    ("sweep", "variants"): (
+        "",
+        "the controllers to compare (default: [scenario] controller if given, else the "
+        "vehicle's controllers; INFANTE-class: the paper's vcm, vcm_integral, ilos, los_pid, "
+        "vcm_ilos); must agree with [scenario] controller when both are given",
+    ),
     ("sweep", "chunk_size"): ("", "scenarios per compiled batch (rounded to the device count)"),
     ("simulation", "edd"): ("", "VCM e_ddot mode: paper or implied"),
     ("simulation", "gains"): ("file", "the vehicle's gains JSON (what vcjax tune writes)"),

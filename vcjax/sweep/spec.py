@@ -19,8 +19,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops
-from vcjax.config import ConfigError, as_choice, as_int, as_number, as_range
+from vcjax.config import ConfigError, as_choice, as_int, as_number, as_range, as_seed
 from vcjax.config.scenario import ScenarioChoice
+from vcjax.config.schema import MIN_SPREADING
 from vcjax.environment import freeze, waves
 from vcjax.environment.current import current_ned
 
@@ -128,6 +129,44 @@ class ScenarioSpec:
         as_number("wave_gamma", self.wave_gamma, lo=1.0)
         as_number("wave_spreading", self.wave_spreading, lo=0.0)
         s(self, "wave_components", as_int("wave_components", self.wave_components, 1))
+        self._check_applies()
+
+    def _check_applies(self) -> None:
+        """A field that does not apply to the others' values is refused, never ignored: sea
+        fields without ``wave_spectrum`` (the scenarios would be calm), ``wave_gamma`` with the
+        Pierson-Moskowitz spectrum, a ``wave_spreading`` in ``(0, 1)`` (``vcjax.config.schema.
+        MIN_SPREADING``), Gauss-Markov fields with a constant current."""
+        default = ScenarioSpec.__dataclass_fields__
+        changed = [
+            f for f in default if getattr(self, f) != default[f].default and f != "wave_spectrum"
+        ]
+        if not self.waves:
+            sea = [f for f in changed if f.startswith("wave_")]
+            if sea:
+                raise ConfigError(
+                    f"{sea[0]}: a sea needs wave_spectrum ('jonswap' or 'pm'); without it the "
+                    "scenarios are calm"
+                )
+        elif self.wave_spectrum == "pm" and "wave_gamma" in changed:
+            raise ConfigError("wave_gamma: JONSWAP's peak enhancement; wave_spectrum 'pm' has none")
+        if 0.0 < self.wave_spreading < MIN_SPREADING:
+            raise ConfigError(
+                f"wave_spreading: 0 is long-crested and s >= {MIN_SPREADING:g} spreads as cos^2s "
+                f"(1 the widest), got {self.wave_spreading:g}"
+            )
+        if self.current_model == "constant":
+            gm = [f for f in ("current_sigma", "current_tau", "current_max_speed") if f in changed]
+            if gm:
+                raise ConfigError(
+                    f"{gm[0]}: applies to current_model 'gauss_markov' only (the current is "
+                    "constant)"
+                )
+
+    def without_waves(self) -> ScenarioSpec:
+        """The same distribution in calm water (every ``wave_*`` field at its default)."""
+        default = ScenarioSpec.__dataclass_fields__
+        calm = {f: default[f].default for f in default if f.startswith("wave_")}
+        return dataclasses.replace(self, **calm)
 
     @property
     def waves(self) -> bool:
@@ -228,7 +267,7 @@ class SweepSpec:
 
     def __post_init__(self):
         as_int("num_scenarios", self.num_scenarios, 1)
-        as_int("seed", self.seed, 0)
+        object.__setattr__(self, "seed", as_seed("seed", self.seed))
         as_int("chunk_size", self.chunk_size, 1)
         as_int("record_points", self.record_points, 0)
         variants = tuple(self.variants)
@@ -462,8 +501,9 @@ def sample_scenarios(
     (default: Simulation 1's INFANTE-class loop; any loop of the same vehicle gives the same
     draws).
 
-    Scenario ``i`` depends only on ``(spec, seed, i)``. ``dtype``: float dtype (default: JAX's
-    default float). Returns an :class:`MCScenario` with a leading batch axis B.
+    Scenario ``i`` depends only on ``(spec, seed, i)``; ``seed`` is an integer in
+    ``0 .. vcjax.config.SEED_MAX`` (``ConfigError`` otherwise). ``dtype``: float dtype
+    (default: JAX's default float). Returns an :class:`MCScenario` with a leading batch axis B.
     """
     if not isinstance(spec, ScenarioSpec):
         raise ConfigError(f"spec: expected ScenarioSpec, got {type(spec).__name__}")
@@ -473,7 +513,7 @@ def sample_scenarios(
     indices = jnp.asarray(indices, dtype=jnp.int32)
     arrays = _spec_arrays(spec, loop, dtype)
     nf = len(spec.fields_for(loop))
-    seed = jnp.asarray(seed, jnp.uint32)
+    seed = jnp.asarray(as_seed("seed", seed), jnp.uint32)  # the one seed bound (SEED_MAX)
     return _sample(loop, arrays, seed, indices, nf, _wave_static(spec))
 
 
