@@ -393,3 +393,23 @@ def test_the_tuners_value_and_grad_is_stored_and_reused(store):
     for res in runs:
         assert jnp.array_equal(res.theta, plain.theta)
         assert [h["loss"] for h in res.history] == [h["loss"] for h in plain.history]
+
+
+def test_an_edit_to_a_users_module_changes_the_program_key(tmp_path):
+    """A law, loop or component in a user's file (``[scenario] module``) is traced into the
+    program: an edit anywhere in that file must never reuse the program stored before it (a
+    stored sweep once kept running the old law after its file changed)."""
+    import jax.numpy as jnp
+
+    from vcjax.config.scenario import import_module_file
+    from vcjax.runtime import programs
+
+    f = tmp_path / "my_law.py"
+    f.write_text("GAIN = 1.0\n\ndef helper(x):\n    return GAIN * x\n")
+    import_module_file(f)
+    args = (jnp.zeros(3),)
+    before = programs.program_key("p", ("static",), args)
+    assert str(f.resolve()) in dict(programs.user_sources())
+    assert programs.program_key("p", ("static",), args) == before  # the same file: the same key
+    f.write_text("GAIN = 3.0\n\ndef helper(x):\n    return GAIN * x\n")  # a module-level edit
+    assert programs.program_key("p", ("static",), args) != before

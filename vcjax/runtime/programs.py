@@ -38,6 +38,8 @@ import functools
 import hashlib
 import importlib.util
 import os
+import sys
+import sysconfig
 import threading
 import time
 import types
@@ -129,7 +131,7 @@ def describe(x, _depth: int = 0):
     if isinstance(x, enum.Enum):
         return ("enum", _qualname(type(x)), x.name)
     if isinstance(x, type):
-        return ("type", _qualname(x))
+        return ("type", _qualname(x), _user_source(x.__module__))
     if isinstance(x, (np.ndarray, np.generic, jax.Array)):
         a = np.asarray(x)
         return ("array", str(a.dtype), a.shape, hashlib.sha256(a.tobytes()).hexdigest())
@@ -139,10 +141,16 @@ def describe(x, _depth: int = 0):
         return (
             "dataclass",
             _qualname(type(x)),
+            _user_source(type(x).__module__),
             tuple((f.name, describe(getattr(x, f.name), d)) for f in dataclasses.fields(x)),
         )
     if isinstance(x, tuple) and hasattr(x, "_fields"):  # NamedTuple
-        return ("namedtuple", _qualname(type(x)), tuple(describe(v, d) for v in x))
+        return (
+            "namedtuple",
+            _qualname(type(x)),
+            _user_source(type(x).__module__),
+            tuple(describe(v, d) for v in x),
+        )
     if isinstance(x, (tuple, list)):
         return (type(x).__name__, tuple(describe(v, d) for v in x))
     if isinstance(x, (frozenset, set)):
@@ -157,6 +165,7 @@ def describe(x, _depth: int = 0):
         return (
             "function",
             x.__module__,
+            _user_source(x.__module__),
             x.__qualname__,
             hashlib.sha256(code.co_code + repr(code.co_consts).encode()).hexdigest(),
             cells,
@@ -168,11 +177,30 @@ def describe(x, _depth: int = 0):
     r = repr(x)
     if " at 0x" in r or "object at" in r:
         raise Unstable(f"cannot describe {type(x).__qualname__}")
-    return ("repr", _qualname(type(x)), r)
+    return ("repr", _qualname(type(x)), _user_source(type(x).__module__), r)
 
 
 def _qualname(t: type) -> str:
     return f"{t.__module__}.{t.__qualname__}"
+
+
+def _user_source(module: str | None) -> str | None:
+    """SHA-256 of the source file of ``module`` when it is code of the user's (a law, a loop or
+    a component in a file a config imports: its methods and the module's helpers are traced
+    into the program, and only a hash of the whole file notices an edit anywhere in it); None
+    for vcjax and tuning (:func:`source_hash`) and for installed packages (their versions)."""
+    if not module or module.split(".")[0] in ("vcjax", "tuning", "builtins"):
+        return None
+    f = getattr(sys.modules.get(module), "__file__", None)
+    if not f:
+        return None
+    path = Path(f)
+    if any(part in ("site-packages", "dist-packages") for part in path.parts):
+        return None
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
 
 
 @functools.cache
@@ -185,6 +213,36 @@ def source_hash() -> str:
             h.update(str(path.relative_to(root)).encode())
             h.update(path.read_bytes())
     return h.hexdigest()
+
+
+def _installed_roots() -> tuple[Path, ...]:
+    paths = sysconfig.get_paths()
+    roots = {paths.get(k) for k in ("stdlib", "platstdlib", "purelib", "platlib")}
+    return tuple(Path(r).resolve() for r in roots if r)
+
+
+def user_sources() -> tuple:
+    """``(path, sha256)`` of every module loaded in this process from a file that is neither
+    vcjax's nor tuning's (:func:`source_hash`) nor part of Python or an installed package: the
+    laws, loops and components a config imports (``[scenario] module``), whose code is traced
+    into the programs. An edit anywhere in such a file changes the key."""
+    own = Path(__file__).resolve().parents[2]
+    skip = (*_installed_roots(), own / "vcjax", own / "tuning")
+    out = []
+    for mod in list(sys.modules.values()):
+        f = getattr(mod, "__file__", None)
+        if not f or not f.endswith(".py"):
+            continue
+        path = Path(f).resolve()
+        if any(part in ("site-packages", "dist-packages") for part in path.parts):
+            continue
+        if any(path.is_relative_to(root) for root in skip):
+            continue
+        try:
+            out.append((str(path), hashlib.sha256(path.read_bytes()).hexdigest()))
+        except OSError:
+            continue
+    return tuple(sorted(set(out)))
 
 
 _SKIP_CONFIG = ("cache", "log", "dump", "pprint", "traceback", "debug_info", "explain")
@@ -205,6 +263,7 @@ def environment() -> tuple:
     return (
         ("format", _FORMAT),
         ("vcjax", vcjax.__version__, source_hash()),
+        ("user_code", user_sources()),
         ("jax", jax.__version__, jaxlib.__version__),
         ("xla_flags", os.environ.get("XLA_FLAGS", "")),
         ("config", cfg),
