@@ -333,10 +333,15 @@ def test_every_example_config_is_in_a_folder_of_its_command():
 
 @pytest.fixture
 def own_registry(monkeypatch):
-    """Loops and laws a config's ``[scenario] module`` registers stay inside the test."""
+    """Loops, laws and disturbances a config's ``[scenario] module`` registers stay inside the
+    test; the example's own names are free, as in a reader's fresh session (a test file may
+    have registered a disturbance of its own under the same section)."""
     from vcjax.config import scenario
+    from vcjax.environment import component as env_registry
     from vcjax.loops import registry
 
+    env = {k: v for k, v in env_registry._REGISTRY.items() if k != "tidal"}
+    monkeypatch.setattr(env_registry, "_REGISTRY", env)
     monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))
     for cls in set(registry._REGISTRY.values()):
         monkeypatch.setattr(cls, "laws", cls.laws)

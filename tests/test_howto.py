@@ -76,3 +76,11 @@ def test_the_guide_shows_the_example_as_it_is():
     assert f"```py\n{law}\n```" in page
     toml = (ROOT / "examples/sweeps/own_law.toml").read_text().split("\n\n", 1)[1].rstrip()
     assert toml in page
+
+
+def test_the_disturbance_guide_shows_the_example_component_as_it_is():
+    import re
+
+    page = (ROOT / "docs/guides/disturbances.md").read_text()
+    shown = re.findall(r"^```python\n(.*?)^```", page, flags=re.S | re.M)[0]
+    assert shown.strip() in (ROOT / "examples/environment/tidal.py").read_text()
