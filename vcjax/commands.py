@@ -122,6 +122,10 @@ def _check_waves(args, where: str, dt: float) -> None:
             f"{where}: --waves: TP must be >= 40 dt = {40.0 * dt:g} s (the shortest component, "
             f"TP / 4, needs 10 steps), got {tp:g}"
         )
+    from vcjax import waves
+
+    for line in waves.envelope_warnings(hs, tp):  # beyond linear theory: said, not refused
+        print(f"vcjax: warning: {where}: --waves: {line}", file=sys.stderr)
 
 
 def simulate(args) -> int:
@@ -281,15 +285,23 @@ def _size_check(args, command: str, spec=None, cfg=None) -> None:
     (:mod:`vcjax.runtime.sizing`), before anything is compiled."""
     from vcjax.runtime import sizing
 
+    from vcjax import waves
+
     sizing.check_limits_options(args.max_steps, args.max_memory_gb)
+    notes = []  # the sea's validity (linear theory), printed with the size's warnings
     if spec is not None:
         sizing.check_seed(f"{args.config}: [sweep] seed", spec.seed, args.x64)
         est = sizing.sweep_estimate(spec)
+        sc = spec.scenario
+        if sc.waves:
+            notes = waves.envelope_warnings(sc.wave_hs, sc.wave_tp, sc.wave_origin_depth)
     else:
         for sec in ("train", "heldout"):
             sizing.check_seed(f"{args.config}: {sec}.seed", cfg[sec]["seed"], args.x64)
         est = sizing.tune_estimate(cfg)
-    sizing.check_estimate(est, f"{args.config}", args.max_steps, args.max_memory_gb)
+        if wav := cfg.get("waves"):
+            notes = waves.envelope_warnings(wav["hs"], wav["tp"], wav.get("origin_depth"))
+    sizing.check_estimate(est, f"{args.config}", args.max_steps, args.max_memory_gb, notes)
 
 
 def tune(args) -> int:

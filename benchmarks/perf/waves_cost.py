@@ -69,11 +69,12 @@ def _sweep_rows(args, batch: int, steps: int, repeats: int) -> list[dict]:
         spec, num_scenarios=batch, horizon=steps * dt, record_points=0, chunk_size=batch
     )
     sc = dataclasses.replace(base.scenario, wave_components=args.components)
+    no_sea = {  # every wave key back to its default (keys without a spectrum are refused)
+        f.name: f.default for f in dataclasses.fields(sc) if f.name.startswith("wave_")
+    }
     specs = {
         "sweep_waves": dataclasses.replace(base, scenario=sc),
-        "sweep_calm_water": dataclasses.replace(
-            base, scenario=dataclasses.replace(sc, wave_spectrum=None)
-        ),
+        "sweep_calm_water": dataclasses.replace(base, scenario=dataclasses.replace(sc, **no_sea)),
     }
     rows, total = [], dict.fromkeys(specs, 0.0)
     for variant in spec.variants:

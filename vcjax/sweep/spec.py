@@ -118,6 +118,27 @@ class ScenarioSpec:
         as_number("wave_gamma", self.wave_gamma, lo=1.0)
         as_number("wave_spreading", self.wave_spreading, lo=0.0)
         s(self, "wave_components", as_int("wave_components", self.wave_components, 1))
+        self._check_sea()
+
+    def _check_sea(self) -> None:
+        """A sea's keys without ``wave_spectrum`` would run calm: refused; with one, the NED
+        origin must lie below the mean surface (:func:`vcjax.waves.check_origin_depth`)."""
+        if not self.waves:
+            given = [
+                f.name
+                for f in dataclasses.fields(self)
+                if f.name.startswith("wave_") and getattr(self, f.name) != f.default
+            ]
+            if given:
+                raise ConfigError(
+                    f"{given[0]}: given without wave_spectrum, so no sea would be simulated "
+                    f'(a calm run); set wave_spectrum = "jonswap" or "pm" ({", ".join(given)})'
+                )
+            return
+        try:
+            waves.check_origin_depth(self.wave_origin_depth, "wave_origin_depth")
+        except ValueError as err:
+            raise ConfigError(str(err)) from None
 
     @property
     def waves(self) -> bool:
