@@ -283,9 +283,8 @@ def _interrupted(command: str, what: str) -> int:
 def _size_check(args, command: str, spec=None, cfg=None) -> None:
     """Refuse (ValueError, exit 2) work that cannot fit or seeds the PRNG cannot take
     (:mod:`vcjax.runtime.sizing`), before anything is compiled."""
-    from vcjax.runtime import sizing
-
     from vcjax import waves
+    from vcjax.runtime import sizing
 
     sizing.check_limits_options(args.max_steps, args.max_memory_gb)
     notes = []  # the sea's validity (linear theory), printed with the size's warnings
