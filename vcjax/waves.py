@@ -204,6 +204,21 @@ def check_origin_depth(origin_depth, name: str = "origin_depth") -> None:
         )
 
 
+def _steep_share(hs, tp) -> str | None:
+    """For ``(lo, hi)`` ranges drawn uniformly and independently (as a sweep draws them): the
+    share of sea states steeper than :data:`LINEAR_STEEPNESS` (midpoint rule, 400 x 400)."""
+    h, t = np.asarray(hs, np.float64).reshape(-1), np.asarray(tp, np.float64).reshape(-1)
+    if h.size == 1 and t.size == 1 or (np.ptp(h) == 0 and np.ptp(t) == 0):
+        return None
+    q = (np.arange(400) + 0.5) / 400
+    hh = h.min() + np.ptp(h) * q
+    tt = t.min() + np.ptp(t) * q
+    steep = hh[:, None] / (GRAVITY * tt[None, :] ** 2 / (2.0 * math.pi))
+    return (
+        f"{100.0 * float(np.mean(steep > LINEAR_STEEPNESS)):.2g} % of its sea states are past 1/14"
+    )
+
+
 def envelope_warnings(hs, tp, origin_depth=None, components: int | None = None) -> list[str]:
     """One line per way a sea state leaves the validity of linear deep-water wave theory.
 
@@ -228,11 +243,13 @@ def envelope_warnings(hs, tp, origin_depth=None, components: int | None = None) 
             if steep > BREAKING_STEEPNESS:
                 tail = f"{steep / BREAKING_STEEPNESS:.2g}x steeper than breaking (1/7)"
             else:
-                tail = "past the 1/14 limit of linear theory"
+                tail = "past the 1/14 limit of linear theory (breaking: 1/7)"
+            share = _steep_share(hs, tp)
+            which = "" if share is None else f"the steepest sea of the ranges ({share}): "
             out.append(
-                f"waves: hs {hs_hi:g} m with tp {tp_lo:g} s (wavelength {lam:.3g} m) has "
+                f"waves: {which}hs {hs_hi:g} m with tp {tp_lo:g} s (wavelength {lam:.3g} m) has "
                 f"steepness Hs/lambda_p = {steep:.3g}, {tail}: linear (Airy) kinematics are "
-                "outside their validity; expect the disturbance to be wrong, not just large"
+                "outside their validity there"
             )
     if origin_depth is not None and hs_hi > 0:
         d_lo = float(np.min(np.asarray(origin_depth, dtype=np.float64)))
