@@ -26,6 +26,7 @@ from tuning.loss import (
     problem_data,
     rollout_terms,
     scenario_losses,
+    weighted_loss,
 )
 from tuning.params import GainSpace
 from tuning.scenarios import sample_scenarios
@@ -218,6 +219,22 @@ def test_aggregate_mean_and_cvar_and_the_box():
     d = np.zeros_like(ref)
     d[0], d[-1] = 1.5, -3.0  # 0.5 and 2.0 beyond the box
     assert float(box_penalty(jnp.asarray(ref + d), data)) == pytest.approx(10.0 * (0.25 + 4.0))
+
+
+def test_the_weighted_loss_counts_every_term_with_its_own_weight():
+    """Kills: a term missing from the sum (the depth term too, which a planar loop's rollout
+    leaves at 0) or weighted by another term's weight: every term and weight distinct (primes),
+    so each product is seen in the sum."""
+    weights = loss_weights(eps=2.0, u_tilde=3.0, psi_tilde=5.0, sat_excess=7.0, sat_time=11.0,
+                           effort=13.0, unhealthy=17.0, depth=19.0)  # fmt: skip
+    values = dict(zip(TERMS, (1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8), strict=True))
+    terms = {k: jnp.asarray(v) for k, v in values.items()}
+    want = sum(float(getattr(weights, k)) * v for k, v in values.items())
+    assert float(weighted_loss(terms, weights)) == pytest.approx(want, rel=1e-14)
+    for k in TERMS:  # each term moves the loss by its own weight
+        bumped = dict(terms, **{k: terms[k] + 1.0})
+        step = float(weighted_loss(bumped, weights)) - float(weighted_loss(terms, weights))
+        assert step == pytest.approx(float(getattr(weights, k)), rel=1e-12), k
 
 
 def test_the_scenario_loss_is_the_weighted_sum_of_its_terms():
