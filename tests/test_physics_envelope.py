@@ -143,7 +143,12 @@ def test_wave_keys_without_a_spectrum_are_refused_not_run_calm():
 # ------------------------------------------------------------------ item 2: the sea's size
 
 
-def test_ten_million_components_are_refused_with_the_estimate(tmp_path, capsys):
+def test_ten_million_components_are_refused_with_the_estimate(tmp_path, capsys, monkeypatch):
+    import vcjax.sweep
+
+    # never the run itself, even if the estimate let it through (it grew to 23.6 GB before
+    # the kernel killed it): a missed refusal fails here as _Stop
+    monkeypatch.setattr(vcjax.sweep, "run_sweep_config", _no_run)
     cfg = _config(tmp_path, _edit(SWEEP_WAVES, components="10000000"))  # x 256 scenarios
     out = tmp_path / "out"
     rc, err = _run(["sweep", cfg, "--out", out], capsys)
@@ -185,7 +190,10 @@ def test_tune_counts_the_sea_on_its_gradient_tape(tmp_path):
     assert est["parts"]["sea"] == tape + seas + work
 
 
-def test_a_tune_with_ten_million_components_is_refused(tmp_path, capsys):
+def test_a_tune_with_ten_million_components_is_refused(tmp_path, capsys, monkeypatch):
+    import tuning
+
+    monkeypatch.setattr(tuning, "run_tune_config", _no_run)  # never the run (see above)
     text = TUNE_WAVES.replace("[waves]\n", "[waves]\ncomponents = 10000000\n")
     cfg = _config(tmp_path, text)
     rc, err = _run(["tune", cfg, "--out", tmp_path / "out"], capsys)
