@@ -239,8 +239,10 @@ class _Coeffs(NamedTuple):
 
 def test_a_metric_that_cannot_be_computed_says_why():
     """The survey's steady-state metrics are taken on the straight legs after the first, 150 m
-    past each turn (leg 400 m, turn radius 20 m: 400 + 62.8 + 150 = 613 m of path); a run that
-    got 454 m in 300 s has none, and says so with the horizon that would reach them."""
+    past each turn (the mission's legs of 250 m, turns of radius 30 m: 250 + 94.2 + 150 = 494 m
+    of path); a run that got 454 m in 300 s (the waves guide's command) has none, and says so
+    with the horizon that would reach them (494 m at 454.3 m / 300 s: 326 s, rounded up to
+    330 s)."""
     from vcjax.experiments.remus100 import undefined_reasons
 
     m = {
@@ -253,14 +255,17 @@ def test_a_metric_that_cannot_be_computed_says_why():
         "healthy": True,
         "end_w": 454.3,
     }
-    why = undefined_reasons(m, _Coeffs(400.0, 20.0, 3), 300.0)
+    why = undefined_reasons(m, _Coeffs(250.0, 30.0, 4), 300.0)
     assert sorted(why) == ["ss_cross_track", "ss_depth_err", "ss_dist_3d"]
     r = why["ss_cross_track"]
-    assert "horizon is too short to settle" in r and "454 m" in r and "613 m" in r, r
-    assert "--horizon of about 410 s" in r  # 613 m at 454 m / 300 s, rounded up to 10 s
-    assert why == undefined_reasons(dict(m), _Coeffs(400.0, 20.0, 3), 300.0)
+    assert "horizon is too short to settle" in r and "454 m" in r and "494 m" in r, r
+    assert "--horizon of about 330 s" in r
+    # a run that did not finish the first leg: its distance metrics are nan too, said so
+    short = dict(m, rms_dist_3d=math.nan, max_dist_3d=math.nan, end_w=120.0)
+    r = undefined_reasons(short, _Coeffs(250.0, 30.0, 4), 80.0)["rms_dist_3d"]
+    assert "the first leg (250 m) was not finished" in r and "about 170 s" in r, r
     m_ok = dict(m, ss_cross_track=0.1, ss_depth_err=0.1, ss_dist_3d=0.1)
-    assert undefined_reasons(m_ok, _Coeffs(400.0, 20.0, 3), 900.0) == {}
+    assert undefined_reasons(m_ok, _Coeffs(250.0, 30.0, 4), 900.0) == {}
 
 
 def test_undefined_metrics_names_every_non_finite_value():
