@@ -144,7 +144,7 @@ def test_waves_keys_that_apply_are_accepted(tmp_path):
 @pytest.mark.parametrize(
     "kw, message",
     [
-        ({"wave_hs": (1.0, 2.0)}, "wave_hs: a sea needs wave_spectrum"),
+        ({"wave_hs": (1.0, 2.0)}, "wave_hs: given without wave_spectrum"),
         ({"wave_spectrum": "pm", "wave_gamma": 2.0}, "wave_gamma: JONSWAP's peak"),
         ({"wave_spectrum": "jonswap", "wave_spreading": 1e-12}, "wave_spreading: 0 is long"),
         ({"current_sigma": 0.2}, "current_sigma: applies to current_model 'gauss_markov'"),

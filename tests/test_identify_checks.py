@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -243,3 +244,208 @@ def test_fit_json_and_figure_carry_the_warnings(tmp_path, capsys):
     assert any("poorly conditioned" in w for w in fit["warnings"])
     assert set(fit["sensitivity"]) == {"A_r", "CL_delta_r"}
     assert (out / "cost_history.png").stat().st_size > 0
+
+
+# ------------------------------------------------------------------ issue 31: logs, units, actuators
+
+
+def _csv_case(tmp_path, edit=None, rows=301, files=None, header=None, bom=False) -> Path:
+    """A fit config on the first ``rows`` samples of the reference log after ``edit(cols)``
+    (a dict of column arrays), written as a CSV (``header``: its names; ``bom``: with a UTF-8
+    byte-order mark); ``files``: the config's list (default: the log once)."""
+    log = _log(rows)
+    cols = {"t": log.t.copy()}
+    cols |= {c: log.x[:, j].copy() for j, c in enumerate(REMUS.state_columns)}
+    cols |= {c: log.u[:, j].copy() for j, c in enumerate(REMUS.command_columns)}
+    if edit is not None:
+        cols = edit(cols) or cols
+    path = tmp_path / "log.csv"
+    names = list(cols) if header is None else header
+    with open(path, "w", encoding="utf-8-sig" if bom else "utf-8") as f:
+        f.write("# a test log\n" + ",".join(names) + "\n")
+        np.savetxt(f, np.column_stack(list(cols.values())), delimiter=",", fmt="%.12g")
+    cfg = tmp_path / "fit.toml"
+    listed = json.dumps([str(path)] if files is None else [str(tmp_path / f) for f in files])
+    cfg.write_text(
+        f'[data]\nfiles = {listed}\n[model]\nvehicle = "remus100"\nstep = "pvs"\n'
+        "current_speed = 0.5\ncurrent_direction_deg = 170.0\n[fit]\n"
+        'params = ["CD_0", "CL_delta_r"]\nsegment_steps = 25\n'
+    )
+    return cfg
+
+
+def _refused(cfg, tmp_path, capsys) -> str:
+    out = tmp_path / "out"
+    rc = main(["fit", str(cfg), "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    assert err.startswith("vcjax: fit: ") and err.count("\n") == 1 and "Traceback" not in err
+    assert not (out / "fit.json").exists()
+    return err
+
+
+def _deg(*names):
+    def edit(cols):
+        for n in names:
+            cols[n] = np.degrees(cols[n])
+
+    return edit
+
+
+def test_rudder_and_its_command_both_in_degrees_are_refused(tmp_path, capsys):
+    """The issue's case: both in degrees agree with each other (no factor 57 between them), and
+    gave converged: true with CL_delta_r 1/28 of the truth; the rudder's 0.50 (deg) is beyond
+    its 15 deg = 0.262 rad limit, where the plant saturates it."""
+    err = _refused(_csv_case(tmp_path, _deg("delta_r", "delta_r_cmd")), tmp_path, capsys)
+    assert "column 'delta_r' reaches 0.5015 at sample 300, beyond the actuator's limit of " in err
+    assert "0.2618 rad (15 deg)" in err and "actuator angles must be in rad" in err
+
+
+def test_an_actuator_within_its_limit_passes_and_just_beyond_is_refused():
+    log = _log(101)
+    j = REMUS.state_columns.index("delta_s")
+    lim = math.radians(15.0)
+    for v, ok in ((lim, True), (1.04 * lim, True), (1.06 * lim, False)):
+        x = log.x.copy()
+        x[50, j] = v
+        case = dataclasses.replace(log, x=x)
+        if ok:
+            check_logs(REMUS, [case])
+        else:
+            with pytest.raises(ValueError, match="column 'delta_s' reaches 0.2775 at sample 50"):
+                check_logs(REMUS, [case])
+
+
+@pytest.mark.parametrize(
+    "est, warned", [(0.0178, True), (0.049, True), (0.051, False), (4.9, False), (5.1, True)]
+)
+def test_an_actuator_coefficient_far_from_nominal_is_not_trusted(est, warned):
+    """The issue's CL_delta_r 0.0178 (nominal 0.5): inside the general factor 100, outside the
+    actuator coefficients' factor 10, named with the likely cause."""
+    args = (["CL_delta_r"], {"CL_delta_r": est}, {"CL_delta_r": 0.5}, {"CL_delta_r": 1e-4})
+    w = trust_warnings(*args, np.eye(1), actuator_coeffs=REMUS.actuator_coeffs)
+    assert bool(w) is warned, w
+    if warned:
+        assert "logged in degrees" in w[0] and f"{est / 0.5:.3g} x its nominal" in w[0]
+    assert trust_warnings(*args, np.eye(1)) == []  # without: only the factor 100
+    assert REMUS.actuator_coeffs == ("CL_delta_r", "CL_delta_s")
+
+
+def test_the_same_log_listed_twice_is_refused(tmp_path, capsys):
+    cfg = _csv_case(tmp_path, files=["log.csv", "log.csv"])
+    err = _refused(cfg, tmp_path, capsys)
+    assert "log.csv (entry 2) is listed twice (entry 1)" in err and "sqrt(2)" in err
+
+
+def test_a_copy_of_a_log_under_another_name_is_refused():
+    log = _log(101)
+    copy = dataclasses.replace(log, name="copy.csv")
+    with pytest.raises(ValueError, match="copy.csv \\(entry 2\\) holds the same data as"):
+        check_logs(REMUS, [log, copy])
+    check_logs(REMUS, [_log(101), _log(120)])  # two different logs: fine
+
+
+def test_a_duplicate_column_name_is_refused(tmp_path, capsys):
+    names = ["t", *REMUS.state_columns, *REMUS.command_columns]
+    names[names.index("v")] = "u"  # two columns named 'u'
+    err = _refused(_csv_case(tmp_path, header=names), tmp_path, capsys)
+    assert "column 'u' appears twice in the header (line 2, fields 8 and 9)" in err
+
+
+def test_a_byte_order_mark_is_read(tmp_path):
+    """Spreadsheets write a UTF-8 byte-order mark: the first column is 't', not '\\ufefft'
+    (the first line holds the provenance, so the mark sits before '#' there; and without one)."""
+    _csv_case(tmp_path, bom=True)
+    path = tmp_path / "log.csv"
+    assert path.read_bytes().startswith(b"\xef\xbb\xbf#")
+    log = load_log(path, REMUS.state_columns, REMUS.command_columns)
+    np.testing.assert_allclose(log.t, _log(301).t, rtol=1e-11)
+    assert log.provenance == "a test log"
+    text = path.read_text(encoding="utf-8-sig").split("\n", 1)[1]  # no provenance line
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    np.testing.assert_allclose(
+        load_log(path, REMUS.state_columns, REMUS.command_columns).t, log.t, rtol=0
+    )
+
+
+def test_a_byte_order_mark_through_the_cli_reaches_the_checks(tmp_path, capsys):
+    """The header read right, the next check speaks (here: time in minutes), not 'missing
+    column t'."""
+    cfg = _csv_case(tmp_path, lambda c: {**c, "t": c["t"] / 60.0}, bom=True)
+    err = _refused(cfg, tmp_path, capsys)
+    assert "missing column" not in err and "column 't'" in err
+
+
+def test_time_in_minutes_is_named_before_the_angles(tmp_path, capsys):
+    """A log in minutes turns its heading 60 x too fast per unit of t, which the angle check
+    would blame on degrees; time is checked first, against the motion the velocities give."""
+    err = _refused(_csv_case(tmp_path, lambda c: {**c, "t": c["t"] / 60.0}), tmp_path, capsys)
+    assert "column 't'" in err and "t looks like minutes" in err, err
+    assert "degrees" not in err
+
+
+@pytest.mark.parametrize("factor, ok", [(1.0, True), (2.5, True), (1 / 2.5, True), (3.5, False)])
+def test_time_against_motion_bound(factor, ok):
+    """The distance the positions cover over the logged speed x time: 1 in seconds; refused
+    beyond MAX_MOTION_RATIO (3) either way, named by its factor."""
+    log = _log(1500)
+    case = dataclasses.replace(log, t=log.t / factor)
+    if ok:
+        check_logs(REMUS, [case])
+    else:
+        with pytest.raises(ValueError, match=r"cover 3\.5 x the distance"):
+            check_logs(REMUS, [case])
+
+
+def _zero_log(n=101, dt=0.02):
+    t = dt * np.arange(n)
+    return _log(n).__class__(
+        name="z.csv", t=t, x=np.zeros((n, REMUS.n_x)), u=np.zeros((n, REMUS.n_u))
+    )
+
+
+@pytest.mark.parametrize(
+    "column, value, message",
+    [
+        ("theta", 3.10, None),  # below pi rad: an angle
+        ("theta", 3.20, "column 'theta' reaches 3.2 at sample 40: an angle beyond pi rad"),
+        ("phi", -3.20, "column 'phi' reaches -3.2 at sample 40"),
+        ("delta_r", 3.20, "column 'delta_r' reaches 3.2"),
+        ("q", 3.10, None),  # below pi rad/s: a rate
+        ("q", 3.20, "column 'q' reaches 3.2 at sample 40: a rate beyond pi rad/s"),
+        ("r", -3.20, "rates must be in rad/s"),
+        ("p", 3.20, "column 'p' reaches 3.2"),
+    ],
+)
+def test_angle_and_rate_bounds(column, value, message):
+    """The magnitude checks at their bounds: pi rad for an angle, pi rad/s for a rate (one
+    sample set, the rest of the log zero so that no other check speaks)."""
+    log = _zero_log()
+    x = log.x.copy()
+    x[40, REMUS.state_columns.index(column)] = value
+    case = dataclasses.replace(log, x=x)
+    if message is None:
+        check_logs(REMUS, [case])
+    else:
+        with pytest.raises(ValueError, match=re.escape(message)):
+            check_logs(REMUS, [case])
+
+
+def test_the_heading_is_judged_by_its_wrapped_rate():
+    """A heading is not bounded by pi (it may read 5 rad) and may wrap from +pi to -pi in one
+    step; what only degrees explain is a turn faster than pi rad/s between samples."""
+    log = _zero_log()
+    j = REMUS.state_columns.index("psi")
+    x = log.x.copy()
+    x[:, j] = 5.0  # a heading of 5 rad: fine
+    check_logs(REMUS, [dataclasses.replace(log, x=x)])
+    x[:, j] = np.where(np.arange(101) < 50, 3.14, -3.14)  # wraps through pi: 0.003 rad
+    check_logs(REMUS, [dataclasses.replace(log, x=x)])
+    x[:, j] = 0.0
+    x[50:, j] = 0.06  # 0.06 rad in 0.02 s = 3.0 rad/s: below pi rad/s
+    check_logs(REMUS, [dataclasses.replace(log, x=x)])
+    x[50:, j] = 0.07  # 3.5 rad/s
+    with pytest.raises(
+        ValueError, match=r"column 'psi' turns by 0\.07 rad in 0\.02 s at sample 49"
+    ):
+        check_logs(REMUS, [dataclasses.replace(log, x=x)])

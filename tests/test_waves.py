@@ -814,3 +814,75 @@ def test_remus100_takes_a_3d_water_velocity():
     for a, b in zip(remus100.current_in_body(tilted, nu, v3, d3),
                     sixdof.current_in_body(tilted, nu, v3, d3), strict=True):  # fmt: skip
         np.testing.assert_array_equal(a, b)
+
+
+# --------------------------------------------------------------------------------------------
+# JONSWAP's shape against an independent evaluation (issue 31: planted shape bugs)
+# --------------------------------------------------------------------------------------------
+
+
+def _jonswap_oracle(w, hs, tp, gamma, sigma_a=0.07, sigma_b=0.09):
+    """JONSWAP written out from its definition (numpy, scalar ``w``): the PM (Hs, Tp) shape
+    times ``gamma^r``, ``r = exp(-(w - wp)^2 / (2 sigma^2 wp^2))``, sigma_a left of the peak and
+    sigma_b right of it, scaled so that m0 = Hs^2 / 16 by scipy's adaptive quadrature in omega
+    (not the module's Gauss-Legendre rule in u = (wp / w)^4)."""
+    wp = 2.0 * math.pi / tp
+
+    def shape(x):
+        if x <= 0.0:
+            return 0.0
+        pm = 5.0 / 16.0 * wp**4 * x**-5 * math.exp(-1.25 * (wp / x) ** 4)
+        s = sigma_a if x <= wp else sigma_b
+        return pm * gamma ** math.exp(-((x - wp) ** 2) / (2.0 * s * s * wp * wp))
+
+    m0 = sum(
+        integrate.quad(shape, a, b, limit=400, epsabs=0, epsrel=1e-12)[0]
+        for a, b in ((0.05 * wp, wp), (wp, 50.0 * wp), (50.0 * wp, np.inf))
+    )
+    return hs * hs / 16.0 * shape(w) / m0
+
+
+@pytest.mark.parametrize("gamma", [1.0, 2.0, 3.3, 7.0])
+def test_jonswap_equals_an_independent_evaluation(gamma):
+    """Kills: sigma_a / sigma_b swapped or changed, the peak exponent's square or factor 2
+    dropped, the normalisation computed for another gamma (every omega near and far from the
+    peak, both sides)."""
+    hs, tp = 2.5, 9.0
+    wp = 2.0 * math.pi / tp
+    x = np.array([0.6, 0.8, 0.9, 0.95, 0.98, 1.0, 1.02, 1.05, 1.1, 1.2, 1.5, 2.5, 4.0])
+    got = np.asarray(waves.jonswap(jnp.asarray(x * wp, jnp.float64), hs, tp, gamma))
+    want = np.array([_jonswap_oracle(v * wp, hs, tp, gamma) for v in x])
+    np.testing.assert_allclose(got, want, rtol=1e-9)
+
+
+def test_jonswap_peak_widths_are_sigma_a_left_and_sigma_b_right():
+    """The enhancement ``S_J / S_PM`` normalised at the peak is ``gamma^(r - 1)``: solving
+    ``r = exp(-x^2 / (2 sigma^2))`` for sigma at ``omega = wp (1 -+ x)`` gives 0.07 below the
+    peak and 0.09 above it (the two JONSWAP widths, read back from the spectrum itself)."""
+    hs, tp, gamma = 1.0, 8.0, 3.3
+    wp = 2.0 * math.pi / tp
+    for side, sigma in ((-1, 0.07), (1, 0.09)):
+        for x in (0.03, 0.08, 0.15):
+            w = jnp.asarray([wp, wp * (1 + side * x)], jnp.float64)
+            sj = np.asarray(waves.jonswap(w, hs, tp, gamma))
+            spm = np.asarray(waves.pierson_moskowitz(w, hs, tp))
+            r = 1.0 + math.log((sj[1] / spm[1]) / (sj[0] / spm[0])) / math.log(gamma)
+            assert x / math.sqrt(-2.0 * math.log(r)) == pytest.approx(sigma, rel=1e-9)
+
+
+def test_jonswap_enhancement_at_the_peak_is_gamma_over_its_normalisation():
+    """At omega_p the enhancement is exactly gamma (r = 1), and the normalisation I(gamma) is
+    the oracle's m0 ratio: S_J(wp) / S_PM(wp) = gamma / I(gamma), I(1) = 1, I increasing."""
+    wp = 2.0 * math.pi / 8.0
+    values = []
+    for gamma in (1.0, 2.0, 3.3, 7.0):
+        ratio = float(waves.jonswap(wp, 1.0, 8.0, gamma) / waves.pierson_moskowitz(wp, 1.0, 8.0))
+        i_oracle = (
+            gamma
+            * float(waves.pierson_moskowitz(wp, 1.0, 8.0))
+            / _jonswap_oracle(wp, 1.0, 8.0, gamma)
+        )
+        assert gamma / ratio == pytest.approx(i_oracle, rel=1e-9)
+        assert float(waves.jonswap_normalisation(gamma)) == pytest.approx(i_oracle, rel=1e-9)
+        values.append(i_oracle)
+    assert values[0] == pytest.approx(1.0, rel=1e-10) and np.all(np.diff(values) > 0)

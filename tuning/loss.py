@@ -48,6 +48,7 @@ __all__ = [
     "ProblemData",
     "problem_data",
     "scenario_losses",
+    "weighted_loss",
     "objective",
     "aggregate",
 ]
@@ -221,6 +222,11 @@ def problem_data(
     return ProblemData(base, weights, f(dt), theta_ref, f(log_box), f(box_weight))
 
 
+def weighted_loss(terms: dict, weights: LossWeights):
+    """The scenario loss ``sum_k w_k term_k`` over every term of :data:`TERMS`."""
+    return sum(getattr(weights, k) * terms[k] for k in TERMS)
+
+
 def scenario_losses(theta, data: ProblemData, scenarios, problem: TuningProblem):
     """Per-scenario losses ``(B,)`` and terms ``{name: (B,)}`` of the gains ``theta`` (n,)."""
     gains = problem.space.decode(theta, data.base)
@@ -231,8 +237,7 @@ def scenario_losses(theta, data: ProblemData, scenarios, problem: TuningProblem)
     def one(g, sc):
         traj = loops.simulate(loop, g, sc, cfg, data.dt)
         terms = rollout_terms(traj, loop.signals(traj, sc), w.sat_width)
-        loss = sum(getattr(w, k) * terms[k] for k in TERMS)
-        return loss, terms
+        return weighted_loss(terms, w), terms
 
     if not problem.tile_gains:
         return jax.vmap(one, in_axes=(None, SCENARIO_AXES))(gains, scenarios)

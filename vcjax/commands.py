@@ -226,6 +226,12 @@ def _setup(exp, args, where: str):
         setup.options.check(dt, args.x64)
     except ValueError as err:
         raise CLIError(f"{where}: {err}") from None
+    waves_given = getattr(setup.options, "waves", None)
+    if waves_given is not None:  # beyond linear wave theory: said, not refused
+        from vcjax.environment import waves
+
+        for line in waves.envelope_warnings(waves_given[0], waves_given[1]):
+            print(f"vcjax: warning: {where}: --waves: {line}", file=sys.stderr)
     return setup
 
 
@@ -375,14 +381,21 @@ def _size_check(args, command: str, spec=None, cfg=None) -> None:
     """Refuse (ValueError, exit 2) work that cannot fit (:mod:`vcjax.runtime.sizing`), before
     anything is compiled. Seeds were checked by the config parser against the sampler's range
     (:data:`vcjax.config.SEED_MAX`, the same in both precisions)."""
+    from vcjax.environment import waves
     from vcjax.runtime import sizing
 
     sizing.check_limits_options(args.max_steps, args.max_memory_gb)
+    notes = []  # the sea's validity (linear theory), printed with the size's warnings
     if spec is not None:
         est = sizing.sweep_estimate(spec)
+        sc = spec.scenario
+        if sc.waves:
+            notes = waves.envelope_warnings(sc.wave_hs, sc.wave_tp, sc.wave_origin_depth)
     else:
         est = sizing.tune_estimate(cfg)
-    sizing.check_estimate(est, f"{args.config}", args.max_steps, args.max_memory_gb)
+        if wav := cfg.get("waves"):
+            notes = waves.envelope_warnings(wav["hs"], wav["tp"], wav.get("origin_depth"))
+    sizing.check_estimate(est, f"{args.config}", args.max_steps, args.max_memory_gb, notes)
 
 
 def tune(args) -> int:

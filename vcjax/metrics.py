@@ -57,6 +57,8 @@ __all__ = [
     "first_excursion",
     "first_true",
     "polyline_nearest",
+    "check_run_inputs",
+    "undefined_metrics",
 ]
 
 #: Default path-error bound: this fraction of ``u_d x horizon`` ...
@@ -218,6 +220,7 @@ def run_metrics(sig, finite, dt, start: float = 0.8, diverge_e=jnp.inf, extras=N
         segment), folded in one go.
     """
     n = sig.eps.shape[0]
+    check_run_inputs(n, finite, dt, start)
     k0 = window_start(n, start)
     acc = metrics_init(sig.act, sig.eps.dtype)
     acc = metrics_update(acc, sig, finite, jnp.arange(n), k0)
@@ -230,6 +233,47 @@ def run_metrics(sig, finite, dt, start: float = 0.8, diverge_e=jnp.inf, extras=N
     for name, fn in extras.items():
         m[name] = fn(sig, win)
     return m
+
+
+def check_run_inputs(n: int, finite, dt, start: float) -> None:
+    """Eager checks of :func:`run_metrics`' inputs (``ValueError`` naming the argument): ``n``
+    >= 1 steps, ``finite`` of shape (n,), ``dt`` a scalar (> 0 and finite when concrete: a
+    step <= 0 would give a negative or zero ``iae_e``), ``start`` in [0, 1) so that the
+    steady-state window holds at least one step. Shapes are static, so they are checked under
+    ``jit`` too; ``dt``'s value only outside it."""
+    if n < 1:
+        raise ValueError("sig: expected at least one step, got 0")
+    if jnp.shape(finite) != (n,):
+        raise ValueError(
+            f"finite: expected shape ({n},) (one flag per step), got {jnp.shape(finite)}"
+        )
+    if jnp.shape(dt) != ():
+        raise ValueError(f"dt: expected a scalar step [s], got shape {jnp.shape(dt)}")
+    try:
+        v = float(dt)
+    except (TypeError, jax.errors.ConcretizationTypeError):
+        v = None  # traced: the caller's own checks hold
+    if v is not None and not (math.isfinite(v) and v > 0):
+        raise ValueError(f"dt: expected a finite step > 0 [s], got {v:g}")
+    if not (0.0 <= float(start) < 1.0):
+        raise ValueError(f"start: expected a fraction in [0, 1) of the run, got {start!r}")
+    if window_start(n, start) >= n:
+        raise ValueError(f"start: {start!r} of {n} steps leaves an empty steady-state window")
+
+
+def undefined_metrics(values: dict, reasons: dict | None = None, default: str = "") -> dict:
+    """``{name: reason}`` for each metric of ``values`` (name -> number, or None) that is not a
+    finite number (NaN, inf or None): the reason given for it in ``reasons``, else
+    ``default``. A metric that cannot be computed is reported with why, never as a bare NaN
+    (``metrics.json`` records these beside the values, the terminal prints them as a note)."""
+    reasons = reasons or {}
+    out = {}
+    for k, v in values.items():
+        if isinstance(v, bool):
+            continue
+        if v is None or (isinstance(v, float | int) and not math.isfinite(v)):
+            out[k] = reasons.get(k, default) or "not computable for this run"
+    return out
 
 
 def first_true(mask):

@@ -146,6 +146,12 @@ __all__ = [
     "water_kinematics",
     "froude_krylov",
     "current_door_correction",
+    "BREAKING_STEEPNESS",
+    "LINEAR_STEEPNESS",
+    "peak_wavelength",
+    "check_point",
+    "check_origin_depth",
+    "envelope_warnings",
 ]
 
 #: Gravity of the deep-water dispersion relation ``k = omega^2 / g`` [m/s^2].
@@ -156,6 +162,106 @@ BAND = (0.6, 4.0)
 
 #: Spectrum names accepted by :func:`sea_state`.
 SPECTRA = ("jonswap", "pm")
+
+#: Stokes' limiting steepness ``H / lambda`` of a regular deep-water wave (it breaks beyond).
+BREAKING_STEEPNESS = 1.0 / 7.0
+#: Sea-state steepness ``Hs / lambda_p`` above which linear (Airy) theory is warned about: half
+#: the breaking limit (DNV-RP-C205 takes ``Hs / lambda_p <= 1/15`` for its design sea states;
+#: steeper seas are strongly non-linear and partly breaking).
+LINEAR_STEEPNESS = 1.0 / 14.0
+
+
+# --------------------------------------------------------------------------------------------
+# Validity envelope (eager checks, plain Python: before anything is traced)
+# --------------------------------------------------------------------------------------------
+
+
+def peak_wavelength(tp: float) -> float:
+    """Deep-water wavelength of the peak period ``lambda_p = g tp^2 / (2 pi)`` [m]."""
+    return GRAVITY * float(tp) ** 2 / (2.0 * math.pi)
+
+
+def check_point(name: str, p) -> None:
+    """``p`` must be one (3,) NED point ``(north, east, depth)`` (the shape is static, so this
+    also holds inside ``jit``; a (2,) or (4,) point would otherwise be clamped by the indexing).
+    Raises ``ValueError`` naming ``name``."""
+    shape = jnp.shape(p)
+    if shape != (3,):
+        raise ValueError(
+            f"{name}: expected a (3,) NED point (north, east, depth) [m], got shape {shape}"
+        )
+
+
+def check_origin_depth(origin_depth, name: str = "origin_depth") -> None:
+    """The NED origin must lie at or below the mean free surface: ``origin_depth >= 0`` [m]
+    (every entry of a range). The vehicle feels the sea at depth ``origin_depth + z``; an origin
+    above the sea puts a survey in the air, where the (deep-water, submerged) kinematics of this
+    module do not apply (they are held at their surface value). ``ValueError`` naming ``name``."""
+    a = np.asarray(origin_depth, dtype=np.float64).reshape(-1)
+    if np.any(a < 0):
+        raise ValueError(
+            f"{name}: {float(a.min()):g} m puts the NED origin above the mean free surface "
+            "(depth is positive down); a survey under waves needs origin_depth >= 0"
+        )
+
+
+def _steep_share(hs, tp) -> str | None:
+    """For ``(lo, hi)`` ranges drawn uniformly and independently (as a sweep draws them): the
+    share of sea states steeper than :data:`LINEAR_STEEPNESS` (midpoint rule, 400 x 400)."""
+    h, t = np.asarray(hs, np.float64).reshape(-1), np.asarray(tp, np.float64).reshape(-1)
+    if h.size == 1 and t.size == 1 or (np.ptp(h) == 0 and np.ptp(t) == 0):
+        return None
+    q = (np.arange(400) + 0.5) / 400
+    hh = h.min() + np.ptp(h) * q
+    tt = t.min() + np.ptp(t) * q
+    steep = hh[:, None] / (GRAVITY * tt[None, :] ** 2 / (2.0 * math.pi))
+    return (
+        f"{100.0 * float(np.mean(steep > LINEAR_STEEPNESS)):.2g} % of its sea states are past 1/14"
+    )
+
+
+def envelope_warnings(hs, tp, origin_depth=None, components: int | None = None) -> list[str]:
+    """One line per way a sea state leaves the validity of linear deep-water wave theory.
+
+    ``hs``, ``tp``, ``origin_depth``: numbers or ``(lo, hi)`` ranges [m, s, m] (the steepest
+    case is checked: the largest ``hs`` with the shortest ``tp``).
+
+    * steepness ``Hs / lambda_p`` (``lambda_p = g tp^2 / 2 pi``) above :data:`LINEAR_STEEPNESS`:
+      beyond linear theory (and, above :data:`BREAKING_STEEPNESS`, beyond breaking);
+    * ``origin_depth`` shallower than ``Hs / 2`` (a significant crest): the vehicle sits in the
+      crests' zone, where the linear kinematics are extrapolated (held at their surface value
+      above the mean level).
+
+    Deep water (water depth > ``lambda_p / 2``) is assumed throughout: vcjax has no seabed.
+    """
+    hs_hi = float(np.max(np.asarray(hs, dtype=np.float64)))
+    tp_lo = float(np.min(np.asarray(tp, dtype=np.float64)))
+    out = []
+    if hs_hi > 0 and tp_lo > 0:
+        lam = peak_wavelength(tp_lo)
+        steep = hs_hi / lam
+        if steep > LINEAR_STEEPNESS:
+            if steep > BREAKING_STEEPNESS:
+                tail = f"{steep / BREAKING_STEEPNESS:.2g}x steeper than breaking (1/7)"
+            else:
+                tail = "past the 1/14 limit of linear theory (breaking: 1/7)"
+            share = _steep_share(hs, tp)
+            which = "" if share is None else f"the steepest sea of the ranges ({share}): "
+            out.append(
+                f"waves: {which}hs {hs_hi:g} m with tp {tp_lo:g} s (wavelength {lam:.3g} m) has "
+                f"steepness Hs/lambda_p = {steep:.3g}, {tail}: linear (Airy) kinematics are "
+                "outside their validity there"
+            )
+    if origin_depth is not None and hs_hi > 0:
+        d_lo = float(np.min(np.asarray(origin_depth, dtype=np.float64)))
+        if d_lo < 0.5 * hs_hi:
+            out.append(
+                f"waves: origin_depth {d_lo:g} m is less than hs / 2 = {0.5 * hs_hi:g} m (the "
+                "height of a significant crest): the vehicle runs among the crests, where linear "
+                "kinematics are only extrapolated (held at their mean-surface value above it) "
+                "and a real vehicle would broach"
+            )
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -211,6 +317,19 @@ def _pm_unit(omega, tp):
     return jnp.where(ok, (5.0 / 16.0) / wp * xi4 / xs * jnp.exp(-1.25 * xi4), 0.0)
 
 
+def _check_spectrum(hs, tp, gamma=None) -> None:
+    """Eager checks of a spectrum's parameters (shapes always; values when concrete)."""
+    for name, x in (("hs", hs), ("tp", tp), ("gamma", gamma)):
+        if x is not None and jnp.shape(x) != ():
+            raise ValueError(f"{name}: expected a scalar, got shape {jnp.shape(x)}")
+    check_positive("hs", hs, (), strict=False)
+    check_positive("tp", tp, ())
+    if gamma is not None:
+        a = check_array("gamma", gamma, ())
+        if a is not None and not float(a) >= 1.0:
+            raise ValueError(f"gamma: expected a peak enhancement >= 1, got {float(a)}")
+
+
 def pierson_moskowitz(omega, hs, tp):
     """One-sided Pierson–Moskowitz spectrum ``S(omega)`` [m^2 s/rad] (module docstring).
 
@@ -218,6 +337,7 @@ def pierson_moskowitz(omega, hs, tp):
         omega: frequencies [rad/s] (any shape; 0 and negative give 0);
         hs: () significant wave height [m] (``m0 = Hs^2 / 16``); tp: () peak period [s].
     """
+    _check_spectrum(hs, tp)
     return hs * hs * _pm_unit(omega, tp)
 
 
@@ -231,6 +351,7 @@ def jonswap(omega, hs, tp, gamma=3.3):
     The normalisation ``1 / I(gamma)`` is computed by quadrature (:func:`jonswap_normalisation`),
     not by DNV's approximation ``1 - 0.287 ln(gamma)``.
     """
+    _check_spectrum(hs, tp, gamma)
     omega = jnp.asarray(omega)
     gamma = jnp.asarray(gamma, dtype=omega.dtype) if _is_py(gamma) else jnp.asarray(gamma)
     wp = 2.0 * math.pi / tp
@@ -415,8 +536,9 @@ def _phase(sea: Sea, t, north, east):
     return theta, cb, sb
 
 
-def _components(sea: Sea, t, p):
+def _components(sea: Sea, t, p, name: str = "p"):
     """Per-component ``c_i, s_i`` (module docstring), ``cos/sin(beta_i)`` and ``depth > 0``."""
+    check_point(name, p)
     p = jnp.asarray(p)
     theta, cb, sb = _phase(sea, t, p[0], p[1])
     below = p[2] > 0
@@ -491,7 +613,11 @@ def orbital_kinematics(sea: Sea, t, p_ned, current=None):
     ``a = sum_i [cos(beta_i) A_i, sin(beta_i) A_i, c_i q_i + r_i s_i]``, ``A_i = s_i q_i - r_i
     c_i`` (a quarter fewer operations per component).
     """
-    c, s, cb, sb, below = _components(sea, t, p_ned)
+    c, s, cb, sb, below = _components(sea, t, p_ned, "p_ned")
+    if current is not None and jnp.shape(current) != (3,):
+        raise ValueError(
+            f"current: expected a (3,) NED velocity [m/s], got shape {jnp.shape(current)}"
+        )
     u = jnp.stack([jnp.sum(c * cb), jnp.sum(c * sb), -jnp.sum(s)])
     v = u if current is None else u + current
     k = sea.wavenumber
@@ -516,6 +642,11 @@ def water_kinematics(sea: Sea, t, p_ned, current=None, current_dot=None):
         follows the particle feel exactly the particle's acceleration; the current, being uniform,
         only advects the waves). Pass them to a plant as its current and current derivative.
     """
+    if current_dot is not None and jnp.shape(current_dot) != (3,):
+        raise ValueError(
+            "current_dot: expected a (3,) NED acceleration [m/s^2], got shape "
+            f"{jnp.shape(current_dot)}"
+        )
     u, a = orbital_kinematics(sea, t, p_ned, current)
     v = u if current is None else u + current
     if current_dot is not None:

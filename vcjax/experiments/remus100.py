@@ -31,6 +31,8 @@ law's own error signals.
 from __future__ import annotations
 
 import dataclasses
+import math
+import sys
 
 import jax
 import jax.numpy as jnp
@@ -214,7 +216,18 @@ class Remus100(Experiment):
             meta["waves"] = option_sea_record(o.waves, o.seed, origin_depth=0.0)
         clean = {v: {k: (None if isinstance(x, float) and not np.isfinite(x) else x)
                      for k, x in m.items()} for v, m in results.items()}  # fmt: skip
-        return {"config": meta, "variants": clean}
+        doc = {"config": meta, "variants": clean}
+        coeffs = self.scenario(next(iter(results)), setup).path
+        undefined = {
+            v: u for v, m in results.items() if (u := undefined_reasons(m, coeffs, setup.horizon))
+        }
+        if undefined:  # a metric that cannot be computed says why (null in "variants")
+            doc["undefined"] = undefined
+        for name, u in undefined.items():  # never a bare nan on the terminal: one line of why
+            for why in dict.fromkeys(u.values()):
+                keys = ", ".join(k for k, r in u.items() if r == why)
+                print(f"vcjax: note: remus100 {name}: {keys} = nan: {why}", file=sys.stderr)
+        return doc
 
     def figures(self, outcomes, setup, out):
         from vcjax.plots.remus100 import remus100_figures
@@ -242,3 +255,34 @@ REMUS100 = Remus100(
     current=(0.0, 0.3),
     timing="sampled",
 )
+
+
+def undefined_reasons(m: dict, coeffs, horizon: float, settle: float = 150.0) -> dict:
+    """Why each metric of one run's :func:`mission_metrics` ``m`` that is NaN could not be
+    computed (:func:`vcjax.metrics.undefined_metrics`): the windows of the mission's metrics
+    are where the vehicle went (after the first leg; the straight legs after the first,
+    ``settle`` metres past each turn), so a run too short to reach them has none."""
+    L, R = float(coeffs.leg), float(coeffs.radius)
+    end_w = float(m["end_w"])
+    speed = end_w / horizon if horizon > 0 and end_w > 0 else 0.0
+
+    def more(need):
+        if speed <= 0:
+            return ""
+        return f"; a --horizon of about {math.ceil(need / speed / 10.0) * 10:.0f} s reaches it"
+
+    need_ss = L + math.pi * R + settle
+    ss = (
+        f"the horizon is too short to settle: no straight leg after the first was reached "
+        f"{settle:g} m past its turn (the vehicle got {end_w:.0f} m along the path of the "
+        f"{need_ss:.0f} m needed){more(need_ss)}"
+    )
+    first = (
+        f"the horizon is too short: the first leg ({L:g} m) was not finished (the vehicle got "
+        f"{end_w:.0f} m along the path){more(L)}"
+    )
+    reasons = {"ss_cross_track": ss, "ss_depth_err": ss, "ss_dist_3d": ss}
+    reasons |= {"rms_dist_3d": first, "max_dist_3d": first}
+    if not math.isfinite(end_w):
+        reasons = {}
+    return metrics.undefined_metrics(m, reasons, "a non-finite state (see healthy)")

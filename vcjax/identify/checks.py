@@ -3,8 +3,13 @@
 Before fitting (errors, ``ValueError`` naming the log, the column and the samples; the CLI exits
 with code 2 before anything is compiled), :func:`check_logs`:
 
+* **each log once**: two logs with the same samples (a file listed twice, or a copy) would
+  count every residual twice and make every standard error sqrt(2) too small;
 * **time in seconds**: a median time step above :data:`MAX_STEP_S` (2 s) only makes sense if
-  ``t`` is in milliseconds (a 20 ms step read as 20 s), and is named as such;
+  ``t`` is in milliseconds (a 20 ms step read as 20 s), and is named as such; and the
+  positions must cover the distance the logged speed gives over the time steps (within a
+  factor :data:`MAX_MOTION_RATIO`; a log in minutes covers 60 x as much). Time is checked
+  before the angles, so that minutes are not blamed on a heading turning 60 x too fast;
 * **uniform sampling**: every step within :data:`SAMPLING_RTOL` (0.1 %) of the median step;
   otherwise the samples around the first gap are named (a 0.24 s gap in a 0.02 s log turns
   one shooting step into a 12x longer Euler step and biases the fit);
@@ -16,7 +21,11 @@ with code 2 before anything is compiled), :func:`check_logs`:
   differences over 0.5 s, so that sensor noise does not dominate), or an actuator 180/pi times
   its command (or the other way round), names the one in degrees -- where the two move together
   (correlation above :data:`MIN_PAIR_CORRELATION`); a channel that hardly moves (the roll of a
-  noisy REMUS 100 log) gives no evidence and is not judged.
+  noisy REMUS 100 log) gives no evidence and is not judged;
+* **actuators within their limits**: an actuator state beyond its limit (x
+  :data:`ACTUATOR_MARGIN`; the plant saturates it there, e.g. REMUS 100's rudder at 15 deg =
+  0.262 rad) is in degrees -- which also catches an actuator and its command both in degrees,
+  where the pair agrees.
 
 Before fitting, once the Jacobian is compiled, :func:`check_excitation`: each fitted
 parameter's *sensitivity* -- the RMS change of the weighted residuals per unit relative change
@@ -33,7 +42,9 @@ the data do separate them, and the same check after fitting decides whether it i
 
 After fitting, :func:`trust_warnings`: a zero or non-finite standard error, an estimate outside
 the plausible range (more than a factor :data:`PLAUSIBLE_FACTOR` from the nominal value: the fit
-runs on a log scale, so this is its bound), or an information matrix whose condition number
+runs on a log scale, so this is its bound; for a coefficient of an actuator's angle,
+``FitModel.actuator_coeffs``, a factor :data:`ACTUATOR_PLAUSIBLE_FACTOR`: an actuator logged in
+degrees scales it by about pi/180), or an information matrix whose condition number
 (normalised to unit diagonal) exceeds :data:`MAX_CONDITION` is a warning, and the fit is marked
 ``converged: false`` (the optimum is not trustworthy).
 """
@@ -53,6 +64,9 @@ __all__ = [
     "PLAUSIBLE_FACTOR",
     "SAMPLING_RTOL",
     "check_excitation",
+    "ACTUATOR_MARGIN",
+    "ACTUATOR_PLAUSIBLE_FACTOR",
+    "MAX_MOTION_RATIO",
     "check_logs",
     "conditioning_before_fit",
     "sensitivities",
@@ -73,17 +87,110 @@ MIN_RELATIVE_SENSITIVITY = 1e-6
 PLAUSIBLE_FACTOR = 100.0
 #: Condition number (unit-diagonal information matrix) above which the fit is not trusted.
 MAX_CONDITION = 1e10
+#: Logged actuator states may exceed their limit by this factor (sensor noise) before they are
+#: read as degrees.
+ACTUATOR_MARGIN = 1.05
+#: Estimates of an actuator's coefficient (:attr:`FitModel.actuator_coeffs`) more than this
+#: factor from the nominal value are not trusted: an actuator logged in degrees scales it by
+#: pi/180 = 1/57.3 (or, through saturating commands, by less).
+ACTUATOR_PLAUSIBLE_FACTOR = 10.0
 
 _HEADINGS = ("psi",)
 
 
-def check_logs(model, logs: Sequence) -> None:
-    """Raise ``ValueError`` for a log whose time is not in seconds, whose sampling is not
-    uniform, or whose angles / rates only make sense in degrees (see the module docstring)."""
+def check_logs(model, logs: Sequence, params=None) -> None:
+    """Raise ``ValueError`` for the same log given twice, a log whose time is not in seconds,
+    whose sampling is not uniform, or whose angles / rates only make sense in degrees (see the
+    module docstring). Time is checked before angles, so that a time in minutes is named as
+    such, not as a heading that turns 60 x too fast. ``params``: the vehicle's parameters whose
+    actuator limits bound the logged actuators (default: its nominal ones)."""
+    _check_duplicates(logs)
     for log in logs:
         _check_time(log)
+        _check_time_against_motion(model, log)
         _check_units(model, log)
-        _check_pairs(model, log)
+        _check_pairs(model, log)  # names which of a pair is in degrees, so before the limits
+        _check_actuators(model, log, params)
+
+
+def _check_duplicates(logs: Sequence) -> None:
+    """Two logs with the same samples (one file listed twice, or a copy): each residual would be
+    counted twice and every standard error come out sqrt(2) too small."""
+    seen: dict = {}
+    for i, log in enumerate(logs):
+        key = (log.t.tobytes(), log.x.tobytes(), log.u.tobytes())
+        if key in seen:
+            j = seen[key]
+            same = (
+                "is listed twice"
+                if logs[j].name == log.name
+                else f"holds the same data as {logs[j].name}"
+            )
+            raise ValueError(
+                f"files: {log.name} (entry {i + 1}) {same} (entry {j + 1}): its samples would "
+                "count twice and every standard error come out sqrt(2) too small; list each "
+                "log once"
+            )
+        seen[key] = i
+
+
+#: (position, velocity) columns: the distance covered between samples against the logged speed
+#: (body velocities: their norm is the speed over ground, whatever the attitude).
+_MOTION = ((("x", "y", "z"), ("u", "v", "w")), (("x", "y"), ("u", "v")))
+#: The distance covered over the logged speed x time beyond this factor (or below its inverse):
+#: ``t`` is not in seconds.
+MAX_MOTION_RATIO = 3.0
+
+
+def _check_time_against_motion(model, log) -> None:
+    """The positions must move as fast as the logged velocities say, in seconds: a log in
+    minutes covers 60 x the distance its speed gives over its time steps."""
+    cols = {c: log.x[:, j] for j, c in enumerate(model.state_columns)}
+    for pos, vel in _MOTION:
+        if all(c in cols for c in pos + vel):
+            break
+    else:
+        return
+    n = log.t.size
+    stride = max(1, n // 20)
+    p = np.stack([cols[c] for c in pos], axis=1)
+    speed = np.sqrt(sum(cols[c] ** 2 for c in vel))
+    dist = np.linalg.norm(p[stride:] - p[:-stride], axis=1)
+    integral = np.cumsum(np.concatenate([[0.0], 0.5 * (speed[1:] + speed[:-1]) * np.diff(log.t)]))
+    travel = integral[stride:] - integral[:-stride]
+    moving = travel > 1e-9
+    if not np.any(moving) or float(np.sum(dist[moving])) < 1e-6:
+        return  # no motion: no evidence
+    ratio = float(np.sum(dist[moving]) / np.sum(travel[moving]))
+    if ratio > MAX_MOTION_RATIO or ratio < 1.0 / MAX_MOTION_RATIO:
+        hint = ""
+        for k, unit in ((60.0, "minutes"), (3600.0, "hours"), (1e-3, "milliseconds")):
+            if k / 2.0 < ratio < 2.0 * k:
+                hint = f" (a factor {k:g}: t looks like {unit})"
+        raise ValueError(
+            f"{log.name}: column 't': the positions {list(pos)} cover {ratio:.3g} x the distance "
+            f"the logged speed {list(vel)} gives over the time steps{hint}; t must be in seconds"
+        )
+
+
+def _check_actuators(model, log, params=None) -> None:
+    """An actuator state beyond its limit (the plant saturates it there): in degrees."""
+    if model.actuator_limits is None:
+        return
+    params = model.nominal(np.float64) if params is None else params
+    limits = {c: float(v) for c, v in model.actuator_limits(params).items()}
+    for j, (c, unit) in enumerate(zip(model.state_columns, model.units, strict=True)):
+        if c not in limits or unit != "rad":
+            continue
+        x = log.x[:, j]
+        k = int(np.argmax(np.abs(x)))
+        lim = limits[c]
+        if abs(x[k]) > ACTUATOR_MARGIN * lim:
+            raise ValueError(
+                f"{log.name}: column {c!r} reaches {x[k]:.4g} at sample {k}, beyond the "
+                f"actuator's limit of {lim:.4g} rad ({math.degrees(lim):.3g} deg) where the plant "
+                "saturates it: only plausible in degrees; actuator angles must be in rad"
+            )
 
 
 #: (angle, its rate) and (actuator, its command) column pairs: one of a pair in degrees and the
@@ -254,10 +361,12 @@ def trust_warnings(
     std: dict,
     info_n: np.ndarray,
     scale_names: Sequence[str] | None = None,
+    actuator_coeffs: Sequence[str] = (),
 ) -> list[str]:
     """Warnings that make an optimum untrustworthy (see the module docstring); empty when the
     fit can be trusted. ``scale_names``: the parameters fitted on a log scale (default all
-    but the current's)."""
+    but the current's); ``actuator_coeffs``: those that multiply an actuator's angle (a
+    narrower plausible range, :data:`ACTUATOR_PLAUSIBLE_FACTOR`)."""
     out = []
     for n in names:
         s = std.get(n)
@@ -274,7 +383,16 @@ def trust_warnings(
         if e is None or nom in (None, 0.0) or not math.isfinite(e):
             continue
         ratio = abs(e / nom)
-        if not (1.0 / PLAUSIBLE_FACTOR <= ratio <= PLAUSIBLE_FACTOR):
+        if n in actuator_coeffs and not (
+            1.0 / ACTUATOR_PLAUSIBLE_FACTOR <= ratio <= ACTUATOR_PLAUSIBLE_FACTOR
+        ):
+            out.append(
+                f"{n}: estimate {e:.4g} is {ratio:.3g} x its nominal value {nom:.4g}: an "
+                f"actuator's coefficient more than a factor {ACTUATOR_PLAUSIBLE_FACTOR:g} from "
+                "nominal is implausible; an actuator and its command logged in degrees give "
+                f"this (a factor pi/180 = {math.pi / 180:.4g} on the angle): check their units"
+            )
+        elif not (1.0 / PLAUSIBLE_FACTOR <= ratio <= PLAUSIBLE_FACTOR):
             out.append(
                 f"{n}: estimate {e:.4g} is {ratio:.3g} x its nominal value {nom:.4g}, at the "
                 f"bound of the plausible range (a factor {PLAUSIBLE_FACTOR:g} either way)"

@@ -5,8 +5,9 @@ velocity, actuator states; :attr:`FitModel.state_columns`) and the command colum
 sample k to k+1 (:attr:`FitModel.command_columns`); the last row's command is never used. This is
 the layout of ``tests/data/remus100_pvs_reference.csv``:
 
-* CSV: an optional first line starting with ``#`` (provenance, kept), then a header line of
-  column names, then one row per sample; extra columns are ignored.
+* CSV (UTF-8, with or without a byte-order mark): an optional first line starting with ``#``
+  (provenance, kept), then a header line of distinct column names, then one row per sample;
+  extra columns are ignored.
 * ``.npz``: one 1-D array per column name.
 
 Every problem is reported before anything is compiled, as a ``ValueError`` naming the file and
@@ -46,7 +47,8 @@ class Log:
 
 def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], str, int]:
     """Columns of a CSV log, its provenance line, and the file line of the first data row."""
-    with open(path, newline="") as f:
+    # utf-8-sig: a byte-order mark (as spreadsheets write) is not part of the first name
+    with open(path, newline="", encoding="utf-8-sig") as f:
         lines = f.read().splitlines()
     provenance, first = "", 0
     if lines and lines[0].startswith("#"):
@@ -55,6 +57,14 @@ def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], str, int]:
         raise ValueError(f"{path}: no header line of column names")
     rows = list(csv.reader(lines[first:]))
     header = [h.strip() for h in rows[0]]
+    seen = set()
+    for j, h in enumerate(header):
+        if h in seen:
+            raise ValueError(
+                f"{path}: column {h!r} appears twice in the header (line {first + 1}, fields "
+                f"{header.index(h) + 1} and {j + 1}): which one is meant is ambiguous"
+            )
+        seen.add(h)
     body = [r for r in rows[1:] if any(c.strip() for c in r)]
     data = np.full((len(body), len(header)), np.nan)
     for i, row in enumerate(body):

@@ -218,8 +218,8 @@ def fit_logs(
     for log in logs:
         if log.x.shape[1] != model.n_x or log.u.shape[1] != model.n_u:
             raise ValueError(f"{log.name}: state/command columns do not match {model.vehicle!r}")
-    check_logs(model, logs)  # time in s, uniform sampling, angles in rad: before compiling
     base = model.nominal(float_dtype(dtype)) if base is None else base
+    check_logs(model, logs, base)  # time in s, uniform sampling, angles in rad: before compiling
     prob = ShootingProblem(model, step, params, base, fit_current, current_speed, current_direction)
     est = sizing.fit_estimate(seg_count(logs, segment_steps), segment_steps, model.n_x, len(params))
     sizing.check_estimate(est, "fit", max_memory_gb=max_memory_gb)  # before anything is built
@@ -300,7 +300,9 @@ def fit_logs(
     warns += _identifiability(names, corr, info_n) if finite else []
     std = {n: float(v) for n, v in zip(names, sd, strict=True)}
     estimates, nominal = prob.values(z), prob.values(np.zeros_like(z))
-    untrusted = trust_warnings(names, estimates, nominal, std, info_n)
+    untrusted = trust_warnings(
+        names, estimates, nominal, std, info_n, actuator_coeffs=model.actuator_coeffs
+    )
     warns += untrusted
     if res.reason == "interrupted":
         warns.append(

@@ -46,6 +46,10 @@ class FitModel:
         unpack: flat state (n_x,) -> the plant's state NamedTuple; pack: the inverse.
         plant: the continuous vector field ``f(t, state, u, args) -> state_dot``.
         pvs_step: PVS's discrete step ``(state, u, args, dt) -> state`` or ``None``.
+        actuator_limits: ``actuator_limits(params) -> {state column: limit}``: the magnitude
+            an actuator state cannot exceed (the plant saturates it there), in the column's unit.
+        actuator_coeffs: parameters that multiply an actuator's angle (their estimate scales
+            by pi/180 when the actuator is logged in degrees).
     """
 
     vehicle: str
@@ -60,6 +64,8 @@ class FitModel:
     pack: Callable
     plant: Callable
     pvs_step: Callable | None = None
+    actuator_limits: Callable | None = None
+    actuator_coeffs: tuple[str, ...] = ()
 
     @property
     def n_x(self) -> int:
@@ -189,6 +195,8 @@ FIT_MODELS: dict[str, FitModel] = {
         pack=_remus_pack,
         plant=rm.remus100_plant,
         pvs_step=rm.pvs_step,
+        actuator_limits=lambda p: {"delta_r": p.act_max[0], "delta_s": p.act_max[1]},
+        actuator_coeffs=("CL_delta_r", "CL_delta_s"),
     ),
     "infante": FitModel(
         vehicle="infante",
@@ -202,6 +210,8 @@ FIT_MODELS: dict[str, FitModel] = {
         unpack=_infante_unpack,
         pack=_infante_pack,
         plant=inf.infante_plant,
+        actuator_limits=lambda p: {"delta": p.rudder_max},
+        actuator_coeffs=("Y_uudr", "N_uudr"),
     ),
 }
 

@@ -19,10 +19,22 @@ The checks run after the configuration is parsed and before anything is compiled
     ``checkpoint = true`` the checkpoints plus one recomputed segment (``N / c + c`` steps of
     ``c = checkpoint_every``); forward mode keeps one tangent per tuned gain instead of a tape.
 
+  - a sea (``[waves]``, ``components = N``) adds per scenario its ``N`` components (5 float64
+    arrays: frequency, amplitude, wavenumber, phase, direction; :class:`vcjax.waves.Sea`) and,
+    while the kinematics are evaluated at the vehicle's position, :data:`WAVE_WORK_ARRAYS` more
+    ``(N,)`` arrays per scenario of a chunk (phases, attenuation, the sines and cosines and the
+    per-component terms of the velocity and acceleration); a reverse-mode tuning run keeps
+    :data:`WAVE_TAPE_ARRAYS` of them per scenario, step and RK4 stage on its tape. 10 million
+    components x 256 scenarios: one such array is 20 GB, the whole 410 GB.
+
   :data:`STATE_FLOATS` (64) is an upper estimate of what one step records for the built-in
   loops (state, controller state, controller outputs and diagnostics; the 6-DOF REMUS 100 loop
   is the largest, at about 50). The estimate is an order-of-magnitude guard against work that
   cannot fit (``num_scenarios = 1e9``, ``horizon = 1e9``), not a measurement.
+* **Wall time of a sea** (a warning, not a refusal; :func:`time_warnings`): the kinematics cost
+  about :data:`WAVE_SECONDS_PER_COMPONENT` per component and RK4 stage, four stages per step;
+  above :data:`WALL_WARN_S` seconds of it the command says so (with the estimate) before it
+  starts.
 * **Fit**: the multiple-shooting residuals and Jacobians of ``vcjax fit``
   (:func:`fit_estimate`), against the same memory limit.
 * **Seeds**: ``jax.random.PRNGKey`` takes integers of the default integer type: seeds must lie
@@ -37,6 +49,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 
 __all__ = [
     "MAX_STEPS",
@@ -50,6 +63,11 @@ __all__ = [
     "tune_estimate",
     "fit_estimate",
     "check_estimate",
+    "time_warnings",
+    "WAVE_WORK_ARRAYS",
+    "WAVE_TAPE_ARRAYS",
+    "WAVE_SECONDS_PER_COMPONENT",
+    "WALL_WARN_S",
 ]
 
 #: Default limit of steps per rollout (``--max-steps``).
@@ -60,6 +78,25 @@ STATE_FLOATS = 64
 METRIC_FLOATS = 48
 #: Sampled values kept per scenario (initial state, current, model factors, ...).
 SCENARIO_FLOATS = 32
+#: ``(N,)`` arrays of a sea per scenario: the :class:`vcjax.waves.Sea` itself.
+WAVE_SEA_ARRAYS = 5
+#: ``(N,)`` work arrays per scenario while a sea's kinematics are evaluated (phase, attenuation,
+#: cos, sin, c, s, the convective terms q and A, the acceleration's sums, the sampler's draws).
+#: Measured: a REMUS 100 sweep's peak resident memory grows by 159 bytes (20 float64) per
+#: component and scenario of a chunk (16 scenarios, 4e5 and 8e5 components: +1.05 and +2.06 GB
+#: over 64 components), i.e. the sea's 5 arrays and 15 more.
+WAVE_WORK_ARRAYS = 15
+#: ``(N,)`` arrays per scenario, step and RK4 stage a reverse-mode gradient keeps of a sea
+#: (the attenuated amplitude, cos and sin of the phase, q and A).
+WAVE_TAPE_ARRAYS = 5
+#: Seconds per sea component and RK4 stage of one scenario (float64, XLA:CPU, 2 cores): 24 ns
+#: with 1e6 components (77 s for 800 scenario-steps) and ~35 ns with 8e5 (a loaded machine),
+#: memory-bound; 64 components in cache cost ~5 ns (float32,
+#: ``benchmarks/results/waves_cost.json``). 20 ns: a low large-N figure (the warning's estimate
+#: errs short), where the warning matters.
+WAVE_SECONDS_PER_COMPONENT = 20e-9
+#: A sea whose kinematics alone are estimated above this many seconds is warned about.
+WALL_WARN_S = 60.0
 _F64 = 8
 _F32 = 4
 
@@ -78,8 +115,8 @@ def default_memory_limit() -> float:
 
 
 class Estimate(dict):
-    """``steps_per_run``, ``runs``, ``trajectory_steps``, ``memory_bytes`` and ``parts`` (the
-    named terms of the memory estimate)."""
+    """``steps_per_run``, ``runs``, ``trajectory_steps``, ``memory_bytes``, ``parts`` (the
+    named terms of the memory estimate) and ``wave_components`` (0: no sea)."""
 
 
 def _gb(x: float) -> str:
@@ -97,12 +134,18 @@ def sweep_estimate(spec) -> Estimate:
     seg = stride if stride > 0 else min(100, n_steps)
     chunk = min(int(spec.chunk_size), n)
     device = chunk * seg * STATE_FLOATS * _F64 * 4
+    parts = {"host results": host, "device chunk": device}
+    sc = spec.scenario
+    comps = int(sc.wave_components) if sc.waves else 0
+    if comps:
+        parts["sea"] = chunk * comps * (WAVE_SEA_ARRAYS + WAVE_WORK_ARRAYS) * _F64
     return Estimate(
         steps_per_run=n_steps,
         runs=n * v,
         trajectory_steps=n * v * n_steps,
-        memory_bytes=host + device,
-        parts={"host results": host, "device chunk": device},
+        memory_bytes=sum(parts.values()),
+        parts=parts,
+        wave_components=comps,
     )
 
 
@@ -124,12 +167,28 @@ def tune_estimate(cfg: dict, n_gains: int = 16) -> Estimate:
     plots = int(cfg.get("report", {}).get("plot_scenarios", 0))
     traj = 2 * min(plots, H) * n_steps * STATE_FLOATS * _F64
     evals = int(o["steps"]) * (1 + int(o.get("max_linesearch_steps", 0)))
+    parts = {"gradient tape": tape, "plotted trajectories": traj}
+    wav = cfg.get("waves")
+    comps = int(wav.get("components", 64)) if wav else 0
+    if comps:
+        seas = (B + H) * comps * WAVE_SEA_ARRAYS * _F64
+        work = max(B, H) * comps * WAVE_WORK_ARRAYS * _F64
+        if o.get("grad_mode", "reverse") == "forward":
+            work *= 1 + max(1, n_gains)
+            kept = 0
+        elif p.get("checkpoint"):
+            c = max(1, int(p.get("checkpoint_every", 10)))
+            kept = B * c * 4 * comps * WAVE_TAPE_ARRAYS * _F64
+        else:
+            kept = B * n_steps * 4 * comps * WAVE_TAPE_ARRAYS * _F64
+        parts["sea"] = seas + work + kept
     return Estimate(
         steps_per_run=n_steps,
         runs=B * evals + 2 * H,
         trajectory_steps=(B * evals + 2 * H) * n_steps,
-        memory_bytes=tape + traj,
-        parts={"gradient tape": tape, "plotted trajectories": traj},
+        memory_bytes=sum(parts.values()),
+        parts=parts,
+        wave_components=comps,
     )
 
 
@@ -149,11 +208,17 @@ def fit_estimate(segments: int, segment_steps: int, n_x: int, n_params: int) -> 
 
 
 def check_estimate(
-    est: Estimate, what: str, max_steps: int | None = None, max_memory_gb: float | None = None
+    est: Estimate,
+    what: str,
+    max_steps: int | None = None,
+    max_memory_gb: float | None = None,
+    notes=(),
 ) -> None:
     """Raise :class:`SizeError` if ``est`` exceeds the step limit (default :data:`MAX_STEPS`)
     or the memory limit (default :func:`default_memory_limit`), naming both and the option
-    that raises the limit."""
+    that raises the limit; then print ``notes`` (e.g. the sea's validity,
+    :func:`vcjax.waves.envelope_warnings`) and :func:`time_warnings` on stderr, one line each,
+    before the run starts."""
     limit_steps = MAX_STEPS if max_steps is None else int(max_steps)
     if est["steps_per_run"] > limit_steps:
         raise SizeError(
@@ -168,6 +233,34 @@ def check_estimate(
             f"{what}: needs about {_gb(est['memory_bytes'])} of memory ({parts}) but the limit "
             f"is {_gb(limit)}; make the run smaller, or raise the limit with --max-memory-gb"
         )
+    for line in [*(f"{what}: {n}" for n in notes), *time_warnings(est, what)]:
+        print(f"vcjax: warning: {line}", file=sys.stderr)
+
+
+def time_warnings(est: Estimate, what: str) -> list[str]:
+    """Warnings (one line each) about the wall time of ``est``: a sea whose kinematics alone
+    take more than :data:`WALL_WARN_S` (``trajectory_steps x 4 stages x components x``
+    :data:`WAVE_SECONDS_PER_COMPONENT`)."""
+    comps = int(est.get("wave_components", 0))
+    if not comps:
+        return []
+    seconds = est["trajectory_steps"] * 4 * comps * WAVE_SECONDS_PER_COMPONENT
+    if seconds <= WALL_WARN_S:
+        return []
+    return [
+        f"{what}: [waves] components = {comps}: the sea's kinematics alone take about "
+        f"{_duration(seconds)} ({est['trajectory_steps']} scenario-steps x 4 RK4 stages x "
+        f"{comps} components x ~{WAVE_SECONDS_PER_COMPONENT * 1e9:.0f} ns); 64 to 256 components "
+        "resolve a spectrum"
+    ]
+
+
+def _duration(s: float) -> str:
+    if s < 120:
+        return f"{s:.0f} s"
+    if s < 7200:
+        return f"{s / 60:.0f} min"
+    return f"{s / 3600:.1f} h"
 
 
 def check_limits_options(max_steps, max_memory_gb) -> None:

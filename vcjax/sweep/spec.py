@@ -144,10 +144,15 @@ class ScenarioSpec:
             sea = [f for f in changed if f.startswith("wave_")]
             if sea:
                 raise ConfigError(
-                    f"{sea[0]}: a sea needs wave_spectrum ('jonswap' or 'pm'); without it the "
-                    "scenarios are calm"
+                    f"{sea[0]}: given without wave_spectrum, so no sea would be simulated (a "
+                    f'calm run); set wave_spectrum = "jonswap" or "pm" ({", ".join(sea)})'
                 )
-        elif self.wave_spectrum == "pm" and "wave_gamma" in changed:
+        else:  # the NED origin must lie below the mean surface
+            try:
+                waves.check_origin_depth(self.wave_origin_depth, "wave_origin_depth")
+            except ValueError as err:
+                raise ConfigError(str(err)) from None
+        if self.waves and self.wave_spectrum == "pm" and "wave_gamma" in changed:
             raise ConfigError("wave_gamma: JONSWAP's peak enhancement; wave_spectrum 'pm' has none")
         if 0.0 < self.wave_spreading < MIN_SPREADING:
             raise ConfigError(

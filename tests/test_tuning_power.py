@@ -1,0 +1,281 @@
+"""Tests that kill the planted bugs the tuner's own tests let through (issue 31, item 8): its
+scenario sampling (units: degrees vs radians, knots vs m/s; the held-out batch independent of
+the training batch), its loss terms, and its interrupted-run summary. Each test names the bug
+it kills; the expected values are computed here independently (numpy, written-out formulas),
+not with the code under test.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from tuning import cli as tcli
+from tuning.config import load_config
+from tuning.loss import (
+    TERMS,
+    TuningProblem,
+    aggregate,
+    box_penalty,
+    loss_weights,
+    problem_data,
+    rollout_terms,
+    scenario_losses,
+    weighted_loss,
+)
+from tuning.params import GainSpace
+from tuning.scenarios import sample_scenarios
+from vcjax.loops import Signals
+
+N_SAMPLE = 512
+
+# ------------------------------------------------------------------ scenario sampling: units
+
+
+@pytest.fixture(scope="module")
+def batch():
+    return sample_scenarios(
+        3, N_SAMPLE, current_max=1.0, position_offset=5.0, heading_offset=math.pi / 4
+    )
+
+
+def test_heading_offsets_are_radians_over_the_whole_range(batch):
+    """Kills: the heading offset used as degrees (h = heading_offset instead of its conversion:
+    +-0.785 deg instead of +-45 deg) or converted twice. Simulation 1 starts at psi = pi/2."""
+    psi = np.asarray(batch.eta0[:, 2])
+    lo, hi = math.pi / 2 - math.pi / 4, math.pi / 2 + math.pi / 4
+    assert np.all(psi >= lo - 1e-12) and np.all(psi <= hi + 1e-12)
+    # 512 uniform draws: the extremes within 1 % of the range of the bounds (P(fail) ~ e^-5)
+    assert psi.min() < lo + 0.01 * (hi - lo) and psi.max() > hi - 0.01 * (hi - lo)
+    assert np.std(psi) == pytest.approx((hi - lo) / math.sqrt(12.0), rel=0.1)
+
+
+def test_position_offsets_are_metres_over_the_whole_range(batch):
+    for j in (0, 1):
+        x = np.asarray(batch.eta0[:, j])
+        assert np.all(np.abs(x) <= 5.0 + 1e-12)
+        assert x.min() < -4.9 and x.max() > 4.9
+
+
+def test_currents_are_metres_per_second_in_every_direction(batch):
+    """Kills: the current's direction range (0, 360) used in radians or degrees twice (all
+    currents within 6 deg of north), a speed in knots (x 0.514 or / 0.514), the components
+    swapped or the sign of one flipped (the direction distribution stays uniform, so those are
+    caught by the octants only together with the speed law)."""
+    c = np.asarray(batch.current)
+    assert c.shape == (N_SAMPLE, 3) and np.all(c[:, 2] == 0.0)
+    speed = np.hypot(c[:, 0], c[:, 1])
+    assert np.all(speed <= 1.0 + 1e-12) and speed.max() > 0.99
+    assert np.mean(speed) == pytest.approx(0.5, abs=0.04)  # U(0, 1): mean 1/2
+    direction = np.arctan2(c[:, 1], c[:, 0]) % (2 * math.pi)
+    counts = np.bincount((direction // (math.pi / 4)).astype(int), minlength=8)
+    assert np.all(counts > N_SAMPLE / 8 * 0.6), counts  # every octant, ~64 each
+
+
+def test_the_sampled_direction_and_speed_are_those_of_the_sweep_api():
+    """The direction the current flows towards, from north towards east (NED): a range of
+    [90, 90] deg is a current towards east, at the given speed."""
+    b = sample_scenarios(
+        0,
+        4,
+        extra={"current_speed": (0.7, 0.7), "current_direction_deg": (90.0, 90.0)},
+    )
+    np.testing.assert_allclose(np.asarray(b.current)[:, :2], [[0.0, 0.7]] * 4, atol=1e-12)
+
+
+# ------------------------------------------------------------------ the held-out batch
+
+TUNE = """
+[problem]
+variant = "vcm_integral"
+horizon = 1.0
+dt = 0.1
+integrator = "euler"
+timing = "sampled"
+[train]
+size = 4
+seed = {train}
+[heldout]
+size = {heldout_size}
+seed = {heldout}
+[optimizer]
+name = "adam"
+steps = {steps}
+[report]
+plot_scenarios = 1
+"""
+
+
+def _tune_cfg(tmp_path, train=0, heldout=1001, heldout_size=4, steps=3, name="t.toml"):
+    p = tmp_path / name
+    p.write_text(TUNE.format(train=train, heldout=heldout, heldout_size=heldout_size, steps=steps))
+    return p
+
+
+def test_the_heldout_batch_is_drawn_from_its_own_seed(tmp_path):
+    """Kills: the held-out batch drawn with the training seed (it would then be the training
+    batch: no test of generalisation), or with the training size."""
+    _, _, _, train, heldout = tcli.build(load_config(_tune_cfg(tmp_path, heldout_size=6)))
+    assert heldout.eta0.shape[0] == 6 and train.eta0.shape[0] == 4
+    # no held-out scenario is a training scenario (start and current)
+    tr = np.concatenate([np.asarray(train.eta0), np.asarray(train.current)], axis=1)
+    ho = np.concatenate([np.asarray(heldout.eta0), np.asarray(heldout.current)], axis=1)
+    assert np.min(np.abs(ho[:, None, :] - tr[None, :, :]).sum(-1)) > 1e-3
+    # it is the batch of its own seed: the same as a training batch drawn with that seed
+    other = _tune_cfg(tmp_path, train=1001, heldout=1002, name="b.toml")
+    _, _, _, train_1001, _ = tcli.build(load_config(other))
+    np.testing.assert_array_equal(np.asarray(heldout.eta0)[:4], np.asarray(train_1001.eta0))
+    np.testing.assert_array_equal(np.asarray(heldout.current)[:4], np.asarray(train_1001.current))
+
+
+# ------------------------------------------------------------------ loss terms by hand
+
+#         step:      0      1      2      3
+S = np.array([1.0, -2.0, 0.5, 0.0])
+E = np.array([0.0, 1.0, -1.0, 2.0])
+U_ERR = np.array([0.1, -0.2, 0.0, 0.3])
+PSI = np.array([0.5, 0.0, -0.5, 0.0])
+DEPTH = np.array([0.0, 1.0, 0.0, -1.0])
+CMD = np.array([[0.5, 0.0], [1.5, -1.0], [-2.0, 0.2], [1.0, 0.0]])  # commands / limits
+FINITE = np.array([True, True, False, True])
+W = 0.1  # sat_width
+
+
+def _signals():
+    z = jnp.zeros((4, 3))
+    return Signals(
+        eps=jnp.stack([jnp.asarray(S), jnp.asarray(E)], axis=1),
+        pos=z,
+        p_err=z,
+        u_err=jnp.asarray(U_ERR),
+        psi_err=jnp.asarray(PSI),
+        depth_err=jnp.asarray(DEPTH),
+        cmd_ratio=jnp.asarray(CMD),
+        sat=jnp.asarray(np.any(np.abs(CMD) >= 1, axis=1)),
+        act={},
+    )
+
+
+class _Traj:
+    finite = jnp.asarray(FINITE)
+
+
+def test_each_loss_term_by_hand():
+    """Kills: a term's square or mean dropped, the excess measured from 0 instead of the limit,
+    the smooth count's width squared wrongly, the health fraction inverted.
+
+    Worked by hand (means over the 4 steps):
+    eps = (1 + 5 + 1.25 + 4) / 4 = 2.8125; u = (0.01 + 0.04 + 0 + 0.09) / 4 = 0.035;
+    psi = (0.25 + 0 + 0.25 + 0) / 4 = 0.125; depth = (0 + 1 + 0 + 1) / 4 = 0.5;
+    excess over the limit: step 1: 0.5 (and |-1| - 1 = 0), step 2: 1.0; so
+    sat_excess = (0.25 + 1) / 4 = 0.3125; sat_time = (0.25/(0.25+0.01) + 1/(1+0.01)) / 4;
+    effort = (0.25 + 3.25 + 4.04 + 1) / 4 = 2.135; unhealthy = 1/4.
+    """
+    t = {k: float(v) for k, v in rollout_terms(_Traj(), _signals(), W).items()}
+    assert sorted(t) == sorted(TERMS)
+    want = {
+        "eps": 2.8125,
+        "u_tilde": 0.035,
+        "psi_tilde": 0.125,
+        "depth": 0.5,
+        "sat_excess": 0.3125,
+        "sat_time": (0.25 / 0.26 + 1.0 / 1.01) / 4.0,
+        "effort": 2.135,
+        "unhealthy": 0.25,
+    }
+    for k, v in want.items():
+        assert t[k] == pytest.approx(v, rel=1e-12, abs=1e-15), k
+
+
+def test_the_smooth_time_over_limit_tends_to_the_count():
+    """x^2 / (x^2 + w^2): 0 inside the limits, 1/2 at x = w, -> 1 far beyond."""
+    for ratio, want in ((0.9, 0.0), (1.0 + W, 0.5), (1.0 + 100 * W, 1e4 / (1e4 + 1))):
+        sig = _signals()._replace(cmd_ratio=jnp.full((4, 1), ratio))
+        got = float(rollout_terms(_Traj(), sig, W)["sat_time"])
+        assert got == pytest.approx(want, rel=1e-12, abs=1e-15)
+
+
+def test_aggregate_mean_and_cvar_and_the_box():
+    """CVaR at alpha: the mean of the ceil(alpha B) worst; the box: a quadratic outside +-log_box
+    of the reference only."""
+    losses = jnp.asarray([1.0, 5.0, 2.0, 8.0, 3.0])
+    space = GainSpace()
+    mean = TuningProblem(space=space, num_steps=5)
+    assert float(aggregate(losses, mean)) == pytest.approx(3.8)
+    cvar = TuningProblem(space=space, num_steps=5, risk="cvar", alpha=0.4)
+    assert float(aggregate(losses, cvar)) == pytest.approx(6.5)  # (8 + 5) / 2
+    assert (
+        float(aggregate(losses, TuningProblem(space=space, num_steps=5, risk="cvar", alpha=0.2)))
+        == 8.0
+    )
+    data = problem_data(mean, log_box=1.0, box_weight=10.0)
+    ref = np.asarray(data.theta_ref)
+    assert float(box_penalty(jnp.asarray(ref + 0.9), data)) == 0.0
+    d = np.zeros_like(ref)
+    d[0], d[-1] = 1.5, -3.0  # 0.5 and 2.0 beyond the box
+    assert float(box_penalty(jnp.asarray(ref + d), data)) == pytest.approx(10.0 * (0.25 + 4.0))
+
+
+def test_the_weighted_loss_counts_every_term_with_its_own_weight():
+    """Kills: a term missing from the sum (the depth term too, which a planar loop's rollout
+    leaves at 0) or weighted by another term's weight: every term and weight distinct (primes),
+    so each product is seen in the sum."""
+    weights = loss_weights(eps=2.0, u_tilde=3.0, psi_tilde=5.0, sat_excess=7.0, sat_time=11.0,
+                           effort=13.0, unhealthy=17.0, depth=19.0)  # fmt: skip
+    values = dict(zip(TERMS, (1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8), strict=True))
+    terms = {k: jnp.asarray(v) for k, v in values.items()}
+    want = sum(float(getattr(weights, k)) * v for k, v in values.items())
+    assert float(weighted_loss(terms, weights)) == pytest.approx(want, rel=1e-14)
+    for k in TERMS:  # each term moves the loss by its own weight
+        bumped = dict(terms, **{k: terms[k] + 1.0})
+        step = float(weighted_loss(bumped, weights)) - float(weighted_loss(terms, weights))
+        assert step == pytest.approx(float(getattr(weights, k)), rel=1e-12), k
+
+
+def test_the_scenario_loss_is_the_weighted_sum_of_its_terms():
+    """Kills: a term missing from the sum or weighted by another term's weight (every weight
+    distinct here, each term checked against the sum)."""
+    space = GainSpace()
+    problem = TuningProblem(space=space, num_steps=6, integrator="euler")
+    weights = loss_weights(eps=1.1, u_tilde=2.3, psi_tilde=3.7, sat_excess=5.9, sat_time=7.1,
+                           effort=11.3, unhealthy=13.7, depth=17.9)  # fmt: skip
+    data = problem_data(problem, weights=weights)
+    sc = sample_scenarios(0, 2, current_max=1.5)
+    losses, terms = scenario_losses(data.theta_ref, data, sc, problem)
+    want = sum(float(getattr(weights, k)) * np.asarray(terms[k]) for k in TERMS)
+    np.testing.assert_allclose(np.asarray(losses), want, rtol=1e-12)
+    assert all(np.all(np.asarray(terms[k]) >= 0) for k in TERMS)
+    assert np.all(np.asarray(terms["eps"]) > 0)  # the offsets make path errors
+
+
+# ------------------------------------------------------------------ the interrupted run
+
+
+def test_an_interrupted_tune_says_so_in_its_summary(tmp_path, monkeypatch):
+    """Kills: the interrupted flag or the planned steps left out of (or wrong in) summary.json,
+    the before/after figures drawn after a stop (new compiles once the user asked to stop).
+    The stop is requested after the second step, in-process (no signal, no subprocess)."""
+    calls = {"n": 0}
+
+    def stop_after_two():
+        calls["n"] += 1
+        return calls["n"] >= 2
+
+    monkeypatch.setattr(tcli, "stop_requested_everywhere", stop_after_two)
+    cfg = _tune_cfg(tmp_path, steps=1000)
+    out = tmp_path / "out"
+    res = tcli.run_tune_config(cfg, out, progress=None)
+    s = json.loads((out / "summary.json").read_text())
+    assert s == json.loads(json.dumps(res["summary"]))
+    assert s["interrupted"] is True and s["reason"] == "interrupted"
+    assert s["steps_planned"] == 1000 and s["iterations"] == 2
+    hist = json.loads((out / "history.json").read_text())
+    assert hist["reason"] == "interrupted" and len(hist["iterations"]) == 2
+    assert not list(out.glob("before_after*"))  # no figures that need new compiles
+    assert math.isfinite(s["heldout_loss_after"])
+    jax.clear_caches()
