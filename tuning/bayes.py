@@ -34,7 +34,8 @@ def _optuna():
         import optuna
     except ImportError:  # pragma: no cover - optuna is declared by the "tuning" extra
         raise ImportError(
-            'Bayesian optimisation needs optuna: pip install "vcjax[tuning]" (or pip install optuna)'
+            'Bayesian optimisation needs optuna: pip install "vcjax[tuning]" '
+            "(or pip install optuna)"
         ) from None
     return optuna
 

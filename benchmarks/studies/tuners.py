@@ -12,7 +12,7 @@ black-box tuners a whole generation of candidates in one call (:mod:`tuning.blac
 :mod:`tuning.bayes`), so each gets the same hardware advantage.
 
 * ``lbfgs``, ``adam``: the gradient tuner of :mod:`tuning.optim` (the config's ``[optimizer]``
-  settings, only the name changed);
+  settings, only the name changed; ``gradient``: the config's optimiser as it is);
 * ``cmaes``: pycma, its default parameters, ``sigma0`` in log-gain units (``--sigma0``);
 * ``bayes``: optuna's TPE over the problem's ``log_box`` around the start, as many candidates
   per batch as CMA-ES's population;
@@ -25,7 +25,8 @@ starts after the problem is built and the held-out evaluation is compiled, and s
 incumbent (lowest training loss so far; the iterate for the gradient tuners) is evaluated on the
 held-out batch after every step / generation: what is timed is the tuner, its compilation
 included. Rollouts: a candidate costs ``B``; a batch ``value_and_grad`` is counted as ``B``
-rollouts too (forward and backward: one L-BFGS or Adam evaluation).
+rollouts too (forward and backward: one L-BFGS or Adam evaluation; ``--grad-ratio R`` counts it
+as ``R B``, e.g. its measured cost in forward passes). ``--budget`` is ``--rollouts``.
 
 The target is the lowest held-out loss any tuner reached (any cache); the table gives each
 tuner's time and rollouts to within 1 % and 5 % of it, or "not reached". Writes ``tuners.png``
@@ -44,13 +45,26 @@ import tempfile
 import time
 from pathlib import Path
 
-TUNERS = ("lbfgs", "adam", "cmaes", "bayes", "random")
+TUNERS = ("lbfgs", "adam", "cmaes", "bayes", "random", "gradient")
+#: the gradient tuners (``gradient``: the config's own ``[optimizer]``, name included)
+GRADIENT = ("lbfgs", "adam", "gradient")
+#: what ``--tuners`` runs by default
+DEFAULT_TUNERS = ("lbfgs", "adam", "cmaes", "bayes", "random")
 #: tolerances [%] above the target at which the time / rollouts to reach it are reported
 REACH_PCT = (1.0, 5.0)
 #: steps given to the gradient tuner (it stops on the time or rollout budget first)
 _MANY = 1_000_000
 
-__all__ = ["TUNERS", "REACH_PCT", "run_tuner", "run_study", "summarise", "main"]
+__all__ = [
+    "TUNERS",
+    "GRADIENT",
+    "DEFAULT_TUNERS",
+    "REACH_PCT",
+    "run_tuner",
+    "run_study",
+    "summarise",
+    "main",
+]
 
 
 def run_tuner(
@@ -62,10 +76,12 @@ def run_tuner(
     radius: float = 0.5,
     seed: int = 0,
     max_steps: int | None = None,
+    grad_ratio: float = 1.0,
 ) -> dict:
     """Run one tuner on the problem of ``config`` in this process; its curve of held-out loss
     against the tuner's own wall clock (compile included, held-out evaluations excluded) and
-    rollouts. Stops at ``seconds``, ``rollouts``, or ``max_steps`` steps / generations."""
+    rollouts (a batch ``value_and_grad`` counted as ``grad_ratio`` rollouts per scenario).
+    Stops at ``seconds``, ``rollouts``, or ``max_steps`` steps / generations."""
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -110,17 +126,19 @@ def run_tuner(
 
     loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
     info: dict = {}
-    if tuner in ("lbfgs", "adam"):
-        opts = {**tuner_options(cfg.optimizer), "optimizer": tuner, "steps": _MANY}
+    if tuner in GRADIENT:
+        opts = {**tuner_options(cfg.optimizer), "steps": _MANY}
+        opts["optimizer"] = opts["optimizer"] if tuner == "gradient" else tuner
         res = run_gradient_tuner(
             loss_fn,
             theta0,
             (data, train),
             **opts,
-            on_step=lambda k, th, rec: record(th, rec["cum_evals"] * B),
+            on_step=lambda k, th, rec: record(th, round(rec["cum_evals"] * B * grad_ratio)),
             should_stop=stop,
         )
-        info = {"reason": res.reason, "n_bad": res.n_bad, "evals": res.evals}
+        info = {"optimizer": opts["optimizer"], "reason": res.reason, "n_bad": res.n_bad}
+        info["evals"] = res.evals
     else:
         f = batch_objective(loss_fn, (data, train))
         lam = cmaes_popsize(space.size)
@@ -156,6 +174,7 @@ def _worker_cmd(args, tuner, out):
     cmd += ["--sigma0", str(args.sigma0), "--radius", str(args.radius), "--seed", str(args.seed)]
     if args.rollouts is not None:
         cmd += ["--rollouts", str(args.rollouts)]
+    cmd += ["--grad-ratio", str(args.grad_ratio)]
     if not args.x64:
         cmd.append("--no-x64")
     return cmd
@@ -214,7 +233,7 @@ def summarise(runs: dict) -> dict:
             table[c][name] = row
     ratios: dict = {}
     for c, rows in table.items():
-        for g in ("lbfgs", "adam"):
+        for g in GRADIENT:
             for b in ("cmaes", "bayes", "random"):
                 if g in rows and b in rows:
                     tg, tb = rows[g]["wall_s_to_1%"], rows[b]["wall_s_to_1%"]
@@ -296,9 +315,21 @@ def _parser():
     doc = __doc__.split("\n")[0]
     ap = argparse.ArgumentParser(prog="python -m benchmarks.studies.tuners", description=doc)
     ap.add_argument("config", type=Path, help="vcjax tune TOML file (the problem)")
-    ap.add_argument("--tuners", default=",".join(TUNERS), help=f"subset of {','.join(TUNERS)}")
+    ap.add_argument(
+        "--tuners",
+        default=",".join(DEFAULT_TUNERS),
+        help=f"subset of {','.join(TUNERS)} (gradient: the config's [optimizer])",
+    )
     ap.add_argument("--seconds", type=float, default=60.0, help="wall-clock budget per tuner")
-    ap.add_argument("--rollouts", type=int, help="rollout budget per tuner (default: none)")
+    ap.add_argument(
+        "--rollouts", "--budget", type=int, help="rollout budget per tuner (default: none)"
+    )
+    ap.add_argument(
+        "--grad-ratio",
+        type=float,
+        default=1.0,
+        help="rollouts one batch value_and_grad counts as, per scenario (default 1)",
+    )
     ap.add_argument("--warm", action="store_true", help="also a second, warm-cache run each")
     ap.add_argument("--sigma0", type=float, default=0.5, help="CMA-ES initial step (log-gains)")
     ap.add_argument("--radius", type=float, default=0.5, help="random-search radius (log-gains)")
@@ -334,8 +365,10 @@ def main(argv=None) -> int:
         from vcjax.runtime.cache import enable_compilation_cache
 
         enable_compilation_cache()
-        r = run_tuner(args.config, args._worker, args.seconds, args.rollouts, args.sigma0,
-                      args.radius, args.seed)  # fmt: skip
+        r = run_tuner(
+            args.config, args._worker, args.seconds, args.rollouts, args.sigma0, args.radius,
+            args.seed, grad_ratio=args.grad_ratio,
+        )  # fmt: skip
         args._result.write_text(json.dumps(r) + "\n")
         return 0
     load = _load()
@@ -343,8 +376,10 @@ def main(argv=None) -> int:
         if args.quick:
             runs = {"cold": {}}
             for t in args.tuners:
-                runs["cold"][t] = run_tuner(args.config, t, args.seconds, args.rollouts,
-                                            args.sigma0, args.radius, args.seed, max_steps=2)  # fmt: skip
+                runs["cold"][t] = run_tuner(
+                    args.config, t, args.seconds, args.rollouts, args.sigma0, args.radius,
+                    args.seed, max_steps=2, grad_ratio=args.grad_ratio,
+                )  # fmt: skip
         else:
             runs = run_study(args, say)
     except ValueError as err:  # a config error, before any tuning
@@ -355,6 +390,7 @@ def main(argv=None) -> int:
         "tuners": list(args.tuners),
         "seconds": args.seconds,
         "rollouts_budget": args.rollouts,
+        "grad_ratio": args.grad_ratio,
         "x64": args.x64,
         "load": load,
         "load_after": _load(),
