@@ -73,13 +73,17 @@ SMOKE = {
     "compile_times": (["--loops", "infante", "--kinds", "forward", "--steps", "10"]
                       + ["--tune", "{tune}", "--no-compile", "--json", "{tmp}/c.json"], None),
     "cost_analysis": (["--repeats", "1", "--batch", "4", "--steps", "10", "--matmul-n", "8"]
-                      + ["--iters", "2", "--json", "{tmp}/c.json"], None),
+                      + ["--iters", "2", "--json", "{tmp}/c.json"],
+                      "compiles ~15 programs (horizons x timings, kernels, 7 component loops) "
+                      "whatever the sizes: 80 s on a loaded 2-core machine"),
     "gradient_cost": (["--quick", "--no-memory", "--batches", "1", "--steps", "10"]
-                      + ["--repeats", "1", "--json", "{tmp}/c.json"], None),
+                      + ["--repeats", "1", "--json", "{tmp}/c.json"],
+                      "compiles every gradient variant (reverse, checkpointed, forward) whatever "
+                      "the sizes: 95 s on a loaded 2-core machine"),
     "layout": (["--repeats", "1", "--batch", "4", "--steps", "10", "--json", "{tmp}/c.json"],
                None),
-    "loops": (["--repeats", "1", "--loops", "infante", "--batch", "4", "--steps", "10"]
-              + ["--single-steps", "10", "--json", "{tmp}/c.json"], None),
+    "loops": (["--repeats", "1", "--loops", "infante/vcm", "--cpu-devices", "1", "--batch", "4"]
+              + ["--steps", "10", "--single-steps", "10", "--json", "{tmp}/c.json"], None),
     "numpy_baseline": (["--repeats", "1", "--np-steps", "10", "--np-batch", "4"]
                        + ["--np-batch-steps", "5", "--jax-steps", "10", "--jax-batch", "4"]
                        + ["--json", "{tmp}/c.json"], None),
@@ -89,17 +93,23 @@ SMOKE = {
     "plot_throughput": (["benchmarks/results/throughput_float32_sampled_1core.json"]
                         + ["--out", "{tmp}/t.png"], None),
     "sharded_gradient": (["--repeats", "1", "--batch", "4", "--steps", "10"]
-                         + ["--json", "{tmp}/c.json"], None),
-    "throughput": (["--quick", "--repeats", "1", "--batches", "1", "4", "--steps", "10"]
+                         + ["--json", "{tmp}/c.json"],
+                         "compiles the tuner's gradient twice on two devices (shared and tiled "
+                         "gains) whatever the sizes: 5 min on a loaded 2-core machine"),
+    "throughput": (["--quick", "--repeats", "1", "--batches", "4", "--steps", "10"]
                    + ["--compile-horizons", "10", "20", "--compile-batch", "4"]
                    + ["--json", "{tmp}/c.json"], None),
     "waves_cost": (["--repeats", "1", "--batch", "4", "--steps", "10", "--components", "4"]
                    + ["--sweep-batch", "4", "--sweep-steps", "10", "--json", "{tmp}/c.json"],
                    None),
     "before_after": (["--kinds", "single", "--timings", "sampled", "--rounds", "1"]
-                     + ["--repeats", "1", "--single-steps", "10", "--json", "{tmp}/c.json"], None),
+                     + ["--repeats", "1", "--single-steps", "10", "--json", "{tmp}/c.json"],
+                     "extracts an older revision (git archive) and compiles it and this checkout "
+                     "in alternating fresh processes"),
     "loops_before_after": (["--rounds", "1", "--loops", "odin", "--batch", "4", "--steps", "10"]
-                           + ["--single-steps", "10", "--json", "{tmp}/c.json"], None),
+                           + ["--single-steps", "10", "--json", "{tmp}/c.json"],
+                           "extracts an older revision (git archive) and compiles it and this "
+                           "checkout in alternating fresh processes"),
     "tuners": (["{tune}", "--quick", "--tuners", "lbfgs,cmaes,bayes", "--out", "{tmp}"]
                + ["--json", "{tmp}/t.json"], None),
 }  # fmt: skip
