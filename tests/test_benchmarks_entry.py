@@ -3,6 +3,7 @@ three folders, refuses an unknown name, every step of ``--all`` names one that e
 benchmark runs (:data:`SMOKE`: its quickest mode at tiny sizes, outputs into a temporary folder;
 nothing timed or compared), so a refactor cannot silently break one."""
 
+import json
 import os
 import subprocess
 import sys
@@ -110,7 +111,7 @@ SMOKE = {
                            + ["--single-steps", "10", "--json", "{tmp}/c.json"],
                            "extracts an older revision (git archive) and compiles it and this "
                            "checkout in alternating fresh processes"),
-    "tuners": (["{tune}", "--quick", "--tuners", "lbfgs,cmaes,bayes", "--out", "{tmp}"]
+    "tuners": (["{tune}", "--quick", "--tuners", "gradient,cmaes,bayes", "--out", "{tmp}"]
                + ["--json", "{tmp}/t.json"], None),
 }  # fmt: skip
 
@@ -145,3 +146,12 @@ def test_every_benchmark_runs_in_its_smoke_mode(name, tmp_path):
         text=True,
     )
     assert r.returncode == 0, f"{name} exited {r.returncode}:\n{r.stderr[-3000:]}"
+    for out in ("c.json", "t.json", "t.png"):  # what it was asked to write, it wrote
+        if f"{{tmp}}/{out}" in SMOKE[name][0]:
+            assert (tmp_path / out).stat().st_size > 0, f"{name}: no {out}"
+    if name == "tuners":
+        rep = json.loads((tmp_path / "t.json").read_text())
+        assert list(rep["runs"]["cold"]) == ["gradient", "cmaes", "bayes"]
+        assert rep["summary"]["target"] == min(
+            r["best_heldout"] for r in rep["runs"]["cold"].values()
+        )
