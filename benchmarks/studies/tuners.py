@@ -77,11 +77,13 @@ def run_tuner(
     seed: int = 0,
     max_steps: int | None = None,
     grad_ratio: float = 1.0,
+    grad_mode: str | None = None,
 ) -> dict:
     """Run one tuner on the problem of ``config`` in this process; its curve of held-out loss
     against the tuner's own wall clock (compile included, held-out evaluations excluded) and
     rollouts (a batch ``value_and_grad`` counted as ``grad_ratio`` rollouts per scenario).
-    Stops at ``seconds``, ``rollouts``, or ``max_steps`` steps / generations."""
+    Stops at ``seconds``, ``rollouts``, or ``max_steps`` steps / generations. ``grad_mode``
+    (``"reverse"`` / ``"forward"``) replaces the config's for the gradient tuners."""
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -129,6 +131,7 @@ def run_tuner(
     if tuner in GRADIENT:
         opts = {**tuner_options(cfg.optimizer), "steps": _MANY}
         opts["optimizer"] = opts["optimizer"] if tuner == "gradient" else tuner
+        opts["grad_mode"] = grad_mode or opts["grad_mode"]
         res = run_gradient_tuner(
             loss_fn,
             theta0,
@@ -137,7 +140,8 @@ def run_tuner(
             on_step=lambda k, th, rec: record(th, round(rec["cum_evals"] * B * grad_ratio)),
             should_stop=stop,
         )
-        info = {"optimizer": opts["optimizer"], "reason": res.reason, "n_bad": res.n_bad}
+        info = {"optimizer": opts["optimizer"], "grad_mode": opts["grad_mode"]}
+        info.update(reason=res.reason, n_bad=res.n_bad)
         info["evals"] = res.evals
     else:
         f = batch_objective(loss_fn, (data, train))
@@ -175,6 +179,8 @@ def _worker_cmd(args, tuner, out):
     if args.rollouts is not None:
         cmd += ["--rollouts", str(args.rollouts)]
     cmd += ["--grad-ratio", str(args.grad_ratio)]
+    if args.grad_mode:
+        cmd += ["--grad-mode", args.grad_mode]
     if not args.x64:
         cmd.append("--no-x64")
     return cmd
@@ -330,6 +336,11 @@ def _parser():
         default=1.0,
         help="rollouts one batch value_and_grad counts as, per scenario (default 1)",
     )
+    ap.add_argument(
+        "--grad-mode",
+        choices=("reverse", "forward"),
+        help="gradient mode of lbfgs/adam/gradient (default: the config's)",
+    )
     ap.add_argument("--warm", action="store_true", help="also a second, warm-cache run each")
     ap.add_argument("--sigma0", type=float, default=0.5, help="CMA-ES initial step (log-gains)")
     ap.add_argument("--radius", type=float, default=0.5, help="random-search radius (log-gains)")
@@ -367,7 +378,7 @@ def main(argv=None) -> int:
         enable_compilation_cache()
         r = run_tuner(
             args.config, args._worker, args.seconds, args.rollouts, args.sigma0, args.radius,
-            args.seed, grad_ratio=args.grad_ratio,
+            args.seed, grad_ratio=args.grad_ratio, grad_mode=args.grad_mode,
         )  # fmt: skip
         args._result.write_text(json.dumps(r) + "\n")
         return 0
@@ -379,6 +390,7 @@ def main(argv=None) -> int:
                 runs["cold"][t] = run_tuner(
                     args.config, t, args.seconds, args.rollouts, args.sigma0, args.radius,
                     args.seed, max_steps=2, grad_ratio=args.grad_ratio,
+                    grad_mode=args.grad_mode,
                 )  # fmt: skip
         else:
             runs = run_study(args, say)
@@ -391,6 +403,7 @@ def main(argv=None) -> int:
         "seconds": args.seconds,
         "rollouts_budget": args.rollouts,
         "grad_ratio": args.grad_ratio,
+        "grad_mode": args.grad_mode,
         "x64": args.x64,
         "load": load,
         "load_after": _load(),
