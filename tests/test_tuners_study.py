@@ -112,3 +112,21 @@ def test_time_to_target_is_the_first_time_within_each_tolerance_of_the_best_of_a
     assert (cm["wall_s_to_1%"], cm["wall_s_to_5%"]) == (None, 5.0)  # 1.02 > 1.01: not reached
     assert s["table"]["warm"]["lbfgs"]["wall_s_to_1%"] == 1.0
     assert s["ratios_wall_s_to_1%"]["cold: lbfgs/cmaes at 1%"] is None
+
+
+def test_bad_arguments_exit_2_with_one_line_before_any_work(tmp_path, capsys):
+    from benchmarks.studies.tuners import main
+
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text("[problem]\nhorizon = -1\n")
+    out = tmp_path / "out"
+    for argv, msg in (
+        ([str(cfg), "--tuners", "lbfgs,nope"], "tuners: unknown ['nope']"),
+        ([str(tmp_path / "none.toml")], "config: no such file"),
+        ([str(cfg), "--seconds", "0"], "--seconds: expected > 0"),
+        ([str(cfg), "--quick"], "problem.horizon"),
+    ):
+        assert main([*argv, "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and msg in err[0]
+    assert not out.exists()
