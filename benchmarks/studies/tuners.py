@@ -18,9 +18,11 @@ black-box tuners a whole generation of candidates in one call (:mod:`tuning.blac
   per batch as CMA-ES's population;
 * ``random``: random search, radius ``--radius`` (log-gains), same batch size.
 
-Each tuner runs in a fresh Python process with its own, initially empty, JAX compilation cache
-(``cold``: compile included, as a first run costs); with ``--warm`` it runs a second time on the
-cache its first run filled (``warm``: what a user re-running the same problem waits). The clock
+Each tuner runs in a fresh Python process, with the XLA CPU code generator ``vcjax tune`` uses
+(:func:`vcjax.runtime.compiler.prefer_fast_compile`) and its own, initially empty, JAX
+compilation cache (``cold``: compile included, as a first run costs); with ``--warm`` it runs a
+second time on the cache its first run filled (``warm``: what a user re-running the same problem
+waits). The clock
 starts after the problem is built and the held-out evaluation is compiled, and stops while the
 incumbent (lowest training loss so far; the iterate for the gradient tuners) is evaluated on the
 held-out batch after every step / generation: what is timed is the tuner, its compilation
@@ -369,6 +371,9 @@ def main(argv=None) -> int:
         say(f"--seconds: expected > 0, got {args.seconds}")
         return 2
     if args._worker or args.quick:
+        from vcjax.runtime.compiler import prefer_fast_compile
+
+        prefer_fast_compile()  # what `vcjax tune` does, before JAX starts (XLA reads it once)
         import jax
 
         jax.config.update("jax_enable_x64", bool(args.x64))
