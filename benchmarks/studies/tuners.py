@@ -303,6 +303,9 @@ def figure(rep: dict, path: Path) -> Path:
             a.axhline(tgt * (1 + p / 100), color="k", ls=ls, lw=0.8, label=f"target +{p:g} %")
         a.set(xlabel=xl, ylabel="best held-out loss so far", yscale="log")
         a.grid(True, which="both", alpha=0.3)
+    B = next(iter(next(iter(rep["runs"].values())).values()))["train_size"]
+    ax[1].set_xscale("symlog", linthresh=B)  # one batch linear, then decades
+    ax[1].set_xlim(left=0)
     ax[0].legend(fontsize=7, ncol=2)
     ax[1].legend(fontsize=7)
     fig.suptitle(f"{rep['config']} (load {rep['load']})", fontsize=9)
