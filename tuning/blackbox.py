@@ -1,5 +1,5 @@
 """Black-box baselines in the same harness: CMA-ES (Hansen's pycma, ``cma`` on PyPI, installed
-by ``pip install "vcjax[tuning]"``) and random search.
+by ``pip install "vcjax[tuning]"``) and random search (Bayesian optimisation: :mod:`tuning.bayes`).
 
 Both evaluate a whole generation of candidate gain vectors at once: the objective is vmapped
 over candidates (and, inside, over the scenario batch) and jitted, so one generation of
@@ -28,6 +28,7 @@ __all__ = [
     "cmaes_popsize",
     "run_cmaes",
     "run_random_search",
+    "generation_loop",
 ]
 
 #: what a non-finite objective value is told to pycma as (ranks last; finite arithmetic)
@@ -63,7 +64,11 @@ class BlackBoxResult(NamedTuple):
     history: list
 
 
-def _loop(ask, tell, f, lam, theta0, max_evals, on_gen, progress, stop=lambda: False):
+def generation_loop(ask, tell, f, lam, theta0, max_evals, on_gen, progress, stop=lambda: False):
+    """The loop every black-box tuner runs (:mod:`tuning.bayes` too): ``X = ask()`` (lambda, n),
+    ``vals = f(X)`` (one batch), ``tell(X, vals)``, until ``max_evals`` candidates or
+    ``stop()``; keeps the incumbent, times the generations (``wall_s``: ask + f + tell, without
+    ``on_gen``)."""
     best_x, best_f = np.asarray(theta0, dtype=float), np.inf
     history, evals, wall, gen = [], 0, 0.0, 0
     total = max(1, max_evals // lam)
@@ -132,11 +137,13 @@ def run_cmaes(
     seed: int = 0,
     on_gen: Callable | None = None,
     progress: Callable | None = None,
+    should_stop: Callable[[], bool] | None = None,
 ) -> BlackBoxResult:
     """pycma CMA-ES from ``theta0`` with step ``sigma0`` (in ``theta`` units: log-gains) on the
     batch objective ``f`` (from :func:`batch_objective`), for at most ``max_evals`` candidates
     (whole generations; fewer if pycma's own termination criteria fire first). Each generation
-    is one call ``f(X)`` with ``X`` (lambda, n): one vmapped, jitted batch."""
+    is one call ``f(X)`` with ``X`` (lambda, n): one vmapped, jitted batch. ``should_stop()``,
+    polled before each generation, ends the run early (e.g. a wall-clock budget)."""
     es = cma_strategy(theta0, sigma0, popsize, seed)
     asked = []
 
@@ -148,7 +155,7 @@ def run_cmaes(
         v = np.where(np.isfinite(v), np.asarray(v, dtype=float), _WORST)
         es.tell(asked, v.tolist())
 
-    return _loop(
+    return generation_loop(
         ask,
         tell,
         f,
@@ -157,7 +164,7 @@ def run_cmaes(
         max_evals,
         on_gen,
         progress,
-        stop=lambda: bool(es.stop()),
+        stop=lambda: bool(es.stop()) or bool(should_stop and should_stop()),
     )
 
 
@@ -171,9 +178,10 @@ def run_random_search(
     seed: int = 0,
     on_gen: Callable | None = None,
     progress: Callable | None = None,
+    should_stop: Callable[[], bool] | None = None,
 ) -> BlackBoxResult:
     """Pure random search: candidates ``theta0 + radius * N(0, I)`` (batches of ``popsize``),
-    the best one kept."""
+    the best one kept; ``should_stop`` as in :func:`run_cmaes`."""
     if not (np.isfinite(radius) and radius > 0):
         raise ValueError(f"radius: expected a finite value > 0, got {radius!r}")
     rng = np.random.default_rng(seed)
@@ -187,4 +195,7 @@ def run_random_search(
             first[0] = False
         return X
 
-    return _loop(ask, lambda X, v: None, f, popsize, theta0, max_evals, on_gen, progress)
+    stop = should_stop or (lambda: False)
+    return generation_loop(
+        ask, lambda X, v: None, f, popsize, theta0, max_evals, on_gen, progress, stop
+    )

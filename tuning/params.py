@@ -109,12 +109,26 @@ class GainSpace:
             gains = s.set(gains, FRAC_MAX * jax.nn.sigmoid(seg) * s.bound(gains))
         return gains
 
+    def check_gains(self, gains, where: str = "gains"):
+        """``gains`` if it has the structure of the loop's whole gains
+        (``loop.default_gains()``), else a ``ValueError`` naming both: a part of the gains
+        (e.g. Simulation 1's ``gains.vcm``) is refused before any field lookup fails."""
+        want = jax.tree_util.tree_structure(self.loop.default_gains())
+        got = jax.tree_util.tree_structure(gains)
+        if got != want:
+            raise ValueError(
+                f"{where}: expected the whole gains of {self.loop.describe()} "
+                f"({type(self.loop.default_gains()).__name__}), got {type(gains).__name__}"
+            )
+        return gains
+
     def encode(self, gains) -> jax.Array:
         """Inverse of :meth:`decode` on the tuned gains (``theta`` (n,), float).
 
         Bounded gains at (or beyond) the ends of ``[0, FRAC_MAX * bound]`` are clipped to a
         fraction ``1e-6`` inside; positive gains of 0 to ``log(1e-12)``.
         """
+        self.check_gains(gains)
         parts = []
         for s in self.specs:
             g = jnp.asarray(s.get(gains))
@@ -136,6 +150,7 @@ class GainSpace:
         ``p_G`` by ``exp(eps)`` and divides ``p_Phi`` by it (product unchanged, sum up by
         ``O(eps^2)``). Zero where the pair is already unequal or not both tuned (log groups).
         """
+        self.check_gains(gains)
         off = np.zeros(self.size)
         start, specs = {}, {}
         i = 0
@@ -153,6 +168,11 @@ class GainSpace:
                 off[start[a] + ia] = eps
                 off[start[b] + ib] = -eps
         return off
+
+    def start(self, gains, eps: float = 0.1) -> jax.Array:
+        """(n,) ``theta`` every tuner starts from: ``encode(gains)`` plus
+        :meth:`symmetry_break` (what ``vcjax tune`` and the tuner studies share)."""
+        return self.encode(gains) + jnp.asarray(self.symmetry_break(gains, eps))
 
     def describe(self, theta, base) -> dict:
         """Plain-JSON dict of the tuned groups' decoded values (for histories and reports)."""

@@ -1,314 +1,433 @@
-"""Gradient tuning vs black-box tuners at equal rollout budgets (issue 6).
+"""Time to target: gradient tuning (L-BFGS, Adam) against CMA-ES, Bayesian optimisation and
+random search, held-out loss against wall-clock seconds (compile included) and rollouts.
 
-    python -m benchmarks.studies.tuners CONFIG.toml [--budget ROLLOUTS] [--out DIR] [--json FILE]
+    python -m benchmarks.studies.tuners CONFIG.toml [--tuners lbfgs,adam,cmaes,bayes,random]
+        [--seconds S] [--rollouts R] [--warm] [--out DIR] [--json FILE] [--quick]
 
-The tuning problem (loss, scenario distribution, training and held-out batches) comes from a
-``vcjax tune`` TOML file. Tuners: the gradient tuner of the config (``[optimizer]``, L-BFGS by
-default), CMA-ES (Hansen's pycma through :func:`tuning.blackbox.run_cmaes`, its default
-parameters, ``sigma0`` in log-gain units, one vmapped batch per generation) and random search,
-all started from the same initial gains, all minimising the same training loss.
+The tuning problem (loss, scenario distribution, training and held-out batches) is a ``vcjax
+tune`` TOML file (``examples/tuning/``); one problem per run. Every tuner starts from the same
+gains (:meth:`tuning.params.GainSpace.start`) and minimises the same training loss, evaluated the
+same way: a batch of ``B`` scenarios simulated by one vmapped, jitted rollout, and for the
+black-box tuners a whole generation of candidates in one call (:mod:`tuning.blackbox`,
+:mod:`tuning.bayes`), so each gets the same hardware advantage.
 
-Cost convention: one *rollout* is one scenario simulated once forward. A black-box candidate
-costs ``B`` rollouts (``B`` = training batch size). A batch ``value_and_grad`` costs ``r B``
-rollouts, where ``r`` = (wall time of the jitted batch value_and_grad) / (wall time of the jitted
-batch forward loss), measured here (median of repeats, after compilation) and reported; on a
-shared, loaded machine that ratio is noise, so ``--grad-ratio R`` fixes ``r`` to a value measured
-on a quiet one (the measured value is still reported). Held-out
-evaluations are measurements, not counted in the budget or in the wall-clock; compilation is
-done before timing starts and excluded too (reported separately).
+* ``lbfgs``, ``adam``: the gradient tuner of :mod:`tuning.optim` (the config's ``[optimizer]``
+  settings, only the name changed; ``gradient``: the config's optimiser as it is);
+* ``cmaes``: pycma, its default parameters, ``sigma0`` in log-gain units (``--sigma0``);
+* ``bayes``: optuna's TPE over the problem's ``log_box`` around the start, as many candidates
+  per batch as CMA-ES's population;
+* ``random``: random search, radius ``--radius`` (log-gains), same batch size.
 
-For each tuner the incumbent (best training loss so far) is evaluated on the held-out batch after
-every iteration / generation. Reported: the best held-out loss against rollouts used and against
-wall-clock (table, figure ``tuners.png``, ``--json FILE``), and how many rollouts each tuner
-needed to reach CMA-ES's best held-out loss.
+Each tuner runs in a fresh Python process, with the XLA CPU code generator ``vcjax tune`` uses
+(:func:`vcjax.runtime.compiler.prefer_fast_compile`) and its own, initially empty, JAX
+compilation cache (``cold``: compile included, as a first run costs); with ``--warm`` it runs a
+second time on the cache its first run filled (``warm``: what a user re-running the same problem
+waits). The clock
+starts after the problem is built and the held-out evaluation is compiled, and stops while the
+incumbent (lowest training loss so far; the iterate for the gradient tuners) is evaluated on the
+held-out batch after every step / generation: what is timed is the tuner, its compilation
+included. Rollouts: a candidate costs ``B``; a batch ``value_and_grad`` is counted as ``B``
+rollouts too (forward and backward: one L-BFGS or Adam evaluation; ``--grad-ratio R`` counts it
+as ``R B``, e.g. its measured cost in forward passes). ``--budget`` is ``--rollouts``.
+
+The target is the lowest held-out loss any tuner reached (any cache); the table gives each
+tuner's time and rollouts to within 1 % and 5 % of it, or "not reached". Writes ``tuners.png``
+into ``--out`` and the whole report with ``--json``. ``--quick`` (the smoke test): every tuner in
+this one process, two steps / generations each, cold only.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
-import jax
-import jax.numpy as jnp
-import numpy as np
+TUNERS = ("lbfgs", "adam", "cmaes", "bayes", "random", "gradient")
+#: the gradient tuners (``gradient``: the config's own ``[optimizer]``, name included)
+GRADIENT = ("lbfgs", "adam", "gradient")
+#: what ``--tuners`` runs by default
+DEFAULT_TUNERS = ("lbfgs", "adam", "cmaes", "bayes", "random")
+#: tolerances [%] above the target at which the time / rollouts to reach it are reported
+REACH_PCT = (1.0, 5.0)
+#: steps given to the gradient tuner (it stops on the time or rollout budget first)
+_MANY = 1_000_000
 
-from tuning.blackbox import batch_objective, cmaes_popsize, run_cmaes, run_random_search
-from tuning.cli import build
-from tuning.config import load_config
-from tuning.loss import objective
-from tuning.optim import init_state, make_optimizer, make_step, run_gradient_tuner, tuner_options
-from tuning.report import ProgressBar
-
-__all__ = ["measure_grad_cost", "run_benchmark", "main"]
-
-
-def _median_time(fn, repeats):
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn())
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts))
-
-
-def measure_grad_cost(loss_fn, theta, args, repeats: int = 5) -> dict:
-    """Times of the jitted batch forward loss and batch value_and_grad; ``ratio`` = r."""
-    fwd = jax.jit(loss_fn)
-    vg = jax.jit(jax.value_and_grad(loss_fn))
-    t0 = time.perf_counter()
-    jax.block_until_ready(fwd(theta, *args))
-    jax.block_until_ready(vg(theta, *args))
-    compile_s = time.perf_counter() - t0
-    t_f = _median_time(lambda: fwd(theta, *args), repeats)
-    t_g = _median_time(lambda: vg(theta, *args), repeats)
-    return {"forward_s": t_f, "value_and_grad_s": t_g, "ratio": t_g / t_f, "compile_s": compile_s}
+__all__ = [
+    "TUNERS",
+    "GRADIENT",
+    "DEFAULT_TUNERS",
+    "REACH_PCT",
+    "run_tuner",
+    "run_study",
+    "summarise",
+    "main",
+]
 
 
-def _first_reach(curve, target, key):
-    for rec in curve:
-        if rec["heldout_best"] <= target:
-            return rec[key]
-    return None
-
-
-def run_benchmark(
-    config_path,
-    budget: int | None = None,
+def run_tuner(
+    config,
+    tuner: str,
+    seconds: float,
+    rollouts: int | None = None,
     sigma0: float = 0.5,
     radius: float = 0.5,
     seed: int = 0,
-    tuners=("gradient", "cmaes", "random"),
-    progress=sys.stderr,
-    grad_ratio: float | None = None,
+    max_steps: int | None = None,
+    grad_ratio: float = 1.0,
+    grad_mode: str | None = None,
 ) -> dict:
-    """Run the tuners on the problem of ``config_path`` with a budget of ``budget`` rollouts.
+    """Run one tuner on the problem of ``config`` in this process; its curve of held-out loss
+    against the tuner's own wall clock (compile included, held-out evaluations excluded) and
+    rollouts (a batch ``value_and_grad`` counted as ``grad_ratio`` rollouts per scenario).
+    Stops at ``seconds``, ``rollouts``, or ``max_steps`` steps / generations. ``grad_mode``
+    (``"reverse"`` / ``"forward"``) replaces the config's for the gradient tuners."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
 
-    ``budget`` defaults to 3x what the gradient tuner uses with its configured steps (it is run
-    first; when it is not among ``tuners`` the default is 20 000).
-    """
-    say = (lambda m: print(m, file=progress, flush=True)) if progress else (lambda m: None)
-    cfg = load_config(config_path)
+    from tuning.blackbox import batch_objective, cmaes_popsize, run_cmaes, run_random_search
+    from tuning.cli import build
+    from tuning.config import load_config
+    from tuning.loss import objective
+    from tuning.optim import run_gradient_tuner, tuner_options
+
+    if tuner not in TUNERS:
+        raise ValueError(f"tuner: unknown {tuner!r}; expected one of {list(TUNERS)}")
+    cfg = load_config(config)
     problem, eval_problem, data, train, heldout = build(cfg)
-    B = cfg["train"]["size"]
-    o = cfg["optimizer"]
-    loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
-    held_fn = jax.jit(lambda th: objective(th, data, heldout, eval_problem)[0])
-    # every tuner starts from the default gains, split where the loss is symmetric
-    theta0 = data.theta_ref + problem.space.symmetry_break(data.base.vcm)
-    say("measuring the cost of a gradient relative to a forward pass (compiling) ...")
-    cost = measure_grad_cost(loss_fn, theta0, (data, train))
-    r = cost["ratio"] if grad_ratio is None else float(grad_ratio)
-    cost["ratio_used"] = r
-    say(
-        f"batch forward {cost['forward_s']:.3g} s, value_and_grad {cost['value_and_grad_s']:.3g} s"
-        f": one gradient = {r:.2f} forward passes"
-    )
-    h0 = float(held_fn(data.theta_ref))
-    results = {}
+    B = cfg.train.size
+    space = problem.space
+    theta0 = space.start(data.base)
+    held = jax.jit(lambda th: objective(th, data, heldout, eval_problem)[0])
+    h0 = float(held(theta0))  # compiled before the clock starts
+    curve = [{"wall_s": 0.0, "rollouts": 0, "heldout": h0, "heldout_best": h0}]
+    clock = {"start": time.perf_counter(), "paused": 0.0, "rollouts": 0, "steps": 0}
 
-    def curve_cb(tag, cum_rollouts_of):
-        best = [np.inf]
+    def elapsed():
+        return time.perf_counter() - clock["start"] - clock["paused"]
 
-        def cb(k, theta, rec):
-            h = float(held_fn(jnp.asarray(theta)))
-            best[0] = min(best[0], h)
-            return {"rollouts": cum_rollouts_of(rec), "heldout": h, "heldout_best": best[0]}
+    def record(theta, used):
+        t = elapsed()
+        t_in = time.perf_counter()
+        h = float(held(jnp.asarray(np.asarray(theta))))
+        h = h if np.isfinite(h) else float("inf")
+        best = min(curve[-1]["heldout_best"], h)
+        curve.append({"wall_s": t, "rollouts": int(used), "heldout": h, "heldout_best": best})
+        clock["rollouts"], clock["steps"] = used, clock["steps"] + 1
+        clock["paused"] += time.perf_counter() - t_in
 
-        return cb
-
-    if "gradient" in tuners:
-        opt = make_optimizer(
-            o["name"], o["learning_rate"], o["memory_size"], o["max_linesearch_steps"]
+    def stop():
+        return (
+            elapsed() >= seconds
+            or (rollouts is not None and clock["rollouts"] >= rollouts)
+            or (max_steps is not None and clock["steps"] >= max_steps)
         )
-        step = make_step(loss_fn, opt, o["name"], o["grad_mode"])
-        say(f"gradient tuner ({o['name']}): compiling the step ...")
-        t0 = time.perf_counter()
-        st0 = init_state(opt, theta0)
-        jax.block_until_ready(step(theta0, st0, jnp.asarray(1.0, theta0.dtype), (data, train)))
-        comp = time.perf_counter() - t0
-        steps = o["steps"]  # the configured steps (within the budget: history is cut at it)
-        bar = ProgressBar(steps, "gradient ", progress) if progress else None
+
+    loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
+    info: dict = {}
+    if tuner in GRADIENT:
+        opts = {**tuner_options(cfg.optimizer), "steps": _MANY}
+        opts["optimizer"] = opts["optimizer"] if tuner == "gradient" else tuner
+        opts["grad_mode"] = grad_mode or opts["grad_mode"]
         res = run_gradient_tuner(
             loss_fn,
             theta0,
             (data, train),
-            **{**tuner_options(o), "steps": steps},
-            on_step=curve_cb("gradient", lambda rec: rec["cum_evals"] * r * B),
-            progress=bar,
-            step_fn=step,
+            **opts,
+            on_step=lambda k, th, rec: record(th, round(rec["cum_evals"] * B * grad_ratio)),
+            should_stop=stop,
         )
-        if bar is not None:
-            bar.close()
-        hist = [h for h in res.history if budget is None or h["rollouts"] <= budget]
-        results["gradient"] = {
-            "history": hist,
-            "compile_s": comp,
-            "reason": res.reason,
-            "n_bad": res.n_bad,
-            "optimizer": o["name"],
-        }
-        if budget is None:
-            budget = int(3 * res.history[-1]["rollouts"])
-    if budget is None:
-        budget = 20000
-    say(f"budget: {budget} rollouts per tuner")
-    f = batch_objective(loss_fn, (data, train))
-    lam = cmaes_popsize(int(np.asarray(theta0).size))
-    t0 = time.perf_counter()
-    f(np.tile(np.asarray(theta0), (lam, 1)))
-    comp_bb = time.perf_counter() - t0
-    max_evals = budget // B
-    for name in ("cmaes", "random"):
-        if name not in tuners:
-            continue
-        bar = ProgressBar(max_evals // lam, f"{name} ", progress) if progress else None
-        cb = curve_cb(name, lambda rec: rec["cum_evals"] * B)
-        if name == "cmaes":
-            res = run_cmaes(
-                f,
-                np.asarray(theta0),
-                sigma0=sigma0,
-                max_evals=max_evals,
-                seed=seed,
-                on_gen=cb,
-                progress=bar,
-            )
+        info = {"optimizer": opts["optimizer"], "grad_mode": opts["grad_mode"]}
+        info.update(reason=res.reason, n_bad=res.n_bad)
+        info["evals"] = res.evals
+    else:
+        f = batch_objective(loss_fn, (data, train))
+        lam = cmaes_popsize(space.size)
+        cb = lambda g, th, rec: record(th, rec["cum_evals"] * B)
+        common = dict(max_evals=_MANY, seed=seed, on_gen=cb, should_stop=stop)
+        if tuner == "cmaes":
+            res = run_cmaes(f, np.asarray(theta0), sigma0=sigma0, **common)
+        elif tuner == "random":
+            res = run_random_search(f, np.asarray(theta0), radius=radius, popsize=lam, **common)
         else:
-            res = run_random_search(
-                f,
-                np.asarray(theta0),
-                radius=radius,
-                max_evals=max_evals,
-                popsize=lam,
-                seed=seed,
-                on_gen=cb,
-                progress=bar,
-            )
-        results[name] = {"history": res.history, "compile_s": comp_bb}
+            from tuning.bayes import run_bayes
 
-    for v in results.values():
-        hist = v["history"]
-        v["best_heldout"] = min(h["heldout_best"] for h in hist) if hist else None
-        v["rollouts_used"] = hist[-1]["rollouts"] if hist else 0
-        v["wall_s"] = hist[-1]["wall_s"] if hist else 0.0
-    target = results["cmaes"]["best_heldout"] if "cmaes" in results else None
-    for v in results.values():
-        v["rollouts_to_cmaes_best"] = (
-            _first_reach(v["history"], target, "rollouts") if target else None
-        )
-        v["wall_s_to_cmaes_best"] = _first_reach(v["history"], target, "wall_s") if target else None
-        for pct in REACH_PCT:  # within pct % of CMA-ES's best held-out loss
-            t = target * (1 + pct / 100) if target else None
-            v[f"rollouts_to_cmaes_best+{pct}%"] = (
-                _first_reach(v["history"], t, "rollouts") if t else None
-            )
+            box = float(cfg.problem.log_box)
+            res = run_bayes(f, np.asarray(theta0), box=box, popsize=lam, **common)
+        info = {"popsize": lam, "evals": res.evals}
+    first = curve[1]["wall_s"] if len(curve) > 1 else None
     return {
-        "config": str(config_path),
-        "budget_rollouts": budget,
+        "tuner": tuner,
+        "curve": curve,
+        "first_step_s": first,  # compile + one step / generation
+        "wall_s": curve[-1]["wall_s"],
+        "rollouts": curve[-1]["rollouts"],
+        "best_heldout": curve[-1]["heldout_best"],
+        "parameters": space.size,
         "train_size": B,
-        "heldout_size": cfg["heldout"]["size"],
-        "grad_cost": cost,
-        "heldout_initial": h0,
-        "cmaes_best_heldout": target,
-        "sigma0": sigma0,
-        "random_radius": radius,
-        "tuners": results,
+        **info,
     }
 
 
-#: tolerances [%] above CMA-ES's best held-out loss at which "rollouts to reach" is also reported
-REACH_PCT = (0.1, 1.0)
+def _worker_cmd(args, tuner, out):
+    cmd = [sys.executable, "-m", "benchmarks.studies.tuners", str(args.config)]
+    cmd += ["--_worker", tuner, "--_result", str(out), "--seconds", str(args.seconds)]
+    cmd += ["--sigma0", str(args.sigma0), "--radius", str(args.radius), "--seed", str(args.seed)]
+    if args.rollouts is not None:
+        cmd += ["--rollouts", str(args.rollouts)]
+    cmd += ["--grad-ratio", str(args.grad_ratio)]
+    if args.grad_mode:
+        cmd += ["--grad-mode", args.grad_mode]
+    if not args.x64:
+        cmd.append("--no-x64")
+    return cmd
 
 
-def _table(rep: dict) -> str:
+def run_study(args, say=lambda m: None) -> dict:
+    """Every tuner of ``args.tuners`` in a fresh process each (cold cache, then warm with
+    ``--warm``); the raw runs, keyed ``{cache: {tuner: run}}``."""
+    from tuning.config import load_config
+
+    load_config(args.config)  # a config error here, before any process starts
+    caches = ("cold", "warm") if args.warm else ("cold",)
+    runs: dict = {c: {} for c in caches}
+    with tempfile.TemporaryDirectory(prefix="vcjax-tuners-") as tmp:
+        for tuner in args.tuners:
+            cache_dir = Path(tmp) / f"cache-{tuner}"  # empty at the cold run
+            for c in caches:
+                out = Path(tmp) / f"{tuner}-{c}.json"
+                env = {**os.environ, "VCJAX_CACHE_DIR": str(cache_dir)}
+                env["PYTHONPATH"] = os.environ.get("PYTHONPATH") or str(Path.cwd())
+                say(f"{tuner} ({c} cache): a fresh process, {args.seconds:g} s budget ...")
+                t0 = time.perf_counter()
+                r = subprocess.run(_worker_cmd(args, tuner, out), env=env)
+                if r.returncode:
+                    raise RuntimeError(f"{tuner} ({c}): the worker exited {r.returncode}")
+                runs[c][tuner] = json.loads(out.read_text())
+                runs[c][tuner]["process_s"] = time.perf_counter() - t0
+                say(
+                    f"  best held-out {runs[c][tuner]['best_heldout']:.6g} after "
+                    f"{runs[c][tuner]['wall_s']:.1f} s, {runs[c][tuner]['rollouts']} rollouts"
+                )
+    return runs
+
+
+def _reach(curve, level, key):
+    for rec in curve:
+        if rec["heldout_best"] <= level:
+            return rec[key]
+    return None
+
+
+def summarise(runs: dict) -> dict:
+    """Target (lowest held-out loss of any run), and per cache and tuner the wall-clock seconds
+    and rollouts to within each :data:`REACH_PCT` of it (``None``: not reached), and the ratios
+    of the gradient tuners' times to the black-box tuners' at 1 %."""
+    target = min(r["best_heldout"] for c in runs.values() for r in c.values())
+    table: dict = {}
+    for c, by_tuner in runs.items():
+        table[c] = {}
+        for name, r in by_tuner.items():
+            row = {"best_heldout": r["best_heldout"], "first_step_s": r["first_step_s"]}
+            for p in REACH_PCT:
+                level = target * (1 + p / 100)
+                row[f"wall_s_to_{p:g}%"] = _reach(r["curve"], level, "wall_s")
+                row[f"rollouts_to_{p:g}%"] = _reach(r["curve"], level, "rollouts")
+            table[c][name] = row
+    ratios: dict = {}
+    for c, rows in table.items():
+        for g in GRADIENT:
+            for b in ("cmaes", "bayes", "random"):
+                if g in rows and b in rows:
+                    tg, tb = rows[g]["wall_s_to_1%"], rows[b]["wall_s_to_1%"]
+                    ratios[f"{c}: {g}/{b} at 1%"] = tg / tb if tg is not None and tb else None
+    return {"target": target, "table": table, "ratios_wall_s_to_1%": ratios}
+
+
+def _fmt(x, spec):
+    return "not reached" if x is None else format(x, spec)
+
+
+def table_text(rep: dict) -> str:
+    s = rep["summary"]
     lines = [
-        f"budget {rep['budget_rollouts']} rollouts/tuner; 1 gradient = "
-        f"{rep['grad_cost']['ratio_used']:.2f} forward rollouts (measured here: "
-        f"{rep['grad_cost']['ratio']:.2f}); held-out loss at start "
-        f"{rep['heldout_initial']:.4g}",
-        f"{'tuner':10s}{'best held-out':>15s}{'rollouts used':>15s}{'wall s':>9s}"
-        f"{'rollouts to CMA best':>22s}{'wall s to CMA best':>20s}"
-        + "".join(f"{f'to CMA best+{p}%':>18s}" for p in REACH_PCT),
+        f"{rep['config']}: target (lowest held-out loss of any tuner) {s['target']:.6g}; "
+        f"budget {rep['seconds']:g} s per tuner; machine load {rep['load']}",
+        f"{'cache':6s}{'tuner':8s}{'best held-out':>14s}{'1st step s':>11s}"
+        + "".join(f"{f's to {p:g}%':>13s}{f'rollouts {p:g}%':>15s}" for p in REACH_PCT),
     ]
-    for name, v in rep["tuners"].items():
-        rt = v["rollouts_to_cmaes_best"]
-        wt = v["wall_s_to_cmaes_best"]
-        lines.append(
-            f"{name:10s}{v['best_heldout']:15.5g}{v['rollouts_used']:15.0f}{v['wall_s']:9.1f}"
-            + ("-" if rt is None else f"{rt:.0f}").rjust(22)
-            + ("-" if wt is None else f"{wt:.1f}").rjust(20)
-            + "".join(
-                ("-" if (x := v[f"rollouts_to_cmaes_best+{p}%"]) is None else f"{x:.0f}").rjust(18)
-                for p in REACH_PCT
+    for c, rows in s["table"].items():
+        for name, row in rows.items():
+            lines.append(
+                f"{c:6s}{name:8s}{row['best_heldout']:14.6g}{_fmt(row['first_step_s'], '.1f'):>11s}"
+                + "".join(
+                    f"{_fmt(row[f'wall_s_to_{p:g}%'], '.1f'):>13s}"
+                    f"{_fmt(row[f'rollouts_to_{p:g}%'], 'd'):>15s}"
+                    for p in REACH_PCT
+                )
             )
-        )
+    for k, v in s["ratios_wall_s_to_1%"].items():
+        lines.append(f"time ratio {k}: {_fmt(v, '.3f')}")
     return "\n".join(lines)
 
 
-def _figure(rep: dict, path: Path) -> Path:
+def figure(rep: dict, path: Path) -> Path:
+    """Best held-out loss so far against wall-clock seconds and against rollouts."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-    for name, v in rep["tuners"].items():
-        h = v["history"]
-        x = [0] + [r["rollouts"] for r in h]
-        w = [0] + [r["wall_s"] for r in h]
-        y = [rep["heldout_initial"]] + [r["heldout_best"] for r in h]
-        ax[0].step(x, y, where="post", label=name)
-        ax[1].step(w, y, where="post", label=name)
-    for a, xl in zip(ax, ("rollouts (forward-pass equivalents)", "wall-clock [s]"), strict=True):
-        if rep["cmaes_best_heldout"] is not None:
-            a.axhline(rep["cmaes_best_heldout"], color="k", ls=":", lw=1, label="CMA-ES best")
-        a.set(xlabel=xl, ylabel="best held-out loss", yscale="log")
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
+    colors = {}
+    for c, by_tuner in rep["runs"].items():
+        for name, r in by_tuner.items():
+            x = [p["wall_s"] for p in r["curve"]]
+            n = [p["rollouts"] for p in r["curve"]]
+            y = [p["heldout_best"] for p in r["curve"]]
+            kw = {"where": "post", "ls": "-" if c == "cold" else "--"}
+            if name in colors:
+                kw["color"] = colors[name]
+            (line,) = ax[0].step(x, y, label=f"{name} ({c})", **kw)
+            colors[name] = line.get_color()
+            if c == "cold":
+                ax[1].step(n, y, label=name, where="post", color=colors[name])
+    tgt = rep["summary"]["target"]
+    for a, xl in zip(ax, ("wall-clock [s], compile included", "rollouts"), strict=True):
+        for p, ls in zip(REACH_PCT, (":", "-."), strict=True):
+            a.axhline(tgt * (1 + p / 100), color="k", ls=ls, lw=0.8, label=f"target +{p:g} %")
+        a.set(xlabel=xl, ylabel="best held-out loss so far", yscale="log")
         a.grid(True, which="both", alpha=0.3)
-        a.legend()
+    B = next(iter(next(iter(rep["runs"].values())).values()))["train_size"]
+    ax[1].set_xscale("symlog", linthresh=B)  # one batch linear, then decades
+    ax[1].set_xlim(left=0)
+    ax[0].legend(fontsize=7, ncol=2)
+    ax[1].legend(fontsize=7)
+    fig.suptitle(f"{rep['config']} (load {rep['load']})", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
 
 
-def main(argv=None) -> int:
+def _load() -> str:
+    try:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg()) + f" on {os.cpu_count()} cores"
+    except OSError:  # pragma: no cover
+        return "unknown"
+
+
+def _parser():
     doc = __doc__.split("\n")[0]
     ap = argparse.ArgumentParser(prog="python -m benchmarks.studies.tuners", description=doc)
-    ap.add_argument("config", help="vcjax tune TOML file (problem, batches, gradient optimiser)")
-    ap.add_argument("--budget", type=int, help="rollouts per tuner (default: 3x the gradient's)")
-    ap.add_argument("--sigma0", type=float, default=0.5, help="CMA-ES initial step (log-gains)")
-    ap.add_argument("--radius", type=float, default=0.5, help="random-search radius (log-gains)")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--tuners", default="gradient,cmaes,random")
-    ap.add_argument("--out", default="out/tuners", help="folder of the figure")
-    ap.add_argument("--json", help="write the full report as JSON to this file")
+    ap.add_argument("config", type=Path, help="vcjax tune TOML file (the problem)")
+    ap.add_argument(
+        "--tuners",
+        default=",".join(DEFAULT_TUNERS),
+        help=f"subset of {','.join(TUNERS)} (gradient: the config's [optimizer])",
+    )
+    ap.add_argument("--seconds", type=float, default=60.0, help="wall-clock budget per tuner")
+    ap.add_argument(
+        "--rollouts", "--budget", type=int, help="rollout budget per tuner (default: none)"
+    )
     ap.add_argument(
         "--grad-ratio",
         type=float,
-        help="cost of a batch gradient in forward rollouts (default: measured here)",
+        default=1.0,
+        help="rollouts one batch value_and_grad counts as, per scenario (default 1)",
     )
-    ap.add_argument("--no-x64", dest="x64", action="store_false")
-    args = ap.parse_args(argv)
-    jax.config.update("jax_enable_x64", bool(args.x64))
-    rep = run_benchmark(
-        args.config,
-        args.budget,
-        args.sigma0,
-        args.radius,
-        args.seed,
-        tuple(args.tuners.split(",")),
-        grad_ratio=args.grad_ratio,
+    ap.add_argument(
+        "--grad-mode",
+        choices=("reverse", "forward"),
+        help="gradient mode of lbfgs/adam/gradient (default: the config's)",
     )
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    fig = _figure(rep, out / "tuners.png")
-    print(_table(rep))
+    ap.add_argument("--warm", action="store_true", help="also a second, warm-cache run each")
+    ap.add_argument("--sigma0", type=float, default=0.5, help="CMA-ES initial step (log-gains)")
+    ap.add_argument("--radius", type=float, default=0.5, help="random-search radius (log-gains)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", type=Path, default=Path("out/tuners"), help="folder of the figure")
+    ap.add_argument("--json", type=Path, help="write the whole report as JSON to this file")
+    ap.add_argument("--quick", action="store_true", help="smoke test: one process, 2 steps each")
+    ap.add_argument("--no-x64", dest="x64", action="store_false", help="float32")
+    ap.add_argument("--_worker", help=argparse.SUPPRESS)
+    ap.add_argument("--_result", type=Path, help=argparse.SUPPRESS)
+    return ap
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
+    say = lambda m: print(m, file=sys.stderr, flush=True)
+    args.tuners = tuple(t for t in args.tuners.split(",") if t)
+    bad = [t for t in args.tuners if t not in TUNERS]
+    if bad or not args.tuners:
+        say(f"tuners: unknown {bad}; expected a comma-separated subset of {','.join(TUNERS)}")
+        return 2
+    if not args.config.is_file():
+        say(f"config: no such file {args.config}")
+        return 2
+    if not (args.seconds > 0):
+        say(f"--seconds: expected > 0, got {args.seconds}")
+        return 2
+    if args._worker or args.quick:
+        from vcjax.runtime.compiler import prefer_fast_compile
+
+        prefer_fast_compile()  # what `vcjax tune` does, before JAX starts (XLA reads it once)
+        import jax
+
+        jax.config.update("jax_enable_x64", bool(args.x64))
+    if args._worker:  # one tuner, in this fresh process
+        from vcjax.runtime.cache import enable_compilation_cache
+
+        enable_compilation_cache()
+        r = run_tuner(
+            args.config, args._worker, args.seconds, args.rollouts, args.sigma0, args.radius,
+            args.seed, grad_ratio=args.grad_ratio, grad_mode=args.grad_mode,
+        )  # fmt: skip
+        args._result.write_text(json.dumps(r) + "\n")
+        return 0
+    load = _load()
+    try:
+        if args.quick:
+            runs = {"cold": {}}
+            for t in args.tuners:
+                runs["cold"][t] = run_tuner(
+                    args.config, t, args.seconds, args.rollouts, args.sigma0, args.radius,
+                    args.seed, max_steps=2, grad_ratio=args.grad_ratio,
+                    grad_mode=args.grad_mode,
+                )  # fmt: skip
+        else:
+            runs = run_study(args, say)
+    except ValueError as err:  # a config error, before any tuning
+        say(f"tuners: {err}")
+        return 2
+    rep = {
+        "config": str(args.config),
+        "tuners": list(args.tuners),
+        "seconds": args.seconds,
+        "rollouts_budget": args.rollouts,
+        "grad_ratio": args.grad_ratio,
+        "grad_mode": args.grad_mode,
+        "x64": args.x64,
+        "load": load,
+        "load_after": _load(),
+        "sigma0": args.sigma0,
+        "random_radius": args.radius,
+        "seed": args.seed,
+        "runs": runs,
+    }
+    rep["summary"] = summarise(runs)
+    args.out.mkdir(parents=True, exist_ok=True)
+    fig = figure(rep, args.out / "tuners.png")
+    print(table_text(rep))
     print(f"wrote {fig}")
     if args.json:
-        Path(args.json).write_text(json.dumps(rep, indent=1) + "\n")
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(rep, indent=1) + "\n")
         print(f"wrote {args.json}")
     return 0
 
