@@ -282,6 +282,8 @@ class MCConfig:
         model_fields: plant fields scaled by ``MCScenario.model_factors`` (same order).
         tail: steady-state window (last fraction of the run).
         record_stride: keep every ``record_stride``-th sample of ``e`` and the path (0: none).
+        checkpoint: rematerialise each streamed segment in the backward pass (a gradient
+            through the rollout, e.g. :func:`vcjax.search.falsify`; no effect on the values).
     """
 
     num_steps: int
@@ -292,6 +294,7 @@ class MCConfig:
     model_fields: tuple[str, ...] = ()
     tail: float = 0.2
     record_stride: int = 0
+    checkpoint: bool = False
 
     @property
     def trace_steps(self) -> np.ndarray:
