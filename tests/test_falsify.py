@@ -1,0 +1,154 @@
+"""vcjax.search (``vcjax falsify``): the gradient of a metric with respect to the scenario
+parameters against central finite differences, the projection onto the envelope, the replay of
+what the search found, and refusals of bad envelopes."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from vcjax import loops
+from vcjax.search import Envelope, evaluate, falsify, make_setting
+from vcjax.search.core import _metrics
+
+jax.config.update("jax_enable_x64", True)
+
+
+def _fd_check(loop, env, setting, metric, x0, rel=1e-5, h=1e-5):
+    """Reverse-mode gradient of ``metric`` (its surrogate for a max) at ``x0`` vs central
+    differences in every searched parameter, one step ``h`` relative to the box width."""
+    gains = loop.default_gains()
+
+    def f(x):
+        return _metrics(x, 3, gains, env, setting, metric, 16.0)[0]
+
+    x0 = jnp.asarray(x0, jnp.float64)
+    g = np.asarray(jax.jit(jax.grad(f))(x0))
+    idx = [env.names.index(n) for n in env.searched]
+    steps = np.zeros((len(idx), x0.size))
+    for j, i in enumerate(idx):
+        steps[j, i] = h * (env.hi[i] - env.lo[i])
+    xs = jnp.concatenate([x0 + steps, x0 - steps])
+    v = np.asarray(jax.jit(jax.vmap(f))(xs))
+    fd = (v[: len(idx)] - v[len(idx) :]) / (2 * steps[np.arange(len(idx)), idx])
+    scale = np.max(np.abs(fd))
+    assert scale > 0
+    for j, i in enumerate(idx):
+        err = abs(g[i] - fd[j])
+        assert err <= rel * max(abs(fd[j]), 1e-2 * scale), (env.names[i], g[i], fd[j])
+    return g, fd
+
+
+def _infante():
+    loop = loops.make_loop("infante", "vcm_integral")
+    env = Envelope.build(
+        loop,
+        {
+            "current_speed": (0.0, 0.5),
+            "current_direction_deg": (0.0, 360.0),
+            "initial.y": (-5.0, 5.0),
+            "initial.heading_deg": (60.0, 120.0),
+        },
+    )
+    return loop, env, make_setting(loop, env, horizon=2.0, dt=0.05, seed=1)
+
+
+@pytest.mark.parametrize("metric", ["rms_cross_track_e", "max_abs_e"])
+def test_gradient_in_current_and_initial_state_matches_finite_differences(metric):
+    loop, env, setting = _infante()
+    x0 = np.asarray(env.lo) + 0.37 * (np.asarray(env.hi) - np.asarray(env.lo))
+    _fd_check(loop, env, setting, metric, x0)
+
+
+@pytest.mark.slow  # REMUS 100 in a sea: a minute or more to compile on a loaded machine
+def test_gradient_in_sea_state_and_depth_matches_finite_differences():
+    loop = loops.make_loop("remus100", "vcm3d")
+    env = Envelope.build(
+        loop,
+        {
+            "wave_hs": (0.5, 3.0),
+            "wave_tp": (5.0, 12.0),
+            "wave_direction_deg": (0.0, 360.0),
+            "wave_spreading": 3.0,  # searchable; its gradient is JAX's approximate one
+            "wave_origin_depth": (2.0, 10.0),
+        },
+        dt=0.05,
+    )
+    setting = make_setting(loop, env, horizon=1.5, dt=0.05, components=8, seed=2)
+    x0 = np.asarray(env.lo) + 0.41 * (np.asarray(env.hi) - np.asarray(env.lo))
+    _fd_check(loop, env, setting, "rms_depth_err", x0)
+
+
+def test_projection_onto_the_envelope():
+    loop, env, _ = _infante()
+    lo, hi = np.asarray(env.lo), np.asarray(env.hi)
+    x = np.stack([lo - 1.0, hi + 1.0, 0.5 * (lo + hi)])
+    p = np.asarray(env.project(jnp.asarray(x)))
+    np.testing.assert_array_equal(p[0], lo)
+    np.testing.assert_array_equal(p[1], hi)
+    np.testing.assert_array_equal(p[2], 0.5 * (lo + hi))
+    # unit coordinates: inverse maps, fixed parameters at their value
+    z = env.to_unit(x[2])
+    np.testing.assert_allclose(np.asarray(env.from_unit(jnp.asarray(z))), x[2])
+    fixed = [i for i, n in enumerate(env.names) if n not in env.searched]
+    assert fixed and np.all(z[fixed] == 0)
+
+
+def test_search_stays_in_the_envelope_beats_nothing_it_did_not_run_and_replays():
+    loop, env, setting = _infante()
+    gains = loop.default_gains()
+    res = falsify(loop, gains, env, "max_cross_track", setting, starts=3, steps=3, step_size=0.2)
+    assert res.metric == "max_abs_e"
+    assert res.rollouts == 9 and res.random_rollouts == 9
+    assert np.all(res.x >= np.asarray(env.lo)) and np.all(res.x <= np.asarray(env.hi))
+    assert [c[0] for c in res.curve] == [3, 6, 9]
+    assert np.all(np.diff([c[1] for c in res.curve]) >= 0)
+    assert res.worst == max(res.value) and res.random_worst == max(res.random_value)
+    rows = res.scenarios(keep=20)
+    assert len(rows) == 12
+    vals = [r["max_abs_e"] for r in rows]
+    assert vals == sorted(vals, reverse=True)
+    # replay: the recorded parameters and scenario numbers give the recorded metric
+    x = np.stack([env.vector(r["params"]) for r in rows])
+    m = evaluate(loop, gains, env, setting, "max_abs_e", x, [r["index"] for r in rows])
+    np.testing.assert_allclose(m["max_abs_e"], vals, rtol=1e-12)
+
+
+def test_bound_stops_the_search_as_soon_as_it_is_exceeded():
+    loop, env, setting = _infante()
+    res = falsify(loop, loop.default_gains(), env, "max_abs_e", setting, starts=2, steps=5, bound=0)
+    assert res.falsified and res.rollouts == 2 and res.random_falsified
+    assert res.random_rollouts == 2
+
+
+@pytest.mark.parametrize(
+    ("ranges", "match"),
+    [
+        ({"current_speed": (0.5, 0.1)}, "current_speed: lo > hi"),
+        ({"current_sped": (0.0, 0.5)}, "unknown parameters \\['current_sped'\\]"),
+        ({"current_speed": (-0.1, 0.5)}, "current_speed: must be >= 0"),
+        ({"u_d": (0.0, 2.0)}, "u_d: must be > 0"),
+        ({"initial.y": (0.0, float("nan"))}, "initial.y: bounds must be finite"),
+        ({"model.not_a_field": (0.9, 1.1)}, "unknown parameters"),
+        ({"current_speed": "fast"}, "current_speed: expected a number or \\[lo, hi\\]"),
+    ],
+)
+def test_bad_envelopes_are_refused(ranges, match):
+    loop = loops.make_loop("infante", "vcm_integral")
+    with pytest.raises(ValueError, match=match):
+        Envelope.build(loop, ranges)
+
+
+def test_bad_sea_envelopes_are_refused():
+    remus = loops.make_loop("remus100", "vcm3d")
+    with pytest.raises(ValueError, match="wave_tp: a sea needs wave_hs and wave_tp"):
+        Envelope.build(remus, {"wave_hs": (0.5, 3.0)})
+    with pytest.raises(ValueError, match="wave_hs: must be >= 0"):
+        Envelope.build(remus, {"wave_hs": (-1.0, 3.0), "wave_tp": 8.0})
+    with pytest.raises(ValueError, match="wave_tp"):
+        Envelope.build(remus, {"wave_hs": 1.0, "wave_tp": (1.0, 8.0)}, dt=0.05)
+    with pytest.raises(ValueError, match="searched spreading must stay > 0"):
+        Envelope.build(remus, {"wave_hs": 1.0, "wave_tp": 8.0, "wave_spreading": (0.0, 5.0)})
+    infante = loops.make_loop("infante", "vcm_integral")
+    with pytest.raises(ValueError, match="waves"):
+        Envelope.build(infante, {"wave_hs": 1.0, "wave_tp": 8.0})
