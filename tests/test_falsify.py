@@ -53,7 +53,9 @@ def _infante():
     return loop, env, make_setting(loop, env, horizon=2.0, dt=0.05, seed=1)
 
 
-@pytest.mark.parametrize("metric", ["rms_cross_track_e", "max_abs_e"])
+@pytest.mark.parametrize(
+    "metric", ["rms_cross_track_e", pytest.param("max_abs_e", marks=pytest.mark.slow)]
+)
 def test_gradient_in_current_and_initial_state_matches_finite_differences(metric):
     loop, env, setting = _infante()
     x0 = np.asarray(env.lo) + 0.37 * (np.asarray(env.hi) - np.asarray(env.lo))
@@ -115,10 +117,10 @@ def test_search_stays_in_the_envelope_beats_nothing_it_did_not_run_and_replays()
 
 
 def test_bound_stops_the_search_as_soon_as_it_is_exceeded():
-    loop, env, setting = _infante()
-    res = falsify(loop, loop.default_gains(), env, "max_abs_e", setting, starts=2, steps=5, bound=0)
-    assert res.falsified and res.rollouts == 2 and res.random_falsified
-    assert res.random_rollouts == 2
+    loop, env, setting = _infante()  # the shapes of the test above: its programs are reused
+    res = falsify(loop, loop.default_gains(), env, "max_abs_e", setting, starts=3, steps=5, bound=0)
+    assert res.falsified and res.rollouts == 3 and res.random_falsified
+    assert res.random_rollouts == 3
 
 
 @pytest.mark.parametrize(
@@ -152,3 +154,82 @@ def test_bad_sea_envelopes_are_refused():
     infante = loops.make_loop("infante", "vcm_integral")
     with pytest.raises(ValueError, match="waves"):
         Envelope.build(infante, {"wave_hs": 1.0, "wave_tp": 8.0})
+
+
+CLI_CONFIG = """
+[scenario]
+controller = "vcm_integral"
+[falsify]
+metric = "max_cross_track"
+starts = 3
+steps = 2
+random_rollouts = 6
+keep = 4
+[simulation]
+horizon = 2.0
+dt = 0.05
+[current]
+speed = [0.0, 0.5]
+direction_deg = [0.0, 360.0]
+[initial]
+y = [-5.0, 5.0]
+"""
+
+
+def test_cli_writes_worst_summary_figures_and_replays_them(tmp_path, capsys):
+    import json
+
+    from vcjax import cli
+
+    cfg = tmp_path / "f.toml"
+    cfg.write_text(CLI_CONFIG)
+    out = tmp_path / "out"
+    assert cli.main(["falsify", str(cfg), "--out", str(out)]) == 0
+    worst = json.loads((out / "worst.json").read_text())
+    assert worst["metric"] == "max_abs_e" and len(worst["scenarios"]) == 4
+    vals = [s["max_abs_e"] for s in worst["scenarios"]]
+    assert vals == sorted(vals, reverse=True)
+    assert set(worst["scenarios"][0]["params"]) >= {"current_speed", "initial.y"}
+    summary = json.loads((out / "summary.json").read_text())
+    for k in ("metric", "rollouts", "random_rollouts", "worst", "random_worst", "wall_s"):
+        assert k in summary
+    assert summary["rollouts"] == 6 and summary["random_rollouts"] == 6
+    assert (
+        summary["worst"] == max(summary["worst"], summary["random_worst"])
+        or vals[0] == (summary["random_worst"])
+    )
+    assert vals[0] == max(summary["worst"], summary["random_worst"])
+    for f in ("falsify_worst.png", "falsify_curve.png", "run.json"):
+        assert (out / f).is_file()
+    # the replay runs the same scenarios again: the same metric
+    rep = tmp_path / "rep"
+    args = ["falsify", str(cfg), "--replay", str(out / "worst.json"), "--out", str(rep)]
+    assert cli.main(args) == 0
+    got = json.loads((rep / "replay.json").read_text())["scenarios"]
+    np.testing.assert_allclose([s["max_abs_e"] for s in got], vals, rtol=1e-12)
+    # an existing output folder is refused without --overwrite
+    assert cli.main(["falsify", str(cfg), "--out", str(out)]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "args", "match"),
+    [
+        ("starts = 3", "starts = 0", [], "[falsify] starts"),
+        ("keep = 4", "bogus = 1", [], "unknown key [falsify] 'bogus'"),
+        ("", "", ["--metric", "max_speed"], "unknown metric 'max_speed'"),
+        ("speed = [0.0, 0.5]", "speed = [0.5, 0.1]", [], "speed"),
+        ("y = [-5.0, 5.0]", "bogus = [0.0, 1.0]", [], "bogus"),
+        ("", "", ["--bound", "nan"], "bound"),
+    ],
+)
+def test_cli_refuses_bad_input_before_touching_out(tmp_path, capsys, old, new, args, match):
+    from vcjax import cli
+
+    cfg = tmp_path / "f.toml"
+    cfg.write_text(CLI_CONFIG.replace(old, new) if old else CLI_CONFIG)
+    out = tmp_path / "out"
+    assert cli.main(["falsify", str(cfg), "--out", str(out), *args]) == 2
+    err = capsys.readouterr().err
+    assert match in err and "Traceback" not in err
+    assert not out.exists()

@@ -132,8 +132,9 @@ def _sections(raw: dict, where: str) -> dict:
     return out
 
 
-def load_config(config_path) -> tuple[SweepSpec, dict]:
-    """Read and validate a sweep TOML file (schema: :mod:`vcjax.sweep`).
+def load_config(config_path, raw: dict | None = None) -> tuple[SweepSpec, dict]:
+    """Read and validate a sweep TOML file (schema: :mod:`vcjax.sweep`); ``raw``: its tables
+    already read (e.g. ``vcjax falsify``'s, without its own section).
 
     Returns:
         ``(spec, extras)``: the :class:`~vcjax.sweep.spec.SweepSpec` and ``extras = {"gains":
@@ -145,7 +146,7 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
             referenced file by its path).
     """
     config_path = Path(config_path)
-    raw = read_toml(config_path)
+    raw = read_toml(config_path) if raw is None else raw
     where = str(config_path)
     check_schema(raw, SCHEMA, where)
     choice = parse_scenario(raw.get("scenario"), where, config_path)
