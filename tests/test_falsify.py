@@ -233,3 +233,10 @@ def test_cli_refuses_bad_input_before_touching_out(tmp_path, capsys, old, new, a
     err = capsys.readouterr().err
     assert match in err and "Traceback" not in err
     assert not out.exists()
+
+
+def test_vcjax_falsify_is_the_search():
+    import vcjax
+    import vcjax.search
+
+    assert vcjax.falsify is vcjax.search.falsify

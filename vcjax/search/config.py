@@ -34,7 +34,7 @@ from vcjax.config import ConfigError, as_int, as_number, read_toml
 from vcjax.search.core import evaluate, falsify, metric_name
 from vcjax.search.envelope import Envelope, envelope_from_spec, setting_from_spec
 
-__all__ = ["FALSIFY_KEYS", "load_config", "run_falsify_config", "replay_worst"]
+__all__ = ["FALSIFY_KEYS", "KEY_DOCS", "load_config", "run_falsify_config", "replay_worst"]
 
 #: ``[falsify]`` keys and defaults (None: no default)
 FALSIFY_KEYS = {
@@ -47,6 +47,20 @@ FALSIFY_KEYS = {
     "seed": 0,
     "keep": 10,
     "controller": None,
+}
+
+#: (section, key) -> (unit, description): the configuration reference is generated from it (the
+#: other sections are a sweep's: every range is searched, every number held fixed)
+KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
+    ("falsify", "metric"): ("", "sweep metric to maximise (--metric overrides)"),
+    ("falsify", "bound"): ("", "falsified as soon as a scenario's metric exceeds it (--bound)"),
+    ("falsify", "starts"): ("", "gradient-ascent starts, run together under vmap (int >= 1)"),
+    ("falsify", "steps"): ("", "ascent steps per start, one rollout each (int >= 1)"),
+    ("falsify", "step_size"): ("", "Adam step in the envelope's unit box (> 0)"),
+    ("falsify", "random_rollouts"): ("", "random baseline rollouts (default starts x steps)"),
+    ("falsify", "seed"): ("", "seed of the starts and of the scenarios' random draws"),
+    ("falsify", "keep"): ("", "scenarios written to worst.json (int >= 1)"),
+    ("falsify", "controller"): ("", "the controller searched ([scenario] controller otherwise)"),
 }
 
 

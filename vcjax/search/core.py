@@ -236,6 +236,7 @@ def falsify(
     steps: int = 20,
     step_size: float = 0.05,
     random_rollouts: int | None = None,
+    random_batch: int = 256,
     bound: float | None = None,
     sharpness: float = SHARPNESS,
     progress: Callable[[str], Any] | None = None,
@@ -250,7 +251,7 @@ def falsify(
     ``starts`` starts under ``vmap``, each with the random draws (sea phases, noise) of its own
     scenario number held fixed. Each ascent step of each start is one rollout. Then plain
     random sampling of the same envelope (``random_rollouts``, default the same number, new
-    scenario numbers) in batches of ``starts``: the baseline.
+    scenario numbers) in batches of ``random_batch`` (at least ``starts``): the baseline.
 
     Args:
         loop, gains: the closed loop and its gains; envelope: an :class:`Envelope`, or a
@@ -331,18 +332,20 @@ def falsify(
     rx, ri, rv, rd, rcurve = [], [], [], [], []
     rworst, rfals = -np.inf, False
     fwd = None
+    # equal batches of at most random_batch (at least starts): no padded work in the timing
+    batch = max(starts, -(-n_rand // max(1, -(-n_rand // random_batch)))) if n_rand else starts
     j = 0
     while j < n_rand and not interrupted:
         if j and stop():
             interrupted = True
             break
-        zb = rng.random((starts, P)) * np.asarray(width)
+        zb = rng.random((batch, P)) * np.asarray(width)
         xb = np.asarray(envelope.from_unit(jnp.asarray(zb, dtype)))
-        ib = np.arange(starts + j, 2 * starts + j, dtype=np.int32)
+        ib = np.arange(starts + j, starts + j + batch, dtype=np.int32)
         if fwd is None:
             fwd = functools.partial(_forward, env=envelope, setting=key, metric=metric)
         m = jax.device_get(fwd(jnp.asarray(xb, dtype), ib, gains, setting.nominal))
-        nb = min(starts, n_rand - j)
+        nb = min(batch, n_rand - j)
         rx.append(xb[:nb])
         ri.append(ib[:nb])
         rv.append(np.asarray(m[metric])[:nb])
