@@ -121,6 +121,12 @@ def test_bound_stops_the_search_as_soon_as_it_is_exceeded():
     res = falsify(loop, loop.default_gains(), env, "max_abs_e", setting, starts=3, steps=5, bound=0)
     assert res.falsified and res.rollouts == 3 and res.random_falsified
     assert res.random_rollouts == 3
+    # a stop request (Ctrl-C) ends the search at the next step and keeps what was found
+    res = falsify(
+        loop, loop.default_gains(), env, "max_abs_e", setting, starts=3, steps=5, stop=lambda: True
+    )
+    assert res.interrupted and res.rollouts == 3 and res.random_rollouts == 0
+    assert np.isfinite(res.worst) and len(res.scenarios()) == 3
 
 
 @pytest.mark.parametrize(

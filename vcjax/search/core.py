@@ -157,7 +157,7 @@ class FalsifyResult:
             draws' scenario numbers; value: (S,) their metric; diverged: (S,) flags.
         curve: (rollouts, worst so far) after each ascent step (rollouts = starts x steps).
         random_x, random_index, random_value, random_diverged: the random baseline's samples.
-        random_curve: the same curve for the random samples (one point per batch).
+        random_curve: the same curve for the random samples (one point per rollout).
         rollouts, random_rollouts: rollouts run; wall_s, random_wall_s: seconds, compilation
             included; first_step_s: the first ascent step (compilation included, unless a
             call of the same shapes compiled it before).
@@ -350,9 +350,10 @@ def falsify(
         ri.append(ib[:nb])
         rv.append(np.asarray(m[metric])[:nb])
         rd.append(np.asarray(m["diverged"])[:nb])
+        for k, r in enumerate(_rank(rv[-1])):  # one point per rollout
+            rworst = max(rworst, float(r))
+            rcurve.append((j + k + 1, rworst))
         j += nb
-        rworst = max(rworst, float(np.max(_rank(rv[-1]))))
-        rcurve.append((j, rworst))
         say(f"random: {j}/{n_rand} rollouts, worst {metric} {rworst:.4g}")
         if bound is not None and rworst > bound:
             rfals = True

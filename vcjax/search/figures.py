@@ -80,6 +80,7 @@ def plot_curve(result, path) -> Path:
         ax.step(r, w, where="post", color="tab:gray", label="random sampling")
     if result.bound is not None:
         ax.axhline(result.bound, color="k", ls=":", lw=1, label="bound")
+    ax.set_xscale("log")
     ax.set_xlabel("rollouts")
     ax.set_ylabel(f"worst {result.metric} found")
     ax.legend(loc="best", fontsize=8)
