@@ -162,15 +162,18 @@ def test_bad_sea_envelopes_are_refused():
         Envelope.build(infante, {"wave_hs": 1.0, "wave_tp": 8.0})
 
 
+#: the envelope, horizon, seed and batch sizes of _infante() and the search test above: run
+#: in the same process, the command reuses their compiled programs
 CLI_CONFIG = """
 [scenario]
 controller = "vcm_integral"
 [falsify]
 metric = "max_cross_track"
 starts = 3
-steps = 2
-random_rollouts = 6
-keep = 4
+steps = 3
+random_rollouts = 9
+keep = 12
+seed = 1
 [simulation]
 horizon = 2.0
 dt = 0.05
@@ -179,6 +182,7 @@ speed = [0.0, 0.5]
 direction_deg = [0.0, 360.0]
 [initial]
 y = [-5.0, 5.0]
+heading_deg = [60.0, 120.0]
 """
 
 
@@ -192,14 +196,14 @@ def test_cli_writes_worst_summary_figures_and_replays_them(tmp_path, capsys):
     out = tmp_path / "out"
     assert cli.main(["falsify", str(cfg), "--out", str(out)]) == 0
     worst = json.loads((out / "worst.json").read_text())
-    assert worst["metric"] == "max_abs_e" and len(worst["scenarios"]) == 4
+    assert worst["metric"] == "max_abs_e" and len(worst["scenarios"]) == 12
     vals = [s["max_abs_e"] for s in worst["scenarios"]]
     assert vals == sorted(vals, reverse=True)
     assert set(worst["scenarios"][0]["params"]) >= {"current_speed", "initial.y"}
     summary = json.loads((out / "summary.json").read_text())
     for k in ("metric", "rollouts", "random_rollouts", "worst", "random_worst", "wall_s"):
         assert k in summary
-    assert summary["rollouts"] == 6 and summary["random_rollouts"] == 6
+    assert summary["rollouts"] == 9 and summary["random_rollouts"] == 9
     assert (
         summary["worst"] == max(summary["worst"], summary["random_worst"])
         or vals[0] == (summary["random_worst"])
@@ -222,10 +226,11 @@ def test_cli_writes_worst_summary_figures_and_replays_them(tmp_path, capsys):
     ("old", "new", "args", "match"),
     [
         ("starts = 3", "starts = 0", [], "[falsify] starts"),
-        ("keep = 4", "bogus = 1", [], "unknown key [falsify] 'bogus'"),
+        ("keep = 12", "bogus = 1", [], "unknown key [falsify] 'bogus'"),
         ("", "", ["--metric", "max_speed"], "unknown metric 'max_speed'"),
         ("speed = [0.0, 0.5]", "speed = [0.5, 0.1]", [], "speed"),
         ("y = [-5.0, 5.0]", "bogus = [0.0, 1.0]", [], "bogus"),
+        ("horizon = 2.0", "horizon = -1.0", [], "horizon"),
         ("", "", ["--bound", "nan"], "bound"),
     ],
 )

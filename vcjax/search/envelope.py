@@ -379,4 +379,7 @@ def make_setting(
     if env.has_waves:
         check_wave_step(env.lo[env.names.index("wave_tp")], dt, "envelope: wave_tp")
     sea = (spectrum, int(components), float(gamma)) if env.has_waves else None
-    return Setting(loop, config, float(dt), nominal, float(diverge_e), sea, seed=int(seed))
+    noise = tuple(float(a) for a in np.asarray(loop.noise_std({})).ravel())  # none (zeros)
+    return Setting(
+        loop, config, float(dt), nominal, float(diverge_e), sea, noise_std=noise, seed=int(seed)
+    )
