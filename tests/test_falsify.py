@@ -251,3 +251,44 @@ def test_vcjax_falsify_is_the_search():
     import vcjax.search
 
     assert vcjax.falsify is vcjax.search.falsify
+
+
+@pytest.mark.slow  # two more compiles (a sweep's batch and the search's forward)
+def test_a_scenario_of_the_search_is_the_sweeps_scenario_of_the_same_number():
+    """The envelope's scenario ``index`` with a sweep's sampled values of scenario ``index`` is
+    that sweep's scenario: the same metrics (an independent path: the sweep's own sampler)."""
+    from vcjax.search import envelope_from_spec, setting_from_spec
+    from vcjax.sweep import ScenarioSpec, SweepSpec, run_sweep
+
+    spec = SweepSpec(
+        num_scenarios=3,
+        scenario=ScenarioSpec(
+            current_speed=(0.0, 0.5),
+            current_direction_deg=(0.0, 360.0),
+            initial=(("y", (-5.0, 5.0)), ("heading_deg", (60.0, 120.0))),
+        ),
+        variants=("vcm_integral",),
+        horizon=2.0,
+        dt=0.05,
+        seed=7,
+        record_points=0,
+    )
+    res = run_sweep(spec, progress=False)
+    env = envelope_from_spec(spec)
+    setting = setting_from_spec(spec, env)
+    sc = res.scenarios
+    eta0, nu0 = np.asarray(sc["eta0"]), np.asarray(sc["nu0"])
+    params = {
+        "current_speed": sc["current_speed"],
+        "current_direction_deg": np.degrees(sc["current_direction"]),
+        "u_d": sc["u_d"],
+        "initial.x": eta0[:, 0],
+        "initial.y": eta0[:, 1],
+        "initial.heading_deg": np.degrees(eta0[:, 2]),
+        "initial.speed": nu0[:, 0],
+    }
+    x = np.stack([np.asarray(params[n], float) for n in env.names], axis=1)
+    loop = spec.loop("vcm_integral")
+    m = evaluate(loop, loop.default_gains(), env, setting, "max_abs_e", x, res.index)
+    for k in ("max_abs_e", "ss_abs_e", "rms_cross_track_e", "iae_e"):
+        np.testing.assert_allclose(m[k], res.metrics["vcm_integral"][k], rtol=1e-10)
