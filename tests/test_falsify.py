@@ -220,6 +220,12 @@ def test_cli_writes_worst_summary_figures_and_replays_them(tmp_path, capsys):
     # an existing output folder is refused without --overwrite
     assert cli.main(["falsify", str(cfg), "--out", str(out)]) == 2
     assert "--overwrite" in capsys.readouterr().err
+    # --bound: falsified at the first step that exceeds it
+    args = ["falsify", str(cfg), "--out", str(out), "--overwrite", "--bound", "1"]
+    assert cli.main(args) == 0
+    assert "bound 1: FALSIFIED" in capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["falsified"] and summary["rollouts"] == 3 and summary["bound"] == 1.0
 
 
 @pytest.mark.parametrize(
