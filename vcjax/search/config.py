@@ -193,14 +193,24 @@ def run_falsify_config(cfg: dict, out_dir, progress=None) -> dict:
         "vehicle": cfg["loop"].vehicle,
         "envelope": cfg["envelope"].as_dict(),
         "searched": list(cfg["envelope"].searched),
-        "curve": [[int(a), _num(b)] for a, b in res.curve],
-        "random_curve": [[int(a), _num(b)] for a, b in res.random_curve],
+        "curve": _steps(res.curve),
+        "random_curve": _steps(res.random_curve),
         "devices": jax.device_count(),
     }
     files.append(write_json_atomic(out / "summary.json", summary))
     if cfg["figures"] and res.value.size:
         files += figures(res, cfg, out)
     return {"summary": summary, "files": files, "result": res}
+
+
+def _steps(curve) -> list:
+    """``[[rollouts, worst so far], ...]`` at each rise of the curve and its last point (the
+    step function, without its flat runs)."""
+    out = []
+    for j, (a, b) in enumerate(curve):
+        if not out or b != out[-1][1] or j == len(curve) - 1:
+            out.append([int(a), _num(b)])
+    return out
 
 
 def _num(v):
