@@ -325,7 +325,14 @@ def command_sections() -> dict[str, dict[str, dict]]:
         if keys
     }
     sweep["sweep"]["num_scenarios"] = ...
-    return {"vcjax sweep": sweep, "vcjax tune": TUNE, "vcjax fit": FIT_SCHEMA}
+    from vcjax.search.config import FALSIFY_KEYS
+
+    return {
+        "vcjax sweep": sweep,
+        "vcjax falsify": {"falsify": dict(FALSIFY_KEYS)},
+        "vcjax tune": TUNE,
+        "vcjax fit": FIT_SCHEMA,
+    }
 
 
 def _spec_default(fields, name):
@@ -344,10 +351,16 @@ def config_reference() -> str:
     from tuning.config import KEY_DOCS as TUNE_DOCS
     from vcjax.config import reference_markdown
     from vcjax.identify.config import KEY_DOCS as FIT_DOCS
+    from vcjax.search.config import KEY_DOCS as FALSIFY_DOCS
     from vcjax.sweep.config import KEY_DOCS as SWEEP_DOCS
 
     shared = _shared_fields()
-    docs = {"vcjax sweep": SWEEP_DOCS, "vcjax tune": TUNE_DOCS, "vcjax fit": FIT_DOCS}
+    docs = {
+        "vcjax sweep": SWEEP_DOCS,
+        "vcjax falsify": FALSIFY_DOCS,
+        "vcjax tune": TUNE_DOCS,
+        "vcjax fit": FIT_DOCS,
+    }
     out = ["## Shared sections", "", reference_markdown(), "", "## Each command's own keys", ""]
     for cmd, sections in command_sections().items():
         out += _command_table(cmd, sections, docs[cmd], shared)

@@ -11,7 +11,8 @@ ROOT = Path(__file__).resolve().parents[1] / "vcjax"
 #: the loop classes' dataclass fields (its options), so ``loops`` never imports it. ``runtime``
 #: (devices, caches, outputs, interrupts, progress: plumbing that knows no physics) is at the
 #: bottom. Figures (``plots``) read results of loops and sweeps and run nothing; the experiments
-#: (presets of ``vcjax simulate``) sit on top, below only the CLI.
+#: (presets of ``vcjax simulate``) sit on top, below only the CLI. The worst-case search
+#: (``search``, ``vcjax falsify``) runs sweeps' rollouts and draws its own figures.
 LAYERS = [
     {"_checks", "runtime", "linalg", "integrators"},
     {"mechanics", "paths"},
@@ -23,6 +24,7 @@ LAYERS = [
     {"metrics"},
     {"sweep"},
     {"plots"},
+    {"search"},
     {"experiments", "identify"},
     {"cli", "commands"},
 ]

@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from vcjax import cli, metrics, waves
+from vcjax import cli, metrics
 from vcjax.config import ConfigError
+from vcjax.environment import waves
 from vcjax.runtime import sizing
 from vcjax.sweep import ScenarioSpec
 

@@ -20,6 +20,8 @@ The public API, by stage of the data flow (each module's docstring has the detai
   paper's two experiments, the REMUS 100 mission, the arm demo), on top of the loops;
   :mod:`vcjax.plots` — figures.
 * :mod:`vcjax.identify` — ``vcjax fit``: plant parameters from logged runs by multiple shooting.
+* :mod:`vcjax.search` — ``vcjax falsify``: the worst current, sea and start within an envelope
+  (``vcjax.falsify(loop, gains, envelope, metric, ...)``, imported on first use).
 
 The library never enables float64 and never jits for you. ``vcjax.fast_compile()``, called before
 the first JAX computation, makes XLA's CPU compiles about twice as fast, as the ``vcjax`` command
@@ -65,3 +67,13 @@ __all__ = [
 ]
 
 __version__ = "0.1.0"
+
+
+def __getattr__(name):
+    """``vcjax.falsify``: :func:`vcjax.search.falsify`, imported on first use (it pulls in the
+    loops and the sweep machinery, which ``import vcjax`` does not)."""
+    if name == "falsify":
+        from vcjax.search import falsify
+
+        return falsify
+    raise AttributeError(f"module 'vcjax' has no attribute {name!r}")

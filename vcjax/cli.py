@@ -193,6 +193,25 @@ def build_parser() -> argparse.ArgumentParser:
     _add_size_limits(t)
     t.set_defaults(func=commands.tune)
 
+    x = sub.add_parser(
+        "falsify",
+        help="search the envelope for the current, sea and start that break a controller (TOML)",
+    )
+    x.add_argument("config", help="sweep-style TOML config with a [falsify] section")
+    x.add_argument("--out", default="out/falsify", help="output directory (default: out/falsify)")
+    x.add_argument("--metric", metavar="NAME", help="sweep metric to maximise (default max_abs_e)")
+    x.add_argument(
+        "--bound", type=float, metavar="X", help="stop as soon as a scenario's metric exceeds X"
+    )
+    x.add_argument(
+        "--replay",
+        metavar="WORST_JSON",
+        help="run the scenarios of a worst.json again (writes replay.json) instead of searching",
+    )
+    x.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
+    _add_overwrite(x)
+    x.set_defaults(func=commands.falsify)
+
     f = sub.add_parser(
         "fit",
         help="identify plant parameters from logged runs by multiple shooting (TOML)",

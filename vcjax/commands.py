@@ -19,6 +19,7 @@ __all__ = [
     "flags_refused",
     "simulate",
     "sweep",
+    "falsify",
     "tune",
     "fit",
     "fail",
@@ -358,6 +359,49 @@ def sweep(args) -> int:
             f"kept the {summary['num_scenarios']} of {summary['num_scenarios_planned']} "
             f"scenarios that ran (summary.json: interrupted) in {args.out}",
         )
+    return 0
+
+
+def falsify(args) -> int:
+    """``vcjax falsify CONFIG``: worst-case scenario search (:mod:`vcjax.search`); with
+    ``--replay worst.json``: those scenarios run again."""
+    _enable_x64(args.x64)
+    from vcjax.search.config import load_config, replay_worst, run_falsify_config
+
+    try:  # everything checked before --out is touched
+        cfg = load_config(args.config, metric=args.metric, bound=args.bound)
+        if args.replay is not None:
+            from vcjax.search.config import read_worst
+
+            read_worst(args.replay, cfg["envelope"], cfg["metric"])
+    except (OSError, ValueError) as err:
+        return fail(f"falsify: {err}")
+    out = _prepare(args, args.out, "falsify")
+    record = {"file": args.config, "spec": cfg["spec"], **cfg["opts"], "metric": cfg["metric"]}
+    if args.replay is not None:
+        res = replay_worst(cfg, args.replay, out)
+        for s in res["replay"]["scenarios"]:
+            print(f"{cfg['metric']} {s[cfg['metric']]} (recorded {s['recorded']})")
+        for f in res["files"]:
+            print(f"wrote {f}")
+        _record(out, "falsify", args, config={**record, "replay": args.replay})
+        return 0
+    say = lambda line: print(f"falsify: {line}", file=sys.stderr, flush=True)
+    with interruptible():
+        result = run_falsify_config(cfg, out, progress=say)
+    s = result["summary"]
+    print(
+        f"worst {s['metric']}: gradient search {s['worst']} ({s['rollouts']} rollouts, "
+        f"{s['wall_s']:.1f} s), random sampling {s['random_worst']} "
+        f"({s['random_rollouts']} rollouts, {s['random_wall_s']:.1f} s)"
+    )
+    if s["bound"] is not None:
+        print(f"bound {s['bound']:g}: " + ("FALSIFIED" if s["falsified"] else "not exceeded"))
+    for f in result["files"]:
+        print(f"wrote {f}")
+    _record(out, "falsify", args, config=record, seeds={"falsify": cfg["opts"]["seed"]})
+    if s["interrupted"]:
+        return _interrupted("falsify", f"kept what was found (summary.json: interrupted) in {out}")
     return 0
 
 

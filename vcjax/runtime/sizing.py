@@ -20,7 +20,8 @@ The checks run after the configuration is parsed and before anything is compiled
     ``c = checkpoint_every``); forward mode keeps one tangent per tuned gain instead of a tape.
 
   - a sea (``[waves]``, ``components = N``) adds per scenario its ``N`` components (5 float64
-    arrays: frequency, amplitude, wavenumber, phase, direction; :class:`vcjax.waves.Sea`) and,
+    arrays: frequency, amplitude, wavenumber, phase, direction;
+    :class:`vcjax.environment.waves.Sea`) and,
     while the kinematics are evaluated at the vehicle's position, :data:`WAVE_WORK_ARRAYS` more
     ``(N,)`` arrays per scenario of a chunk (phases, attenuation, the sines and cosines and the
     per-component terms of the velocity and acceleration); a reverse-mode tuning run keeps
@@ -78,7 +79,7 @@ STATE_FLOATS = 64
 METRIC_FLOATS = 48
 #: Sampled values kept per scenario (initial state, current, model factors, ...).
 SCENARIO_FLOATS = 32
-#: ``(N,)`` arrays of a sea per scenario: the :class:`vcjax.waves.Sea` itself.
+#: ``(N,)`` arrays of a sea per scenario: the :class:`vcjax.environment.waves.Sea` itself.
 WAVE_SEA_ARRAYS = 5
 #: ``(N,)`` work arrays per scenario while a sea's kinematics are evaluated (phase, attenuation,
 #: cos, sin, c, s, the convective terms q and A, the acceleration's sums, the sampler's draws).
@@ -217,8 +218,8 @@ def check_estimate(
     """Raise :class:`SizeError` if ``est`` exceeds the step limit (default :data:`MAX_STEPS`)
     or the memory limit (default :func:`default_memory_limit`), naming both and the option
     that raises the limit; then print ``notes`` (e.g. the sea's validity,
-    :func:`vcjax.waves.envelope_warnings`) and :func:`time_warnings` on stderr, one line each,
-    before the run starts."""
+    :func:`vcjax.environment.waves.envelope_warnings`) and :func:`time_warnings` on stderr, one
+    line each, before the run starts."""
     limit_steps = MAX_STEPS if max_steps is None else int(max_steps)
     if est["steps_per_run"] > limit_steps:
         raise SizeError(

@@ -180,8 +180,9 @@ def _check_spellings(raw: dict, choice, spec_kw: dict) -> None:
         spec_kw["edd"] = given["edd"]
 
 
-def load_config(config_path) -> tuple[SweepSpec, dict]:
-    """Read and validate a sweep TOML file (schema: :mod:`vcjax.sweep`).
+def load_config(config_path, raw: dict | None = None) -> tuple[SweepSpec, dict]:
+    """Read and validate a sweep TOML file (schema: :mod:`vcjax.sweep`); ``raw``: its tables
+    already read (e.g. ``vcjax falsify``'s, without its own section).
 
     Returns:
         ``(spec, extras)``: the :class:`~vcjax.sweep.spec.SweepSpec` and ``extras = {"gains":
@@ -194,7 +195,7 @@ def load_config(config_path) -> tuple[SweepSpec, dict]:
             referenced file by its path).
     """
     config_path = Path(config_path)
-    raw = read_toml(config_path)
+    raw = read_toml(config_path) if raw is None else raw
     where = str(config_path)
     choice = parse_scenario(raw.get("scenario"), where, config_path)  # may register components
     raw, env = environment_sections(raw, SCHEMA, where)

@@ -113,7 +113,10 @@ def simulate_scenario(
     plant, design, coeffs = nominal_params
     s = to_scenario(loop, sc, plant, design, coeffs, config)
     rcfg = RolloutConfig(
-        num_steps=config.num_steps, integrator=config.integrator, timing=config.timing
+        num_steps=config.num_steps,
+        integrator=config.integrator,
+        timing=config.timing,
+        checkpoint=config.checkpoint,
     )
     dist = Disturbances(
         gauss_markov=config.current_model == "gauss_markov", sensor_noise=config.sensor_noise

@@ -339,6 +339,8 @@ class MCConfig:
         record_stride: keep every ``record_stride``-th sample of ``e`` and the path (0: none).
         environment: ``((section, table), ...)`` further environment components
             (:attr:`ScenarioSpec.environment`).
+        checkpoint: rematerialise each streamed segment in the backward pass (a gradient
+            through the rollout, e.g. :func:`vcjax.search.falsify`; no effect on the values).
     """
 
     num_steps: int
@@ -350,6 +352,7 @@ class MCConfig:
     tail: float = 0.2
     record_stride: int = 0
     environment: tuple = ()
+    checkpoint: bool = False
 
     @property
     def trace_steps(self) -> np.ndarray:

@@ -1,0 +1,385 @@
+"""Gradient scenario search (:func:`falsify`): multi-start projected gradient ascent of a sweep
+metric over an :class:`~vcjax.search.envelope.Envelope`, with plain random sampling of the same
+envelope as its baseline, and :func:`evaluate` (the metric of given parameter vectors: a
+replay)."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import time
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from vcjax.metrics import metric_names, metrics_finalize, metrics_init, metrics_update, window_start
+from vcjax.rollout import Reduction
+from vcjax.runtime.interrupts import stop_requested
+from vcjax.search.envelope import Envelope, Setting, make_setting, scenario_from
+from vcjax.sweep.run import _act_names, simulate_scenario
+
+__all__ = ["ALIASES", "FalsifyResult", "falsify", "evaluate", "metric_name", "soft_metric"]
+
+#: other spellings of the sweep metrics
+ALIASES = {
+    "max_cross_track": "max_abs_e",
+    "rms_cross_track": "rms_cross_track_e",
+    "rms_depth": "rms_depth_err",
+    "max_dist": "max_dist_3d",
+    "rms_dist": "rms_dist_3d",
+}
+#: power of the power-mean surrogate of a max metric: ``(mean x^p)^(1/p)`` (smooth, <= max)
+SHARPNESS = 16.0
+_FLOOR = -1.0e6  # log-domain stand-in for an empty or masked sample (finite: no NaN gradients)
+
+
+def metric_name(loop, gains, setting: Setting, name: str) -> str:
+    """The sweep metric ``name`` (or an alias of :data:`ALIASES`) of ``loop``'s metrics
+    (``ValueError`` listing them)."""
+    env = Envelope.build(loop, {})
+    sc = scenario_from(jnp.asarray(env.lo), 0, env, dataclasses.replace(setting, sea=None))
+    from vcjax.sweep.run import to_scenario
+
+    s = to_scenario(
+        loop, sc, *setting.nominal, dataclasses.replace(setting.config, model_fields=())
+    )
+    valid = metric_names(_act_names(loop, gains, s))
+    m = ALIASES.get(name, name)
+    if m not in valid:
+        raise ValueError(f"metric: unknown metric {name!r}; choose among {list(valid)}")
+    return m
+
+
+def soft_metric(name: str) -> bool:
+    """Whether ``name`` is a maximum (searched through its power-mean surrogate)."""
+    return name.startswith("max_")
+
+
+def _metrics(x, index, gains, env: Envelope, setting: Setting, metric: str, sharpness: float):
+    """``(surrogate, metrics)`` of one scenario: the metrics of a streamed rollout and, for a
+    max metric, its power mean over the same samples (else the metric itself)."""
+    loop, config = setting.loop, setting.config
+    sc = scenario_from(x, index, env, setting)
+    n = config.num_steps
+    k0 = window_start(n, 1.0 - config.tail)
+    dtype = x.dtype
+    p = sharpness
+
+    def reduction(s):
+        names = _act_names(loop, gains, s)
+
+        def update(acc, seg, ks):
+            macc, soft, healthy = acc
+            sig = loop.signals(seg, s)
+            macc = metrics_update(macc, sig, seg.finite, ks, k0)
+            if soft_metric(metric):
+                if metric == "max_abs_e":
+                    a, mask = jnp.abs(sig.eps[:, 1]), jnp.ones(ks.shape, bool)
+                elif metric == "max_dist_3d":
+                    a, mask = jnp.sqrt(jnp.sum(sig.p_err**2, axis=1) + 1e-30), ks >= k0
+                else:
+                    a, mask = sig.act[metric.removeprefix("max_abs_")], jnp.ones(ks.shape, bool)
+                la = jnp.where(mask, p * jnp.log(jnp.abs(a) + 1e-30), _FLOOR)
+                soft = jnp.logaddexp(soft, jax.scipy.special.logsumexp(la))
+            return (macc, soft, healthy & seg.healthy), None
+
+        init = (metrics_init(names, dtype), jnp.asarray(_FLOOR, dtype), jnp.array(True))
+        L = min(100, n)
+        return Reduction(init, update, L)
+
+    (acc, _), _ = simulate_scenario(loop, gains, setting.nominal, sc, config, setting.dt, reduction)
+    macc, soft, healthy = acc
+    m = metrics_finalize(macc, n, k0, jnp.asarray(setting.dt, dtype), setting.diverge_e)
+    m["diverged"] = m["diverged"] | ~healthy
+    if soft_metric(metric):
+        count = n - k0 if metric == "max_dist_3d" else n
+        surrogate = jnp.exp((soft - jnp.log(count)) / p)
+    else:
+        surrogate = m[metric]
+    return surrogate, m
+
+
+@functools.partial(jax.jit, static_argnames=("env", "setting", "metric", "sharpness"))
+def _value_and_grad(z, index, gains, nom, env, setting, metric, sharpness):
+    """Batched: the surrogate's gradient in unit coordinates and the true metrics."""
+    setting = dataclasses.replace(setting, nominal=nom)
+
+    def one(z1, i):
+        f = lambda zz: _metrics(env.from_unit(zz), i, gains, env, setting, metric, sharpness)
+        (_, m), g = jax.value_and_grad(f, has_aux=True)(z1)
+        return m, g
+
+    return jax.vmap(one)(z, index)
+
+
+@functools.partial(jax.jit, static_argnames=("env", "setting", "metric"))
+def _forward(x, index, gains, nom, env, setting, metric):
+    setting = dataclasses.replace(setting, nominal=nom)
+    return jax.vmap(lambda x1, i: _metrics(x1, i, gains, env, setting, metric, SHARPNESS)[1])(
+        x, index
+    )
+
+
+def _key(setting: Setting):
+    """The static part of a setting (its nominal arrays travel as an argument)."""
+    return dataclasses.replace(setting, nominal=None)
+
+
+def evaluate(loop, gains, env: Envelope, setting: Setting, metric: str, x, index) -> dict:
+    """The metrics (name -> (B,) numpy) of parameter vectors ``x`` (B, P) in config units with
+    the random draws of scenarios ``index`` (B,): e.g. a replay of ``worst.json``."""
+    x = jnp.asarray(np.asarray(x, dtype=float), _dtype(setting))
+    index = jnp.asarray(index, jnp.int32)
+    out = _forward(x, index, gains, setting.nominal, env, _key(setting), metric)
+    return {k: np.asarray(v) for k, v in jax.device_get(out).items()}
+
+
+def _dtype(setting: Setting):
+    return jnp.asarray(jax.tree_util.tree_leaves(setting.nominal)[0]).dtype
+
+
+def _rank(v) -> np.ndarray:
+    """A metric for ranking: NaN (a run that blew up) counts as the worst."""
+    v = np.asarray(v, dtype=float)
+    return np.where(np.isnan(v), np.inf, v)
+
+
+@dataclasses.dataclass
+class FalsifyResult:
+    """What :func:`falsify` found.
+
+    Attributes:
+        metric: the metric's name; envelope: the :class:`Envelope`.
+        x: (S, P) each start's worst parameters found (config units); index: (S,) their random
+            draws' scenario numbers; value: (S,) their metric; diverged: (S,) flags.
+        curve: (rollouts, worst so far) after each ascent step (rollouts = starts x steps).
+        random_x, random_index, random_value, random_diverged: the random baseline's samples.
+        random_curve: the same curve for the random samples (one point per rollout).
+        rollouts, random_rollouts: rollouts run; wall_s, random_wall_s: seconds, compilation
+            included; first_step_s: the first ascent step (compilation included, unless a
+            call of the same shapes compiled it before).
+        falsified: a scenario exceeded ``bound``; interrupted: stopped by a signal.
+    """
+
+    metric: str
+    envelope: Envelope
+    x: np.ndarray
+    index: np.ndarray
+    value: np.ndarray
+    diverged: np.ndarray
+    curve: list
+    random_x: np.ndarray
+    random_index: np.ndarray
+    random_value: np.ndarray
+    random_diverged: np.ndarray
+    random_curve: list
+    rollouts: int
+    random_rollouts: int
+    wall_s: float
+    random_wall_s: float
+    first_step_s: float | None
+    bound: float | None = None
+    falsified: bool = False
+    random_falsified: bool = False
+    interrupted: bool = False
+
+    @property
+    def worst(self) -> float:
+        return float(self.value[np.argmax(_rank(self.value))]) if self.value.size else np.nan
+
+    @property
+    def random_worst(self) -> float:
+        v = self.random_value
+        return float(v[np.argmax(_rank(v))]) if v.size else np.nan
+
+    def scenarios(self, keep: int = 10) -> list[dict]:
+        """Worst first, both searches: ``{metric: value, "params": {...}, "seed", "index",
+        "search", "diverged"}``."""
+        rows = [
+            (v, x, i, d, "gradient")
+            for v, x, i, d in zip(self.value, self.x, self.index, self.diverged, strict=True)
+        ]
+        rows += [
+            (v, x, i, d, "random")
+            for v, x, i, d in zip(
+                self.random_value,
+                self.random_x,
+                self.random_index,
+                self.random_diverged,
+                strict=True,
+            )
+        ]
+        rows.sort(key=lambda r: -_rank(r[0]))
+        return [
+            {
+                self.metric: float(v),
+                "params": self.envelope.params(x),
+                "index": int(i),
+                "search": s,
+                "diverged": bool(d),
+            }
+            for v, x, i, d, s in rows[:keep]
+        ]
+
+
+def falsify(
+    loop,
+    gains,
+    envelope,
+    metric: str,
+    setting: Setting | None = None,
+    *,
+    starts: int = 8,
+    steps: int = 20,
+    step_size: float = 0.05,
+    random_rollouts: int | None = None,
+    random_batch: int = 256,
+    bound: float | None = None,
+    sharpness: float = SHARPNESS,
+    progress: Callable[[str], Any] | None = None,
+    stop: Callable[[], bool] | None = None,
+    **setting_options,
+) -> FalsifyResult:
+    """Search the envelope for the scenarios that make ``metric`` largest.
+
+    Multi-start projected gradient ascent (Adam steps in the envelope's unit box, clipped into
+    it after every step) of ``metric`` (for a ``max_*`` metric: its power mean of power
+    ``sharpness``, a smooth surrogate; the true metric is what is reported and ranked),
+    ``starts`` starts under ``vmap``, each with the random draws (sea phases, noise) of its own
+    scenario number held fixed. Each ascent step of each start is one rollout. Then plain
+    random sampling of the same envelope (``random_rollouts``, default the same number, new
+    scenario numbers) in batches of ``random_batch`` (at least ``starts``): the baseline.
+
+    Args:
+        loop, gains: the closed loop and its gains; envelope: an :class:`Envelope`, or a
+            mapping name -> ``(lo, hi)`` or number (:meth:`Envelope.build`);
+        metric: a sweep metric of the loop (or an alias, :data:`ALIASES`).
+        setting: :class:`Setting` (horizon, dt, nominal parameters, sea, seed); default:
+            :func:`~vcjax.search.envelope.make_setting` of ``setting_options``.
+        bound: stop (each search) as soon as a scenario's metric exceeds it.
+        progress: receives a line per step / batch; stop: polled between steps (default:
+            :func:`vcjax.runtime.interrupts.stop_requested`); the result keeps what was found.
+    """
+    if not isinstance(envelope, Envelope):
+        envelope = Envelope.build(loop, envelope, dt=setting_options.get("dt", 0.05))
+    if setting is None:
+        setting = make_setting(loop, envelope, **setting_options)
+    elif setting_options:
+        raise ValueError(f"give a setting or its options, not both: {sorted(setting_options)}")
+    if starts < 1 or steps < 1:
+        raise ValueError(f"starts, steps: expected >= 1, got {starts}, {steps}")
+    metric = metric_name(loop, gains, setting, metric)
+    setting = dataclasses.replace(setting, loop=loop)
+    stop = stop_requested if stop is None else stop
+    say = progress or (lambda line: None)
+    dtype = _dtype(setting)
+    key = _key(setting)
+    P = len(envelope.names)
+    rng = np.random.default_rng([setting.seed, 1])
+    z = jnp.asarray(rng.random((starts, P)), dtype)
+    index = jnp.arange(starts, dtype=jnp.int32)
+    width = jnp.asarray(np.asarray(envelope.hi) > np.asarray(envelope.lo), dtype)
+    z = z * width
+    m1 = jnp.zeros_like(z)
+    m2 = jnp.zeros_like(z)
+    best_v = np.full(starts, -np.inf)
+    best_val = np.full(starts, np.nan)
+    best_z = np.asarray(z)
+    best_div = np.zeros(starts, bool)
+    curve, falsified, interrupted = [], False, False
+    t0 = time.perf_counter()
+    compiled = functools.partial(
+        _value_and_grad, env=envelope, setting=key, metric=metric, sharpness=float(sharpness)
+    )
+    first_s = None
+    done = 0
+    b1, b2 = 0.9, 0.999
+    for k in range(steps):
+        if k and stop():
+            interrupted = True
+            break
+        m, g = compiled(z, index, gains, setting.nominal)
+        v = np.asarray(m[metric])
+        first_s = time.perf_counter() - t0 if first_s is None else first_s
+        r = _rank(v)
+        better = r > best_v
+        best_v = np.where(better, r, best_v)
+        best_val = np.where(better, v, best_val)
+        best_z = np.where(better[:, None], np.asarray(z), best_z)
+        best_div = np.where(better, np.asarray(m["diverged"]), best_div)
+        done += starts
+        worst = float(np.max(best_v))
+        curve.append((done, worst))
+        say(f"gradient step {k + 1}/{steps}: {done} rollouts, worst {metric} {worst:.4g}")
+        if bound is not None and worst > bound:
+            falsified = True
+            break
+        g = jnp.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0) * width
+        m1 = b1 * m1 + (1 - b1) * g
+        m2 = b2 * m2 + (1 - b2) * g * g
+        mh = m1 / (1 - b1 ** (k + 1))
+        vh = m2 / (1 - b2 ** (k + 1))
+        z = jnp.clip(z + step_size * mh / (jnp.sqrt(vh) + 1e-8), 0.0, 1.0) * width
+    wall_s = time.perf_counter() - t0
+
+    # the baseline: plain random sampling of the same envelope, new scenario numbers
+    n_rand = done if random_rollouts is None else int(random_rollouts)
+    t1 = time.perf_counter()
+    rng = np.random.default_rng([setting.seed, 2])
+    rx, ri, rv, rd, rcurve = [], [], [], [], []
+    rworst, rfals = -np.inf, False
+    fwd = None
+    # equal batches of at most random_batch (at least starts): no padded work in the timing
+    batch = max(starts, -(-n_rand // max(1, -(-n_rand // random_batch)))) if n_rand else starts
+    j = 0
+    while j < n_rand and not interrupted:
+        if j and stop():
+            interrupted = True
+            break
+        zb = rng.random((batch, P)) * np.asarray(width)
+        xb = np.asarray(envelope.from_unit(jnp.asarray(zb, dtype)))
+        ib = np.arange(starts + j, starts + j + batch, dtype=np.int32)
+        if fwd is None:
+            fwd = functools.partial(_forward, env=envelope, setting=key, metric=metric)
+        m = jax.device_get(fwd(jnp.asarray(xb, dtype), ib, gains, setting.nominal))
+        nb = min(batch, n_rand - j)
+        rx.append(xb[:nb])
+        ri.append(ib[:nb])
+        rv.append(np.asarray(m[metric])[:nb])
+        rd.append(np.asarray(m["diverged"])[:nb])
+        for k, r in enumerate(_rank(rv[-1])):  # one point per rollout
+            rworst = max(rworst, float(r))
+            rcurve.append((j + k + 1, rworst))
+        j += nb
+        say(f"random: {j}/{n_rand} rollouts, worst {metric} {rworst:.4g}")
+        if bound is not None and rworst > bound:
+            rfals = True
+            break
+    random_wall_s = time.perf_counter() - t1
+    cat = lambda parts, shape: np.concatenate(parts) if parts else np.zeros(shape)
+    return FalsifyResult(
+        metric=metric,
+        envelope=envelope,
+        x=np.asarray(envelope.from_unit(jnp.asarray(best_z, dtype))),
+        index=np.asarray(index),
+        value=best_val,
+        diverged=best_div.astype(bool),
+        curve=curve,
+        random_x=cat(rx, (0, P)),
+        random_index=cat(ri, (0,)).astype(np.int64),
+        random_value=cat(rv, (0,)),
+        random_diverged=cat(rd, (0,)).astype(bool),
+        random_curve=rcurve,
+        rollouts=done,
+        random_rollouts=j,
+        wall_s=wall_s,
+        random_wall_s=random_wall_s,
+        first_step_s=first_s,
+        bound=bound,
+        falsified=falsified,
+        random_falsified=rfals,
+        interrupted=interrupted,
+    )

@@ -1,0 +1,88 @@
+"""Figures of a falsification (Agg backend, files, never windows).
+
+* ``falsify_worst.png``: the worst scenario's track against the path (plan view, east
+  horizontal), and its cross-track error and 3-D distance to the path against time;
+* ``falsify_curve.png``: the worst metric found against the rollouts run, gradient search and
+  random sampling (with the ``--bound``, when given).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from vcjax import loops
+from vcjax.plots import pyplot, save
+from vcjax.rollout import RolloutConfig
+from vcjax.search.envelope import Envelope, Setting, scenario_from
+from vcjax.sweep.run import to_scenario
+
+__all__ = ["worst_trajectory", "plot_worst", "plot_curve"]
+
+
+def worst_trajectory(loop, gains, env: Envelope, setting: Setting, x, index):
+    """``(t (N,), pos (N, 3), e (N,), dist (N,), path (P, 3))`` of one scenario (numpy)."""
+    dtype = jnp.asarray(jax.tree_util.tree_leaves(setting.nominal)[0]).dtype
+    sc = scenario_from(jnp.asarray(np.asarray(x, float), dtype), index, env, setting)
+    plant, design, coeffs = setting.nominal
+    s = to_scenario(loop, sc, plant, design, coeffs, setting.config)
+    from vcjax.loops import DisturbanceParams, Disturbances, gauss_markov_params
+
+    c = setting.config
+    rcfg = RolloutConfig(num_steps=c.num_steps, integrator=c.integrator, timing=c.timing)
+    dist = Disturbances(gauss_markov=c.current_model == "gauss_markov", sensor_noise=c.sensor_noise)
+    dp = DisturbanceParams(
+        current=gauss_markov_params(s, sc.current_sigma, sc.current_tau, sc.current_max_speed),
+        noise_std=sc.noise_std,
+        key=sc.key,
+    )
+    traj = jax.jit(lambda g, s_: loops.simulate(loop, g, s_, rcfg, setting.dt, dist, dp))(gains, s)
+    sig = loop.signals(traj, s)
+    pos = np.asarray(sig.pos)
+    path = np.asarray(loops.path_polyline(loop.path, coeffs, pos))
+    t = np.asarray(traj.t[1:])
+    e = np.asarray(sig.eps[:, 1])
+    d = np.sqrt(np.sum(np.asarray(sig.p_err) ** 2, axis=1))
+    return t[: e.size], pos, e, d, path
+
+
+def plot_worst(traj, title: str, path) -> Path:
+    t, pos, e, d, pts = traj
+    plt = pyplot()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.5))
+    a1.plot(pts[:, 1], pts[:, 0], "k--", lw=1, label="path")
+    a1.plot(pos[:, 1], pos[:, 0], "tab:red", lw=1.5, label="worst scenario")
+    a1.plot(pos[0, 1], pos[0, 0], "o", color="tab:red", ms=4)
+    a1.set_xlabel("east [m]")
+    a1.set_ylabel("north [m]")
+    a1.set_aspect("equal", adjustable="datalim")
+    a1.legend(loc="best", fontsize=8)
+    a2.plot(t, e, "tab:red", lw=1, label="cross-track error e")
+    a2.plot(t, d, "tab:blue", lw=1, label="3-D distance to the path point")
+    a2.set_xlabel("t [s]")
+    a2.set_ylabel("[m]")
+    a2.legend(loc="best", fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    return save(fig, path)
+
+
+def plot_curve(result, path) -> Path:
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    if result.curve:
+        r, w = np.asarray(result.curve, float).T
+        ax.step(r, w, where="post", color="tab:red", label="gradient search")
+    if result.random_curve:
+        r, w = np.asarray(result.random_curve, float).T
+        ax.step(r, w, where="post", color="tab:gray", label="random sampling")
+    if result.bound is not None:
+        ax.axhline(result.bound, color="k", ls=":", lw=1, label="bound")
+    ax.set_xscale("log")
+    ax.set_xlabel("rollouts")
+    ax.set_ylabel(f"worst {result.metric} found")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    return save(fig, path)
