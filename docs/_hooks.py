@@ -304,7 +304,9 @@ def _command_table(title: str, sections: dict, docs: dict, shared: dict) -> list
         ]
         for key, default in own.items():
             unit, desc = docs[(sec, key)]
-            shown = "required" if default is ... else f"`{default!r}`"
+            from vcjax.config.reference import toml_literal
+
+            shown = "required" if default is ... else f"`{toml_literal(default)}`"
             out.append(f"| {key} | {shown} | {unit} | {desc} |")
         out.append("")
     return out

@@ -197,3 +197,19 @@ def test_fit_config_is_frozen_hashable_and_round_trips(tmp_path):
     d = json.loads(json.dumps(cfg.to_dict()))
     assert set(d) == {"data", "model", "fit"} and d["data"]["files"] == ["a.csv"]
     assert FitConfig.from_dict(d) == dataclasses.replace(cfg, path=FitConfig().path)
+
+
+def test_the_reference_prints_defaults_as_toml():
+    """Defaults in the configuration reference are what a config file would write (TOML
+    literals), never Python's spelling."""
+    import re
+
+    from vcjax.config.reference import reference_markdown, toml_literal
+
+    assert toml_literal(True) == "true" and toml_literal(False) == "false"
+    assert toml_literal((0.5, 0.5)) == "[0.5, 0.5]" and toml_literal("pm") == '"pm"'
+    assert toml_literal(None) == "(none)" and toml_literal(3) == "3"
+    cells = re.findall(r"^\| [^|]+ \| [^|]+ \| `([^`]*)` \|", reference_markdown(), flags=re.M)
+    assert cells
+    for cell in cells:
+        assert not re.search(r"\b(True|False|None)\b|\(\d|'", cell), cell

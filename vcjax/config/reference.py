@@ -10,7 +10,32 @@ import dataclasses
 from vcjax.config.scenario import ScenarioChoice
 from vcjax.config.schema import SECTIONS
 
-__all__ = ["schema", "reference_markdown"]
+__all__ = ["schema", "reference_markdown", "toml_literal"]
+
+
+def toml_literal(value) -> str:
+    """``value`` as a config file writes it: ``true``/``false``, ``"text"``, ``[0.5, 0.5]``,
+    numbers as numbers; no default (``None``) as ``(none)``, a required key as
+    ``(required)`` (``...``)."""
+    if value is None:
+        return "(none)"
+    if value is ...:
+        return "(required)"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_literal(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {toml_literal(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, float):
+        return (
+            repr(value)
+            if value == value and abs(value) != float("inf")
+            else ("nan" if value != value else ("inf" if value > 0 else "-inf"))
+        )
+    return repr(value)
 
 
 def schema() -> dict[str, dict]:
@@ -38,8 +63,9 @@ def reference_markdown() -> str:
         for key, m in sec["keys"].items():
             key = f"*{m['open_keys']}*" if "open_keys" in m else key
             choices = f" (one of {', '.join(m['choices'])})" if m.get("choices") else ""
+            default = toml_literal(m["default"])
             out.append(
-                f"| {key} | {m['type']} | {m['default']!r} | {m['unit']} | {m['doc']}{choices} "
+                f"| {key} | {m['type']} | `{default}` | {m['unit']} | {m['doc']}{choices} "
                 f"| {', '.join(m.get('aliases', ()))} |"
             )
         out.append("")
