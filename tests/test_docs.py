@@ -592,6 +592,13 @@ def test_release_files_agree():
     assert (ROOT / "vcjax" / "py.typed").exists()
     assert "py.typed" in project["tool"]["setuptools"]["package-data"]["vcjax"]
     assert "bash .ci/package" in (ROOT / ".ci" / "run").read_text()
+    log = (ROOT / "docs" / "changelog.md").read_text()  # Keep a Changelog
+    assert "\n## [Unreleased]\n" in log
+    released = re.findall(r"^## \[(\d+\.\d+\.\d+)\] - (\d{4}-\d\d-\d\d)$", log, flags=re.M)
+    assert released and released[0][0] == vcjax.__version__
+    assert re.search(rf'^date-released: "?{released[0][1]}"?$', cff, flags=re.M)
+    head = log.split("\n## [", 3)[2]  # the newest release's section
+    assert "### Added" in head and "### Fixed" in head
 
 
 def test_pages_name_the_packages_version():
