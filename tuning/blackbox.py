@@ -53,9 +53,11 @@ class BlackBoxResult(NamedTuple):
     """Outcome of a black-box tuner.
 
     Attributes:
-        theta: (n,) incumbent (best training loss); loss: its value; evals: candidate
-        evaluations used (each costs one batch of rollouts); history: per-generation dicts
-        (``gen``, ``cum_evals``, ``best_loss``, ``wall_s`` + ``on_gen`` extras).
+        theta: (n,) incumbent (best training loss).
+        loss: its value.
+        evals: candidate evaluations used (each costs one batch of rollouts).
+        history: per-generation dicts (``gen``, ``cum_evals``, ``best_loss``, ``wall_s`` +
+            ``on_gen`` extras).
     """
 
     theta: Any

@@ -25,7 +25,15 @@ class ArmLoopParams(NamedTuple):
     """The arm's :class:`~vcjax.vehicles.arm.ArmParams` fields and its joint-torque limits.
 
     Attributes:
-        l1, l2, lc1, lc2 [m]; m1, m2 [kg]; I1, I2 [kg m^2]; g [m/s^2] (see ArmParams);
+        l1: link 1's length [m] (the fields l1 ... g as in ``ArmParams``).
+        l2: link 2's length [m].
+        lc1: joint-to-centre-of-mass distance of link 1 [m].
+        lc2: the same of link 2 [m].
+        m1: link 1's mass [kg].
+        m2: link 2's mass [kg].
+        I1: link 1's inertia about its centre of mass [kg m^2].
+        I2: link 2's inertia about its centre of mass [kg m^2].
+        g: gravity [m/s^2].
         tau_max: (2,) joint-torque limits [N m].
     """
 

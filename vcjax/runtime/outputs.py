@@ -404,8 +404,8 @@ def prepare_out(
         keep: files never removed (the command's inputs, e.g. ``--gains out/gains.json``).
 
     Raises:
-        OutputError (a ``ValueError``): the folder cannot be created or written, holds another
-        run's files (without ``overwrite``), or is locked by a live process.
+        OutputError: (a ``ValueError``) the folder cannot be created or written, holds another
+            run's files (without ``overwrite``), or is locked by a live process.
     """
     if path is None or str(path).strip() == "":
         raise OutputError("--out: expected a folder name, got an empty string")

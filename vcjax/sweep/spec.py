@@ -370,19 +370,22 @@ class MCScenario(NamedTuple):
         eta0: (n_eta,) initial pose; nu0: (n_nu,) initial velocity (the loop's
             ``initial_from`` of the sampled ``[initial]`` values).
         u_d: () desired speed [m/s].
-        current_speed: () mean current speed [m/s]; current_direction: () [rad, towards,
-            clockwise from north]; current: (3,) mean water velocity in NED [m/s].
-        current_sigma, current_tau, current_max_speed: () Gauss–Markov parameters
-            [m/s, s, m/s] (unused by a constant current).
+        current_speed: () mean current speed [m/s].
+        current_direction: () [rad, towards, clockwise from north].
+        current: (3,) mean water velocity in NED [m/s].
+        current_sigma: () Gauss–Markov standard deviation [m/s] (unused by a constant current).
+        current_tau: () Gauss–Markov time constant [s] (the same).
+        current_max_speed: () Gauss–Markov speed bound [m/s] (the same).
         model_factors: (F,) multiplicative factors of the plant fields ``MCConfig.model_fields``.
         noise_std: (S,) sensor-noise standard deviations (SI).
         disturbance: (n_nu,) constant generalised disturbance force.
         key: (2,) uint32 PRNG key of the scenario's random processes (current, noise).
-        wave_hs: () significant wave height [m]; wave_tp: () peak period [s];
-        wave_direction_deg: () direction the waves travel towards [deg, clockwise from north];
-        wave_origin_depth: () depth of the NED origin below the mean free surface [m];
+        wave_hs: () significant wave height [m] (``None`` without waves, as the next four).
+        wave_tp: () peak period [s].
+        wave_direction_deg: () direction the waves travel towards [deg, clockwise from north].
+        wave_origin_depth: () depth of the NED origin below the mean free surface [m].
         sea: the scenario's :class:`vcjax.environment.waves.Sea` ((N,) arrays), drawn from its own
-        key. All five ``None`` without waves.
+            key.
     """
 
     index: Any
