@@ -767,3 +767,17 @@ def test_the_registered_loops_table_lists_every_loop():
         assert v in rows, v
         for c in loops.controllers(v):
             assert f"`{c}`" in rows[v], (v, c)
+
+
+def test_docstrings_cross_reference_in_markdown():
+    """Docstrings link with the cross-references mkdocstrings resolves (``[name][path]``), not
+    Sphinx roles, which the site would print literally and link nowhere."""
+    role = re.compile(r":(func|class|mod|meth|data|attr|exc|obj):`")
+    bad = [
+        f"{_rel(p)}:{i}"
+        for pkg in ("vcjax", "tuning")
+        for p in sorted((ROOT / pkg).rglob("*.py"))
+        for i, line in enumerate(p.read_text().splitlines(), start=1)
+        if role.search(line)
+    ]
+    assert not bad, bad[:10]

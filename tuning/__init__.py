@@ -1,11 +1,14 @@
-"""Automatic gain tuning of any closed loop of :mod:`vcjax.loops` by gradient descent through it.
+"""Automatic gain tuning of any closed loop of [`vcjax.loops`][vcjax.loops] by gradient descent
+through it.
 
-Modules: :mod:`tuning.params` (unconstrained parametrisation of a loop's gain groups),
-:mod:`tuning.scenarios` (random batches of a loop's scenarios, drawn like a sweep's),
-:mod:`tuning.loss` (tracking/saturation loss, mean or CVaR over a batch), :mod:`tuning.optim`
-(optax L-BFGS/Adam, guarded, one jit per step), :mod:`tuning.blackbox` (CMA-ES with pycma, and
-random search, as baselines), :mod:`tuning.config` (TOML), :mod:`tuning.cli`
-(:func:`run_tune_config`, what ``vcjax tune`` runs).
+Modules: [`tuning.params`][tuning.params] (unconstrained parametrisation of a loop's gain groups),
+[`tuning.scenarios`][tuning.scenarios] (random batches of a loop's scenarios, drawn like a sweep's),
+[`tuning.loss`][tuning.loss] (tracking/saturation loss, mean or CVaR over a batch),
+[`tuning.optim`][tuning.optim]
+(optax L-BFGS/Adam, guarded, one jit per step), [`tuning.blackbox`][tuning.blackbox] (CMA-ES with
+pycma, and
+random search, as baselines), [`tuning.config`][tuning.config] (TOML), [`tuning.cli`][tuning.cli]
+([`run_tune_config`][tuning.cli.run_tune_config], what ``vcjax tune`` runs).
 """
 
 from tuning.cli import run_tune_config

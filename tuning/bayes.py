@@ -1,5 +1,5 @@
 """Bayesian optimisation baseline: optuna's tree-structured Parzen estimator (TPE), driven in
-batches through the same harness as CMA-ES (:func:`tuning.blackbox.generation_loop`).
+batches through the same harness as CMA-ES ([`generation_loop`][tuning.blackbox.generation_loop]).
 
 Why optuna's TPE: optuna is actively maintained, installs from PyPI without a deep-learning
 framework (its GP sampler needs PyTorch; TPE needs only NumPy and SciPy), and its ask/tell
@@ -53,7 +53,8 @@ def run_bayes(
     progress: Callable | None = None,
     should_stop: Callable[[], bool] | None = None,
 ) -> BlackBoxResult:
-    """optuna TPE on the batch objective ``f`` (from :func:`tuning.blackbox.batch_objective`)
+    """optuna TPE on the batch objective ``f`` (from
+    [`batch_objective`][tuning.blackbox.batch_objective])
     over ``theta0 +- box`` (n,), ``popsize`` candidates per call of ``f`` (one vmapped batch),
     at most ``max_evals`` candidates; ``n_startup`` random candidates before TPE models the
     loss; ``should_stop`` polled before each batch."""

@@ -1,5 +1,6 @@
 """Black-box baselines in the same harness: CMA-ES (Hansen's pycma, ``cma`` on PyPI, installed
-by ``pip install "vcjax[tuning]"``) and random search (Bayesian optimisation: :mod:`tuning.bayes`).
+by ``pip install "vcjax[tuning]"``) and random search (Bayesian optimisation:
+[`tuning.bayes`][tuning.bayes]).
 
 Both evaluate a whole generation of candidate gain vectors at once: the objective is vmapped
 over candidates (and, inside, over the scenario batch) and jitted, so one generation of
@@ -67,7 +68,8 @@ class BlackBoxResult(NamedTuple):
 
 
 def generation_loop(ask, tell, f, lam, theta0, max_evals, on_gen, progress, stop=lambda: False):
-    """The loop every black-box tuner runs (:mod:`tuning.bayes` too): ``X = ask()`` (lambda, n),
+    """The loop every black-box tuner runs ([`tuning.bayes`][tuning.bayes] too): ``X = ask()``
+    (lambda, n),
     ``vals = f(X)`` (one batch), ``tell(X, vals)``, until ``max_evals`` candidates or
     ``stop()``; keeps the incumbent, times the generations (``wall_s``: ask + f + tell, without
     ``on_gen``)."""
@@ -142,7 +144,8 @@ def run_cmaes(
     should_stop: Callable[[], bool] | None = None,
 ) -> BlackBoxResult:
     """pycma CMA-ES from ``theta0`` with step ``sigma0`` (in ``theta`` units: log-gains) on the
-    batch objective ``f`` (from :func:`batch_objective`), for at most ``max_evals`` candidates
+    batch objective ``f`` (from [`batch_objective`][tuning.blackbox.batch_objective]), for at most
+    ``max_evals`` candidates
     (whole generations; fewer if pycma's own termination criteria fire first). Each generation
     is one call ``f(X)`` with ``X`` (lambda, n): one vmapped, jitted batch. ``should_stop()``,
     polled before each generation, ends the run early (e.g. a wall-clock budget)."""
@@ -183,7 +186,7 @@ def run_random_search(
     should_stop: Callable[[], bool] | None = None,
 ) -> BlackBoxResult:
     """Pure random search: candidates ``theta0 + radius * N(0, I)`` (batches of ``popsize``),
-    the best one kept; ``should_stop`` as in :func:`run_cmaes`."""
+    the best one kept; ``should_stop`` as in [`run_cmaes`][tuning.blackbox.run_cmaes]."""
     if not (np.isfinite(radius) and radius > 0):
         raise ValueError(f"radius: expected a finite value > 0, got {radius!r}")
     rng = np.random.default_rng(seed)

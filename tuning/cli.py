@@ -1,6 +1,7 @@
 """``vcjax tune CONFIG.toml --out DIR``: tune the gains of any registered loop from a TOML file.
 
-:func:`run_tune_config` is the entry point (the ``vcjax`` CLI calls it; ``python -m tuning.cli``
+[`run_tune_config`][tuning.cli.run_tune_config] is the entry point (the ``vcjax`` CLI calls it;
+``python -m tuning.cli``
 works too). It writes into ``out_dir``:
 
 * ``gains.json``: the tuned gains, in the loop's gains-JSON format (``loop.gains_to_json``;
@@ -55,7 +56,7 @@ __all__ = ["build", "run_tune_config", "main"]
 
 def _config(cfg) -> TuneConfig:
     """The frozen config (a plain dict of the older form, e.g. a ``run.json`` record, is read
-    with :meth:`TuneConfig.from_dict`)."""
+    with [`TuneConfig.from_dict`][tuning.spec.TuneConfig.from_dict])."""
     return cfg if isinstance(cfg, TuneConfig) else TuneConfig.from_dict(cfg)
 
 
@@ -143,7 +144,8 @@ def _realised_hs(batch) -> list[float]:
 
 
 def _training_step(loss_fn, o, cfg, problem, start, args):
-    """``(step, future)``: the training step of :func:`run_gradient_tuner`, its batch
+    """``(step, future)``: the training step of
+    [`run_gradient_tuner`][tuning.optim.run_gradient_tuner], its batch
     ``value_and_grad`` keyed in the program store by what fixes the loss (the config, the
     gains' tiling: a warm run loads it), and for L-BFGS in a single process that program
     building in a thread (``future``; None: built at the first step)."""
@@ -232,7 +234,8 @@ def _path_polyline(loop, batch, xy_before, xy_after):
 def distribute(train, data, theta0):
     """With more than one device in the run (several processes, or several local devices), the
     training batch is sharded along a global 1-D mesh of every device
-    (:mod:`vcjax.runtime.distributed`) and ``data``, ``theta0`` are replicated on it: each loss
+    ([`vcjax.runtime.distributed`][vcjax.runtime.distributed]) and ``data``, ``theta0`` are
+    replicated on it: each loss
     and gradient is then one SPMD computation whose batch mean reduces across devices and
     processes, equal to the single-device value. With one device, or a batch size that is not a
     multiple of the device count (padding would change the mean loss), returns the inputs
@@ -252,11 +255,12 @@ def run_tune_config(
     """Run the tuning described by the TOML file ``config_path``; write results into ``out_dir``.
 
     Args:
-        config_path: TOML configuration (see :mod:`tuning.config`).
+        config_path: TOML configuration (see [`tuning.config`][tuning.config]).
         out_dir: output folder (created).
         progress: text stream for the progress bar and messages (default ``sys.stderr``);
             ``None`` for silence.
-        cfg: the file already parsed by :func:`tuning.config.load_config` (the CLI parses it
+        cfg: the file already parsed by [`tuning.config.load_config`][tuning.config.load_config]
+            (the CLI parses it
             once and records it); default: parse ``config_path``.
 
     Returns:
@@ -268,7 +272,8 @@ def run_tune_config(
     The caller chooses the floating-point precision (``vcjax`` enables float64 by default).
     A run that stops after repeated non-finite steps still writes its outputs, with
     ``summary["aborted"] = True``. In a multi-process run (``vcjax launch -n N -- tune ...``)
-    every process runs the same steps on its shard of the training batch (:func:`distribute`)
+    every process runs the same steps on its shard of the training batch
+    ([`distribute`][tuning.cli.distribute])
     and process 0 writes the outputs (the others return no files).
     """
     writer = jax.process_index() == 0
@@ -280,7 +285,7 @@ def run_tune_config(
     t_start = time.perf_counter()
     problem, eval_problem, data, train, heldout = build(cfg)
     # the held-out batch is evaluated by every process on its own devices; the training batch is
-    # sharded over every device of the run below (:func:`distribute`)
+    # sharded over every device of the run below ([`distribute`][tuning.cli.distribute])
     heldout, _ = shard_scenarios(heldout)
     n_dev = jax.device_count() if int(train.eta0.shape[0]) % jax.device_count() == 0 else 1
     space = problem.space

@@ -1,9 +1,10 @@
 """TOML configuration of a tuning run (``vcjax tune CONFIG.toml``), validated with clear errors
-into the frozen :class:`~tuning.spec.TuneConfig` (its sections, defaults and key descriptions:
-:mod:`tuning.spec`).
+into the frozen [`TuneConfig`][tuning.spec.TuneConfig] (its sections, defaults and key descriptions:
+[`tuning.spec`][tuning.spec]).
 
 Every section and key is optional (defaults below); unknown sections or keys, wrong types and
-out-of-range values raise :class:`vcjax.config.ConfigError` (the one error class of every
+out-of-range values raise [`vcjax.config.ConfigError`][vcjax.config.values.ConfigError] (the one
+error class of every
 command) naming the file and the offending ``section.key``::
 
     [scenario]                      # what is tuned (vcjax.config.scenario; shared with sweeps):
@@ -143,9 +144,10 @@ _PROBLEM_KEYS = {f.name: f for f in dataclasses.fields(Problem)}
 
 
 def _sections(raw: dict) -> dict:
-    """The sections declared in :mod:`tuning.spec` (the tune's own and the shared
+    """The sections declared in [`tuning.spec`][tuning.spec] (the tune's own and the shared
     ``[disturbance]``, ``[model_error]``), parsed by the one validator
-    (:func:`vcjax.config.parse_section`); unknown sections suggest the closest."""
+    ([`vcjax.config.parse_section`][vcjax.config.schema.parse_section]); unknown sections suggest
+    the closest."""
     if not isinstance(raw, dict):
         raise ConfigError("config: expected a table of sections")
     known = sorted([*_SECTIONS, *_SPECIAL, *REGISTERED])
@@ -199,7 +201,7 @@ def _tune_current(cur: Current, table: dict, current_max: float) -> dict:
 
 
 def _current_and_waves(raw: dict, sec: dict) -> tuple[dict, dict | None]:
-    """``[current]`` (resolved, :func:`_tune_current`) and ``[waves]`` (every key, defaults
+    """``[current]`` (resolved, ``_tune_current``) and ``[waves]`` (every key, defaults
     filled in: the section's presence is the switch; ``None`` without it)."""
     cur_raw = raw.get("current", {})
     cur = parse_section(Current, cur_raw, "current")
@@ -284,7 +286,8 @@ def _vehicle_keys(raw: dict, sec: dict, loop, waves) -> dict:
 
 
 def validate_config(raw: dict, config_path=None) -> TuneConfig:
-    """Defaults filled in, every value checked; returns the frozen :class:`TuneConfig`.
+    """Defaults filled in, every value checked; returns the frozen
+    [`TuneConfig`][tuning.spec.TuneConfig].
 
     ``cfg.scenario`` is the parsed ``[scenario]``, ``cfg.initial`` the ``[initial]`` ranges;
     ``config_path`` resolves the files a config names (default: the working directory).
@@ -311,7 +314,8 @@ def validate_config(raw: dict, config_path=None) -> TuneConfig:
 
 
 def load_config(path) -> TuneConfig:
-    """Read and validate a TOML file (the frozen :class:`TuneConfig`); files it names are
+    """Read and validate a TOML file (the frozen [`TuneConfig`][tuning.spec.TuneConfig]); files it
+    names are
     resolved against its folder."""
     path = Path(path)
     raw = read_toml(path)

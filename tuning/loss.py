@@ -1,5 +1,5 @@
 """Tuning loss: tracking, saturation and effort costs of closed-loop rollouts of any loop
-(docs/guides/tuning.md), from the loop's :class:`~vcjax.loops.Signals`.
+(docs/guides/tuning.md), from the loop's [`Signals`][vcjax.loops.types.Signals].
 
 Per rollout of horizon ``T = N dt`` (every integral normalised by ``T``, i.e. a time average):
 
@@ -88,7 +88,8 @@ def loss_weights(
     depth=0.0,
     dtype=None,
 ) -> LossWeights:
-    """Validated :class:`LossWeights` (every weight finite and >= 0, ``sat_width`` > 0)."""
+    """Validated [`LossWeights`][tuning.loss.LossWeights] (every weight finite and >= 0,
+    ``sat_width`` > 0)."""
     vals = dict(locals())
     vals.pop("dtype")
     for k, v in vals.items():
@@ -103,11 +104,12 @@ def loss_weights(
 
 
 def rollout_terms(traj, sig: loops.Signals, sat_width) -> dict:
-    """Loss terms of one rollout (dict of () arrays, keys :data:`TERMS`).
+    """Loss terms of one rollout (dict of () arrays, keys ``TERMS``).
 
     Args:
-        traj: the :class:`~vcjax.rollout.Trajectory` (its health flags).
-        sig: the loop's :class:`~vcjax.loops.Signals` of that run (errors, commands / limits).
+        traj: the [`Trajectory`][vcjax.rollout.Trajectory] (its health flags).
+        sig: the loop's [`Signals`][vcjax.loops.types.Signals] of that run (errors, commands /
+            limits).
         sat_width: () smoothing width of the time-over-limit count.
     """
     eps = sig.eps
@@ -131,7 +133,7 @@ class TuningProblem:
     """Static description of a tuning objective (hashable; a change recompiles).
 
     Attributes:
-        space: :class:`~tuning.params.GainSpace` (the loop and its tuned gains).
+        space: [`GainSpace`][tuning.params.GainSpace] (the loop and its tuned gains).
         num_steps: rollout length N (horizon ``N dt``).
         integrator: ``"rk4"`` (default), ``"heun"`` or ``"euler"``.
         timing: ``"continuous"`` or ``"sampled"`` controller.
@@ -188,7 +190,7 @@ class ProblemData(NamedTuple):
 
     Attributes:
         base: the loop's gains (the untuned ones come from here).
-        weights: :class:`LossWeights`.
+        weights: [`LossWeights`][tuning.loss.LossWeights].
         dt: () step [s].
         theta_ref: (n,) centre of the box penalty (usually the encoded starting gains).
         log_box: () half-width of the box; box_weight: () its weight.
@@ -210,7 +212,8 @@ def problem_data(
     log_box: float = 3.0,
     box_weight: float = 10.0,
 ) -> ProblemData:
-    """Validated :class:`ProblemData`; ``theta_ref`` is the encoding of ``base``."""
+    """Validated [`ProblemData`][tuning.loss.ProblemData]; ``theta_ref`` is the encoding of
+    ``base``."""
     base = problem.space.loop.default_gains() if base is None else base
     weights = loss_weights() if weights is None else weights
     for name, v in (("dt", dt), ("log_box", log_box), ("box_weight", box_weight)):
@@ -223,7 +226,7 @@ def problem_data(
 
 
 def weighted_loss(terms: dict, weights: LossWeights):
-    """The scenario loss ``sum_k w_k term_k`` over every term of :data:`TERMS`."""
+    """The scenario loss ``sum_k w_k term_k`` over every term of ``TERMS``."""
     return sum(getattr(weights, k) * terms[k] for k in TERMS)
 
 

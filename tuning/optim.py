@@ -1,10 +1,11 @@
 """Gradient-based tuning loop: optax Adam or L-BFGS (zoom line search), guarded against NaN/inf.
 
-One step (:func:`make_step`) is loss + gradient + optimiser update. Adam's is one ``jax.jit``.
+One step ([`make_step`][tuning.optim.make_step]) is loss + gradient + optimiser update. Adam's is
+one ``jax.jit``.
 L-BFGS's line search evaluates the loss and gradient a variable number of times: run as optax
 runs it, inside one jitted step, the gradient is traced and compiled three times (before the
 search and in both branches of its loop body), the largest program of the tuner by far. Here
-the search is driven from the host instead (:class:`LBFGSStep`): one compiled
+the search is driven from the host instead ([`LBFGSStep`][tuning.optim.LBFGSStep]): one compiled
 ``value_and_grad`` program, called at every point the search asks for, and small jitted
 programs for optax's own L-BFGS direction and zoom line-search steps (the same arithmetic, so
 the same iterates). Every step reports its loss, gradient norm, whether it was accepted, and how
@@ -13,7 +14,8 @@ many batch ``value_and_grad`` evaluations it used.
 Guard: a step whose loss, gradient or update is not finite is *rejected*: the parameters and the
 optimiser state go back to those of the last accepted step's input and the step size is halved
 (a backtrack; for L-BFGS the line search already backtracks, so only the revert applies). Each
-rejection is counted and reported (:class:`TuneResult` ``n_bad``, ``history[k]["ok"]``); after
+rejection is counted and reported ([`TuneResult`][tuning.optim.TuneResult] ``n_bad``,
+``history[k]["ok"]``); after
 ``max_bad_steps`` consecutive rejections the run stops with ``aborted=True`` and a reason.
 
 Gradient modes: ``"reverse"`` (``jax.value_and_grad``) or ``"forward"`` (``jax.jacfwd``: n
@@ -58,8 +60,9 @@ class LBFGS(NamedTuple):
     """optax's L-BFGS with a zoom line search (``optax.lbfgs``), and its settings.
 
     ``init`` and ``update`` are those of the optax transformation (an optax optimiser in every
-    respect); :func:`make_step` reads ``memory_size`` and ``max_linesearch_steps`` to run the
-    line search from the host (:class:`LBFGSStep`).
+    respect); [`make_step`][tuning.optim.make_step] reads ``memory_size`` and
+    ``max_linesearch_steps`` to run the
+    line search from the host ([`LBFGSStep`][tuning.optim.LBFGSStep]).
     """
 
     init: Callable
@@ -74,7 +77,8 @@ def make_optimizer(
     memory_size: int = 10,
     max_linesearch_steps: int = 15,
 ):
-    """optax optimiser: ``"lbfgs"`` (:class:`LBFGS`: zoom line search; ``learning_rate``
+    """optax optimiser: ``"lbfgs"`` ([`LBFGS`][tuning.optim.LBFGS]: zoom line search;
+    ``learning_rate``
     unused) or ``"adam"``."""
     if name == "lbfgs":
         ls = optax.scale_by_zoom_linesearch(
@@ -180,17 +184,18 @@ def make_step(
 
     Args:
         loss_fn: ``loss_fn(theta, *args) -> ()`` (pure, differentiable).
-        opt: the optimiser (from :func:`make_optimizer`).
+        opt: the optimiser (from [`make_optimizer`][tuning.optim.make_optimizer]).
         optimizer: ``"lbfgs"`` or ``"adam"`` (how the step calls ``opt``).
         grad_mode: ``"reverse"`` or ``"forward"``.
         program_static: L-BFGS: a plain description of everything that fixes ``loss_fn`` (e.g.
             the tuning config): warm runs then load the batch ``value_and_grad`` from
-            :mod:`vcjax.runtime.programs`' store instead of tracing it (None: never stored).
+            ``vcjax.runtime.programs``' store instead of tracing it (None: never stored).
 
     ``scale`` () multiplies the update (the guard's backtracking factor; 1 normally); ``args``
     is a tuple of traced arguments of ``loss_fn`` (e.g. problem data and scenarios), so a new
     batch does not recompile. Adam: one ``jax.jit`` of loss, gradient and update. L-BFGS: an
-    :class:`LBFGSStep` (one compiled ``value_and_grad``, the line search driven from the host).
+    [`LBFGSStep`][tuning.optim.LBFGSStep] (one compiled ``value_and_grad``, the line search driven
+    from the host).
     """
     if optimizer not in OPTIMIZERS:
         raise ValueError(f"optimizer: expected one of {OPTIMIZERS}, got {optimizer!r}")
@@ -230,7 +235,8 @@ def _accept(theta, state, value, grad, updates, new_state, ok, evals):
 def _zoom(max_linesearch_steps: int):
     """optax's zoom line search as ``(init, step, cond)`` with the settings of
     ``optax.scale_by_zoom_linesearch(max_linesearch_steps, initial_guess_strategy="one")``
-    (its defaults). optax runs ``step`` in a ``while_loop``; :class:`LBFGSStep` runs it from
+    (its defaults). optax runs ``step`` in a ``while_loop``; [`LBFGSStep`][tuning.optim.LBFGSStep]
+    runs it from
     the host. (``zoom_linesearch`` is optax's own building block of that transformation.)"""
     from optax._src.linesearch import zoom_linesearch
 
@@ -248,9 +254,11 @@ def _zoom(max_linesearch_steps: int):
 
 
 class LBFGSStep:
-    """One L-BFGS step (:func:`make_step`), the line search driven from the host.
+    """One L-BFGS step ([`make_step`][tuning.optim.make_step]), the line search driven from the
+    host.
 
-    The step is optax's ``lbfgs`` update (:class:`LBFGS`): the two-loop direction, then the
+    The step is optax's ``lbfgs`` update ([`LBFGS`][tuning.optim.LBFGS]): the two-loop direction,
+    then the
     zoom line search (Nocedal and Wright's algorithms 3.5 and 3.6) along it. Each round of the
     search evaluates the loss and gradient once, at a step size its state decides. optax runs
     the rounds in a ``while_loop`` in the jitted step, whose two branches (search an interval,
@@ -403,7 +411,7 @@ class LBFGSStep:
 
 
 class TuneResult(NamedTuple):
-    """Outcome of :func:`run_gradient_tuner`.
+    """Outcome of [`run_gradient_tuner`][tuning.optim.run_gradient_tuner].
 
     Attributes:
         theta: (n,) best accepted parameters (lowest loss seen at an accepted step's input, or
@@ -428,7 +436,8 @@ class TuneResult(NamedTuple):
 
 
 def tuner_options(optimizer_section: dict) -> dict:
-    """Keyword arguments of :func:`run_gradient_tuner` from a config's ``[optimizer]`` section."""
+    """Keyword arguments of [`run_gradient_tuner`][tuning.optim.run_gradient_tuner] from a config's
+    ``[optimizer]`` section."""
     o = optimizer_section
     keys = ("steps", "learning_rate", "memory_size", "max_linesearch_steps", "grad_mode")
     opts = {k: o[k] for k in keys + ("max_bad_steps", "grad_tol")}
@@ -461,7 +470,7 @@ def run_gradient_tuner(
         theta0: (n,) start.
         args: tuple of traced extra arguments of ``loss_fn``.
         optimizer, learning_rate, memory_size, max_linesearch_steps: see
-            :func:`make_optimizer`.
+            [`make_optimizer`][tuning.optim.make_optimizer].
         steps: number of optimiser steps.
         grad_mode: ``"reverse"`` or ``"forward"``.
         max_bad_steps: abort after this many consecutive rejected steps.
@@ -470,10 +479,10 @@ def run_gradient_tuner(
             new parameters; a returned dict is merged into the history record. Its run time is
             excluded from ``wall_s``.
         progress: ``progress(k, steps, record)`` for a progress bar.
-        step_fn: a step from :func:`make_step` to reuse (avoids recompiling).
+        step_fn: a step from [`make_step`][tuning.optim.make_step] to reuse (avoids recompiling).
         should_stop: polled after each step; True ends the loop there (``reason``
             ``"interrupted"``; the best parameters so far are returned, no further evaluation).
-        program_static: see :func:`make_step`.
+        program_static: see [`make_step`][tuning.optim.make_step].
     """
     if not (isinstance(steps, int) and steps >= 1):
         raise ValueError(f"steps: expected a positive int, got {steps!r}")

@@ -1,7 +1,9 @@
 """Unconstrained parametrisation of any loop's gains (docs/guides/tuning.md).
 
-The optimisers work on a flat vector ``theta`` (n,) of unconstrained reals. :class:`GainSpace`
-(static) says which of a loop's gain groups (:meth:`vcjax.loops.Loop.gain_specs`) are tuned and
+The optimisers work on a flat vector ``theta`` (n,) of unconstrained reals.
+[`GainSpace`][tuning.params.GainSpace]
+(static) says which of a loop's gain groups
+([`vcjax.loops.Loop.gain_specs`][vcjax.loops.loop.Loop.gain_specs]) are tuned and
 maps ``theta`` to valid gains:
 
 * a positive gain (``GainSpec.bound is None``; e.g. ``P_G`` (3,), ``P_Phi`` (5,), ``Delta``,
@@ -13,7 +15,8 @@ maps ``theta`` to valid gains:
   every ``theta`` gives a stable loop whatever the other gains are. Bounded groups are decoded
   after the positive ones (their bound uses the decoded values).
 
-Gains that are not tuned keep the values of the ``base`` gains passed to :meth:`GainSpace.decode`.
+Gains that are not tuned keep the values of the ``base`` gains passed to
+[`GainSpace.decode`][tuning.params.GainSpace.decode].
 """
 
 from __future__ import annotations
@@ -44,7 +47,7 @@ class GainSpace:
     """Which gains of a loop are tuned, and how (static, hashable).
 
     Attributes:
-        loop: the :class:`~vcjax.loops.Loop` (default: Simulation 1's, ``vcm_integral``).
+        loop: the [`Loop`][vcjax.loops.loop.Loop] (default: Simulation 1's, ``vcm_integral``).
         tune: names of the tuned groups, a subset of ``loop.gain_specs()`` names, kept in that
             order (``None``: all of them).
     """
@@ -70,7 +73,7 @@ class GainSpace:
 
     @property
     def specs(self) -> tuple:
-        """The tuned :class:`~vcjax.loops.GainSpec` groups, in ``theta`` order."""
+        """The tuned [`GainSpec`][vcjax.loops.types.GainSpec] groups, in ``theta`` order."""
         by_name = {s.name: s for s in self.loop.gain_specs()}
         return tuple(by_name[n] for n in self.tune)
 
@@ -123,7 +126,7 @@ class GainSpace:
         return gains
 
     def encode(self, gains) -> jax.Array:
-        """Inverse of :meth:`decode` on the tuned gains (``theta`` (n,), float).
+        """Inverse of ``decode`` on the tuned gains (``theta`` (n,), float).
 
         Bounded gains at (or beyond) the ends of ``[0, FRAC_MAX * bound]`` are clipped to a
         fraction ``1e-6`` inside; positive gains of 0 to ``log(1e-12)``.
@@ -171,7 +174,7 @@ class GainSpace:
 
     def start(self, gains, eps: float = 0.1) -> jax.Array:
         """(n,) ``theta`` every tuner starts from: ``encode(gains)`` plus
-        :meth:`symmetry_break` (what ``vcjax tune`` and the tuner studies share)."""
+        ``symmetry_break`` (what ``vcjax tune`` and the tuner studies share)."""
         return self.encode(gains) + jnp.asarray(self.symmetry_break(gains, eps))
 
     def describe(self, theta, base) -> dict:

@@ -1,8 +1,10 @@
 """Batches of scenarios of any loop for robust tuning (random currents, starts, disturbances,
 model errors).
 
-Drawn with the Monte-Carlo sweep API (:func:`vcjax.sweep.sample_scenarios` and
-:func:`vcjax.sweep.to_scenario`), so a tuning batch is exactly the scenarios a ``vcjax sweep``
+Drawn with the Monte-Carlo sweep API
+([`vcjax.sweep.sample_scenarios`][vcjax.sweep.spec.sample_scenarios] and
+[`vcjax.sweep.to_scenario`][vcjax.sweep.run.to_scenario]), so a tuning batch is exactly the
+scenarios a ``vcjax sweep``
 with the same distribution and seed would run. The default distribution, around the loop's
 nominal start (Simulation 1: ``eta0 = [0, 0, pi/2]``, ``nu0 = [2, 0, 0]``, path ``x = 10 m``):
 
@@ -10,12 +12,13 @@ nominal start (Simulation 1: ``eta0 = [0, 0, pi/2]``, ``nu0 = [2, 0, 0]``, path 
 * initial position offset ``~ U(-position_offset, position_offset)`` on each of the loop's
   ``x`` and ``y`` initial keys [m] (where it has them);
 * initial heading offset ``~ U(-heading_offset, heading_offset)`` [rad] (``heading_deg`` key);
-* anything else a :class:`~vcjax.sweep.ScenarioSpec` describes (``initial`` ranges that
+* anything else a [`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec] describes (``initial`` ranges that
   override the offsets, ``disturbance`` ranges, ``model_error``, a random sea per scenario:
   ``wave_spectrum``, ``wave_hs``, ...) via ``extra``.
 
-The batch is a :class:`~vcjax.loops.Scenario` whose fields carry a leading batch axis except
-``path`` and ``design`` (shared); vmap it with :data:`SCENARIO_AXES`.
+The batch is a [`Scenario`][vcjax.loops.types.Scenario] whose fields carry a leading batch axis
+except
+``path`` and ``design`` (shared); vmap it with ``SCENARIO_AXES``.
 """
 
 from __future__ import annotations
@@ -63,7 +66,8 @@ def scenario_spec(
     heading_offset: float = np.pi / 4,
     extra: dict | None = None,
 ) -> sweep.ScenarioSpec:
-    """The :class:`~vcjax.sweep.ScenarioSpec` of a tuning batch (module docstring); ``extra``:
+    """The [`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec] of a tuning batch (module docstring);
+    ``extra``:
     further ScenarioSpec fields (its ``initial`` entries override the offsets, its
     ``current_speed``/``current_direction_deg`` the ``current_max`` distribution)."""
     for name, v in (
@@ -108,13 +112,13 @@ def sample_scenarios(
         n: batch size.
         loop: the loop (its vehicle's initial keys and parameters).
         current_max, position_offset, heading_offset, extra: the distribution
-            (:func:`scenario_spec`).
+            ([`scenario_spec`][tuning.scenarios.scenario_spec]).
         plant, design: nominal parameters (default: the vehicle's); coeffs: path coefficients
             (default: the vehicle's default path's).
         dtype: float dtype (default: the parameters').
 
     Returns:
-        batched :class:`~vcjax.loops.Scenario` (see :data:`SCENARIO_AXES`).
+        batched [`Scenario`][vcjax.loops.types.Scenario] (see ``SCENARIO_AXES``).
     """
     if not (isinstance(n, int | np.integer) and n >= 1):
         raise ValueError(f"n: expected a positive int, got {n!r}")
@@ -160,7 +164,8 @@ def shard_scenarios(batch: loops.Scenario, devices=None) -> tuple[loops.Scenario
     (default ``jax.local_devices()``), and the number of devices used.
 
     Jitted losses and gradients on a sharded batch run on every device (with host CPU devices,
-    :func:`vcjax.runtime.devices.use_cpu_cores`: every core), the batch mean becoming a cross-device
+    [`use_cpu_cores`][vcjax.runtime.devices.use_cpu_cores]: every core), the batch mean becoming a
+    cross-device
     sum. The batch is left on one device (``n = 1``) when there is one, or when its size is not
     a multiple of the device count (padding would change the mean loss).
     """

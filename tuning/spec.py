@@ -1,7 +1,8 @@
 """What a tuning run is, as a frozen object: the sections of a ``vcjax tune`` config
-(:class:`TuneConfig`; :mod:`tuning.config` parses a TOML file into it, once), their defaults
-(:data:`DEFAULTS`) and the description of every key (:data:`KEY_DOCS`, from which the
-configuration reference is generated). The keys and their meaning: :mod:`tuning.config`.
+([`TuneConfig`][tuning.spec.TuneConfig]; [`tuning.config`][tuning.config] parses a TOML file into
+it, once), their defaults
+(``DEFAULTS``) and the description of every key (``KEY_DOCS``, from which the
+configuration reference is generated). The keys and their meaning: [`tuning.config`][tuning.config].
 """
 
 from __future__ import annotations
@@ -76,7 +77,7 @@ class Problem(FrozenSection):
 
 @dataclasses.dataclass(frozen=True)
 class Weights(FrozenSection):
-    """``[weights]``: the loss weights (:mod:`tuning.loss`)."""
+    """``[weights]``: the loss weights ([`tuning.loss`][tuning.loss])."""
 
     eps: float = key(1.0, "float", "1/m^2", "weight of the path errors s^2 + e^2", **_NONNEG)
     u_tilde: float = key(1.0, "float", "s^2/m^2", "weight of the speed error", **_NONNEG)
@@ -135,7 +136,7 @@ class Heldout(FrozenSection):
 
 @dataclasses.dataclass(frozen=True)
 class Optimizer(FrozenSection):
-    """``[optimizer]`` (:func:`tuning.optim.tuner_options`)."""
+    """``[optimizer]`` ([`tuning.optim.tuner_options`][tuning.optim.tuner_options])."""
 
     name: str = key(
         "lbfgs", "str", "", "lbfgs (zoom line search) or adam", choices=("lbfgs", "adam")
@@ -178,7 +179,8 @@ ForceRanges = Disturbance
 PlantError = ModelError
 
 
-#: the sections of :class:`TuneConfig` read from a table of their own name (and their keys)
+#: the sections of [`TuneConfig`][tuning.spec.TuneConfig] read from a table of their own name (and
+# their keys)
 _SECTIONS = {
     "problem": Problem,
     "weights": Weights,
@@ -194,14 +196,15 @@ _SECTIONS = {
 
 @dataclasses.dataclass(frozen=True)
 class TuneConfig(FrozenSection):
-    """A tuning config, parsed once (:func:`load_config`), frozen and hashable.
+    """A tuning config, parsed once (``load_config``), frozen and hashable.
 
     Attributes are the sections (``cfg.problem.horizon``; ``cfg["problem"]["horizon"]`` reads
     the same); ``scenario`` is the parsed ``[scenario]``
-    (:class:`~vcjax.config.scenario.ScenarioChoice`), ``initial`` the ``[initial]`` ranges and
+    ([`ScenarioChoice`][vcjax.config.scenario.ScenarioChoice]), ``initial`` the ``[initial]`` ranges
+    and
     ``current`` the ``[current]`` keys given, as ``(key, value)`` pairs. Read as a mapping,
     ``current``, ``initial`` and ``scenario`` are plain dicts (as the older dict result had
-    them); :meth:`to_dict` is what ``run.json`` records and :meth:`from_dict` reads it back.
+    them); ``to_dict`` is what ``run.json`` records and ``from_dict`` reads it back.
     """
 
     problem: Problem = Problem()
@@ -245,7 +248,7 @@ class TuneConfig(FrozenSection):
         return dataclasses.replace(super().from_dict(d), **plain)
 
 
-#: the fields of :class:`TuneConfig` that read as plain dicts
+#: the fields of [`TuneConfig`][tuning.spec.TuneConfig] that read as plain dicts
 _PLAIN = ("current", "waves", "initial", "scenario")
 
 #: section -> key -> default (lists where the frozen sections hold tuples); the configuration
@@ -254,7 +257,8 @@ DEFAULTS: dict[str, dict[str, Any]] = {name: cls().to_dict() for name, cls in _S
 
 
 #: (section, key) -> (unit, description) of the tune-only keys, read from the sections'
-#: declarations (the shared sections are described in :mod:`vcjax.config.schema`); the
+#: declarations (the shared sections are described in [`vcjax.config.schema`][vcjax.config.schema]);
+# the
 #: configuration reference is generated from it
 KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     (name, f.name): (f.metadata["unit"], f.metadata["doc"])

@@ -2,30 +2,42 @@
 
 The public API, by stage of the data flow (each module's docstring has the details):
 
-* :mod:`vcjax.mechanics` — the generic VCM engine: ``MechanicalSystem``, ``VirtualConstraints``,
+* [`vcjax.mechanics`][vcjax.mechanics] — the generic VCM engine: ``MechanicalSystem``,
+``VirtualConstraints``,
   ``vcm_gains``, ``reaction_force`` (16)/(17) with autodiff constraint Jacobians.
-* :mod:`vcjax.vehicles` — ``design3dof`` (20), ``sixdof`` (2), ``infante`` (INFANTE-class),
+* [`vcjax.vehicles`][vcjax.vehicles] — ``design3dof`` (20), ``sixdof`` (2), ``infante``
+(INFANTE-class),
   ``odin`` (ODIN-class), ``remus100`` (PythonVehicleSimulator's REMUS 100).
-* :mod:`vcjax.paths`, :mod:`vcjax.guidance` — paths and their frames, path particle, errors.
-* :mod:`vcjax.control` — ``vcm`` (path maneuvering (31)/(38)/(41)), ``baselines`` (LOS-PID, ILOS).
-* :mod:`vcjax.allocation` — thruster allocation with limits.
-* :mod:`vcjax.integrators`, :mod:`vcjax.rollout` — ``euler``/``heun``/``rk4``; the scan rollout.
-* :mod:`vcjax.loops` — closed loops by name (vehicle x controller x path), one ``Scenario``
-  type, disturbances wrapping any loop; :mod:`vcjax.metrics` — one metrics function for all.
-* :mod:`vcjax.environment` — what the world does to a vehicle, one seam: currents (constant,
+* [`vcjax.paths`][vcjax.paths], [`vcjax.guidance`][vcjax.guidance] — paths and their frames, path
+particle, errors.
+* [`vcjax.control`][vcjax.control] — ``vcm`` (path maneuvering (31)/(38)/(41)), ``baselines``
+(LOS-PID, ILOS).
+* [`vcjax.allocation`][vcjax.allocation] — thruster allocation with limits.
+* [`vcjax.integrators`][vcjax.integrators], [`vcjax.rollout`][vcjax.rollout] —
+``euler``/``heun``/``rk4``; the scan rollout.
+* [`vcjax.loops`][vcjax.loops] — closed loops by name (vehicle x controller x path), one
+``Scenario``
+  type, disturbances wrapping any loop; [`vcjax.metrics`][vcjax.metrics] — one metrics function for
+  all.
+* [`vcjax.environment`][vcjax.environment] — what the world does to a vehicle, one seam: currents
+(constant,
   Gauss–Markov), waves, sensor noise, forces; a new disturbance is one component + ``register``.
-* :mod:`vcjax.sweep` — Monte-Carlo batches of any loop.
-* :mod:`vcjax.config` — one configuration system (sections, types, units, older spellings).
-* :mod:`vcjax.experiments` — the presets of ``vcjax simulate`` as data (``Experiment``: the
+* [`vcjax.sweep`][vcjax.sweep] — Monte-Carlo batches of any loop.
+* [`vcjax.config`][vcjax.config] — one configuration system (sections, types, units, older
+spellings).
+* [`vcjax.experiments`][vcjax.experiments] — the presets of ``vcjax simulate`` as data
+(``Experiment``: the
   paper's two experiments, the REMUS 100 mission, the arm demo), on top of the loops;
-  :mod:`vcjax.plots` — figures.
-* :mod:`vcjax.identify` — ``vcjax fit``: plant parameters from logged runs by multiple shooting.
-* :mod:`vcjax.search` — ``vcjax falsify``: the worst current, sea and start within an envelope
+  [`vcjax.plots`][vcjax.plots] — figures.
+* [`vcjax.identify`][vcjax.identify] — ``vcjax fit``: plant parameters from logged runs by multiple
+shooting.
+* [`vcjax.search`][vcjax.search] — ``vcjax falsify``: the worst current, sea and start within an
+envelope
   (``vcjax.falsify(loop, gains, envelope, metric, ...)``, imported on first use).
 
 The library never enables float64 and never jits for you. ``vcjax.fast_compile()``, called before
 the first JAX computation, makes XLA's CPU compiles about twice as fast, as the ``vcjax`` command
-line does (:mod:`vcjax.runtime.compiler`).
+line does ([`vcjax.runtime.compiler`][vcjax.runtime.compiler]).
 """
 
 from vcjax.integrators import euler, get_integrator, heun, rk4
@@ -70,7 +82,8 @@ __version__ = "0.1.0"
 
 
 def __getattr__(name):
-    """``vcjax.falsify``: :func:`vcjax.search.falsify`, imported on first use (it pulls in the
+    """``vcjax.falsify``: [`vcjax.search.falsify`][vcjax.search.core.falsify], imported on first use
+    (it pulls in the
     loops and the sweep machinery, which ``import vcjax`` does not)."""
     if name == "falsify":
         from vcjax.search import falsify

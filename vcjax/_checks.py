@@ -103,7 +103,7 @@ def float_dtype(dtype=None):
 
 
 def as_float_array(name: str, x, shape: Sequence[int | None], dtype=None):
-    """Check ``x`` (shape, finiteness; :func:`check_array`) and return it as a float array: of
+    """Check ``x`` (shape, finiteness; ``check_array``) and return it as a float array: of
     ``dtype`` when given, else of ``x``'s own float dtype (integers: JAX's default float)."""
     check_array(name, x, shape)
     a = jnp.asarray(x)

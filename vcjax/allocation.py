@@ -18,7 +18,8 @@ Algorithm — redistributed pseudo-inverse (RPI), one thruster at a time:
 
 Each pass fixes at most one thruster and a pass without a violation is a fixed point, so n
 passes always suffice; what a saturated thruster cannot give is redistributed to the others,
-unlike ``clip(pinv(T) tau)`` (:func:`clip_allocate`, kept as the baseline). When nothing saturates
+unlike ``clip(pinv(T) tau)`` ([`clip_allocate`][vcjax.allocation.clip_allocate], kept as the
+baseline). When nothing saturates
 the result *is* the pseudo-inverse solution ``pinv(T) tau``. Two finishing steps follow:
 
 * keep ``clip(pinv(T) tau)`` instead if its residual is smaller (RPI is a heuristic and can lose
@@ -37,7 +38,8 @@ solution to the end of the feasible interval along the null space, so RPI finds 
 ``f`` whenever ``tau`` is attainable (tested on random attainable ``tau``). For general ``T`` it is
 the classical RPI heuristic: always within limits, and on random attainable commands for random
 3x6, 6x8 and 4x5 matrices it met the command in all but ~0.05 % of cases. Health is reported as
-data (:class:`Allocation` ``residual = ||T f - tau||`` and ``feasible``), never as an exception.
+data ([`Allocation`][vcjax.allocation.Allocation] ``residual = ||T f - tau||`` and ``feasible``),
+never as an exception.
 
 The free-set least-squares solve is ``f_F = M T^T (T M T^T + lam I)^{-1} r`` with the 0/1 mask
 ``M = diag(free)`` and a tiny Tikhonov term ``lam = 100 eps trace(T T^T)`` (a Cholesky-friendly
@@ -154,7 +156,8 @@ def allocate(T, tau, f_max, polish: int = 50) -> Allocation:
         polish: static number of projected-gradient steps after RPI (0: none).
 
     Returns:
-        :class:`Allocation` (``f`` within limits; ``residual``, ``feasible`` as data).
+        [`Allocation`][vcjax.allocation.Allocation] (``f`` within limits; ``residual``, ``feasible``
+        as data).
     """
     T = jnp.asarray(T)
     dtype = T.dtype

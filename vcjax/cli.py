@@ -1,5 +1,6 @@
-"""``vcjax`` command line: the parser and the entry point (:func:`main`); the commands' bodies
-are in :mod:`vcjax.commands` (``launch``, which starts processes running ``main`` again, is here).
+"""``vcjax`` command line: the parser and the entry point (``main``); the commands' bodies
+are in [`vcjax.commands`][vcjax.commands] (``launch``, which starts processes running ``main``
+again, is here).
 """
 
 from __future__ import annotations
@@ -100,9 +101,10 @@ def _add_overwrite(p: argparse.ArgumentParser) -> None:
 
 
 def _add_experiment_flags(p: argparse.ArgumentParser, exp, out: str) -> None:
-    """The flags of one experiment (:mod:`vcjax.experiments`): the common ones, ``--gains`` and
+    """The flags of one experiment ([`vcjax.experiments`][vcjax.experiments]): the common ones,
+    ``--gains`` and
     ``--current`` where it takes them, and one per field of its typed options
-    (:func:`vcjax.experiments.flags`)."""
+    ([`vcjax.experiments.flags`][vcjax.experiments.base.flags])."""
     from vcjax.experiments import flags
 
     p.add_argument("--out", default=out, help=f"output directory (default: {out})")

@@ -1,7 +1,8 @@
-"""The bodies of ``vcjax``'s commands (:mod:`vcjax.cli` parses the command line once and
+"""The bodies of ``vcjax``'s commands ([`vcjax.cli`][vcjax.cli] parses the command line once and
 dispatches here): ``simulate`` (and ``demo``, its ``arm`` experiment) through the experiments
 registry, ``sweep``, ``tune``, ``fit``; and what they share -- preparing and locking ``--out``,
-recording ``run.json``, one line and exit status 2 for a bad input (:class:`CLIError`),
+recording ``run.json``, one line and exit status 2 for a bad input
+([`CLIError`][vcjax.commands.CLIError]),
 interruptible long loops."""
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ def _enable_x64(flag: bool) -> None:
 
 
 def _record(out, command: str, args, config=None, seeds=None, **wall) -> None:
-    """Write ``out/run.json`` (:mod:`vcjax.runtime.runinfo`) and say so; ``config`` defaults to the
+    """Write ``out/run.json`` ([`vcjax.runtime.runinfo`][vcjax.runtime.runinfo]) and say so;
+    ``config`` defaults to the
     parsed command-line options."""
     from vcjax.runtime.runinfo import write_run_json
 
@@ -98,7 +100,8 @@ def _config_inputs(config) -> list[str]:
 
 def _prepare(args, path, command: str, inputs=()) -> Path:
     """Check, clear (``--overwrite``) and lock ``--out``; called once every input has been
-    read and checked, before any work (:mod:`vcjax.runtime.outputs`). ``inputs``: files the
+    read and checked, before any work ([`vcjax.runtime.outputs`][vcjax.runtime.outputs]).
+    ``inputs``: files the
     command reads besides ``--config``/``--gains`` (never removed)."""
     from vcjax.runtime.outputs import OutputError, prepare_out
 
@@ -113,7 +116,7 @@ def _prepare(args, path, command: str, inputs=()) -> Path:
     return _OUT[0].path
 
 
-#: The output folder of the running command (:func:`_prepare`), released when it ends.
+#: The output folder of the running command (``_prepare``), released when it ends.
 _OUT: list = []
 
 
@@ -183,7 +186,7 @@ def _where(args) -> str:
 
 def flags_refused(args, extra: list[str]) -> str:
     """The one line refusing the flags ``extra`` that experiment ``args.experiment`` does not
-    take (its flags are generated from its options, :mod:`vcjax.experiments`)."""
+    take (its flags are generated from its options, [`vcjax.experiments`][vcjax.experiments])."""
     from vcjax.experiments import EXPERIMENTS, flags
 
     exp = EXPERIMENTS[args.experiment]
@@ -204,8 +207,8 @@ def flags_refused(args, extra: list[str]) -> str:
 
 
 def _setup(exp, args, where: str):
-    """The run's :class:`~vcjax.experiments.Setup` from the command line, every value checked
-    (:class:`CLIError`, one line) before anything is written."""
+    """The run's [`Setup`][vcjax.experiments.base.Setup] from the command line, every value checked
+    ([`CLIError`][vcjax.commands.CLIError], one line) before anything is written."""
     current = None if exp.current is None else tuple(args.current or exp.current)
     if current is not None and not all(math.isfinite(c) for c in current):
         raise CLIError(f"{where}: --current: contains NaN or inf, got {list(current)}")
@@ -238,7 +241,7 @@ def _setup(exp, args, where: str):
 
 def simulate(args) -> int:
     """``vcjax simulate NAME`` and ``vcjax demo`` (``simulate arm``): one experiment of the
-    registry (:mod:`vcjax.experiments`)."""
+    registry ([`vcjax.experiments`][vcjax.experiments])."""
     import json
 
     from vcjax.experiments import get
@@ -363,7 +366,7 @@ def sweep(args) -> int:
 
 
 def falsify(args) -> int:
-    """``vcjax falsify CONFIG``: worst-case scenario search (:mod:`vcjax.search`); with
+    """``vcjax falsify CONFIG``: worst-case scenario search ([`vcjax.search`][vcjax.search]); with
     ``--replay worst.json``: those scenarios run again."""
     _enable_x64(args.x64)
     from vcjax.search.config import load_config, replay_worst, run_falsify_config
@@ -407,7 +410,7 @@ def falsify(args) -> int:
 
 def interruptible():
     """SIGINT / SIGTERM ask the running loop to stop at its next safe point and write what is
-    done (:func:`vcjax.runtime.interrupts.interrupt_guard`)."""
+    done (``interrupt_guard``)."""
     from vcjax.runtime.interrupts import interrupt_guard
 
     return interrupt_guard()
@@ -422,9 +425,10 @@ def _interrupted(command: str, what: str) -> int:
 
 
 def _size_check(args, command: str, spec=None, cfg=None) -> None:
-    """Refuse (ValueError, exit 2) work that cannot fit (:mod:`vcjax.runtime.sizing`), before
+    """Refuse (ValueError, exit 2) work that cannot fit
+    ([`vcjax.runtime.sizing`][vcjax.runtime.sizing]), before
     anything is compiled. Seeds were checked by the config parser against the sampler's range
-    (:data:`vcjax.config.SEED_MAX`, the same in both precisions)."""
+    (``vcjax.config.SEED_MAX``, the same in both precisions)."""
     from vcjax.environment import waves
     from vcjax.runtime import sizing
 
@@ -590,8 +594,8 @@ def _print_metrics(metrics: dict) -> None:
 
 @contextlib.contextmanager
 def _early_end():
-    """Around a command's work after :func:`_prepare`: if it ends by an exception (a second
-    Ctrl-C, an error), what it wrote is recorded (:func:`_ended_early`) before it goes on."""
+    """Around a command's work after ``_prepare``: if it ends by an exception (a second
+    Ctrl-C, an error), what it wrote is recorded (``_ended_early``) before it goes on."""
     try:
         yield
     except BaseException as err:

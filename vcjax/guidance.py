@@ -1,12 +1,16 @@
 """Path-particle guidance (paper eqs. (21)–(25), (28), (36)).
 
-Given the path frame at the particle's parameter ``varpi`` (from :mod:`vcjax.paths`) and the
-vehicle's horizontal pose and body velocity, :func:`path_kinematics` returns the path-following
+Given the path frame at the particle's parameter ``varpi`` (from [`vcjax.paths`][vcjax.paths]) and
+the
+vehicle's horizontal pose and body velocity, [`path_kinematics`][vcjax.guidance.path_kinematics]
+returns the path-following
 errors ``eps = [s, e]`` (23) (along-track, cross-track, in the projected path frame {p'}), their
 first derivative (28), the particle's rate (22) with ``ubar_p = u_d + sigma s``, and every term of
 ``eps_ddot`` that does not depend on the body accelerations — what the VCM law and the LOS
-baselines need. :func:`los_angle` gives the approach angle (24) and its derivatives (36);
-:func:`alos_angle` Fossen's adaptive LOS angle (ALOS, 2023) with its crab-angle estimate.
+baselines need. [`los_angle`][vcjax.guidance.los_angle] gives the approach angle (24) and its
+derivatives (36);
+[`alos_angle`][vcjax.guidance.alos_angle] Fossen's adaptive LOS angle (ALOS, 2023) with its
+crab-angle estimate.
 
 Conventions: NED, ``eta = [x, y, psi]``, ``nu = [u, v, r]``; ``e > 0`` means the vehicle is to the
 right (starboard side) of the path, so the approach angle ``psi_r = atan(-e / Delta)`` steers
@@ -60,7 +64,8 @@ def path_kinematics(frame, eta, nu, u_d, sigma, u_d_dot=0.0) -> PathKinematics:
     """Errors (23), their rate (28) and the particle's motion (22).
 
     Args:
-        frame: a :class:`vcjax.paths.PathFrame` at the particle (``p_bar``, ``psi_p``,
+        frame: a [`vcjax.paths.PathFrame`][vcjax.paths.PathFrame] at the particle (``p_bar``,
+            ``psi_p``,
             ``dpsi_dw``, ``d2psi_dw2``, ``speed_bar``, ``dspeed_bar_dw``).
         eta: (3,) ``[x, y, psi]``; nu: (3,) ``[u, v, r]`` (velocity over ground).
         u_d: () desired surge speed [m/s]; u_d_dot: () its rate [m/s^2].

@@ -276,7 +276,8 @@ def cholesky_small(A):
 
 
 def cho_solve_small(L, b):
-    """``(L L^T)^-1 b`` from the lower factor of :func:`cholesky_small`; ``b`` (n,) or (n, k)."""
+    """``(L L^T)^-1 b`` from the lower factor of [`cholesky_small`][vcjax.linalg.cholesky_small];
+    ``b`` (n,) or (n, k)."""
     n = L.shape[0]
     if n > SMALL_MAX:
         return jax.scipy.linalg.cho_solve((L, True), b)
@@ -287,8 +288,10 @@ def cho_solve_small(L, b):
 
 def spd_solve_small(A, b):
     """``A^-1 b`` for a small symmetric positive-definite ``A`` (a mass matrix, a regularised
-    Gram matrix): :func:`cholesky_small` then two triangular solves, about half the operations
-    of :func:`solve_small` and no pivot search. Reads ``A``'s lower triangle."""
+    Gram matrix): [`cholesky_small`][vcjax.linalg.cholesky_small] then two triangular solves, about
+    half the operations
+    of [`solve_small`][vcjax.linalg.solve_small] and no pivot search. Reads ``A``'s lower
+    triangle."""
     return cho_solve_small(cholesky_small(A), b)
 
 

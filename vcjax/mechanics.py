@@ -16,7 +16,7 @@ W has full row rank (16), or from the pseudo-inverse when W has full column rank
 ``W = ∂Φ/∂q̇`` and ``Ẇq̇ + ȧ = ∂Φ/∂q · q̇ + ∂Φ/∂t`` are computed by JAX autodiff (one ``jacfwd``
 and one ``jvp``); users never differentiate constraints by hand. All solves use Cholesky or QR
 factorisations, never explicit inverses. Rank and conditioning of W and the residual of (14) are
-returned as data (:class:`Diagnostics`), never raised inside ``jit``.
+returned as data ([`Diagnostics`][vcjax.mechanics.Diagnostics]), never raised inside ``jit``.
 
 Usage::
 
@@ -146,7 +146,8 @@ def _as_gain(name: str, P):
 
 
 def vcm_gains(P_G, P_Phi) -> VCMGains:
-    """Build validated :class:`VCMGains` (eager: raises ``ValueError`` before any compilation)."""
+    """Build validated [`VCMGains`][vcjax.mechanics.VCMGains] (eager: raises ``ValueError`` before
+    any compilation)."""
     P_G = _as_gain("P_G", P_G)
     P_Phi = _as_gain("P_Phi", P_Phi)
     _check_gain("P_G", P_G)
@@ -299,7 +300,8 @@ def _mass_spd(M, cM_lower):
 
 
 def _constrained_acceleration(M, n_vec, tau, W, h, method):
-    """:func:`constrained_acceleration` plus the () bool ``mass_spd`` of :class:`Diagnostics`."""
+    """[`constrained_acceleration`][vcjax.mechanics.constrained_acceleration] plus the () bool
+    ``mass_spd`` of [`Diagnostics`][vcjax.mechanics.Diagnostics]."""
     p, n = W.shape
     method = _resolve_method(method, p, n)
     f = tau - n_vec
@@ -344,12 +346,13 @@ def reaction_force(
         t: () time [s].
         tau: (n,) impressed generalised force other than the control (default 0).
         args: any pytree passed through to the model and constraint functions.
-        method: see :func:`constrained_acceleration`.
-        z: auxiliary state for constraints with a ``state_rate`` (see :class:`VirtualConstraints`).
+        method: see [`constrained_acceleration`][vcjax.mechanics.constrained_acceleration].
+        z: auxiliary state for constraints with a ``state_rate`` (see
+            [`VirtualConstraints`][vcjax.mechanics.VirtualConstraints]).
 
     Returns:
         ``(tau_c, qdd, diagnostics)``: (n,) control force, (n,) acceleration it produces on the
-        design model, and :class:`Diagnostics`.
+        design model, and [`Diagnostics`][vcjax.mechanics.Diagnostics].
     """
     check_shapes(system, cons, gains, q, qd, t, args, z, tau)
     if tau is None:
@@ -403,7 +406,8 @@ def check_shapes(
     """Check every shape of a VCM solve once, abstractly (``jax.eval_shape``: nothing is
     computed or compiled), and raise a ``ValueError`` naming the constraint or gain at fault.
 
-    :func:`reaction_force` calls it at trace time, so a mismatch is reported before XLA
+    [`reaction_force`][vcjax.mechanics.reaction_force] calls it at trace time, so a mismatch is
+    reported before XLA
     compiles anything, not as an incompatible-shapes error deep inside JAX.
 
     Returns:
@@ -465,7 +469,7 @@ def from_body_frame(
     """Express a quasi-velocity model in generalised coordinates.
 
     Given ``M_b(q) ν̇ + n_b(q, ν) = τ_b`` with ``q̇ = J(q) ν`` (J invertible), returns the
-    :class:`MechanicalSystem` of (1) with ``M(q) = J⁻ᵀ M_b J⁻¹`` and
+    [`MechanicalSystem`][vcjax.mechanics.MechanicalSystem] of (1) with ``M(q) = J⁻ᵀ M_b J⁻¹`` and
     ``n(q, q̇) = J⁻ᵀ (n_b(q, ν) − M_b J⁻¹ J̇ ν)``, ``ν = J⁻¹ q̇``; generalised forces map as
     ``τ = J⁻ᵀ τ_b``. ``J̇`` comes from a ``jvp`` of ``J`` along ``q̇``.
 
@@ -474,7 +478,7 @@ def from_body_frame(
         body_bias_force: ``n_b(q, nu, args) -> (n,)``.
         kinematics: ``J(q, args) -> (n, n)``.
         kinematics_inverse: optional ``J(q, args)⁻¹`` in closed form (e.g. a rotation's
-            transpose); default: one small elimination (:func:`~vcjax.linalg.solve_small`).
+            transpose); default: one small elimination ([`solve_small`][vcjax.linalg.solve_small]).
     """
 
     def inverse(q, args, J):
@@ -568,12 +572,14 @@ def underactuated_reaction_force(
     With r = 1 on the 3-DOF design model this is the paper's (38) with Remark 4.
 
     Args:
-        as :func:`reaction_force`, plus ``under``; ``z`` (n_z,) is required (a flat array).
+        as [`reaction_force`][vcjax.mechanics.reaction_force], plus ``under``; ``z`` (n_z,) is
+        required (a flat array).
 
     Returns:
         ``(tau_c, qdd, mu, diagnostics)``: (n,) control force, (n,) acceleration on the design
         model, (r,) free rates (add them to ``state_rate`` at ``under.free``), and
-        :class:`Diagnostics` whose ``residual`` is that of (14) (the unactuated rows' own
+        [`Diagnostics`][vcjax.mechanics.Diagnostics] whose ``residual`` is that of (14) (the
+        unactuated rows' own
         residual ``‖A_u τ_c − b_u‖`` is zero to round-off whenever ``A_u T`` is invertible).
     """
     if cons.state_rate is None or z is None:

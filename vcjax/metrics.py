@@ -1,5 +1,5 @@
 """One metrics function for every closed loop (JAX: jit/vmap-safe), on a loop's
-:class:`~vcjax.loops.Signals`.
+[`Signals`][vcjax.loops.types.Signals].
 
 Windows: ``ss_*`` and ``rms_*`` / ``max_dist_3d`` use the steady-state window, the steps from
 ``floor(start n)`` on (``start = 1 - tail`` for a sweep's ``tail``; Simulation 2 reports from 20 %
@@ -21,16 +21,19 @@ was commanded at or beyond its limit.
 Experiments add their own metrics *to* this one function, not beside it: ``run_metrics(...,
 extras={name: fn})`` computes each ``fn(sig, win)`` (jnp, from the signals, the steady-state
 window ``win`` and whatever the experiment closes over: its trajectory, its path) in the same call
-and returns them with the generic ones. Helpers for extras: :func:`first_true` (the first step a
-condition holds, e.g. a run's first unhealthy step), :func:`polyline_nearest` (the geometric
+and returns them with the generic ones. Helpers for extras: [`first_true`][vcjax.metrics.first_true]
+(the first step a
+condition holds, e.g. a run's first unhealthy step),
+[`polyline_nearest`][vcjax.metrics.polyline_nearest] (the geometric
 distance of positions to a path's dense polyline, independent of any law's own error signals).
 
-Path-error bound of single runs (``vcjax simulate``; :func:`path_bound`): a run whose largest
+Path-error bound of single runs (``vcjax simulate``; [`path_bound`][vcjax.metrics.path_bound]): a
+run whose largest
 cross-track error (or 3-D distance to the path) exceeds it is *diverged* and never
 ``healthy: true``, even when every state stays finite (a vehicle swept kilometres off the path by
 a 50 m/s current). The default scales with the path the run is asked to follow:
-:data:`PATH_BOUND_FRACTION` (25 %) of the distance ``u_d x horizon`` it should travel, and at
-least :data:`PATH_BOUND_MIN_M` (50 m, a sweep's default ``diverge_e``). Simulation 1 (u_d = 2
+``PATH_BOUND_FRACTION`` (25 %) of the distance ``u_d x horizon`` it should travel, and at
+least ``PATH_BOUND_MIN_M`` (50 m, a sweep's default ``diverge_e``). Simulation 1 (u_d = 2
 m/s, 150 s): 75 m, which its runs (the paper's current and the cross current) stay inside.
 ``--diverge-e`` sets it explicitly.
 """
@@ -117,7 +120,8 @@ def window_start(n: int, start: float) -> int:
 
 
 def metrics_init(act_names, dtype) -> dict:
-    """Empty accumulator of :func:`metrics_update` for a loop reporting ``act_names``."""
+    """Empty accumulator of [`metrics_update`][vcjax.metrics.metrics_update] for a loop reporting
+    ``act_names``."""
     z = jnp.zeros((), dtype)
     acc = dict.fromkeys(_SUMS + _MAXES, z)
     acc |= {f"max_abs_{a}": z for a in act_names}
@@ -143,7 +147,8 @@ def metrics_update(acc: dict, sig, finite, ks, k0: int) -> dict:
     """Fold the samples ``ks`` (global step indices, (L,)) of a run into ``acc``.
 
     Args:
-        acc: accumulator (:func:`metrics_init`); sig: :class:`~vcjax.loops.Signals` of
+        acc: accumulator ([`metrics_init`][vcjax.metrics.metrics_init]); sig:
+            [`Signals`][vcjax.loops.types.Signals] of
             the L samples; finite: (L,) the rollout's ``finite`` flags of those steps.
         ks: (L,) int step indices; k0: static first step of the steady-state window.
     """
@@ -177,7 +182,8 @@ def metrics_update(acc: dict, sig, finite, ks, k0: int) -> dict:
 
 
 def metrics_finalize(acc: dict, n: int, k0: int, dt, diverge_e=jnp.inf) -> dict:
-    """The metrics (:func:`metric_names` and :data:`FLAGS`) of an ``n``-step run from its
+    """The metrics ([`metric_names`][vcjax.metrics.metric_names] and ``FLAGS``) of an ``n``-step run
+    from its
     accumulator (every step folded in once); ``k0`` the window's first step, ``dt`` [s]."""
     nw = n - k0
     m = {
@@ -205,7 +211,7 @@ def run_metrics(sig, finite, dt, start: float = 0.8, diverge_e=jnp.inf, extras=N
     """Metrics and health flags of one run, with an experiment's own metrics added.
 
     Args:
-        sig: :class:`~vcjax.loops.Signals` (N steps).
+        sig: [`Signals`][vcjax.loops.types.Signals] (N steps).
         finite: (N,) bool, the rollout's ``Trajectory.finite``.
         dt: () step [s].
         start: static fraction of the run where the steady-state window begins.
@@ -215,8 +221,10 @@ def run_metrics(sig, finite, dt, start: float = 0.8, diverge_e=jnp.inf, extras=N
             ``fn`` is). A name of the generic metrics or flags is refused (``ValueError``).
 
     Returns:
-        dict name -> () array: :func:`metric_names`, :data:`FLAGS` and the extras. The generic
-        ones: the same accumulator as a streamed run (:func:`metrics_update` segment by
+        dict name -> () array: [`metric_names`][vcjax.metrics.metric_names], ``FLAGS`` and the
+        extras. The generic
+        ones: the same accumulator as a streamed run
+            ([`metrics_update`][vcjax.metrics.metrics_update] segment by
         segment), folded in one go.
     """
     n = sig.eps.shape[0]
@@ -236,7 +244,8 @@ def run_metrics(sig, finite, dt, start: float = 0.8, diverge_e=jnp.inf, extras=N
 
 
 def check_run_inputs(n: int, finite, dt, start: float) -> None:
-    """Eager checks of :func:`run_metrics`' inputs (``ValueError`` naming the argument): ``n``
+    """Eager checks of [`run_metrics`][vcjax.metrics.run_metrics]' inputs (``ValueError`` naming the
+    argument): ``n``
     >= 1 steps, ``finite`` of shape (n,), ``dt`` a scalar (> 0 and finite when concrete: a
     step <= 0 would give a negative or zero ``iae_e``), ``start`` in [0, 1) so that the
     steady-state window holds at least one step. Shapes are static, so they are checked under

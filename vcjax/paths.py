@@ -2,7 +2,8 @@
 
 A path is two things, kept apart like every other part of vcjax:
 
-* a static :class:`Path` — the *kind* of curve, a pure function ``fn(w, coeffs) -> (3,)`` position
+* a static [`Path`][vcjax.paths.Path] — the *kind* of curve, a pure function ``fn(w, coeffs) ->
+(3,)`` position
   in NED [m] (hashable, so a jitted rollout compiles once per kind);
 * its traced coefficients ``coeffs`` (any pytree of arrays), so that moving a line, resizing a
   circle or a helix, or changing waypoint positions never recompiles.
@@ -12,10 +13,13 @@ Every constructor returns the pair ``(path, coeffs)``::
     path, coeffs = paths.line(origin=(10.0, 0.0), direction=(0.0, 1.0))
     frame = paths.path_frame(path, coeffs, w)
 
-Kinds: :func:`line`, :func:`circle`, :func:`helix`, :func:`lawnmower` (a survey pattern),
-:func:`waypoints` (a C² cubic spline through
-user waypoints, parametrised by chord length) and :func:`custom` (any user callable ``p_p(w)``).
-The paper's two paths are :func:`paper_line` (Simulation 1, ``[10, w]``) and :func:`paper_helix`
+Kinds: [`line`][vcjax.paths.line], [`circle`][vcjax.paths.circle], [`helix`][vcjax.paths.helix],
+[`lawnmower`][vcjax.paths.lawnmower] (a survey pattern),
+[`waypoints`][vcjax.paths.waypoints] (a C² cubic spline through
+user waypoints, parametrised by chord length) and [`custom`][vcjax.paths.custom] (any user callable
+``p_p(w)``).
+The paper's two paths are [`paper_line`][vcjax.paths.paper_line] (Simulation 1, ``[10, w]``) and
+[`paper_helix`][vcjax.paths.paper_helix]
 (Simulation 2, ``[10 sin(w/5), 8 cos(w/5), 0.1 w - 100]``).
 
 The azimuth ``psi_p = atan2(y', x')`` and elevation ``theta_p = atan2(-z', ||p_bar'||)`` (21) and
@@ -23,7 +27,7 @@ their ``w``-derivatives come from JAX autodiff of ``fn`` (nested ``jvp``); nobod
 a path by hand. The 2-D guidance needs the horizontal tangent ``p_bar'(w)`` to be non-zero: every
 constructor samples the path over a range of ``w`` and raises a ``ValueError`` if it vanishes
 there (e.g. a vertical segment, or a user curve with a cusp). Inside ``jit`` the division by
-``||p_bar'||`` is floored, so a bad path never yields NaN gradients; :attr:`PathFrame.regular`
+``||p_bar'||`` is floored, so a bad path never yields NaN gradients; ``PathFrame.regular``
 reports it as data.
 """
 
@@ -71,7 +75,7 @@ __all__ = [
 ]
 
 #: Smallest admissible horizontal tangent length ``||p_bar'(w)||`` (relative to the path's
-#: typical tangent length) accepted by :func:`validate_path`.
+#: typical tangent length) accepted by [`validate_path`][vcjax.paths.validate_path].
 MIN_TANGENT = 1e-6
 
 
@@ -153,7 +157,8 @@ def path_frame(path: Path, coeffs, w) -> PathFrame:
     """Evaluate the path and its frame (21) at ``w`` by autodiff (jit/vmap/grad-safe).
 
     For laws that differentiate the path *again* (the generic engine's constraints), use
-    :func:`path_pose`: the same values, and derivatives at any order without nested autodiff
+    [`path_pose`][vcjax.paths.path_pose]: the same values, and derivatives at any order without
+    nested autodiff
     through this function's own."""
     w = _float_w(w)
 
@@ -196,7 +201,7 @@ class PathPose(NamedTuple):
     Attributes:
         p: (3,) position ``p_p(w)`` [m].
         psi_p, theta_p: azimuth and elevation (21) [rad].
-        speed_bar: ``||p_bar'(w)||`` (floored as in :class:`PathFrame`).
+        speed_bar: ``||p_bar'(w)||`` (floored as in [`PathFrame`][vcjax.paths.PathFrame]).
     """
 
     p: Any
@@ -206,13 +211,16 @@ class PathPose(NamedTuple):
 
 
 def path_pose(path: Path, coeffs, w) -> PathPose:
-    """:class:`PathPose` at ``w``: the values of :func:`path_frame`'s ``p``, ``psi_p``,
+    """[`PathPose`][vcjax.paths.PathPose] at ``w``: the values of
+    [`path_frame`][vcjax.paths.path_frame]'s ``p``, ``psi_p``,
     ``theta_p``, ``speed_bar``, for code that differentiates them (e.g. constraints handed to
-    the engine, :mod:`vcjax.mechanics`, which takes their first and second time derivatives).
+    the engine, [`vcjax.mechanics`][vcjax.mechanics], which takes their first and second time
+    derivatives).
 
     Its derivative in ``w`` is defined by a rule (``jax.custom_jvp``): differentiating the
     order-k Taylor tower of the pose gives the order-(k+1) tower, computed directly by k + 1
-    nested ``jvp`` of the path. Differentiating :func:`path_frame` instead differentiates its
+    nested ``jvp`` of the path. Differentiating [`path_frame`][vcjax.paths.path_frame] instead
+    differentiates its
     own nested autodiff (every field, used or not): a doubly differentiated constraint traces
     the path about ten times less this way. Derivatives in ``coeffs`` are ordinary autodiff.
     """
@@ -247,7 +255,7 @@ def _materialise(t, primal):
 
 @functools.cache
 def _pose_tower(path: Path, order: int):
-    """``tower(w, coeffs) -> (order + 1, 6)`` (:func:`_pose_direct`) whose ``w``-tangent is
+    """``tower(w, coeffs) -> (order + 1, 6)`` (``_pose_direct``) whose ``w``-tangent is
     the next order's rows 1.. times the tangent of ``w`` (the tower one order up)."""
 
     @jax.custom_jvp
@@ -339,7 +347,7 @@ def _line_fn(w, c: LineCoeffs):
     return c.origin + w * c.direction
 
 
-#: Straight line kind (coefficients :class:`LineCoeffs`).
+#: Straight line kind (coefficients [`LineCoeffs`][vcjax.paths.LineCoeffs]).
 LINE = Path(_line_fn, "line")
 
 
@@ -383,7 +391,7 @@ def _circle_fn(w, c: CircleCoeffs):
     )
 
 
-#: Circle kind (coefficients :class:`CircleCoeffs`).
+#: Circle kind (coefficients [`CircleCoeffs`][vcjax.paths.CircleCoeffs]).
 CIRCLE = Path(_circle_fn, "circle")
 
 
@@ -425,7 +433,7 @@ def _helix_fn(w, c: HelixCoeffs):
     return c.center + jnp.stack([c.a * jnp.sin(phi), c.b * jnp.cos(phi), c.climb * w])
 
 
-#: Helix kind (coefficients :class:`HelixCoeffs`), elliptic in general.
+#: Helix kind (coefficients [`HelixCoeffs`][vcjax.paths.HelixCoeffs]), elliptic in general.
 HELIX = Path(_helix_fn, "helix")
 
 
@@ -479,7 +487,7 @@ def _spline_fn(w, c: SplineCoeffs):
     return k[0] + d * (k[1] + d * (k[2] + d * k[3]))
 
 
-#: Cubic-spline kind (coefficients :class:`SplineCoeffs`).
+#: Cubic-spline kind (coefficients [`SplineCoeffs`][vcjax.paths.SplineCoeffs]).
 SPLINE = Path(_spline_fn, "waypoints")
 
 
@@ -569,7 +577,7 @@ class _NoCoeffs:
 
 
 class LawnmowerCoeffs(NamedTuple):
-    """Coefficients of :func:`lawnmower` (traced; scalars unless noted)."""
+    """Coefficients of [`lawnmower`][vcjax.paths.lawnmower] (traced; scalars unless noted)."""
 
     start: Any  # (3,) NED start of the first leg [m]
     leg: Any  # () leg length [m]

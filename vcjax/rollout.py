@@ -8,7 +8,8 @@ A closed loop is a plant and a controller, both pure functions:
   state (path particle, integrators, ``v_d``, …; use an empty array when it has none), ``u`` the
   command handed to the plant and ``aux`` any pytree of signals to record (errors, diagnostics).
 
-Static configuration (:class:`RolloutConfig`: horizon, integrator, controller timing,
+Static configuration ([`RolloutConfig`][vcjax.rollout.RolloutConfig]: horizon, integrator,
+controller timing,
 checkpointing) is kept apart from traced parameters (gains, vehicle, current, ``dt``), so new
 parameter values never recompile. The library does not jit for you: jit at your entry point, e.g.
 ``jax.jit(rollout, static_argnames=("plant", "controller", "config"))``.
@@ -34,8 +35,10 @@ state is then frozen at its last finite value so that a vmapped sweep never prop
 ``Trajectory.diverged[k]`` is True when step k's state is non-finite *or* has an entry larger
 in magnitude than ``bound`` (a caller-set divergence bound, default 1e9: a state that runs away
 while staying finite is not healthy either), or when the controller's ``aux`` reports
-``ok = False`` (:func:`controller_ok`; e.g. a :class:`~vcjax.mechanics.Diagnostics` whose mass
-matrix is not SPD). :func:`first_unhealthy_step` finds the first such
+``ok = False`` ([`controller_ok`][vcjax.rollout.controller_ok]; e.g. a
+[`Diagnostics`][vcjax.mechanics.Diagnostics] whose mass
+matrix is not SPD). [`first_unhealthy_step`][vcjax.rollout.first_unhealthy_step] finds the first
+such
 step. ``dt`` is checked eagerly when it is a concrete value (finite and > 0).
 """
 
@@ -63,7 +66,8 @@ __all__ = [
     "DEFAULT_BOUND",
 ]
 
-#: Default divergence bound of :func:`rollout`: any state entry beyond it flags divergence.
+#: Default divergence bound of [`rollout`][vcjax.rollout.rollout]: any state entry beyond it flags
+# divergence.
 DEFAULT_BOUND = 1e9
 
 
@@ -129,9 +133,11 @@ class Trajectory(NamedTuple):
     @property
     def healthy(self):
         """() bool: no step diverged: every state finite and within the bound, and the
-        controller's own diagnostics (:func:`controller_ok`) usable at every step. A path-error
-        bound is the metrics' job (:func:`vcjax.metrics.path_bound`, ``diverged`` of
-        :func:`vcjax.metrics.run_metrics`)."""
+        controller's own diagnostics ([`controller_ok`][vcjax.rollout.controller_ok]) usable at
+        every step. A path-error
+        bound is the metrics' job ([`vcjax.metrics.path_bound`][vcjax.metrics.path_bound],
+        ``diverged`` of
+        [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics])."""
         return ~jnp.any(self.diverged)
 
 
@@ -144,7 +150,8 @@ def _has_ok(node) -> bool:
 def controller_ok(aux) -> jax.Array:
     """() bool: the controller's own health, where its ``aux`` reports one -- every ``ok``
     field found in the ``aux`` pytree (a NamedTuple field or dict key named ``ok``, e.g. a
-    :class:`vcjax.mechanics.Diagnostics` returned as or inside ``aux``) is True; True when
+    [`vcjax.mechanics.Diagnostics`][vcjax.mechanics.Diagnostics] returned as or inside ``aux``) is
+    True; True when
     there is none. A step whose controller says its solve was unusable is unhealthy."""
     oks = []
 
@@ -228,7 +235,8 @@ def _batched_like(tree, like):
 
 
 def _dense_carry(init, like):
-    """The scan's initial carry through :func:`~vcjax.integrators.dense_tangent`: it starts
+    """The scan's initial carry through [`dense_tangent`][vcjax.integrators.dense_tangent]: it
+    starts
     from constants but picks up the tangents of ``like`` (parameters, ``dt``), so linearising
     the scan settles in one round instead of one per dependency level."""
     return dense_tangent(init, like)
@@ -309,7 +317,7 @@ def rollout(
     Args:
         plant: ``f(t, x, u, plant_params) -> x_dot`` (static).
         controller: ``c(t, x, z, ctrl_params) -> (u, z_dot, aux)`` (static).
-        config: :class:`RolloutConfig` (static).
+        config: [`RolloutConfig`][vcjax.rollout.RolloutConfig] (static).
         plant_params, ctrl_params: pytrees of arrays (traced).
         x0, z0: initial plant and controller states (pytrees of arrays).
         dt: () step size [s] (traced).
@@ -322,7 +330,7 @@ def rollout(
             entry with ``|.| > bound`` is flagged in ``Trajectory.diverged``.
 
     Returns:
-        :class:`Trajectory`.
+        [`Trajectory`][vcjax.rollout.Trajectory].
 
     Raises:
         ValueError: ``dt`` or ``bound`` concrete and not finite and > 0.
@@ -370,12 +378,14 @@ def rollout(
 
 
 class Reduction(NamedTuple):
-    """What :func:`rollout_reduce` keeps of a rollout instead of its whole record.
+    """What [`rollout_reduce`][vcjax.rollout.rollout_reduce] keeps of a rollout instead of its whole
+    record.
 
     Attributes:
         init: initial accumulator (pytree of arrays).
         update: ``update(acc, seg, ks) -> (acc, out)`` (static): folds one segment into the
-            accumulator. ``seg`` is the segment's :class:`Trajectory` (``L`` steps: ``t``, ``x``
+            accumulator. ``seg`` is the segment's [`Trajectory`][vcjax.rollout.Trajectory] (``L``
+            steps: ``t``, ``x``
             and ``z`` have ``L + 1`` samples, the segment's start first, as a rollout of those
             ``L`` steps would return) and ``ks`` its (L,) int32 global step indices; ``out``
             (any pytree) is kept per segment, e.g. a trace sample.
@@ -404,9 +414,10 @@ def rollout_reduce(
     s0=None,
     bound=DEFAULT_BOUND,
 ):
-    """:func:`rollout`, folding the record into an accumulator segment by segment instead of
+    """[`rollout`][vcjax.rollout.rollout], folding the record into an accumulator segment by segment
+    instead of
     returning it (same arguments, plus ``reduction``): the steps are the same, only ``L``
-    (:attr:`Reduction.segment`) steps of record exist at a time, so a batch of long rollouts
+    (``Reduction.segment``) steps of record exist at a time, so a batch of long rollouts
     needs memory for its states, not for its whole history. ``config.checkpoint``
     rematerialises each segment in the backward pass (``checkpoint_every`` is not used).
 

@@ -1,26 +1,33 @@
 """One configuration system for ``vcjax sweep``, ``vcjax tune`` and ``vcjax fit``.
 
-* :mod:`vcjax.config.values` -- :class:`ConfigError` (the one error class of every command; its
+* [`vcjax.config.values`][vcjax.config.values] -- [`ConfigError`][vcjax.config.values.ConfigError]
+(the one error class of every command; its
   message names the file, the section and the key: ``[section] key: message``, the closest valid
-  key suggested for a typo), :class:`ConfigNote` (one-line notes: older spellings, changed
-  meanings), :func:`read_toml` and one checker per value; :data:`SEED_MAX` is the one seed bound
-  (the sampler's ``uint32`` key: ``0 .. 2**32 - 1``), checked by :func:`as_seed` in the parsers
+  key suggested for a typo), [`ConfigNote`][vcjax.config.values.ConfigNote] (one-line notes: older
+  spellings, changed
+  meanings), [`read_toml`][vcjax.config.values.read_toml] and one checker per value; ``SEED_MAX`` is
+  the one seed bound
+  (the sampler's ``uint32`` key: ``0 .. 2**32 - 1``), checked by
+  [`as_seed`][vcjax.config.values.as_seed] in the parsers
   and in the sampler.
-* :mod:`vcjax.config.schema` -- the shared sections as typed, frozen objects, each key with its
+* [`vcjax.config.schema`][vcjax.config.schema] -- the shared sections as typed, frozen objects, each
+key with its
   type, default, unit, description and older spellings: ``[simulation]`` (horizon, dt,
   integrator, timing, u_d, smooth), ``[current]``, ``[waves]``, ``[initial]``,
-  ``[model_error]``, ``[sensor_noise]``, ``[disturbance]``; :data:`DEFAULT_SCENARIO` is the
+  ``[model_error]``, ``[sensor_noise]``, ``[disturbance]``; ``DEFAULT_SCENARIO`` is the
   scenario of a config without ``[scenario]`` (Simulation 1).
-  Every section of every command (sweep, tune, fit) is declared with :func:`~vcjax.config.
-  schema.key` (type, default, unit, doc, bounds, choices) and parsed by :func:`parse_section`,
+  Every section of every command (sweep, tune, fit) is declared with ``key`` (type, default, unit,
+  doc, bounds, choices) and parsed by [`parse_section`][vcjax.config.schema.parse_section],
   the one validator; keys that do not apply to the others' values are refused there
-  (``CROSS_CHECKS``). :func:`register_section` adds a section (an environment component's):
+  (``CROSS_CHECKS``). [`register_section`][vcjax.config.schema.register_section] adds a section (an
+  environment component's):
   sweep and tune configs then accept and check it.
-* :mod:`vcjax.config.aliases` -- :data:`~vcjax.config.aliases.ALIASES`, the older spellings in
+* [`vcjax.config.aliases`][vcjax.config.aliases] -- ``ALIASES``, the older spellings in
   one table (read from the declarations), each used one giving a note naming the new spelling.
-* :mod:`vcjax.config.reference` -- :func:`schema` returns every section for a reference table,
-  :func:`reference_markdown` renders the tables.
-* :mod:`vcjax.config.scenario` -- ``[scenario]`` (:class:`ScenarioChoice`: vehicle,
+* [`vcjax.config.reference`][vcjax.config.reference] -- [`schema`][vcjax.config.schema] returns
+every section for a reference table,
+  [`reference_markdown`][vcjax.config.reference.reference_markdown] renders the tables.
+* [`vcjax.config.scenario`][vcjax.config.scenario] -- ``[scenario]`` (``ScenarioChoice``: vehicle,
   controller, path, parameter files, a module of your own loops, and any static option of the
   loop class read from its dataclass fields).
 
@@ -31,9 +38,9 @@ position_offset/heading_offset_deg`` (ranges of ``[initial]`` about the default 
 configs ``[sweep] variants`` (several controllers on the same scenarios) and ``[simulation]
 edd`` (= ``[scenario] edd``). A key given under both spellings is refused.
 
-Layering: this package sits just above :mod:`vcjax.loops` (``[scenario]`` reads the loop
+Layering: this package sits just above [`vcjax.loops`][vcjax.loops] (``[scenario]`` reads the loop
 registry and the loop classes' dataclass fields); ``values`` and ``schema`` import nothing of
-vcjax, and :mod:`vcjax.loops` never imports this package.
+vcjax, and [`vcjax.loops`][vcjax.loops] never imports this package.
 """
 
 from vcjax.config.reference import reference_markdown, schema

@@ -1,10 +1,13 @@
 """The older spellings of config keys, in one table, each with its one-line deprecation note.
 
-:data:`ALIASES` maps an older ``"[section] key"`` to the newer one. It is read from the
-declarations (the ``aliases`` metadata of the shared sections' keys, :mod:`vcjax.config.schema`
-and :class:`vcjax.config.scenario.ScenarioChoice`) plus :data:`MOVED` (keys whose new home is
-not a declared field of a shared section). :func:`note_old_spellings` issues one
-:class:`~vcjax.config.ConfigNote` per older spelling a config uses; the parsers accept both and
+``ALIASES`` maps an older ``"[section] key"`` to the newer one. It is read from the
+declarations (the ``aliases`` metadata of the shared sections' keys,
+[`vcjax.config.schema`][vcjax.config.schema]
+and [`ScenarioChoice`][vcjax.config.scenario.ScenarioChoice]) plus ``MOVED`` (keys whose new home is
+not a declared field of a shared section).
+[`note_old_spellings`][vcjax.config.aliases.note_old_spellings] issues one
+[`ConfigNote`][vcjax.config.values.ConfigNote] per older spelling a config uses; the parsers accept
+both and
 refuse the two given together with different values (naming both).
 
 Not deprecated: ``[sweep] variants`` (several controllers in one sweep: ``[scenario]
@@ -47,7 +50,8 @@ ALIASES: dict[str, str] = {**_declared(), **MOVED}
 
 
 def note_old_spellings(raw: dict, where: str) -> list[str]:
-    """One :class:`~vcjax.config.ConfigNote` per older spelling used in ``raw`` (a parsed TOML
+    """One [`ConfigNote`][vcjax.config.values.ConfigNote] per older spelling used in ``raw`` (a
+    parsed TOML
     file); returns the older spellings found."""
     found = []
     for old, new in ALIASES.items():

@@ -1,11 +1,14 @@
 """Frozen config objects: what ``vcjax tune`` and ``vcjax fit`` parse a file into (as
-:class:`vcjax.sweep.SweepSpec` is for sweeps).
+[`vcjax.sweep.SweepSpec`][vcjax.sweep.spec.SweepSpec] is for sweeps).
 
-A :class:`FrozenSection` is a frozen dataclass (immutable, hashable: lists become tuples) that
+A [`FrozenSection`][vcjax.config.frozen.FrozenSection] is a frozen dataclass (immutable, hashable:
+lists become tuples) that
 also reads as a read-only mapping, ``cfg["problem"]["horizon"]`` as well as
 ``cfg.problem.horizon``, so code written against the older plain-dict results keeps working;
-:meth:`FrozenSection.to_dict` gives the plain-JSON form the CLI records in ``run.json`` and
-:meth:`FrozenSection.from_dict` reads it back. This module imports nothing of vcjax.
+[`FrozenSection.to_dict`][vcjax.config.frozen.FrozenSection.to_dict] gives the plain-JSON form the
+CLI records in ``run.json`` and
+[`FrozenSection.from_dict`][vcjax.config.frozen.FrozenSection.from_dict] reads it back. This module
+imports nothing of vcjax.
 """
 
 from __future__ import annotations
@@ -28,7 +31,8 @@ def freeze(v: Any) -> Any:
 
 
 def thaw(v: Any) -> Any:
-    """Plain-JSON form: tuples become lists, sections dicts (inverse of :func:`freeze` for
+    """Plain-JSON form: tuples become lists, sections dicts (inverse of
+    [`freeze`][vcjax.config.frozen.freeze] for
     lists)."""
     if isinstance(v, FrozenSection):
         return v.to_dict()
@@ -43,7 +47,7 @@ class FrozenSection(Mapping):
     (their generated field-wise ``__eq__`` and ``__hash__`` replace the mapping's); list values
     are stored as tuples, dict values as tuples of pairs. A field with
     ``metadata={"record": False}`` (e.g. the file a config was read from) is neither a key of
-    the mapping nor part of :meth:`to_dict`."""
+    the mapping nor part of ``to_dict``."""
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -74,7 +78,7 @@ class FrozenSection(Mapping):
 
     @classmethod
     def from_dict(cls, d: Mapping):
-        """The section of a :meth:`to_dict` result (unknown keys: ``KeyError``)."""
+        """The section of a ``to_dict`` result (unknown keys: ``KeyError``)."""
         fields = {f.name: f for f in dataclasses.fields(cls)}
         unknown = sorted(set(d) - set(fields))
         if unknown:
@@ -87,7 +91,8 @@ class FrozenSection(Mapping):
 
 
 def _section_type(annotation, owner) -> type | None:
-    """The :class:`FrozenSection` subclass a field is annotated with (string annotations are
+    """The [`FrozenSection`][vcjax.config.frozen.FrozenSection] subclass a field is annotated with
+    (string annotations are
     resolved in the owner's module), or None."""
     if isinstance(annotation, str):
         import sys

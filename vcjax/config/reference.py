@@ -1,6 +1,8 @@
 """The configuration reference: every shared section (``[scenario]`` and those of
-:mod:`vcjax.config.schema`) with its keys' types, defaults, units, descriptions and older
-spellings, as data (:func:`schema`) and as Markdown tables (:func:`reference_markdown`, rendered
+[`vcjax.config.schema`][vcjax.config.schema]) with its keys' types, defaults, units, descriptions
+and older
+spellings, as data ([`schema`][vcjax.config.reference.schema]) and as Markdown tables
+([`reference_markdown`][vcjax.config.reference.reference_markdown], rendered
 into the documentation)."""
 
 from __future__ import annotations
@@ -54,7 +56,8 @@ def schema() -> dict[str, dict]:
 
 def reference_markdown() -> str:
     """The shared sections as Markdown: per section its docstring and a table of its keys
-    (type, default, unit, description, older spellings), rendered from :func:`schema`."""
+    (type, default, unit, description, older spellings), rendered from
+    [`schema`][vcjax.config.reference.schema]."""
     out = []
     for name, sec in schema().items():
         out += [f"### [{name}]", "", " ".join(sec["doc"].split()), ""]

@@ -19,7 +19,7 @@
                                  #   waypoints: points, extend; lawnmower: start, leg,
                                  #   radius, n_legs, depth, descent
 
-Without ``[scenario]`` a config means :data:`vcjax.config.schema.DEFAULT_SCENARIO` (Simulation 1:
+Without ``[scenario]`` a config means ``DEFAULT_SCENARIO`` (Simulation 1:
 INFANTE-class on the line ``[10, w]``).
 Parameter files (paths relative to the config file) are JSON: a flat ``{name: value}`` map, or a
 ``vcjax fit`` output whose ``"estimates"`` map is used; names are the vehicle's parameter names
@@ -188,7 +188,8 @@ class PathSpec:
     args: tuple[tuple[str, Any], ...] = ()
 
     def build(self):
-        """``(Path, coeffs)`` from :mod:`vcjax.paths` (raises ``ValueError`` naming the key)."""
+        """``(Path, coeffs)`` from [`vcjax.paths`][vcjax.paths] (raises ``ValueError`` naming the
+        key)."""
         fn, _ = PATH_KINDS[self.kind]
         return fn(**{k: _thaw(v) for k, v in self.args})
 
@@ -197,7 +198,8 @@ class PathSpec:
 
 
 def path_spec(d: dict, where: str) -> PathSpec:
-    """Validated :class:`PathSpec` of a ``[scenario.path]`` table (built once to check it)."""
+    """Validated [`PathSpec`][vcjax.config.scenario.PathSpec] of a ``[scenario.path]`` table (built
+    once to check it)."""
     if not isinstance(d, dict):
         raise ConfigError(f"{where}: [scenario.path] must be a table, got {d!r}")
     if "kind" not in d:
@@ -225,7 +227,7 @@ class ScenarioChoice:
     (name, value) of plant and design (``params``) and of the plant only (``plant_params``), and
     the static options of the loop class, written as keys of ``[scenario]`` named like its
     dataclass fields (e.g. ``edd``; ODIN: ``integral``, ``polish``). Without ``[scenario]``:
-    Simulation 1 (:data:`~vcjax.config.schema.DEFAULT_SCENARIO`)."""
+    Simulation 1 (``DEFAULT_SCENARIO``)."""
 
     vehicle: str = key(
         DEFAULT_SCENARIO["vehicle"], "str", "", "a registered vehicle (vcjax.loops.vehicles())"
@@ -259,7 +261,7 @@ class ScenarioChoice:
     )
 
     def loop(self, controller: str | None = None, **options) -> loops.Loop:
-        """The loop of ``controller`` (default :attr:`controller`) with this path and options."""
+        """The loop of ``controller`` (default ``controller``) with this path and options."""
         ctrl = controller or self.controller
         cls = loops.loop_class(self.vehicle)
         path = cls.default_path()[0] if self.path is None else self.path.build()[0]
@@ -311,7 +313,8 @@ class ScenarioChoice:
 
 
 def parse_scenario(raw: dict | None, where: str, config_path) -> ScenarioChoice:
-    """Validated :class:`ScenarioChoice` of a ``[scenario]`` table (``None``: Simulation 1).
+    """Validated [`ScenarioChoice`][vcjax.config.scenario.ScenarioChoice] of a ``[scenario]`` table
+    (``None``: Simulation 1).
 
     Raises:
         ConfigError: naming the file, ``[scenario]`` and the key; parameter files by path.

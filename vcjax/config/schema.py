@@ -4,13 +4,15 @@ Every section is a frozen dataclass; each of its fields carries, in its ``metada
 ``type`` (``"float"``, ``"int"``, ``"bool"``, ``"str"``, ``"range"`` = a number or ``[lo, hi]``
 sampled uniformly, ``"str_list"``, ``"range_list"``), ``unit``, ``doc`` (one line), ``choices``,
 bounds and the older spellings still accepted (``aliases``, as ``"[section] key"``). The field's
-default is the key's default. :func:`schema` lists them for a reference table;
-:func:`parse_section` turns one TOML table into a section object (eager checks, errors name the
+default is the key's default. [`schema`][vcjax.config.schema] lists them for a reference table;
+[`parse_section`][vcjax.config.schema.parse_section] turns one TOML table into a section object
+(eager checks, errors name the
 file, section and key).
 
-The ``[scenario]`` section (what is simulated) is :class:`vcjax.config.scenario.ScenarioChoice`:
+The ``[scenario]`` section (what is simulated) is
+[`ScenarioChoice`][vcjax.config.scenario.ScenarioChoice]:
 its loop options are read from the loop class's dataclass fields, so it lives beside the loop
-registry. The scenario of a config without ``[scenario]`` is :data:`DEFAULT_SCENARIO`.
+registry. The scenario of a config without ``[scenario]`` is ``DEFAULT_SCENARIO``.
 """
 
 from __future__ import annotations
@@ -191,7 +193,8 @@ class Disturbance(FrozenSection):
 @dataclasses.dataclass(frozen=True)
 class Waves:
     """``[waves]``: a random sea in every scenario (linear Airy waves in deep water,
-    :mod:`vcjax.environment.waves`; NED, depth positive down). Each scenario draws its ``hs``,
+    [`vcjax.environment.waves`][vcjax.environment.waves]; NED, depth positive down). Each scenario
+    draws its ``hs``,
     ``tp``, ``direction_deg`` and ``origin_depth`` from the ranges and its sea (frequencies, phases,
     directions) from its own key, so a scenario's sea is the same whatever the chunk size or
     device count. ``hs`` and ``tp`` are required; ``hs = 0`` is a calm sea (the run is then
@@ -230,7 +233,8 @@ class Waves:
     )
 
 
-#: TOML section name -> section class (``[scenario]``: :mod:`vcjax.config.scenario`)
+#: TOML section name -> section class (``[scenario]``:
+# [`vcjax.config.scenario`][vcjax.config.scenario])
 SECTIONS: dict[str, type] = {
     "simulation": Simulation,
     "current": Current,
@@ -289,7 +293,8 @@ def _current_applies(cur: Current, table: dict, name) -> None:
 
 
 def _waves_apply(wav: Waves, table: dict, name) -> None:
-    """``gamma`` is JONSWAP's; a positive ``spreading`` is at least :data:`MIN_SPREADING`."""
+    """``gamma`` is JONSWAP's; a positive ``spreading`` is at least
+    [`MIN_SPREADING`][vcjax.config.schema.MIN_SPREADING]."""
     if wav.spectrum == "pm" and "gamma" in table:
         raise ConfigError(
             f"{name('gamma')}: the peak enhancement of the JONSWAP spectrum; spectrum = 'pm' "
@@ -318,17 +323,20 @@ def _model_error_applies(err: ModelError, table: dict, name) -> None:
 CROSS_CHECKS = {Current: _current_applies, Waves: _waves_apply, ModelError: _model_error_applies}
 
 
-#: the sections added by :func:`register_section` (e.g. an environment component's), beyond
+#: the sections added by [`register_section`][vcjax.config.schema.register_section] (e.g. an
+# environment component's), beyond
 #: the built-in ones
 REGISTERED: dict[str, type] = {}
 
 
 def register_section(name: str, cls: type, check=None, replace: bool = False) -> type:
     """Add a shared section ``[name]`` (e.g. an environment component's): ``cls`` is a frozen
-    dataclass whose fields are declared with :func:`key` (type, default, unit, doc, bounds);
+    dataclass whose fields are declared with [`key`][vcjax.config.schema.key] (type, default, unit,
+    doc, bounds);
     ``check(obj, table, name_of)`` optionally refuses keys that do not apply to the others'
     values (``name_of(key)`` gives ``"[name] key"``). From then on ``vcjax sweep`` and ``vcjax
-    tune`` configs accept the section, parse it with :func:`parse_section` (the one validator)
+    tune`` configs accept the section, parse it with
+    [`parse_section`][vcjax.config.schema.parse_section] (the one validator)
     and the configuration reference lists it. A taken name is refused unless ``replace``.
     Returns ``cls``."""
     if not (isinstance(name, str) and name.isidentifier()):

@@ -1,9 +1,11 @@
 """One way to read and validate the TOML files of every command (``vcjax sweep``, ``vcjax tune``).
 
-:class:`ConfigError` is the one error class: its message names the file, the section and the key
+[`ConfigError`][vcjax.config.values.ConfigError] is the one error class: its message names the file,
+the section and the key
 (``examples/x.toml: [current] speed: expected finite lo <= hi, got [1.0, 0.5]``), and a file a
 config refers to (gains, parameters) by its path. The helpers below check one value each and
-raise with the name they are given; :func:`read_toml` and :func:`check_schema` handle the file
+raise with the name they are given; [`read_toml`][vcjax.config.values.read_toml] and
+[`check_schema`][vcjax.config.values.check_schema] handle the file
 and its sections. Validation is eager (plain Python), before anything is compiled.
 """
 
@@ -34,10 +36,11 @@ __all__ = [
     "closest",
 ]
 
-#: the largest seed of a study: the scenario sampler (:func:`vcjax.sweep.sample_scenarios`)
+#: the largest seed of a study: the scenario sampler
+# ([`vcjax.sweep.sample_scenarios`][vcjax.sweep.spec.sample_scenarios])
 #: builds its JAX PRNG key from ``jnp.uint32(seed)``, in float64 and float32 mode alike, so
 #: every seed of a config or of the Python API lies in ``0 .. SEED_MAX`` (checked by
-#: :func:`as_seed`, here and in the sampler: one bound)
+#: [`as_seed`][vcjax.config.values.as_seed], here and in the sampler: one bound)
 SEED_MAX = 2**32 - 1
 
 
@@ -47,11 +50,13 @@ class ConfigError(ValueError):
 
 class ConfigNote(UserWarning):
     """A one-line note about a valid config: an older spelling (naming the new one), or a
-    config whose meaning changed since such configs were written (:func:`note`)."""
+    config whose meaning changed since such configs were written
+    ([`note`][vcjax.config.values.note])."""
 
 
 def note(message: str) -> None:
-    """Issue ``message`` as a :class:`ConfigNote` warning (shown once per message, on stderr
+    """Issue ``message`` as a [`ConfigNote`][vcjax.config.values.ConfigNote] warning (shown once per
+    message, on stderr
     as one line ``vcjax: note: MESSAGE``)."""
     warnings.warn(message, ConfigNote, stacklevel=3)
 
@@ -60,7 +65,8 @@ _FORMAT = warnings.formatwarning
 
 
 def _format_note(message, category, filename, lineno, line=None):
-    """A :class:`ConfigNote` as one line (other warnings keep Python's format)."""
+    """A [`ConfigNote`][vcjax.config.values.ConfigNote] as one line (other warnings keep Python's
+    format)."""
     if isinstance(category, type) and issubclass(category, ConfigNote):
         return f"vcjax: note: {message}\n"
     return _FORMAT(message, category, filename, lineno, line)
@@ -70,7 +76,8 @@ warnings.formatwarning = _format_note
 
 
 def read_toml(path) -> dict:
-    """The parsed TOML file; :class:`ConfigError` if it cannot be read or parsed."""
+    """The parsed TOML file; [`ConfigError`][vcjax.config.values.ConfigError] if it cannot be read
+    or parsed."""
     path = Path(path)
     try:
         text = path.read_text()

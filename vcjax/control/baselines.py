@@ -94,7 +94,8 @@ def baseline_gains(
     sigma_i=0.4,
     gamma=0.016,
 ) -> BaselineGains:
-    """Validated :class:`BaselineGains`; every gain > 0 except the cross-track PID ones, ``sigma_i``
+    """Validated [`BaselineGains`][vcjax.control.baselines.BaselineGains]; every gain > 0 except the
+    cross-track PID ones, ``sigma_i``
     and ``gamma`` (>= 0). The default ``gamma = sigma_i / Delta^2`` of the defaults, so ALOS and
     ILOS share their linearisation about the path."""
     vals = dict(Delta=Delta, sigma=sigma, k_u=k_u, k_psi_p=k_psi_p, k_psi_d=k_psi_d)
@@ -108,15 +109,16 @@ def baseline_gains(
     )
 
 
-#: The baselines' traced parameters (:class:`~vcjax.control.params.LawParams` with
-#: :class:`BaselineGains`); :func:`baseline_params` validates them.
+#: The baselines' traced parameters ([`LawParams`][vcjax.control.params.LawParams] with
+#: [`BaselineGains`][vcjax.control.baselines.BaselineGains]);
+# [`baseline_params`][vcjax.control.params.law_params] validates them.
 BaselineParams = LawParams
 baseline_params = law_params
 
 
 @dataclasses.dataclass(frozen=True)
 class BaselineConfig:
-    """Static: the path kind and which baseline (one of :data:`KINDS`)."""
+    """Static: the path kind and which baseline (one of ``KINDS``)."""
 
     path: Any
     kind: Literal["los_pid", "ilos", "alos"] = "ilos"

@@ -3,11 +3,13 @@
 All laws return the body force ``tau5 = [X, Y, Z, M, N]`` of the 5-DOF design model; the
 vehicle's actuator map turns ``X, M, N`` into propeller rpm, stern-plane and rudder angles (so
 every law sees the same speed-scheduled fin gains, and only guidance and control differ).
-The errors ``eps = [s, e, h]`` are those of :func:`vcjax.control.vcm3d.path_errors_3d` at a
+The errors ``eps = [s, e, h]`` are those of [`path_errors_3d`][vcjax.control.vcm3d.path_errors_3d]
+at a
 path particle moving as (22) with ``u_p = u_d + sigma s`` (for a straight line: Fossen's
 along-, cross- and vertical-track errors).
 
-* :func:`autopilot_law`, ``guidance="alos"``: ALOS3D guidance (Fossen & Aguiar, 2024,
+* [`autopilot_law`][vcjax.control.baselines3d.autopilot_law], ``guidance="alos"``: ALOS3D guidance
+(Fossen & Aguiar, 2024,
   Automatica 163, 111556; MSS ``ALOS3D.m``) in continuous time:
 
       psi_d   = psi_p - beta_hat  - atan(e / Delta_h)
@@ -20,10 +22,12 @@ along-, cross- and vertical-track errors).
   likewise ``M`` with ``m55``, ``r~ = r - psi_d_dot`` from the ALOS angle's kinematic rate) and a
   surge PI loop with the design model's drag as feed-forward. On the plant the path particle
   replaces MSS's waypoint switching (the mission path has turns, not polyline corners).
-* :func:`autopilot_law`, ``guidance="los"``: the same autopilots with plain LOS angles (no
+* [`autopilot_law`][vcjax.control.baselines3d.autopilot_law], ``guidance="los"``: the same
+autopilots with plain LOS angles (no
   adaptation) — the structure of PythonVehicleSimulator's REMUS 100 depth/heading autopilot
   (heading and depth PID, constant propeller loop), as a sanity run.
-* :func:`decoupled_law`: the paper's decoupled design (Simulation 2): the horizontal VCM law
+* [`decoupled_law`][vcjax.control.baselines3d.decoupled_law]: the paper's decoupled design
+(Simulation 2): the horizontal VCM law
   (31)/(38) on a 3-DOF design model (with its ILOS angle and integral action, as configured)
   plus a depth loop through pitch: ``theta_d = theta_p + atan((h + sigma_v h_int) / Delta_v)``
   and the PID pitch autopilot.
@@ -36,7 +40,8 @@ along-, cross- and vertical-track errors).
   crabbing into a cross current has ``v`` of the current's size. On REMUS under 0.3 m/s it is
   up to ~0.9 N m of phantom yaw moment while a 15 deg rudder gives 1.2 N m at 1.5 m/s: the
   heading row was enforced on the wrong model and the vehicle oscillated in heading along
-  every leg. :class:`DecoupledConfig` ``body_bias`` therefore lets the horizontal law use the
+  every leg. [`DecoupledConfig`][vcjax.control.baselines3d.DecoupledConfig] ``body_bias`` therefore
+  lets the horizontal law use the
   surge, sway and yaw rows of the full design model's bias (``M_b`` stays the 3-DOF one); with
   ``None`` the 3-DOF model's own (20) bias is used.
 """
@@ -109,7 +114,8 @@ def autopilot_gains(
     M_theta=0.35,
     sigma=0.3,
 ) -> AutopilotGains:
-    """Validated :class:`AutopilotGains` (frequencies, damping, look-ahead, bound > 0).
+    """Validated [`AutopilotGains`][vcjax.control.baselines3d.AutopilotGains] (frequencies, damping,
+    look-ahead, bound > 0).
 
     Defaults: at 1.5 m/s the heading stiffness ``m66 w_psi^2`` ≈ 11 N m/rad and the pitch
     stiffness ``m55 w_theta^2`` ≈ 17 N m/rad (about 3x the REMUS restoring moment
@@ -132,14 +138,15 @@ class Baseline3DParams(NamedTuple):
     """Traced parameters of the baselines.
 
     Attributes:
-        gains: :class:`AutopilotGains`.
+        gains: [`AutopilotGains`][vcjax.control.baselines3d.AutopilotGains].
         inertia: (3,) ``[m11, m55, m66]`` surge mass and pitch/yaw inertia [kg, kg m^2].
         drag: callable-free feed-forward: () surge drag at ``u_d`` [N] (design model).
         u_d: () desired speed [m/s].
         path: path coefficients.
-        horizontal: the 2-D VCM law's :class:`~vcjax.control.params.LawParams`
+        horizontal: the 2-D VCM law's [`LawParams`][vcjax.control.params.LawParams]
             (``decoupled_law`` only; ``None`` otherwise).
-        design: the design model's parameters passed to :class:`DecoupledConfig` ``body_bias``
+        design: the design model's parameters passed to
+            [`DecoupledConfig`][vcjax.control.baselines3d.DecoupledConfig] ``body_bias``
             (``decoupled_law`` with ``body_bias`` only; ``None`` otherwise).
     """
 
@@ -155,7 +162,7 @@ class Baseline3DParams(NamedTuple):
 def baseline3d_params(
     gains, inertia, drag, path, u_d=1.5, horizontal=None, design=None
 ) -> Baseline3DParams:
-    """Validated :class:`Baseline3DParams`."""
+    """Validated [`Baseline3DParams`][vcjax.control.baselines3d.Baseline3DParams]."""
     if not isinstance(gains, AutopilotGains):
         raise ValueError(f"gains: expected AutopilotGains, got {type(gains).__name__}")
     check_positive("inertia", inertia, (3,))
@@ -227,7 +234,7 @@ def autopilot_law(cfg: AutopilotConfig, params: Baseline3DParams, t, q, qd, nu5,
 
     Args:
         q: (5,) ``[x, y, z, theta, psi]``; qd: (5,) its rate; nu5: (5,) ``[u, v, w, q, r]``;
-        z: :class:`AutopilotState`.
+        z: [`AutopilotState`][vcjax.control.baselines3d.AutopilotState].
 
     Returns:
         ``(tau5, z_dot, BaselineAux)``.
@@ -271,11 +278,12 @@ def _eps_rate(f, eps, p_dot, varpi_dot):
 
 @dataclasses.dataclass(frozen=True)
 class DecoupledConfig:
-    """Static: the horizontal :class:`~vcjax.control.vcm.VCMConfig` (its path is the 3-D path;
+    """Static: the horizontal [`VCMConfig`][vcjax.control.vcm.VCMConfig] (its path is the 3-D path;
     the 2-D law uses the projection) and ``body_bias``: ``None`` (the 3-DOF model's own bias
     of (20)) or ``body_bias(design, q5, nu5) -> (5,)``, the full design model's bias
     ``[X, Y, Z, M, N]`` at ``q5 = [x, y, z, theta, psi]``, ``nu5 = [u, v, w, q, r]``
-    (``design`` is :class:`Baseline3DParams` ``design``), whose ``X, Y, N`` rows the horizontal
+    (``design`` is [`Baseline3DParams`][vcjax.control.baselines3d.Baseline3DParams] ``design``),
+    whose ``X, Y, N`` rows the horizontal
     law then uses (module docstring)."""
 
     horizontal: VCMConfig
@@ -283,7 +291,7 @@ class DecoupledConfig:
 
 
 class DecoupledState(NamedTuple):
-    """The horizontal law's :class:`~vcjax.control.vcm.VCMState`; ``h_int`` [m s] of the depth
+    """The horizontal law's [`VCMState`][vcjax.control.vcm.VCMState]; ``h_int`` [m s] of the depth
     loop's ILOS angle; ``int_theta`` [rad s] of the pitch PID."""
 
     horizontal: Any

@@ -3,8 +3,9 @@ a PID on ``z - z_p(w)`` evaluated at the *path particle* ``w``, with feed-forwar
 depth along the particle's motion.
 
 The reference moves with the particle (22): ``z_p_dot = z_p' w_dot``,
-``z_p_ddot = z_p'' w_dot^2 + z_p' w_ddot`` (:func:`depth_reference`). The law
-(:func:`depth_pid`) asks for the vertical acceleration::
+``z_p_ddot = z_p'' w_dot^2 + z_p' w_ddot``
+([`depth_reference`][vcjax.control.depth.depth_reference]). The law
+([`depth_pid`][vcjax.control.depth.depth_pid]) asks for the vertical acceleration::
 
     a_z = z_p_ddot - k_d (z_dot - z_p_dot) - k_p (z - z_p) - k_i int(z - z_p)
     Z_ned = m_w a_z + d_w z_dot,      tau_Z = Z_ned / max(cos(phi) cos(theta), 1/2)
@@ -33,7 +34,8 @@ class DepthReference(NamedTuple):
 
 
 def depth_reference(frame, w_dot, w_ddot) -> DepthReference:
-    """The path's depth at the particle (``frame``: :class:`vcjax.paths.PathFrame`) moving at
+    """The path's depth at the particle (``frame``:
+    [`vcjax.paths.PathFrame`][vcjax.paths.PathFrame]) moving at
     ``w_dot`` [1/s] with ``w_ddot`` [1/s^2]."""
     return DepthReference(
         z=frame.z_p,
@@ -47,7 +49,8 @@ def depth_pid(gains, int_limit, ref: DepthReference, z, z_dot, int_z, m_w, d_w, 
 
     Args:
         gains: (3,) ``[k_p 1/s^2, k_d 1/s, k_i 1/s^3]``; int_limit: () clamp of the integral [m s].
-        ref: :class:`DepthReference`; z, z_dot: () depth [m] and its rate [m/s] (NED);
+        ref: [`DepthReference`][vcjax.control.depth.DepthReference]; z, z_dot: () depth [m] and its
+            rate [m/s] (NED);
         int_z: () integral state [m s]; m_w: () heave mass [kg]; d_w: () heave damping [kg/s];
         tilt: () ``cos(phi) cos(theta)`` of the craft.
 

@@ -1,4 +1,4 @@
-"""The traced parameters every path-following law of :mod:`vcjax.control` takes."""
+"""The traced parameters every path-following law of [`vcjax.control`][vcjax.control] takes."""
 
 from __future__ import annotations
 
@@ -15,15 +15,15 @@ class LawParams(NamedTuple):
     """Everything continuous a path-following law uses (traced).
 
     Attributes:
-        gains: the law's gains (:class:`~vcjax.control.vcm.PMGains` for the VCM law,
-            :class:`~vcjax.control.baselines.BaselineGains` for LOS-PID / ILOS).
-        model: :class:`vcjax.vehicles.design3dof.Design3DOF`, the controller's design model.
+        gains: the law's gains ([`PMGains`][vcjax.control.vcm.PMGains] for the VCM law,
+            [`BaselineGains`][vcjax.control.baselines.BaselineGains] for LOS-PID / ILOS).
+        model: [`Design3DOF`][vcjax.vehicles.design3dof.Design3DOF], the controller's design model.
         u_d: () desired surge speed [m/s].
         k_rudder: () sway force the rudder produces per unit yaw moment [1/m] (Remark 4; 0 if
             the rudder's sway force is neglected).
         int_limit: () anti-windup clamp on the integral states [m s] (each component of
             ``int(eps)`` for the VCM law; LOS-PID's ``e_int`` when ``k_ei = 0``).
-        path: the path's coefficients (see :mod:`vcjax.paths`).
+        path: the path's coefficients (see [`vcjax.paths`][vcjax.paths]).
     """
 
     gains: Any
@@ -35,7 +35,8 @@ class LawParams(NamedTuple):
 
 
 def law_params(gains, model, path, u_d=2.0, k_rudder=0.0, int_limit=50.0) -> LawParams:
-    """Validated :class:`LawParams` (``u_d``, ``int_limit`` > 0; finite scalar ``k_rudder``)."""
+    """Validated [`LawParams`][vcjax.control.params.LawParams] (``u_d``, ``int_limit`` > 0; finite
+    scalar ``k_rudder``)."""
     check_positive("u_d", u_d, ())
     check_array("k_rudder", k_rudder, ())
     check_positive("int_limit", int_limit, ())

@@ -19,14 +19,15 @@ algebra with ``gamma = psi - psi_p`` gives the transpose, which is what is imple
 
 Because ``r_dot`` enters only the heading row, the least-squares solution decouples: the linear
 accelerations come from the velocity and position rows, and the heading row then holds exactly.
-The one choice left is which ``e_ddot`` enters ``psi_d_ddot`` (36) (:class:`VCMConfig` ``edd``):
+The one choice left is which ``e_ddot`` enters ``psi_d_ddot`` (36)
+([`VCMConfig`][vcjax.control.vcm.VCMConfig] ``edd``):
 
 * ``"paper"`` (reference mode, Appendix A): the *designed* ``e_ddot`` of (35)/(41). While the
   position rows are not yet satisfied the actual ``e_ddot`` differs, so (37) holds only
   approximately;
 * ``"implied"``: the ``e_ddot`` implied by the commanded accelerations. Then (37)
   ``psi~_ddot + p_psi2 psi~_dot + p_psi1 psi~ = 0`` holds exactly under a perfect model, and the
-  law equals the generic engine (:mod:`vcjax.mechanics`) fed the exact constraint set.
+  law equals the generic engine ([`vcjax.mechanics`][vcjax.mechanics]) fed the exact constraint set.
 
 Underactuation in sway (Section 4.1): ``v_d`` is a controller state whose rate is chosen so that
 the sway row of (31) equals the sway force the rudder produces along with the yaw moment
@@ -72,8 +73,8 @@ class PMGains(NamedTuple):
         Delta: () look-ahead distance of the approach angle (24) [m].
         sigma: () particle-speed gain of ``ubar_p = u_d + sigma s`` [1/s].
         P_int: (2,) integral gains ``P_eps0`` on ``[s, e]`` of (41) [1/s^3] (used when
-            :attr:`VCMConfig.integral`).
-        sigma_i: () integral gain of the approach angle when :attr:`VCMConfig.guidance` is
+            ``VCMConfig.integral``).
+        sigma_i: () integral gain of the approach angle when ``VCMConfig.guidance`` is
             ``"ilos"`` [-] (unused otherwise).
     """
 
@@ -93,7 +94,8 @@ def pm_gains(
     P_int=(0.05, 0.05),
     sigma_i=0.4,
 ) -> PMGains:
-    """Validated :class:`PMGains` (defaults: docs/method.md's order-one gains).
+    """Validated [`PMGains`][vcjax.control.vcm.PMGains] (defaults: docs/method.md's order-one
+    gains).
 
     Raises ``ValueError`` for non-positive gains, wrong shapes, NaN, or integral gains that make
     the ``eps`` error dynamics (41) unstable (Routh–Hurwitz: ``P_eps2 P_eps1 > P_eps0``).
@@ -116,8 +118,9 @@ def pm_gains(
     return PMGains(*(jnp.asarray(x, dtype=float) for x in vals))
 
 
-#: The VCM law's traced parameters (:class:`~vcjax.control.params.LawParams` with
-#: :class:`PMGains`); :func:`vcm_params` validates them.
+#: The VCM law's traced parameters ([`LawParams`][vcjax.control.params.LawParams] with
+#: [`PMGains`][vcjax.control.vcm.PMGains]); [`vcm_params`][vcjax.control.params.law_params]
+# validates them.
 VCMParams = LawParams
 vcm_params = law_params
 
@@ -126,7 +129,7 @@ EDD_MODES = ("paper", "implied")
 
 
 def check_edd(edd) -> None:
-    """Raise ``ValueError`` naming ``edd`` unless it is one of :data:`EDD_MODES`."""
+    """Raise ``ValueError`` naming ``edd`` unless it is one of ``EDD_MODES``."""
     if edd not in EDD_MODES:
         raise ValueError(f"edd: expected 'paper' or 'implied', got {edd!r}")
 
@@ -136,8 +139,9 @@ class VCMConfig:
     """Static choices of the VCM law.
 
     Attributes:
-        path: the static path (kind) from :mod:`vcjax.paths`; its coefficients are traced in
-            :attr:`VCMParams.path`.
+        path: the static path (kind) from [`vcjax.paths`][vcjax.paths]; its coefficients are traced
+            in
+            ``VCMParams.path``.
         actuation: ``"full"`` (sway force available, ``v_d = 0``) or ``"underactuated"``
             (``tau_v`` is whatever the rudder gives; ``v_d`` follows (38)).
         edd: ``"paper"`` or ``"implied"`` (module docstring).
@@ -213,21 +217,22 @@ def vcm_law(cfg: VCMConfig, params: VCMParams, t, eta, nu, z: VCMState, n_b=None
     """The VCM control law (31)/(38)/(41).
 
     Args:
-        cfg: static :class:`VCMConfig`.
-        params: traced :class:`VCMParams`.
+        cfg: static [`VCMConfig`][vcjax.control.vcm.VCMConfig].
+        params: traced [`VCMParams`][vcjax.control.params.LawParams].
         t: () time [s].
         eta: (3,) ``[x, y, psi]`` measured pose.
         nu: (3,) ``[u, v, r]`` measured body velocity over ground.
-        z: :class:`VCMState`.
+        z: [`VCMState`][vcjax.control.vcm.VCMState].
         n_b: optional (3,) body bias ``[X, Y, N]`` [N, N, N m] at ``nu`` replacing the design
             model's ``C_b(nu) nu + D_b nu`` of (20) (``M_b`` stays the design model's): for a
             caller whose vehicle model of these three rows is richer than (20)'s structure
-            (the decoupled 3-D baseline, :func:`vcjax.control.baselines3d.decoupled_law`).
+            (the decoupled 3-D baseline,
+            [`decoupled_law`][vcjax.control.baselines3d.decoupled_law]).
 
     Returns:
         ``(tau, z_dot, aux)``: (3,) body force ``[tau_u, tau_v, tau_r]`` [N, N, N m] (when
         underactuated, ``tau_v = k_rudder tau_r`` is what the rudder delivers, not a command),
-        the :class:`VCMState` rate, and :class:`VCMAux`.
+        the [`VCMState`][vcjax.control.vcm.VCMState] rate, and [`VCMAux`][vcjax.control.vcm.VCMAux].
     """
     g = params.gains
     m = params.model

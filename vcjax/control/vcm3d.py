@@ -4,7 +4,8 @@ The paper reaches 3-D only by pairing its horizontal law with a decoupled depth 
 Here the constraint set itself is 3-D, on the paper's path frame with azimuth and elevation (21).
 
 Design model: 5 DOF, ``q = [x, y, z, theta, psi]`` (roll held at 0), body velocity
-``nu5 = [u, v, w, q, r]``, ``q̇ = J5(q) nu5`` (e.g. :mod:`vcjax.vehicles.remus100_design`).
+``nu5 = [u, v, w, q, r]``, ``q̇ = J5(q) nu5`` (e.g.
+[`vcjax.vehicles.remus100_design`][vcjax.vehicles.remus100_design]).
 
 Errors and particle. With ``R_p = Rz(psi_p) Ry(theta_p)`` at the particle ``varpi``,
 
@@ -24,7 +25,8 @@ e_int``, ``H = h + sigma_iv h_int`` with ``e_int_dot = Delta_h e / (E^2 + Delta_
 ``h_int_dot = Delta_v h / (H^2 + Delta_v^2)`` (Børhaug–Pettersen (40), one per plane). ``h > 0``
 means the vehicle is below the path: ``theta_d`` pitches the nose up.
 
-The engine (:mod:`vcjax.mechanics`) computes ``W`` and ``Ẇq̇ + ȧ`` by autodiff, including the
+The engine ([`vcjax.mechanics`][vcjax.mechanics]) computes ``W`` and ``Ẇq̇ + ȧ`` by autodiff,
+including the
 time derivative through the controller states (particle, ILOS and integral states). Because
 ``ψ̈`` and ``θ̈`` appear only in their own rows, the least-squares solve (17) satisfies the heading
 and pitch rows exactly (the 3-D form of (37)); the six linear rows (velocity and position) share
@@ -35,7 +37,8 @@ Decisions where the paper is silent:
 * **Underactuation in sway and heave** (``actuation="underactuated"``). A fin's force comes with
   its moment: the rudder gives ``Y = N / x_r``, the stern planes ``Z = -M / x_s``. These two tied
   rows (body frame, mapped to generalised forces by ``J5^T``) are declared to the engine
-  (:class:`~vcjax.mechanics.Underactuation`) with ``v_d``, ``w_d`` free: their rates are solved
+  ([`Underactuation`][vcjax.mechanics.Underactuation]) with ``v_d``, ``w_d`` free: their rates are
+  solved
   so that the law's sway and heave forces are exactly what the fins produce along with the yaw
   and pitch moments the law asks for — Remark 4 in both planes; the paper's (38) is the sway-only
   case. ``actuation="full"`` keeps ``v_d = w_d = 0`` (all five forces commanded).
@@ -118,7 +121,8 @@ def vcm3d_gains(
     k_int=(0.05, 0.05, 0.05),
     sigma_i=(0.5, 0.5),
 ) -> VCM3DGains:
-    """Validated :class:`VCM3DGains` (every gain > 0; ``k_int``, ``sigma_i`` >= 0)."""
+    """Validated [`VCM3DGains`][vcjax.control.vcm3d.VCM3DGains] (every gain > 0; ``k_int``,
+    ``sigma_i`` >= 0)."""
     check_positive("P_G", P_G, (5,))
     check_positive("P_Phi", P_Phi, (8,))
     check_positive("Delta", Delta, (2,))
@@ -130,10 +134,10 @@ def vcm3d_gains(
 
 
 class VCM3DParams(NamedTuple):
-    """Traced parameters of :func:`vcm3d_law`.
+    """Traced parameters of [`vcm3d_law`][vcjax.control.vcm3d.vcm3d_law].
 
     Attributes:
-        gains: :class:`VCM3DGains`.
+        gains: [`VCM3DGains`][vcjax.control.vcm3d.VCM3DGains].
         model: the design model's parameters (``args`` of the config's ``system``).
         u_d: () desired speed along the path [m/s].
         int_limit: () anti-windup clamp of each integral state ``zeta`` [m s].
@@ -148,7 +152,7 @@ class VCM3DParams(NamedTuple):
 
 
 def vcm3d_params(gains, model, path, u_d=1.5, int_limit=50.0) -> VCM3DParams:
-    """Validated :class:`VCM3DParams` (``u_d``, ``int_limit`` > 0)."""
+    """Validated [`VCM3DParams`][vcjax.control.vcm3d.VCM3DParams] (``u_d``, ``int_limit`` > 0)."""
     if not isinstance(gains, VCM3DGains):
         raise ValueError(f"gains: expected VCM3DGains, got {type(gains).__name__}")
     check_positive("u_d", u_d, ())
@@ -162,9 +166,10 @@ class VCM3DConfig:
     """Static choices of the 3-D law.
 
     Attributes:
-        path: static :class:`~vcjax.paths.Path`.
+        path: static [`Path`][vcjax.paths.Path].
         system: the 5-DOF design model in ``q = [x, y, z, theta, psi]``
-            (:class:`~vcjax.mechanics.MechanicalSystem`, ``args`` = :attr:`VCM3DParams.model`).
+            ([`MechanicalSystem`][vcjax.mechanics.MechanicalSystem], ``args`` =
+            ``VCM3DParams.model``).
         kinematics: ``J5(q, model) -> (5, 5)`` with ``q̇ = J5 nu5``.
         kinematics_inverse: optional closed-form ``J5(q, model)^-1`` (default: an
             elimination); a smaller program, the same numbers to round-off.
@@ -213,7 +218,7 @@ class VCM3DState(NamedTuple):
 
 
 def vcm3d_state(varpi0=0.0, v_d0=0.0, w_d0=0.0, zeta0=(0.0, 0.0, 0.0), e_int0=0.0, h_int0=0.0):
-    """Validated initial :class:`VCM3DState`."""
+    """Validated initial [`VCM3DState`][vcjax.control.vcm3d.VCM3DState]."""
     for name, v in dict(varpi0=varpi0, v_d0=v_d0, w_d0=w_d0, e_int0=e_int0, h_int0=h_int0).items():
         check_array(name, v, ())
     check_array("zeta0", zeta0, (3,))
@@ -275,7 +280,8 @@ def _zy_transpose(theta, psi, v):
 
 
 def pose_errors(path, coeffs, varpi, p):
-    """``(pose, eps)``: :func:`path_errors_3d` from :func:`~vcjax.paths.path_pose` (the same
+    """``(pose, eps)``: [`path_errors_3d`][vcjax.control.vcm3d.path_errors_3d] from
+    [`path_pose`][vcjax.paths.path_pose] (the same
     ``eps`` to round-off) for code that differentiates it (the engine's constraints, losses):
     no rates of the path are computed, and derivatives in ``varpi`` come from the pose's
     Taylor rule instead of differentiating the frame's own autodiff."""
@@ -333,13 +339,15 @@ def vcm3d_law(cfg: VCM3DConfig, params: VCM3DParams, t, q, qd, z: VCM3DState):
     """The 3-D VCM law (module docstring).
 
     Args:
-        cfg: static :class:`VCM3DConfig`; params: traced :class:`VCM3DParams`.
+        cfg: static [`VCM3DConfig`][vcjax.control.vcm3d.VCM3DConfig]; params: traced
+            [`VCM3DParams`][vcjax.control.vcm3d.VCM3DParams].
         t: () time [s]; q: (5,) ``[x, y, z, theta, psi]``; qd: (5,) its rate (over ground).
-        z: :class:`VCM3DState`.
+        z: [`VCM3DState`][vcjax.control.vcm3d.VCM3DState].
 
     Returns:
-        ``(tau, z_dot, aux)``: (5,) body force ``[X, Y, Z, M, N]``, the :class:`VCM3DState` rate
-        and :class:`VCM3DAux`.
+        ``(tau, z_dot, aux)``: (5,) body force ``[X, Y, Z, M, N]``, the
+        [`VCM3DState`][vcjax.control.vcm3d.VCM3DState] rate
+        and [`VCM3DAux`][vcjax.control.vcm3d.VCM3DAux].
     """
     g = params.gains
     cons = _constraints(cfg, params)

@@ -1,18 +1,25 @@
 """What the water and the world do to a vehicle: one seam.
 
-* :mod:`vcjax.environment.current`, :mod:`vcjax.environment.waves`: the physics (currents,
+* [`vcjax.environment.current`][vcjax.environment.current],
+[`vcjax.environment.waves`][vcjax.environment.waves]: the physics (currents,
   Gauss–Markov processes; sea states and Airy kinematics).
-* :class:`Component` (:mod:`vcjax.environment.component`): one disturbance — its TOML section
+* [`Component`][vcjax.environment.component.Component]
+([`vcjax.environment.component`][vcjax.environment.component]): one disturbance — its TOML section
   and schema, ``sample(key, section) -> params`` (traced), an optional process
   (``init``/``advance``) and its contribution (water velocity + material acceleration at a NED
-  point, a body force, measurement noise); :func:`register` makes one known by its
-  section, :func:`lookup` finds it.
-* The built-in components: :class:`ConstantCurrent` ``[current]``, :class:`GaussMarkov`
-  ``[gauss_markov]``, :class:`Waves` ``[waves]``, :class:`SensorNoise` ``[sensor_noise]``,
-  :class:`ConstantForce` ``[force]``.
-* :class:`Environment`: the components of one run with their sampled parameters (a pytree:
-  the components are its static structure); :func:`sample` draws one from TOML sections. A
-  loop declares what it feels (:attr:`vcjax.loops.Loop.feels`) and refuses the rest by name.
+  point, a body force, measurement noise); [`register`][vcjax.environment.component.register] makes
+  one known by its
+  section, [`lookup`][vcjax.environment.component.lookup] finds it.
+* The built-in components: [`ConstantCurrent`][vcjax.environment.flow.ConstantCurrent]
+``[current]``, [`GaussMarkov`][vcjax.environment.flow.GaussMarkov]
+  ``[gauss_markov]``, [`Waves`][vcjax.environment.sea.Waves] ``[waves]``,
+  [`SensorNoise`][vcjax.environment.noise.SensorNoise] ``[sensor_noise]``,
+  [`ConstantForce`][vcjax.environment.force.ConstantForce] ``[force]``.
+* [`Environment`][vcjax.environment.component.Environment]: the components of one run with their
+sampled parameters (a pytree:
+  the components are its static structure); [`sample`][vcjax.environment.component.sample] draws one
+  from TOML sections. A
+  loop declares what it feels (``vcjax.loops.Loop.feels``) and refuses the rest by name.
 """
 
 from vcjax.environment import current, waves

@@ -1,13 +1,16 @@
-"""The seam: :class:`Component` (one thing the world does to a vehicle), its registry, and
-:class:`Environment` (the components of a run with their sampled, traced parameters).
+"""The seam: [`Component`][vcjax.environment.component.Component] (one thing the world does to a
+vehicle), its registry, and
+[`Environment`][vcjax.environment.component.Environment] (the components of a run with their
+sampled, traced parameters).
 
 A component is *static* (a frozen, hashable dataclass: what it is and its static options) and
 declares
 
 * ``section``: the name of its TOML section, and ``schema``: the section's keys
-  (:class:`Key`: default, bounds, unit, meaning), checked eagerly by :meth:`Component.check`;
-* ``kind``: what a loop must be able to feel to take it (one of :data:`KINDS`; a loop declares
-  what it feels in :attr:`vcjax.loops.Loop.feels`);
+  ([`Key`][vcjax.environment.component.Key]: default, bounds, unit, meaning), checked eagerly by
+  [`Component.check`][vcjax.environment.component.Component.check];
+* ``kind``: what a loop must be able to feel to take it (one of ``KINDS``; a loop declares
+  what it feels in ``vcjax.loops.Loop.feels``);
 * ``sample(key, section) -> params``: the traced parameters of one run, drawn from the checked
   section (a key's value is a number, or a ``[lo, hi]`` range sampled uniformly); pure
   ``jax`` so that it runs under ``vmap`` and differentiates through continuous values;
@@ -20,7 +23,7 @@ declares
   ``force(params) -> (n_nu,)`` a constant generalised body force [N, N m], or
   ``noise(params, held) -> (n,)`` what is added to the controller's measurement.
 
-What a kind means to the simulation (:func:`vcjax.loops.simulate`):
+What a kind means to the simulation ([`vcjax.loops.simulate`][vcjax.loops.disturbances.simulate]):
 
 ========================  ===================================================================
 ``current``               uniform, constant water velocity (``water`` at ``t = 0``)
@@ -150,18 +153,20 @@ def draw(key, value, dtype=None):
 class Component:
     """One thing the world does to a vehicle (static, hashable; see the module docstring).
 
-    Subclasses set :attr:`section`, :attr:`kind`, :attr:`schema` and define :meth:`sample`
-    and the contribution of their kind (:meth:`water`, :meth:`force` or :meth:`noise`); a
-    component with memory sets :attr:`process` and defines :meth:`init` and :meth:`advance`.
+    Subclasses set ``section``, ``kind``, ``schema`` and define
+    [`sample`][vcjax.environment.component.sample]
+    and the contribution of their kind (``water``, [`force`][vcjax.environment.force] or
+    [`noise`][vcjax.environment.noise]); a
+    component with memory sets ``process`` and defines ``init`` and ``advance``.
     """
 
     #: name of the TOML section (and of the component in the registry)
     section: ClassVar[str] = ""
-    #: what a loop must feel to take it (one of :data:`KINDS`)
+    #: what a loop must feel to take it (one of ``KINDS``)
     kind: ClassVar[str] = ""
     #: the section's keys
     schema: ClassVar[Mapping[str, Key]] = {}
-    #: True when the component has a per-step process (:meth:`init`, :meth:`advance`)
+    #: True when the component has a per-step process (``init``, ``advance``)
     process: ClassVar[bool] = False
 
     def bind(self, loop) -> Component:
@@ -169,7 +174,7 @@ class Component:
         return self
 
     def check(self, raw: Mapping | None) -> dict:
-        """The section checked against :attr:`schema` (eager; defaults filled in)."""
+        """The section checked against ``schema`` (eager; defaults filled in)."""
         return check_section(self.section, self.schema, raw)
 
     def sample(self, key, section: Mapping):
@@ -177,7 +182,7 @@ class Component:
         raise NotImplementedError(f"{type(self).__name__}.sample")
 
     def init(self, params):
-        """Process state at ``t = 0`` (components with :attr:`process`)."""
+        """Process state at ``t = 0`` (components with ``process``)."""
         return None
 
     def advance(self, params, state, k, t, dt):
@@ -237,7 +242,7 @@ class Environment:
     gradients flow into every continuous parameter.
 
     Attributes:
-        components: tuple of :class:`Component`.
+        components: tuple of [`Component`][vcjax.environment.component.Component].
         params: tuple of their parameters (one pytree each, same order).
     """
 
@@ -281,13 +286,16 @@ def freeze(section: str, raw: Mapping | None) -> tuple:
 
 
 def sample(key, sections: Mapping[str, Mapping], loop=None, comps: Mapping | None = None):
-    """:class:`Environment` of the named ``sections`` (``{section: raw table}``), each
+    """[`Environment`][vcjax.environment.component.Environment] of the named ``sections``
+    (``{section: raw table}``), each
     checked and sampled from its own key ``fold_in(key, i)`` (``i`` its place in ``sections``).
 
-    ``loop``: the loop the environment is for (:meth:`Component.bind`); ``comps`` names
+    ``loop``: the loop the environment is for
+    ([`Component.bind`][vcjax.environment.component.Component.bind]); ``comps`` names
     components not in the registry (default: the registry's). Checking is eager
     (plain Python); the draws are traced, so ``vmap`` this over keys for a batch (the sections
-    are static: build the checked dict once with :meth:`Component.check` and close over it).
+    are static: build the checked dict once with
+    [`Component.check`][vcjax.environment.component.Component.check] and close over it).
     """
     found, params = [], []
     for i, (name, raw) in enumerate(sections.items()):

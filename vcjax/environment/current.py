@@ -1,7 +1,7 @@
 """Ocean currents in the horizontal plane: constant and first-order Gauss–Markov.
 
 Units and frames: a current ``V_c`` is a (2,) velocity in the inertial NED frame [m/s] (north,
-east), the quantity :class:`~vcjax.vehicles.infante.PlantArgs` takes. A *direction* is the
+east), the quantity [`PlantArgs`][vcjax.vehicles.infante.PlantArgs] takes. A *direction* is the
 oceanographic one: the direction the water flows **towards**, measured clockwise from north
 [rad] (the paper's current ``[0, 0.5]`` m/s has direction ``pi/2``, "towards east").
 
@@ -53,7 +53,8 @@ def current_ned(speed, direction):
     """(3,) the water's velocity in NED [m/s]: ``speed`` [m/s] flowing towards ``direction``
     [rad, clockwise from north], horizontal (``[V cos(beta), V sin(beta), 0]``).
 
-    The one current convention of vcjax: every loop's :class:`~vcjax.loops.Scenario` takes this
+    The one current convention of vcjax: every loop's [`Scenario`][vcjax.loops.types.Scenario] takes
+    this
     vector (planar craft use its first two components). Pure ``jax.numpy``; broadcasts over
     leading axes.
     """
@@ -64,7 +65,8 @@ def current_ned(speed, direction):
 
 
 def current_vector(speed, direction):
-    """(2,) horizontal part of :func:`current_ned`: north and east [m/s] of ``speed`` [m/s]
+    """(2,) horizontal part of [`current_ned`][vcjax.environment.current.current_ned]: north and
+    east [m/s] of ``speed`` [m/s]
     flowing towards ``direction`` [rad from north] (what the Gauss–Markov process works on).
 
     Pure ``jax.numpy``; broadcasts over leading axes of ``speed`` and ``direction``.
@@ -91,7 +93,8 @@ class GaussMarkovCurrent(NamedTuple):
 
 
 def gauss_markov_current(mean=(0.0, 0.5), sigma=0.1, tau=300.0, max_speed=2.0, dtype=None):
-    """Validated :class:`GaussMarkovCurrent` (eager; see the module docstring for units)."""
+    """Validated [`GaussMarkovCurrent`][vcjax.environment.current.GaussMarkovCurrent] (eager; see
+    the module docstring for units)."""
     check_array("mean", mean, (2,))
     check_positive("sigma", sigma, (), strict=False)
     check_positive("tau", tau, ())

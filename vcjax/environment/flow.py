@@ -1,5 +1,7 @@
-"""Current components: :class:`ConstantCurrent` (``[current]``) and :class:`GaussMarkov`
-(``[gauss_markov]``, the process of :mod:`vcjax.environment.current`). Both are uniform in
+"""Current components: [`ConstantCurrent`][vcjax.environment.flow.ConstantCurrent] (``[current]``)
+and [`GaussMarkov`][vcjax.environment.flow.GaussMarkov]
+(``[gauss_markov]``, the process of [`vcjax.environment.current`][vcjax.environment.current]). Both
+are uniform in
 space: the water's velocity in NED (3,) [m/s], its direction the one it flows towards,
 clockwise from north."""
 
@@ -46,10 +48,11 @@ class ConstantCurrent(Component):
 
 
 class GaussMarkovParams(NamedTuple):
-    """Traced parameters of :class:`GaussMarkov`.
+    """Traced parameters of [`GaussMarkov`][vcjax.environment.flow.GaussMarkov].
 
     Attributes:
-        current: :class:`~vcjax.environment.current.GaussMarkovCurrent` (horizontal, (2,) mean);
+        current: [`GaussMarkovCurrent`][vcjax.environment.current.GaussMarkovCurrent] (horizontal,
+            (2,) mean);
         vertical: (1,) the down component of the water's velocity [m/s] (constant);
         key: PRNG key of the process (``split(key)``: the initial draw, the steps).
     """
@@ -62,7 +65,8 @@ class GaussMarkovParams(NamedTuple):
 @dataclasses.dataclass(frozen=True)
 class GaussMarkov(Component):
     """A horizontal current ``clip(mean + d)``, ``d`` a first-order Gauss–Markov process
-    (:mod:`vcjax.environment.current`: exact discretisation per step, ``d_0`` stationary),
+    ([`vcjax.environment.current`][vcjax.environment.current]: exact discretisation per step,
+    ``d_0`` stationary),
     linear in time between the step samples (its rate is the slope)."""
 
     section = "gauss_markov"

@@ -1,5 +1,6 @@
-"""The waves component (``[waves]``): a random sea per run (:func:`~vcjax.environment.waves.
-sea_state`, physics in :mod:`vcjax.environment.waves`) whose orbital motion the vehicle feels
+"""The waves component (``[waves]``): a random sea per run (``
+sea_state``, physics in [`vcjax.environment.waves`][vcjax.environment.waves]) whose orbital motion
+the vehicle feels
 at its own position."""
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ __all__ = ["Waves", "SeaParams"]
 
 
 class SeaParams(NamedTuple):
-    """sea: :class:`~vcjax.environment.waves.Sea` ((N,) arrays); origin_depth: () depth of the
+    """sea: [`Sea`][vcjax.environment.waves.Sea] ((N,) arrays); origin_depth: () depth of the
     NED origin below the mean free surface [m] (the sea is felt at ``origin_depth + z``)."""
 
     sea: Any

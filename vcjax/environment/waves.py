@@ -5,7 +5,8 @@ Frames, units and signs
 Inertial frame NED: ``north``, ``east`` [m] horizontal, ``depth`` [m] positive **down** below the
 mean free surface. The elevation ``zeta`` [m] is positive **up**. A wave *direction* ``beta``
 [rad] is the direction the waves travel **towards**, clockwise from north (the convention of
-:mod:`vcjax.environment.current`: a swell with ``beta = pi/2`` runs towards east).
+[`vcjax.environment.current`][vcjax.environment.current]: a swell with ``beta = pi/2`` runs towards
+east).
 Frequencies ``omega`` [rad/s], periods [s], wavenumbers ``k`` [rad/m]; one-sided spectra
 ``S(omega)`` [m^2 s/rad].
 
@@ -48,9 +49,9 @@ differentiable in ``gamma``. So ``m0 = Hs^2 / 16`` for every ``gamma``; DNV's cl
 ``1 - 0.287 ln(gamma)`` differs from ``1 / I(gamma)`` by 0.2 % at ``gamma = 3.3`` and 1.8 %
 at ``gamma = 7``.
 
-Random sea states (:func:`sea_state`)
+Random sea states ([`sea_state`][vcjax.environment.waves.sea_state])
 -------------------------------------
-Frequency grid: ``N`` equal bins covering ``[0.6, 4.0] omega_p`` (:data:`BAND`). Below
+Frequency grid: ``N`` equal bins covering ``[0.6, 4.0] omega_p`` (``BAND``). Below
 ``0.6 omega_p`` a PM spectrum holds ``exp(-5/4 / 0.6^4) = 6e-5`` of its energy, above
 ``4 omega_p`` about ``5/4 / 4^4 = 0.5 %`` (JONSWAP with ``gamma = 3.3``: 0.3 %), i.e. the
 realised ``Hs`` is at most 0.25 % low, from the high frequencies that ``e^{-k d}`` removes
@@ -80,7 +81,8 @@ gives a calm sea (every amplitude exactly 0, so every kinematic quantity exactly
 
 Water kinematics for a body (the plant-side seam)
 -------------------------------------------------
-:func:`water_kinematics` gives the water's velocity ``v_w`` (3,) = current + orbital velocity at
+[`water_kinematics`][vcjax.environment.waves.water_kinematics] gives the water's velocity ``v_w``
+(3,) = current + orbital velocity at
 the vehicle's NED position and its **material** acceleration ``a_w = du/dt + (v_w . grad) u`` (the
 acceleration of the water particle there, which is what the pressure gradient of the undisturbed
 flow, i.e. the Froude–Krylov force, and the added-mass force see). In body axes (``R`` body ->
@@ -89,7 +91,8 @@ NED, ``omega_b = nu[3:]``), ``nu_w = [R^T v_w; 0]``, ``nu_w_dot = [R^T a_w - ome
 
     M_RB nu_dot + C_RB(nu) nu + M_A nu_r_dot + C_A(nu_r) nu_r + D(nu_r) nu_r + g(eta)
         = tau + tau_FK,
-    tau_FK = [m_d R^T a_w;  m_d r_bb x R^T a_w]          (:func:`froude_krylov`),
+    tau_FK = [m_d R^T a_w;  m_d r_bb x R^T a_w]
+    ([`froude_krylov`][vcjax.environment.waves.froude_krylov]),
 
 with ``m_d = rho V`` the displaced mass and ``r_bb`` the centre of buoyancy (the long-wave
 approximation: the water's acceleration is uniform over the hull; Fossen 2021, Ch. 10, with
@@ -97,7 +100,8 @@ the current made unsteady). The translational wave force on a body held still is
 ``(m_d I + M_A[:3, :3]) R^T a_w``. The drag sees ``nu_r``. Written the way vcjax's plants
 already take a current (``M nu_r_dot + C(nu_r) nu_r + D nu_r + g = tau``, ``nu_dot = nu_r_dot +
 nu_c_dot`` with ``v_c = v_w``, ``v_c_dot = a_w``), the same physics needs the extra body force
-:func:`current_door_correction` ``= tau_FK - M_RB [R^T a_w; 0]``, which is exactly zero for a
+[`current_door_correction`][vcjax.environment.waves.current_door_correction] ``= tau_FK - M_RB
+[R^T a_w; 0]``, which is exactly zero for a
 neutrally buoyant body whose CG is at its CB (``m = m_d``, ``r_bg = r_bb``). A neutrally buoyant
 body with its actuators off then moves with the water particles (``tests/test_waves.py``).
 
@@ -111,8 +115,9 @@ The water depends on the vehicle's position, so it is evaluated inside the plant
         tau_fk = current_door_correction(R, a_w, M_RB, m_d, r_bb)   # (6,) body force
         return dx._replace(nu=dx.nu + M^-1 tau_fk)   # or add tau_fk to the plant's force sum
 
-:func:`vcjax.vehicles.sixdof.vector_field` takes ``(v_c, v_c_dot)`` (3,) as they are;
-:mod:`vcjax.vehicles.remus100` takes a (3,) ``v_c``/``v_c_dot`` with the full rotation (its
+[`vector_field`][vcjax.vehicles.sixdof.vector_field] takes ``(v_c, v_c_dot)`` (3,) as they are;
+[`vcjax.vehicles.remus100`][vcjax.vehicles.remus100] takes a (3,) ``v_c``/``v_c_dot`` with the full
+rotation (its
 (2,) door is PVS's yaw-only rotation of a horizontal current). For REMUS 100 (``W = B``, CB at
 the origin, CG 2 cm below) the correction is the pendulum moment ``-m r_bg x R^T a_w``.
 """
@@ -157,10 +162,11 @@ __all__ = [
 #: Gravity of the deep-water dispersion relation ``k = omega^2 / g`` [m/s^2].
 GRAVITY = 9.81
 
-#: Frequency band of :func:`sea_state` as multiples of the peak frequency ``omega_p``.
+#: Frequency band of [`sea_state`][vcjax.environment.waves.sea_state] as multiples of the peak
+# frequency ``omega_p``.
 BAND = (0.6, 4.0)
 
-#: Spectrum names accepted by :func:`sea_state`.
+#: Spectrum names accepted by [`sea_state`][vcjax.environment.waves.sea_state].
 SPECTRA = ("jonswap", "pm")
 
 #: Stokes' limiting steepness ``H / lambda`` of a regular deep-water wave (it breaks beyond).
@@ -207,7 +213,7 @@ def check_origin_depth(origin_depth, name: str = "origin_depth") -> None:
 
 def _steep_share(hs, tp) -> str | None:
     """For ``(lo, hi)`` ranges drawn uniformly and independently (as a sweep draws them): the
-    share of sea states steeper than :data:`LINEAR_STEEPNESS` (midpoint rule, 400 x 400)."""
+    share of sea states steeper than ``LINEAR_STEEPNESS`` (midpoint rule, 400 x 400)."""
     h, t = np.asarray(hs, np.float64).reshape(-1), np.asarray(tp, np.float64).reshape(-1)
     if h.size == 1 and t.size == 1 or (np.ptp(h) == 0 and np.ptp(t) == 0):
         return None
@@ -226,8 +232,8 @@ def envelope_warnings(hs, tp, origin_depth=None, components: int | None = None) 
     ``hs``, ``tp``, ``origin_depth``: numbers or ``(lo, hi)`` ranges [m, s, m] (the steepest
     case is checked: the largest ``hs`` with the shortest ``tp``).
 
-    * steepness ``Hs / lambda_p`` (``lambda_p = g tp^2 / 2 pi``) above :data:`LINEAR_STEEPNESS`:
-      beyond linear theory (and, above :data:`BREAKING_STEEPNESS`, beyond breaking);
+    * steepness ``Hs / lambda_p`` (``lambda_p = g tp^2 / 2 pi``) above ``LINEAR_STEEPNESS``:
+      beyond linear theory (and, above ``BREAKING_STEEPNESS``, beyond breaking);
     * ``origin_depth`` shallower than ``Hs / 2`` (a significant crest): the vehicle sits in the
       crests' zone, where the linear kinematics are extrapolated (held at their surface value
       above the mean level).
@@ -348,7 +354,8 @@ def jonswap(omega, hs, tp, gamma=3.3):
         omega: frequencies [rad/s] (any shape); hs: () significant wave height [m];
         tp: () peak period [s]; gamma: () peak enhancement (>= 1; 1 gives Pierson–Moskowitz).
 
-    The normalisation ``1 / I(gamma)`` is computed by quadrature (:func:`jonswap_normalisation`),
+    The normalisation ``1 / I(gamma)`` is computed by quadrature
+    ([`jonswap_normalisation`][vcjax.environment.waves.jonswap_normalisation]),
     not by DNV's approximation ``1 - 0.287 ln(gamma)``.
     """
     _check_spectrum(hs, tp, gamma)
@@ -387,7 +394,8 @@ class Sea(NamedTuple):
 
 
 def calm_sea(components: int = 1, dtype=None) -> Sea:
-    """A :class:`Sea` of ``components`` zero-amplitude components (unit frequency): no waves.
+    """A [`Sea`][vcjax.environment.waves.Sea] of ``components`` zero-amplitude components (unit
+    frequency): no waves.
 
     Every kinematic function returns exact zeros for it (a placeholder for "no waves" that
     keeps shapes static when some scenarios of a batch have waves and others not).
@@ -449,7 +457,7 @@ def sea_state(
             ``direction`` when one is a float array, else JAX's default float).
 
     Returns:
-        :class:`Sea` with (N,) arrays of ``dtype``.
+        [`Sea`][vcjax.environment.waves.Sea] with (N,) arrays of ``dtype``.
 
     Raises:
         ValueError: naming the argument (unknown spectrum, ``hs < 0``, ``tp <= 0``,
@@ -564,7 +572,8 @@ def orbital_velocity(sea: Sea, t, p):
 
 
 def orbital_acceleration(sea: Sea, t, p):
-    """(3,) local time derivative ``du/dt`` [m/s^2] of :func:`orbital_velocity` at fixed ``p``."""
+    """(3,) local time derivative ``du/dt`` [m/s^2] of
+    [`orbital_velocity`][vcjax.environment.waves.orbital_velocity] at fixed ``p``."""
     c, s, cb, sb, _ = _components(sea, t, p)
     ws, wc = sea.omega * s, sea.omega * c
     return jnp.stack([jnp.sum(ws * cb), jnp.sum(ws * sb), jnp.sum(wc)])
@@ -586,7 +595,8 @@ def _gradient(c, s, cb, sb, below, k):
 
 
 def orbital_velocity_gradient(sea: Sea, t, p):
-    """(3, 3) ``G[i, j] = d u_i / d p_j`` [1/s] of :func:`orbital_velocity` (NED, ``p_j`` in
+    """(3, 3) ``G[i, j] = d u_i / d p_j`` [1/s] of
+    [`orbital_velocity`][vcjax.environment.waves.orbital_velocity] (NED, ``p_j`` in
     (north, east, depth)); symmetric (irrotational) and trace-free (incompressible) below the
     mean surface."""
     c, s, cb, sb, below = _components(sea, t, p)
@@ -594,21 +604,25 @@ def orbital_velocity_gradient(sea: Sea, t, p):
 
 
 def orbital_kinematics(sea: Sea, t, p_ned, current=None):
-    """The waves' share of :func:`water_kinematics`: the orbital velocity and its material
+    """The waves' share of [`water_kinematics`][vcjax.environment.waves.water_kinematics]: the
+    orbital velocity and its material
     acceleration in a uniform current (for a plant that takes the current through a door of its
-    own and the waves on top of it, e.g. :mod:`vcjax.vehicles.remus100`).
+    own and the waves on top of it, e.g. [`vcjax.vehicles.remus100`][vcjax.vehicles.remus100]).
 
     Args:
-        sea: :class:`Sea`; t: () time [s]; p_ned: (3,) ``(north, east, depth)`` [m];
+        sea: [`Sea`][vcjax.environment.waves.Sea]; t: () time [s]; p_ned: (3,) ``(north, east,
+            depth)`` [m];
         current: (3,) uniform current in NED [m/s] (default 0).
 
     Returns:
-        ``(u (3,), a (3,))``: ``u`` = :func:`orbital_velocity` [m/s] and ``a = du/dt + G (current +
+        ``(u (3,), a (3,))``: ``u`` = [`orbital_velocity`][vcjax.environment.waves.orbital_velocity]
+        [m/s] and ``a = du/dt + G (current +
         u)`` [m/s^2], so that ``water_kinematics(sea, t, p, current, current_dot) == (current + u,
         current_dot + a)``. Both exactly 0 for a calm sea.
 
     ``G v`` is summed per component with ``du/dt`` (not as the matrix of
-    :func:`orbital_velocity_gradient` times ``v``): with ``w_i = cos(beta_i) v_n + sin(beta_i)
+    [`orbital_velocity_gradient`][vcjax.environment.waves.orbital_velocity_gradient] times ``v``):
+    with ``w_i = cos(beta_i) v_n + sin(beta_i)
     v_e``, ``q_i = omega_i - k_i w_i`` and ``r_i = k_i v_d`` (0 above the mean surface),
     ``a = sum_i [cos(beta_i) A_i, sin(beta_i) A_i, c_i q_i + r_i s_i]``, ``A_i = s_i q_i - r_i
     c_i`` (a quarter fewer operations per component).
@@ -631,13 +645,15 @@ def water_kinematics(sea: Sea, t, p_ned, current=None, current_dot=None):
     """Water velocity and material acceleration at a vehicle's NED position (the plant's seam).
 
     Args:
-        sea: :class:`Sea`; t: () time [s]; p_ned: (3,) ``(north, east, depth)`` [m];
+        sea: [`Sea`][vcjax.environment.waves.Sea]; t: () time [s]; p_ned: (3,) ``(north, east,
+            depth)`` [m];
         current: (3,) uniform current in NED [m/s] (default 0);
         current_dot: (3,) its time derivative [m/s^2] (default 0).
 
     Returns:
         ``(v_w (3,), a_w (3,))``: ``v_w = current + u(t, p)`` [m/s] and
-        ``a_w = current_dot + du/dt + G v_w`` [m/s^2] (``G`` = :func:`orbital_velocity_gradient`),
+        ``a_w = current_dot + du/dt + G v_w`` [m/s^2] (``G`` =
+        [`orbital_velocity_gradient`][vcjax.environment.waves.orbital_velocity_gradient]),
         the acceleration of the water particle at ``p`` (the convective term makes a body that
         follows the particle feel exactly the particle's acceleration; the current, being uniform,
         only advects the waves). Pass them to a plant as its current and current derivative.
@@ -667,7 +683,8 @@ def froude_krylov(R, a_water, m_displaced, r_bb):
 
     Args:
         R: (3, 3) body -> NED rotation; a_water: (3,) water acceleration in NED [m/s^2]
-        (:func:`water_kinematics`); m_displaced: () displaced mass ``rho V`` [kg] (``B / g``);
+        ([`water_kinematics`][vcjax.environment.waves.water_kinematics]); m_displaced: () displaced
+        mass ``rho V`` [kg] (``B / g``);
         r_bb: (3,) centre of buoyancy w.r.t. the body origin, body frame [m].
     """
     ab = R.T @ a_water
@@ -679,9 +696,11 @@ def current_door_correction(R, a_water, M_RB, m_displaced, r_bb):
     """(6,) body force to add to ``tau`` of a plant that takes the water as its current.
 
     Plants of the form ``M nu_r_dot + C(nu_r) nu_r + ... = tau``, ``nu_dot = nu_r_dot +
-    nu_c_dot`` given ``v_c = v_w`` and ``v_c_dot = a_w`` (:func:`water_kinematics`) apply the
+    nu_c_dot`` given ``v_c = v_w`` and ``v_c_dot = a_w``
+    ([`water_kinematics`][vcjax.environment.waves.water_kinematics]) apply the
     water's acceleration to the rigid body's mass, ``M_RB [R^T a_w; 0]``; the Froude–Krylov load
-    is :func:`froude_krylov`. Their difference ``froude_krylov(...) - M_RB [R^T a_w; 0]`` is
+    is [`froude_krylov`][vcjax.environment.waves.froude_krylov]. Their difference
+    ``froude_krylov(...) - M_RB [R^T a_w; 0]`` is
     returned: exactly zero when the body is neutrally buoyant with CG = CB.
 
     Args:

@@ -1,10 +1,13 @@
 """The arm demo (``vcjax demo``): the generic engine on a non-marine system, a two-link arm
 whose end effector is held on a circle by virtual constraints.
 
-The ``arm`` loop (:class:`vcjax.loops.ArmLoop`: :mod:`vcjax.vehicles.arm`' two-link arm,
+The ``arm`` loop ([`vcjax.loops.ArmLoop`][vcjax.loops.arm.ArmLoop]:
+[`vcjax.vehicles.arm`][vcjax.vehicles.arm]' two-link arm,
 joint-torque limits 40 and 15 N m) on its default circle (centre (1.0, 0.6) m, radius 0.35 m,
-counter-clockwise), travelled at :data:`ARM_SPEED`; built with :func:`vcjax.loops.make_loop`,
-:func:`vcjax.loops.make_scenario` and :func:`vcjax.loops.simulate`, RK4 at :data:`ARM_DT`. The
+counter-clockwise), travelled at ``ARM_SPEED``; built with
+[`vcjax.loops.make_loop`][vcjax.loops.registry.make_loop],
+[`vcjax.loops.make_scenario`][vcjax.loops.scenario.make_scenario] and
+[`vcjax.loops.simulate`][vcjax.loops.disturbances.simulate], RK4 at ``ARM_DT``. The
 end effector starts 0.2 m off the circle, moving (joint angles (0.35, 1.3) rad, rates
 (0.2, -0.1) rad/s). The virtual constraints are the path errors ``[s, e]`` of the end effector
 in the particle's frame; the engine's reaction force makes each row of
@@ -37,7 +40,7 @@ REPORTED = ("ss_abs_e", "max_abs_e", "iae_e", "max_abs_torque", "sat_fraction", 
 def decay_extra(traj, gains) -> dict:
     """``phi_decay_error``: the largest ``|Phi_i(t) - Phi_i(0) exp(-P_Phi_i t)| / |Phi_i(0)|``
     over the run and both rows (0 for the exact decay (14)), an extra of
-    :func:`vcjax.metrics.run_metrics`."""
+    [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]."""
     phi = traj.aux.Phi
     t = traj.t[:-1] - traj.t[0]
     exact = phi[0] * jnp.exp(-gains.P_Phi[None, :] * t[:, None])
@@ -63,7 +66,7 @@ class Arm(Experiment):
         return loops.engine_gains(P_G=(2.0, 2.0), P_Phi=(1.5, 3.0), sigma=1.0)
 
     def metrics(self, outcome, setup) -> dict:
-        """:data:`REPORTED` and ``healthy`` (no state diverged)."""
+        """``REPORTED`` and ``healthy`` (no state diverged)."""
         traj = outcome.traj
         sig = outcome.loop.signals(traj, outcome.scenario)
         m = metrics.run_metrics(sig, traj.finite, setup.dt, extras=decay_extra(traj, outcome.gains))

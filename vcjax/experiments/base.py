@@ -1,12 +1,19 @@
-"""What an experiment is: :class:`Experiment` (loop, scenario, horizon, dt, typed options,
+"""What an experiment is: [`Experiment`][vcjax.experiments.base.Experiment] (loop, scenario,
+horizon, dt, typed options,
 figures, optional extras) and the one jitted runner every experiment's rollouts go through.
 
-An experiment is data: a frozen :class:`Experiment` subclass instance naming its runs
-(:meth:`Experiment.variants`), the loop and the scenario of each, its default horizon and step,
-its default current (or none), its options (a frozen :class:`Options` dataclass whose fields
-are typed; ``vcjax simulate NAME`` generates its flags from them, :func:`flags`), its metrics
-(the loop's :func:`vcjax.metrics.run_metrics` plus the experiment's own extras) and its
-figures. :meth:`Experiment.run` is the same for every experiment: roll every variant out with
+An experiment is data: a frozen [`Experiment`][vcjax.experiments.base.Experiment] subclass instance
+naming its runs
+([`Experiment.variants`][vcjax.experiments.base.Experiment.variants]), the loop and the scenario of
+each, its default horizon and step,
+its default current (or none), its options (a frozen [`Options`][vcjax.experiments.base.Options]
+dataclass whose fields
+are typed; ``vcjax simulate NAME`` generates its flags from them,
+[`flags`][vcjax.experiments.base.flags]), its metrics
+(the loop's [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics] plus the experiment's own
+extras) and its
+figures. [`Experiment.run`][vcjax.experiments.base.Experiment.run] is the same for every experiment:
+roll every variant out with
 the one jitted runner, measure, write ``metrics.json`` and the figures.
 
 The pieces, usable on their own (tests, notebooks, benchmarks)::
@@ -46,14 +53,16 @@ __all__ = [
     "rollout",
 ]
 
-#: The one jitted runner of every experiment: :func:`vcjax.loops.simulate` with the loop and the
+#: The one jitted runner of every experiment:
+# [`vcjax.loops.simulate`][vcjax.loops.disturbances.simulate] with the loop and the
 #: rollout configuration static (one compilation per loop and number of steps; gains, scenario
 #: and ``dt`` traced).
 rollout = jax.jit(loops.simulate, static_argnames=("loop", "config"))
 
 
 def option(default, help: str, metavar=None):
-    """A field of an :class:`Options` dataclass: its default, its ``--help`` line and (for an
+    """A field of an [`Options`][vcjax.experiments.base.Options] dataclass: its default, its
+    ``--help`` line and (for an
     option taking several numbers) the names of its values."""
     return dataclasses.field(default=default, metadata={"help": help, "metavar": metavar})
 
@@ -61,7 +70,8 @@ def option(default, help: str, metavar=None):
 @dataclasses.dataclass(frozen=True)
 class Options:
     """Base of an experiment's typed options (a frozen dataclass; each field an
-    :func:`option`). The field ``name`` is the flag ``--name`` (underscores as dashes) of
+    [`option`][vcjax.experiments.base.option]). The field ``name`` is the flag ``--name``
+    (underscores as dashes) of
     ``vcjax simulate`` for the experiments whose options have it, and of no other."""
 
     def __post_init__(self):
@@ -120,8 +130,9 @@ def _flag_type(hint) -> dict:
 
 
 def flags(options: type[Options]) -> list[tuple[str, dict]]:
-    """``[(flag, argparse keywords)]`` of an :class:`Options` class, one per field: the flag is
-    ``--`` + the field name with dashes, the keywords come from its type (:func:`_flag_type`)
+    """``[(flag, argparse keywords)]`` of an [`Options`][vcjax.experiments.base.Options] class, one
+    per field: the flag is
+    ``--`` + the field name with dashes, the keywords come from its type (``_flag_type``)
     and metadata; not given, an option is ``None`` (its default applies)."""
     hints = typing.get_type_hints(options)
     out = []
@@ -139,7 +150,7 @@ def flags(options: type[Options]) -> list[tuple[str, dict]]:
 class Setup(NamedTuple):
     """What one run of an experiment takes besides the gains: ``horizon`` and ``dt`` [s],
     ``current`` ``(north, east)`` [m/s] (``None`` for an experiment without one), ``options``
-    (the experiment's :class:`Options`)."""
+    (the experiment's [`Options`][vcjax.experiments.base.Options])."""
 
     horizon: float
     dt: float
@@ -168,10 +179,11 @@ class Experiment:
         name: what ``vcjax simulate NAME`` calls it.
         summary: one line for ``--help``.
         horizon, dt: default simulated time and RK4 step [s].
-        options: its :class:`Options` class (``vcjax simulate NAME``'s own flags).
+        options: its [`Options`][vcjax.experiments.base.Options] class (``vcjax simulate NAME``'s
+            own flags).
         current: default ocean current ``(north, east)`` [m/s]; ``None``: no ``--current``.
-        gains: whether it takes ``--gains`` (a gains JSON of its loop, :meth:`load_gains`).
-        integrator, timing: of its rollouts (:class:`~vcjax.rollout.RolloutConfig`; a
+        gains: whether it takes ``--gains`` (a gains JSON of its loop, ``load_gains``).
+        integrator, timing: of its rollouts ([`RolloutConfig`][vcjax.rollout.RolloutConfig]; a
             ``timing`` option, when the experiment has one, overrides ``timing``).
     """
 
@@ -237,7 +249,8 @@ class Experiment:
     # ------------------------------------------------------------------ the same for all
 
     def setup(self, horizon=None, dt=None, current=None, **options) -> Setup:
-        """A :class:`Setup`: the defaults where ``None``; ``options`` by field name (a name the
+        """A [`Setup`][vcjax.experiments.base.Setup]: the defaults where ``None``; ``options`` by
+        field name (a name the
         experiment's options do not have is a ``TypeError`` naming it)."""
         names = [f.name for f in dataclasses.fields(self.options)]
         for k in options:
@@ -269,9 +282,10 @@ class Experiment:
         return RolloutConfig(num_steps=setup.num_steps, integrator=self.integrator, timing=timing)
 
     def simulate(self, variant: str, setup: Setup | None = None, gains=None, scenario=None):
-        """Roll ``variant`` out (the jitted runner :data:`rollout`); returns the
-        :class:`~vcjax.rollout.Trajectory` (on the device). ``gains``: default
-        :meth:`default_gains`; ``scenario``: default :meth:`scenario`."""
+        """Roll ``variant`` out (the jitted runner [`rollout`][vcjax.loops.disturbances.simulate]);
+        returns the
+        [`Trajectory`][vcjax.rollout.Trajectory] (on the device). ``gains``: default
+        ``default_gains``; ``scenario``: default ``scenario``."""
         setup = self.setup() if setup is None else setup
         if not (setup.horizon > 0 and setup.dt > 0 and setup.horizon / setup.dt >= 1):
             raise ValueError(
@@ -284,7 +298,8 @@ class Experiment:
         return rollout(loop, gains, sc, self.rollout_config(setup), setup.dt)
 
     def outcome(self, variant, setup, traj, gains=None, scenario=None) -> Outcome:
-        """The :class:`Outcome` of a trajectory of ``variant`` (defaults as :meth:`simulate`)."""
+        """The [`Outcome`][vcjax.experiments.base.Outcome] of a trajectory of ``variant`` (defaults
+        as ``simulate``)."""
         gains = self.default_gains(variant, setup.options) if gains is None else gains
         sc = self.scenario(variant, setup) if scenario is None else scenario
         return Outcome(self.loop(variant, setup.options), sc, gains, traj)

@@ -1,30 +1,38 @@
 """REMUS 100 survey mission: 3-D VCM path maneuvering and baselines on the PVS plant.
 
 Mission (``vcjax simulate remus100``): start at the surface, descend to ``depth`` metres over the
-first ``descent`` metres of a lawnmower (:func:`vcjax.paths.lawnmower`, legs along north joined by
+first ``descent`` metres of a lawnmower ([`vcjax.paths.lawnmower`][vcjax.paths.lawnmower], legs
+along north joined by
 half circles), under a constant current of ``V_c`` m/s towards the east — across the legs. The
-plant is :func:`vcjax.vehicles.remus100.remus100_plant` (PythonVehicleSimulator's model, hard
+plant is [`remus100_plant`][vcjax.vehicles.remus100.remus100_plant] (PythonVehicleSimulator's model,
+hard
 actuator limits and lags); every law's body force goes through the same actuator map
-(:func:`vcjax.vehicles.remus100_design.actuator_map`). The controller is sampled (zero-order
+([`actuator_map`][vcjax.vehicles.remus100_design.actuator_map]). The controller is sampled
+(zero-order
 hold at the step ``dt``), the plant integrated by RK4. With ``--waves HS TP DIR_DEG`` every
-variant meets the same random sea (:mod:`vcjax.experiments.seas`) on top of the current.
+variant meets the same random sea ([`vcjax.experiments.seas`][vcjax.experiments.seas]) on top of the
+current.
 
-Variants (:data:`VARIANTS`):
+Variants (``VARIANTS``):
 
-* ``vcm3d_ilos``: 3-D VCM (:mod:`vcjax.control.vcm3d`), underactuated in sway and heave,
+* ``vcm3d_ilos``: 3-D VCM ([`vcjax.control.vcm3d`][vcjax.control.vcm3d]), underactuated in sway and
+heave,
   integral action and integral-LOS angles in both planes;
 * ``vcm3d``: the same with the paper's approach angles (24) (integral action kept);
 * ``decoupled``: the paper's design — horizontal VCM (31)/(38) with ILOS and integral action +
-  depth through pitch (:func:`vcjax.control.baselines3d.decoupled_law`);
+  depth through pitch ([`decoupled_law`][vcjax.control.baselines3d.decoupled_law]);
 * ``alos3d``: ALOS3D guidance (Fossen & Aguiar 2024) + PID heading/pitch autopilots + surge PI;
 * ``pvs_pid``: heading/depth PID autopilots with plain LOS angles (PVS-like sanity run).
 
-Options (``vcjax simulate remus100``): ``--diverge-e`` (default :data:`OFF_PATH_M`),
+Options (``vcjax simulate remus100``): ``--diverge-e`` (default ``OFF_PATH_M``),
 ``--waves``/``--wave-seed``.
 
-Metrics (:meth:`Remus100.metrics`): :func:`vcjax.metrics.run_metrics` with the mission's extras
-(:func:`mission_extras`): the 3-D distance to the path is measured geometrically (nearest point
-of a dense polyline of the path, :func:`vcjax.metrics.polyline_nearest`), independent of each
+Metrics ([`Remus100.metrics`][vcjax.experiments.remus100.Remus100.metrics]):
+[`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics] with the mission's extras
+([`mission_extras`][vcjax.experiments.remus100.mission_extras]): the 3-D distance to the path is
+measured geometrically (nearest point
+of a dense polyline of the path,
+[`vcjax.metrics.polyline_nearest`][vcjax.metrics.polyline_nearest]), independent of each
 law's own error signals.
 """
 
@@ -66,8 +74,10 @@ LABELS = {
 #: desired speed [m/s]
 U_D = 1.5
 
-#: ``metrics.json`` per variant: its name -> the name in :func:`vcjax.metrics.run_metrics`'s
-#: result (the mission's extras, :func:`mission_extras`, and the generic ``sat_fraction``)
+#: ``metrics.json`` per variant: its name -> the name in
+# [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]'s
+#: result (the mission's extras, [`mission_extras`][vcjax.experiments.remus100.mission_extras], and
+# the generic ``sat_fraction``)
 REPORTED = {
     "rms_dist_3d": "rms_geo_dist_3d",
     "max_dist_3d": "max_geo_dist_3d",
@@ -97,7 +107,8 @@ class Remus100Options(PathBound, WaveOptions):
 def mission_geometry(pos, path, coeffs, dw=0.25):
     """Where positions (N, 3) are relative to the survey path, geometrically: ``(dist, w, e,
     h)`` (N,) each — the distance to the path's polyline (sampled every ``dw`` from 20 m
-    before the start to 600 m past the end, :func:`vcjax.metrics.polyline_nearest`) [m], the
+    before the start to 600 m past the end,
+    [`vcjax.metrics.polyline_nearest`][vcjax.metrics.polyline_nearest]) [m], the
     path parameter of the nearest point, the horizontal cross-track offset (positive to the
     right of the path's tangent) and the depth offset (positive deeper) [m]."""
     c = coeffs
@@ -111,10 +122,12 @@ def mission_geometry(pos, path, coeffs, dw=0.25):
 
 
 def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25, off_path=OFF_PATH_M) -> dict:
-    """The mission's metrics as extras of :func:`vcjax.metrics.run_metrics` (jnp).
+    """The mission's metrics as extras of [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]
+    (jnp).
 
     The distance to the path is geometric: every state's position against a polyline of the
-    path sampled every ``dw`` parameter units (:func:`vcjax.metrics.polyline_nearest`),
+    path sampled every ``dw`` parameter units
+    ([`vcjax.metrics.polyline_nearest`][vcjax.metrics.polyline_nearest]),
     independent of each law's own error signals and particle.
 
     * ``rms_geo_dist_3d``, ``max_geo_dist_3d`` [m]: distance once the first leg is done;
@@ -123,14 +136,14 @@ def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25, off_path=OFF_PATH_
       after the first, ``settle`` metres after each turn; ``ss_geo_dist_3d`` [m]: max 3-D
       distance there;
     * ``mission_healthy``: every step finite and within the rollout's bound
-      (:attr:`~vcjax.rollout.Trajectory.healthy`), and the vehicle within ``off_path`` [m]
-      (default :data:`OFF_PATH_M`; ``vcjax simulate remus100 --diverge-e M``) of the path
+      ([`healthy`][vcjax.rollout.Trajectory.healthy]), and the vehicle within ``off_path`` [m]
+      (default ``OFF_PATH_M``; ``vcjax simulate remus100 --diverge-e M``) of the path
       throughout;
     * ``end_w``: the path parameter nearest to the final position.
 
     Args:
         traj: the run (every state's position is measured, the final one included).
-        path, coeffs: the survey path (:func:`mission_path`).
+        path, coeffs: the survey path (``mission_path``).
     """
     c = coeffs
     L, R, n = float(c.leg), float(c.radius), int(c.n_legs)
@@ -165,7 +178,7 @@ def mission_extras(traj, path, coeffs, settle=150.0, dw=0.25, off_path=OFF_PATH_
 @dataclasses.dataclass(frozen=True)
 class Remus100(Experiment):
     """The survey mission: every controller of the ``remus100`` loop on its default lawnmower
-    (:meth:`vcjax.loops.remus100.Remus100Loop.default_path`), sampled controller."""
+    ([`default_path`][vcjax.loops.remus100.Remus100Loop.default_path]), sampled controller."""
 
     json_newline = False
 
@@ -191,8 +204,10 @@ class Remus100(Experiment):
         return OFF_PATH_M if b is None else metrics.path_bound(0.0, 0.0, b)
 
     def metrics(self, outcome, setup) -> dict:
-        """:data:`REPORTED` as Python values: :func:`vcjax.metrics.run_metrics` of the loop's
-        signals with the mission's extras (:func:`mission_extras`)."""
+        """``REPORTED`` as Python values: [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]
+        of the loop's
+        signals with the mission's extras
+        ([`mission_extras`][vcjax.experiments.remus100.mission_extras])."""
         traj, sc, loop = outcome.traj, outcome.scenario, outcome.loop
         sig = loop.signals(traj, sc)
         dt = traj.t[1] - traj.t[0]
@@ -258,8 +273,9 @@ REMUS100 = Remus100(
 
 
 def undefined_reasons(m: dict, coeffs, horizon: float, settle: float = 150.0) -> dict:
-    """Why each metric of one run's :func:`mission_metrics` ``m`` that is NaN could not be
-    computed (:func:`vcjax.metrics.undefined_metrics`): the windows of the mission's metrics
+    """Why each metric of one run's ``mission_metrics`` ``m`` that is NaN could not be
+    computed ([`undefined_metrics`][vcjax.metrics.undefined_metrics]): the windows of the mission's
+    metrics
     are where the vehicle went (after the first leg; the straight legs after the first,
     ``settle`` metres past each turn), so a run too short to reach them has none."""
     L, R = float(coeffs.leg), float(coeffs.radius)

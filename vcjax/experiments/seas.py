@@ -1,5 +1,6 @@
 """The sea of ``vcjax simulate NAME --waves HS TP DIR_DEG``, shared by the experiments whose loops
-feel waves (``remus100``, ``sim2``): the options (:class:`WaveOptions`), one long-crested JONSWAP
+feel waves (``remus100``, ``sim2``): the options
+([`WaveOptions`][vcjax.experiments.seas.WaveOptions]), one long-crested JONSWAP
 sea drawn from ``PRNGKey(--wave-seed)`` and the record of it that goes into ``metrics.json``."""
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ COMPONENTS = 64
 @dataclasses.dataclass(frozen=True)
 class WaveOptions(Options):
     """``--waves HS TP DIR_DEG`` and ``--wave-seed N``: every run in one random sea
-    (:func:`option_sea`)."""
+    ([`option_sea`][vcjax.experiments.seas.option_sea])."""
 
     waves: tuple[float, float, float] | None = option(
         None,
@@ -67,8 +68,8 @@ class WaveOptions(Options):
 
 def option_sea(waves, seed: int = 0) -> wv.Sea:
     """The sea of ``--waves HS TP DIR_DEG`` (``waves``: those three numbers, the direction in
-    degrees towards which the waves travel): :func:`vcjax.environment.waves.sea_state` with
-    :data:`SPECTRUM`, :data:`GAMMA` and :data:`COMPONENTS`, long-crested, from
+    degrees towards which the waves travel): [`sea_state`][vcjax.environment.waves.sea_state] with
+    ``SPECTRUM``, ``GAMMA`` and ``COMPONENTS``, long-crested, from
     ``PRNGKey(seed)``."""
     hs, tp, direction_deg = (float(v) for v in waves)
     key = jax.random.PRNGKey(seed)
@@ -84,7 +85,8 @@ def option_sea(waves, seed: int = 0) -> wv.Sea:
 
 
 def option_sea_record(waves, seed: int, origin_depth: float) -> dict:
-    """What ``metrics.json`` records of the sea of :func:`option_sea` (``origin_depth``: the
+    """What ``metrics.json`` records of the sea of [`option_sea`][vcjax.experiments.seas.option_sea]
+    (``origin_depth``: the
     NED origin's depth below the mean free surface [m])."""
     hs, tp, direction = (float(x) for x in waves)
     return {

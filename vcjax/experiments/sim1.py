@@ -15,13 +15,15 @@ INFANTE-class (NPS-AUV-derived) plant, underactuated in sway; path ``p_p(w) = [1
   and surge loop as ``ilos`` and ``los_pid``.
 
 Every controller maps its ``[tau_u, tau_r]`` to thrust and rudder commands with the vehicle's
-actuator model (:func:`vcjax.vehicles.infante.actuator_commands`), using the *measured* velocity
+actuator model ([`actuator_commands`][vcjax.vehicles.infante.actuator_commands]), using the
+*measured* velocity
 over ground (the current is unknown).
 
 Options (``vcjax simulate sim1``): ``--edd`` (which ``e_ddot`` enters ``psi_d_ddot``),
 ``--timing`` (controller evaluated at every RK4 stage or once per step), ``--diverge-e``.
-Metrics: :func:`vcjax.metrics.run_metrics` over the last 20 % of the run, :data:`METRIC_KEYS`,
-with the experiment's health extras (:func:`health_extras`).
+Metrics: [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics] over the last 20 % of the run,
+``METRIC_KEYS``,
+with the experiment's health extras ([`health_extras`][vcjax.experiments.sim1.health_extras]).
 """
 
 from __future__ import annotations
@@ -48,7 +50,8 @@ __all__ = [
 VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos", "alos")
 #: The four controllers of the paper's comparison (Simulation 1).
 PAPER_VARIANTS = VARIANTS[:4]
-#: What ``metrics.json`` reports per variant (see :mod:`vcjax.metrics`), plus ``healthy`` and
+#: What ``metrics.json`` reports per variant (see [`vcjax.metrics`][vcjax.metrics]), plus
+# ``healthy`` and
 #: ``unhealthy_step``.
 METRIC_KEYS = (
     "ss_abs_e",
@@ -68,7 +71,7 @@ TAIL = 0.2
 @dataclasses.dataclass(frozen=True)
 class Sim1Options(PathBound):
     """Options of ``vcjax simulate sim1`` (``--diverge-e`` default: 25 % of ``u_d x
-    horizon``, at least 50 m, :func:`vcjax.metrics.path_bound`)."""
+    horizon``, at least 50 m, [`vcjax.metrics.path_bound`][vcjax.metrics.path_bound])."""
 
     edd: Literal["paper", "implied"] = option(
         "paper", "which e_ddot enters psi_d_ddot (paper = reference mode)"
@@ -79,9 +82,10 @@ class Sim1Options(PathBound):
 
 
 def health_extras(traj, bound: float) -> dict:
-    """Simulation 1's health as extras of :func:`vcjax.metrics.run_metrics` (jnp):
+    """Simulation 1's health as extras of [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]
+    (jnp):
     ``unhealthy_step``, the first step whose state diverged (non-finite or beyond the rollout's
-    bound, :attr:`vcjax.rollout.Trajectory.diverged`) or whose cross-track error left ``bound``
+    bound, ``diverged``) or whose cross-track error left ``bound``
     [m] (NaN counts), -1 if none; ``healthy``, whether there is none."""
 
     def bad(sig):
@@ -115,9 +119,10 @@ class Sim1(Experiment):
         return loops.make_scenario(loop, eta0=ETA0, nu0=NU0, current=setup.current, u_d=U_D)
 
     def metrics(self, outcome, setup) -> dict:
-        """:data:`METRIC_KEYS`, ``healthy`` (no step diverged: every state finite and within
+        """``METRIC_KEYS``, ``healthy`` (no step diverged: every state finite and within
         the rollout's bound, and the cross-track error within the path bound
-        :func:`vcjax.metrics.path_bound`, default scaled to ``u_d x horizon``, or
+        [`vcjax.metrics.path_bound`][vcjax.metrics.path_bound], default scaled to ``u_d x horizon``,
+        or
         ``--diverge-e`` [m]) and ``unhealthy_step`` (the first such step, or ``None``)."""
         traj, sc = outcome.traj, outcome.scenario
         sig = outcome.loop.signals(traj, sc)

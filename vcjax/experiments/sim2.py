@@ -3,19 +3,23 @@ helix.
 
 Scenario (paper): from rest at ``p0 = [0, 0, -102]`` (used as NED coordinates, as printed),
 constant body disturbance ``tau_dist = [0, 5, 0]`` N, helix
-``p_p(w) = [10 sin(w/5), 8 cos(w/5), 0.1 w - 100]`` (:func:`vcjax.paths.paper_helix`). The paper
+``p_p(w) = [10 sin(w/5), 8 cos(w/5), 0.1 w - 100]``
+([`vcjax.paths.paper_helix`][vcjax.paths.paper_helix]). The paper
 does not give the speed, the initial heading or the gains; here ``u_d = 0.5 m/s`` (ODIN-class
 cruise limit ~1 m/s at full surge force), ``psi0 = 0`` (the helix's tangent at ``w = 0``), and
-the gains of :func:`default_gains`.
+the gains of ``default_gains``.
 
-Control loop: :class:`vcjax.loops.odin.OdinLoop` (horizontal VCM law + depth PID + roll/pitch
+Control loop: [`vcjax.loops.odin.OdinLoop`][vcjax.loops.odin.OdinLoop] (horizontal VCM law + depth
+PID + roll/pitch
 PD + thruster allocation), continuous-time, evaluated inside the integrator like Simulation 1;
 controller ``"vcm"`` (underactuated, the paper) or ``"vcm_full"`` (sway thrust available).
 
 Options (``vcjax simulate sim2``): ``--actuation`` (the headline mode; the other is run for
-comparison), ``--diverge-e``, ``--waves``/``--wave-seed`` (:mod:`vcjax.experiments.seas`).
+comparison), ``--diverge-e``, ``--waves``/``--wave-seed``
+([`vcjax.experiments.seas`][vcjax.experiments.seas]).
 
-Metrics (:meth:`Sim2.metrics`) are evaluated after the first 20 % of the run (the approach from
+Metrics ([`Sim2.metrics`][vcjax.experiments.sim2.Sim2.metrics]) are evaluated after the first 20 %
+of the run (the approach from
 8 m away is a transient): ``rms_dist_3d`` / ``max_dist_3d`` (3-D distance between the vehicle and
 the path particle ``p_p(w)``), ``rms_depth_err``, ``thruster_sat_fraction`` (fraction of steps in
 which at least one thruster is commanded at its limit, whole run).
@@ -60,7 +64,8 @@ WAVE_ORIGIN_DEPTH = 107.0
 @dataclasses.dataclass(frozen=True)
 class Sim2Options(PathBound, WaveOptions):
     """Options of ``vcjax simulate sim2`` (``--diverge-e`` default: 25 % of ``u_d x
-    horizon``, at least 50 m, :func:`vcjax.metrics.path_bound`). The loop's own options
+    horizon``, at least 50 m, [`vcjax.metrics.path_bound`][vcjax.metrics.path_bound]). The loop's
+    own options
     (integral action, ``edd``, allocation polish) are the ``odin`` loop's defaults."""
 
     actuation: Literal["underactuated", "full"] = option(
@@ -70,7 +75,8 @@ class Sim2Options(PathBound, WaveOptions):
 
 
 #: ``metrics.json`` per actuation mode: its name -> the name in
-#: :func:`vcjax.metrics.run_metrics`'s result (generic metrics and :func:`sim2_extras`)
+#: [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]'s result (generic metrics and
+# [`sim2_extras`][vcjax.experiments.sim2.sim2_extras])
 REPORTED = {
     "rms_dist_3d": "rms_dist_3d",
     "max_dist_3d": "max_dist_3d",
@@ -91,14 +97,15 @@ REPORTED = {
 
 
 def sim2_extras(traj, bound: float) -> dict:
-    """Simulation 2's own metrics as extras of :func:`vcjax.metrics.run_metrics` (jnp): the
+    """Simulation 2's own metrics as extras of
+    [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics] (jnp): the
     ODIN-class diagnostics over the steady-state window ``win`` (states before each step) —
     ``mean_abs_sideslip_deg`` (``atan2(v, u)``), ``mean_speed`` (of the linear velocity),
     ``max_abs_roll_pitch_deg`` (the window's states and the final one); over the whole run —
     ``alloc_infeasible_fraction``, ``max_alloc_residual`` (the thruster allocation),
     ``final_varpi``; the window's start ``settled_from_s`` and the run's ``horizon_s`` [s]; and
     ``run_healthy``: no step diverged and the vehicle never further than ``bound`` [m] from the
-    path particle's point (:func:`vcjax.metrics.path_bound`)."""
+    path particle's point ([`vcjax.metrics.path_bound`][vcjax.metrics.path_bound])."""
     nu = traj.x.nu[:-1]
     t = traj.t[:-1]
 
@@ -146,7 +153,7 @@ class Sim2(Experiment):
 
     def scenario(self, variant: str = "underactuated", setup=None) -> loops.Scenario:
         """The paper's scenario (the same for both modes); with ``--waves`` the sea, the NED
-        origin :data:`WAVE_ORIGIN_DEPTH` below the mean free surface."""
+        origin ``WAVE_ORIGIN_DEPTH`` below the mean free surface."""
         setup = self.setup() if setup is None else setup
         vehicle = odin.odin_params()
         args = odin.odin_args(vehicle, TAU_DIST)  # tau_dist (3,) -> (6,)
@@ -170,10 +177,13 @@ class Sim2(Experiment):
         return sc._replace(sea=sea, origin_depth=jnp.asarray(WAVE_ORIGIN_DEPTH, sc.eta0.dtype))
 
     def metrics(self, outcome, setup) -> dict:
-        """:data:`REPORTED` of one run as Python values: :func:`vcjax.metrics.run_metrics`
+        """``REPORTED`` of one run as Python values:
+        [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]
         from ``SKIP x T`` on (``thruster_sat_fraction`` is its ``sat_fraction``, whole run)
-        with :func:`sim2_extras`; ``healthy`` also needs the vehicle within the path-error
-        bound (:func:`vcjax.metrics.path_bound`, scaled to ``u_d x horizon``, or
+        with [`sim2_extras`][vcjax.experiments.sim2.sim2_extras]; ``healthy`` also needs the vehicle
+        within the path-error
+        bound ([`vcjax.metrics.path_bound`][vcjax.metrics.path_bound], scaled to ``u_d x horizon``,
+        or
         ``--diverge-e`` [m])."""
         traj, sc = outcome.traj, outcome.scenario
         sig = outcome.loop.signals(traj, sc)

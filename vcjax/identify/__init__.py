@@ -1,12 +1,14 @@
 """System identification: fit a vehicle's plant parameters to logged runs (``vcjax fit``).
 
-* :mod:`~vcjax.identify.data`: CSV / npz logs, checked eagerly (file, column and line named).
-* :mod:`~vcjax.identify.models`: per-vehicle channels and one discrete step (PVS or integrator).
-* :mod:`~vcjax.identify.lm`: Levenberg–Marquardt for the block-arrow multiple-shooting problem.
-* :mod:`~vcjax.identify.shooting`: the multiple-shooting problem (segments, scaling, residuals).
-* :mod:`~vcjax.identify.fit`: the fit (two weighted fits), standard errors, correlations and
-  identifiability warnings, :class:`FitResult`.
-* :mod:`~vcjax.identify.config`: the TOML schema and the runner writing ``fit.json`` and figures.
+* [`data`][vcjax.identify.data]: CSV / npz logs, checked eagerly (file, column and line named).
+* [`models`][vcjax.identify.models]: per-vehicle channels and one discrete step (PVS or integrator).
+* [`lm`][vcjax.identify.lm]: Levenberg–Marquardt for the block-arrow multiple-shooting problem.
+* [`shooting`][vcjax.identify.shooting]: the multiple-shooting problem (segments, scaling,
+residuals).
+* [`fit`][vcjax.identify.fit]: the fit (two weighted fits), standard errors, correlations and
+  identifiability warnings, [`FitResult`][vcjax.identify.fit.FitResult].
+* [`config`][vcjax.identify.config]: the TOML schema and the runner writing ``fit.json`` and
+figures.
 """
 
 from vcjax.identify.config import load_fit_config, run_fit_config

@@ -1,16 +1,16 @@
 """What ``vcjax fit`` checks so that it does not return a confident wrong answer.
 
 Before fitting (errors, ``ValueError`` naming the log, the column and the samples; the CLI exits
-with code 2 before anything is compiled), :func:`check_logs`:
+with code 2 before anything is compiled), [`check_logs`][vcjax.identify.checks.check_logs]:
 
 * **each log once**: two logs with the same samples (a file listed twice, or a copy) would
   count every residual twice and make every standard error sqrt(2) too small;
-* **time in seconds**: a median time step above :data:`MAX_STEP_S` (2 s) only makes sense if
+* **time in seconds**: a median time step above ``MAX_STEP_S`` (2 s) only makes sense if
   ``t`` is in milliseconds (a 20 ms step read as 20 s), and is named as such; and the
   positions must cover the distance the logged speed gives over the time steps (within a
-  factor :data:`MAX_MOTION_RATIO`; a log in minutes covers 60 x as much). Time is checked
+  factor ``MAX_MOTION_RATIO``; a log in minutes covers 60 x as much). Time is checked
   before the angles, so that minutes are not blamed on a heading turning 60 x too fast;
-* **uniform sampling**: every step within :data:`SAMPLING_RTOL` (0.1 %) of the median step;
+* **uniform sampling**: every step within ``SAMPLING_RTOL`` (0.1 %) of the median step;
   otherwise the samples around the first gap are named (a 0.24 s gap in a 0.02 s log turns
   one shooting step into a 12x longer Euler step and biases the fit);
 * **angles in radians**: an angle column (unit ``rad``) other than the heading whose magnitude
@@ -20,32 +20,35 @@ with code 2 before anything is compiled), :func:`check_logs`:
   derivative of its angle (``r`` and ``psi``, ``q`` and ``theta``, ``p`` and ``phi``;
   differences over 0.5 s, so that sensor noise does not dominate), or an actuator 180/pi times
   its command (or the other way round), names the one in degrees -- where the two move together
-  (correlation above :data:`MIN_PAIR_CORRELATION`); a channel that hardly moves (the roll of a
+  (correlation above ``MIN_PAIR_CORRELATION``); a channel that hardly moves (the roll of a
   noisy REMUS 100 log) gives no evidence and is not judged;
 * **actuators within their limits**: an actuator state beyond its limit (x
-  :data:`ACTUATOR_MARGIN`; the plant saturates it there, e.g. REMUS 100's rudder at 15 deg =
+  ``ACTUATOR_MARGIN``; the plant saturates it there, e.g. REMUS 100's rudder at 15 deg =
   0.262 rad) is in degrees -- which also catches an actuator and its command both in degrees,
   where the pair agrees.
 
-Before fitting, once the Jacobian is compiled, :func:`check_excitation`: each fitted
+Before fitting, once the Jacobian is compiled,
+[`check_excitation`][vcjax.identify.checks.check_excitation]: each fitted
 parameter's *sensitivity* -- the RMS change of the weighted residuals per unit relative change
 of the parameter, ``sqrt(I_ii / m)`` with ``I`` the Fisher information (profiled over the
 segments' initial states) and ``m`` the number of residuals -- at the initial estimate. A
-parameter whose sensitivity is below :data:`MIN_SENSITIVITY` (absolute) or
-:data:`MIN_RELATIVE_SENSITIVITY` x the largest one is not excited by the logs: an error naming
+parameter whose sensitivity is below ``MIN_SENSITIVITY`` (absolute) or
+``MIN_RELATIVE_SENSITIVITY`` x the largest one is not excited by the logs: an error naming
 it (a log without excitation, all zeros, cannot estimate a rudder coefficient). Then
-:func:`conditioning_before_fit`: the information matrix's condition number (unit diagonal) at
-the initial estimate; above :data:`MAX_CONDITION` a warning names the combination of parameters
+[`conditioning_before_fit`][vcjax.identify.checks.conditioning_before_fit]: the information matrix's
+condition number (unit diagonal) at
+the initial estimate; above ``MAX_CONDITION`` a warning names the combination of parameters
 the logs hardly determine (the weakest eigenvector's main components: ``A_r`` and
 ``CL_delta_r`` entering only as a product). A warning, not a refusal: the fit may move to where
 the data do separate them, and the same check after fitting decides whether it is trusted.
 
-After fitting, :func:`trust_warnings`: a zero or non-finite standard error, an estimate outside
-the plausible range (more than a factor :data:`PLAUSIBLE_FACTOR` from the nominal value: the fit
+After fitting, [`trust_warnings`][vcjax.identify.checks.trust_warnings]: a zero or non-finite
+standard error, an estimate outside
+the plausible range (more than a factor ``PLAUSIBLE_FACTOR`` from the nominal value: the fit
 runs on a log scale, so this is its bound; for a coefficient of an actuator's angle,
-``FitModel.actuator_coeffs``, a factor :data:`ACTUATOR_PLAUSIBLE_FACTOR`: an actuator logged in
+``FitModel.actuator_coeffs``, a factor ``ACTUATOR_PLAUSIBLE_FACTOR``: an actuator logged in
 degrees scales it by about pi/180), or an information matrix whose condition number
-(normalised to unit diagonal) exceeds :data:`MAX_CONDITION` is a warning, and the fit is marked
+(normalised to unit diagonal) exceeds ``MAX_CONDITION`` is a warning, and the fit is marked
 ``converged: false`` (the optimum is not trustworthy).
 """
 
@@ -90,7 +93,8 @@ MAX_CONDITION = 1e10
 #: Logged actuator states may exceed their limit by this factor (sensor noise) before they are
 #: read as degrees.
 ACTUATOR_MARGIN = 1.05
-#: Estimates of an actuator's coefficient (:attr:`FitModel.actuator_coeffs`) more than this
+#: Estimates of an actuator's coefficient
+# ([`FitModel.actuator_coeffs`][vcjax.identify.FitModel.actuator_coeffs]) more than this
 #: factor from the nominal value are not trusted: an actuator logged in degrees scales it by
 #: pi/180 = 1/57.3 (or, through saturating commands, by less).
 ACTUATOR_PLAUSIBLE_FACTOR = 10.0
@@ -299,7 +303,7 @@ def sensitivities(info: np.ndarray, m: float) -> np.ndarray:
 
 def check_excitation(names: Sequence[str], info: np.ndarray, m: float) -> np.ndarray:
     """Raise ``ValueError`` naming the parameters the logs do not excite; returns the
-    sensitivities (:func:`sensitivities`)."""
+    sensitivities ([`sensitivities`][vcjax.identify.checks.sensitivities])."""
     sens = sensitivities(info, m)
     top = float(np.max(sens)) if sens.size else 0.0
     if not np.all(np.isfinite(sens)):
@@ -325,7 +329,7 @@ def check_excitation(names: Sequence[str], info: np.ndarray, m: float) -> np.nda
 
 def conditioning_before_fit(names: Sequence[str], info: np.ndarray) -> str | None:
     """A warning when the Fisher information at the initial estimate, normalised to unit
-    diagonal, has a condition number above :data:`MAX_CONDITION` (or is singular): names the
+    diagonal, has a condition number above ``MAX_CONDITION`` (or is singular): names the
     parameters that carry the weakest direction (eigenvector components of at least 0.3 in
     magnitude, with their signs); ``None`` when it is well conditioned or not finite (the
     excitation check reports that)."""
@@ -366,7 +370,7 @@ def trust_warnings(
     """Warnings that make an optimum untrustworthy (see the module docstring); empty when the
     fit can be trusted. ``scale_names``: the parameters fitted on a log scale (default all
     but the current's); ``actuator_coeffs``: those that multiply an actuator's angle (a
-    narrower plausible range, :data:`ACTUATOR_PLAUSIBLE_FACTOR`)."""
+    narrower plausible range, ``ACTUATOR_PLAUSIBLE_FACTOR``)."""
     out = []
     for n in names:
         s = std.get(n)

@@ -17,7 +17,8 @@ segment_steps = 50
 max_iters = 50
 ```
 
-Every error is a :class:`vcjax.config.ConfigError` (the one error class of every command) naming
+Every error is a [`vcjax.config.ConfigError`][vcjax.config.values.ConfigError] (the one error class
+of every command) naming
 the config file, the section and the key; a log's errors name the log file and the column.
 Unknown sections and keys are rejected.
 """
@@ -94,9 +95,10 @@ FIT_SCHEMA: dict[str, dict[str, object]] = {
 
 @dataclasses.dataclass(frozen=True)
 class FitConfig(FrozenSection):
-    """A ``vcjax fit`` config, parsed once (:func:`load_fit_config`), frozen and hashable:
+    """A ``vcjax fit`` config, parsed once
+    ([`load_fit_config`][vcjax.identify.config.load_fit_config]), frozen and hashable:
     ``cfg.model.vehicle`` (or ``cfg["model"]["vehicle"]``); ``path``: the file it was read
-    from (not a section: :meth:`to_dict` holds the sections, ``run.json`` records the file)."""
+    from (not a section: ``to_dict`` holds the sections, ``run.json`` records the file)."""
 
     data: FitData = FitData()
     model: FitModel = FitModel()
@@ -106,7 +108,8 @@ class FitConfig(FrozenSection):
 
 def load_fit_config(path) -> FitConfig:
     """Parse and check a ``vcjax fit`` config (nothing is loaded or compiled): the sections
-    declared above through the one validator (:func:`vcjax.config.parse_section`), then the
+    declared above through the one validator
+    ([`vcjax.config.parse_section`][vcjax.config.schema.parse_section]), then the
     names against the vehicle.
 
     Raises:
@@ -226,7 +229,7 @@ def run_fit_config(
 
 
 #: (section, key) -> (unit, description) of every fit key; the configuration reference is
-#: generated from it and :data:`FIT_SCHEMA`
+#: generated from it and [`FIT_SCHEMA`][vcjax.identify.config.FIT_SCHEMA]
 KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     ("data", "files"): ("file", "logs (.csv or .npz), relative to the config file (required)"),
     ("model", "vehicle"): ("", "the vehicle whose plant is fitted: remus100 or infante"),

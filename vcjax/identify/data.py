@@ -1,8 +1,8 @@
 """Logged trajectories for identification: loading and checking CSV / npz logs.
 
 A log holds, per sample k = 0..N-1, the time ``t`` [s], the vehicle's state columns (pose,
-velocity, actuator states; :attr:`FitModel.state_columns`) and the command columns applied from
-sample k to k+1 (:attr:`FitModel.command_columns`); the last row's command is never used. This is
+velocity, actuator states; ``FitModel.state_columns``) and the command columns applied from
+sample k to k+1 (``FitModel.command_columns``); the last row's command is never used. This is
 the layout of ``tests/data/remus100_pvs_reference.csv``:
 
 * CSV (UTF-8, with or without a byte-order mark): an optional first line starting with ``#``
@@ -154,7 +154,8 @@ def load_log(path, state_columns, command_columns) -> Log:
 
 
 def save_log_csv(path, t, x, u, state_columns, command_columns, provenance: str = "") -> Path:
-    """Write a log in the CSV layout :func:`load_log` reads (10 significant digits)."""
+    """Write a log in the CSV layout [`load_log`][vcjax.identify.data.load_log] reads (10
+    significant digits)."""
     path = Path(path)
     table = np.column_stack([np.asarray(t), np.asarray(x), np.asarray(u)])
     header = ",".join(("t",) + tuple(state_columns) + tuple(command_columns))

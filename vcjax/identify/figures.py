@@ -75,7 +75,7 @@ def cost_history_figure(result, path) -> Path:
 
 def _save_fit(fig, path: Path, result) -> Path:
     """Lay out, write the fit's warnings (and an untrusted optimum) into the figure in red,
-    save atomically (:func:`vcjax.runtime.outputs.savefig_atomic`), close."""
+    save atomically ([`savefig_atomic`][vcjax.runtime.outputs.savefig_atomic]), close."""
     from vcjax.runtime.outputs import savefig_atomic
 
     bottom = _warnings_text(fig, result)

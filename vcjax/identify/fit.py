@@ -1,6 +1,8 @@
-"""Fitting logs by multiple shooting (:mod:`vcjax.identify.shooting` states the problem): the
+"""Fitting logs by multiple shooting ([`vcjax.identify.shooting`][vcjax.identify.shooting] states
+the problem): the
 two Levenberg–Marquardt fits (spread weights, then noise weights), standard errors by the delta
-method, identifiability and trust warnings, and the result (:class:`FitResult`, ``fit.json``).
+method, identifiability and trust warnings, and the result
+([`FitResult`][vcjax.identify.fit.FitResult], ``fit.json``).
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ CORRELATION_WARN = 0.99
 
 @dataclasses.dataclass
 class FitResult:
-    """What :func:`fit_logs` found (plain Python / numpy; ``to_json`` gives fit.json's content).
+    """What [`fit_logs`][vcjax.identify.fit.fit_logs] found (plain Python / numpy; ``to_json`` gives
+    fit.json's content).
 
     Attributes:
         names: the fitted quantities (parameters, then ``current_speed``,
@@ -49,17 +52,19 @@ class FitResult:
         cost_history: cost of every iteration of both stages (weights of each stage).
         stage_iterations: iterations of each stage run (stage 2 is skipped when stage 1 fits
             the data to round-off); iterations: their sum; converged: the last stage converged
-            *and* the optimum is trustworthy (:func:`vcjax.identify.checks.trust_warnings`:
+            *and* the optimum is trustworthy
+            ([`trust_warnings`][vcjax.identify.checks.trust_warnings]:
             finite, non-zero standard errors, estimates inside the plausible range, a
             well-conditioned information matrix).
         wall_time_s: seconds, including compilation.
         warnings: identifiability (and convergence) warnings.
-        z: (q,) the scaled estimate; problem: the :class:`ShootingProblem`.
+        z: (q,) the scaled estimate; problem: the
+            [`ShootingProblem`][vcjax.identify.shooting.ShootingProblem].
         s: (J, n_x) the segments' fitted initial states; weights: (n_x,) the last stage's
             residual weights (``problem.residuals(z, s, segments, weights)`` is the fitted
             residual vector); sensitivity: name -> RMS change of the weighted residuals per
             unit relative change, at the initial estimate
-            (:func:`vcjax.identify.checks.sensitivities`).
+            ([`sensitivities`][vcjax.identify.checks.sensitivities]).
     """
 
     names: tuple
@@ -190,7 +195,8 @@ def fit_logs(
     """Estimate ``params`` of ``model``'s plant from ``logs`` (see the module docstring).
 
     Args:
-        model: :class:`~vcjax.identify.models.FitModel`; logs: one or more :class:`Log`.
+        model: [`FitModel`][vcjax.identify.models.FitModel]; logs: one or more
+            [`Log`][vcjax.identify.data.Log].
         params: scalar parameter names; step: ``"pvs"`` or an integrator name.
         fit_current: also estimate the current; current_speed [m/s], current_direction [rad]:
             the known current (or, with ``fit_current``, the initial guess).
@@ -198,7 +204,7 @@ def fit_logs(
         segment_steps: samples per shooting segment (>= 2); max_iters: per stage.
         base: the nominal parameters (default: the vehicle's defaults in ``dtype``).
         callback: ``callback(stage, iteration, cost, lam)`` after every iteration.
-        max_memory_gb: limit of the estimated memory (:func:`vcjax.runtime.sizing.fit_estimate`;
+        max_memory_gb: limit of the estimated memory (``fit_estimate``;
             default 80 % of the machine's).
 
     Raises:

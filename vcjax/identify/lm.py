@@ -21,7 +21,8 @@ follows Nielsen (1999): on a step with gain ratio ``rho > 0``,
 ``lam *= max(1/3, 1 - (2 rho - 1)^3)``; on a rejected step ``lam *= nu, nu *= 2``. A step that
 gives a non-finite cost is rejected.
 
-:func:`schur_information` is the same elimination at ``lam = 0``: the Gauss–Newton information
+[`schur_information`][vcjax.identify.lm.schur_information] is the same elimination at ``lam = 0``:
+the Gauss–Newton information
 matrix of ``z`` with the nuisance variables profiled out, whose inverse times the residual
 variance is the covariance of ``z``.
 """
@@ -79,7 +80,7 @@ def lm_step(r, Jz, Js, lam):
 
 @dataclasses.dataclass
 class LMResult:
-    """Outcome of :func:`levenberg_marquardt`.
+    """Outcome of [`levenberg_marquardt`][vcjax.identify.lm.levenberg_marquardt].
 
     Attributes:
         z: (p,) parameters; s: (J, n) nuisance variables.
@@ -130,7 +131,7 @@ def levenberg_marquardt(
             data fitted to round-off).
         callback: called as ``callback(iteration, cost, lam)`` after every iteration.
         should_stop: polled before every iteration (default
-            :func:`vcjax.runtime.interrupts.stop_requested`: SIGINT / SIGTERM in the CLI); True
+            ``stop_requested``: SIGINT / SIGTERM in the CLI); True
             stops with the last accepted iterate, ``converged = False``, ``reason = "interrupted"``.
     """
     from vcjax.runtime.interrupts import stop_requested

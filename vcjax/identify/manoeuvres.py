@@ -1,13 +1,15 @@
 """Logged manoeuvres for identification studies: a "true" vehicle, standard trials, sensor noise.
 
-The INFANTE-class craft (:mod:`vcjax.vehicles.infante`) is put through the classical trials
+The INFANTE-class craft ([`vcjax.vehicles.infante`][vcjax.vehicles.infante]) is put through the
+classical trials
 (ITTC): a 20/20 zig-zag (rudder to +-20 deg, reversed each time the heading passes +-20 deg from
 the initial one), a turning circle (rudder held at 25 deg) and speed steps (thrust stepped with
 the rudder at zero). Each trial is one ``lax.scan`` of the plant (rk4, command held over each
 step); the commands come from a small feedback rule evaluated on the *true* state, as a
 helmsman would. Measurements are the true states plus white Gaussian noise.
 
-:func:`perturbed_params` builds the "true" plant of a study: chosen coefficients multiplied by
+[`perturbed_params`][vcjax.identify.manoeuvres.perturbed_params] builds the "true" plant of a study:
+chosen coefficients multiplied by
 ``1 +- frac`` (signs drawn from a seed).
 """
 
@@ -63,7 +65,7 @@ def simulate_trial(params, trial: str, dt: float, horizon: float, thrust: float 
     """One trial of the INFANTE-class plant from straight running at 2.5 m/s.
 
     Args:
-        params: :class:`~vcjax.vehicles.infante.InfanteParams` (the true plant).
+        params: [`InfanteParams`][vcjax.vehicles.infante.InfanteParams] (the true plant).
         trial: ``"zigzag"``, ``"turning_circle"`` or ``"speed_steps"``.
         dt: sample time [s]; horizon: duration [s]; thrust: the trial's thrust [N].
 

@@ -1,18 +1,21 @@
 """What system identification needs to know about a vehicle: its logged channels and one step.
 
-A :class:`FitModel` maps a vehicle's plant onto flat vectors, the form the multiple-shooting
+A [`FitModel`][vcjax.identify.models.FitModel] maps a vehicle's plant onto flat vectors, the form
+the multiple-shooting
 solver works with: the state ``x`` (n_x,) in the order of the log's state columns, the command
 ``u`` (n_u,) in the order of its command columns, and one discrete step
 
     x_next = step(vehicle_params, v_c, x, u, dt)
 
 either PythonVehicleSimulator's own Euler step (``"pvs"``, REMUS 100 only) or an integrator of
-:mod:`vcjax.integrators` applied to the continuous plant with the command held over the step.
+[`vcjax.integrators`][vcjax.integrators] applied to the continuous plant with the command held over
+the step.
 ``v_c`` (2,) is the current as the water's NED velocity ``[north, east]`` [m/s], from a speed and
-the direction it flows towards with :func:`current_vector`.
+the direction it flows towards with [`current_vector`][vcjax.identify.models.current_vector].
 
-Registered: ``remus100`` (:mod:`vcjax.vehicles.remus100`, 6-DOF, 15 states) and ``infante``
-(:mod:`vcjax.vehicles.infante`, horizontal plane, 8 states).
+Registered: ``remus100`` ([`vcjax.vehicles.remus100`][vcjax.vehicles.remus100], 6-DOF, 15 states)
+and ``infante``
+([`vcjax.vehicles.infante`][vcjax.vehicles.infante], horizontal plane, 8 states).
 """
 
 from __future__ import annotations
@@ -217,7 +220,7 @@ FIT_MODELS: dict[str, FitModel] = {
 
 
 def get_fit_model(vehicle: str) -> FitModel:
-    """The :class:`FitModel` registered as ``vehicle``.
+    """The [`FitModel`][vcjax.identify.models.FitModel] registered as ``vehicle``.
 
     Raises:
         ValueError: naming ``vehicle`` and listing the registered ones.

@@ -12,7 +12,8 @@ the measurements at all of its ``S`` samples, the first included::
 one segment, so no measurement is used twice. Because each segment is short, a long, unstable or
 chaotic log still gives a well-posed problem. The segment states ``s_j`` are estimated with the
 parameters (errors in the measured initial states would otherwise bias the parameters): the
-problem is block-arrow shaped and :mod:`vcjax.identify.lm` solves it with a Schur complement.
+problem is block-arrow shaped and [`vcjax.identify.lm`][vcjax.identify.lm] solves it with a Schur
+complement.
 
 Parameters are on a log scale, ``theta_i = theta_nominal_i * exp(z_i)`` (the sign is kept and a
 positive coefficient stays positive); with ``fit_current`` the current's speed is log-scaled too
@@ -25,9 +26,10 @@ model is right). The standard errors come from the Gauss–Newton covariance of 
 ``cov(z) = sigma^2 (J^T J)^-1`` with the segment states profiled out and
 ``sigma^2 = |r|^2 / (m - p - J n_x)``, mapped to the physical parameters by the delta method.
 
-This module states the problem (:class:`ShootingProblem`: segments, scaling, residuals, free
-runs); :mod:`vcjax.identify.fit` runs the two fits and reports them
-(:func:`~vcjax.identify.fit.fit_logs`, :class:`~vcjax.identify.fit.FitResult`).
+This module states the problem ([`ShootingProblem`][vcjax.identify.shooting.ShootingProblem]:
+segments, scaling, residuals, free
+runs); [`vcjax.identify.fit`][vcjax.identify.fit] runs the two fits and reports them
+([`fit_logs`][vcjax.identify.fit.fit_logs], [`FitResult`][vcjax.identify.fit.FitResult]).
 """
 
 from __future__ import annotations
@@ -67,7 +69,8 @@ class Segments:
 
 
 def seg_count(logs: Sequence[Log], segment_steps: int) -> int:
-    """Number of segments :func:`make_segments` cuts ``logs`` into."""
+    """Number of segments [`make_segments`][vcjax.identify.shooting.make_segments] cuts ``logs``
+    into."""
     return sum(-(-log.t.size // int(segment_steps)) for log in logs)
 
 
@@ -100,7 +103,7 @@ class ShootingProblem:
     """The multiple-shooting residuals of one vehicle, one step scheme and a set of parameters.
 
     Args:
-        model: the :class:`~vcjax.identify.models.FitModel`.
+        model: the [`FitModel`][vcjax.identify.models.FitModel].
         step: ``"pvs"`` or an integrator name.
         names: scalar fields of the vehicle's parameters to estimate.
         fit_current: also estimate the current's speed and direction.
@@ -180,7 +183,7 @@ class ShootingProblem:
         return out
 
     def scale_jacobian(self, z) -> np.ndarray:
-        """(q,) ``d value / d z`` of :meth:`values` (diagonal), for the delta method."""
+        """(q,) ``d value / d z`` of ``values`` (diagonal), for the delta method."""
         v = self.values(z)
         d = [v[n] for n in self.names]
         if self.fit_current:

@@ -1,4 +1,5 @@
-"""The two-link arm of :mod:`vcjax.vehicles.arm` as an engine loop (:class:`ArmLoop`): its end
+"""The two-link arm of [`vcjax.vehicles.arm`][vcjax.vehicles.arm] as an engine loop
+([`ArmLoop`][vcjax.loops.arm.ArmLoop]): its end
 effector held on a path by the generic engine, with joint-torque limits.
 
 Coordinates: the arm moves in a vertical plane, ``x`` horizontal, ``y`` up (gravity ``-y``); the
@@ -22,7 +23,7 @@ __all__ = ["ArmLoopParams", "arm_loop_params", "ArmLoop"]
 
 
 class ArmLoopParams(NamedTuple):
-    """The arm's :class:`~vcjax.vehicles.arm.ArmParams` fields and its joint-torque limits.
+    """The arm's [`ArmParams`][vcjax.vehicles.arm.ArmParams] fields and its joint-torque limits.
 
     Attributes:
         l1: link 1's length [m] (the fields l1 ... g as in ``ArmParams``).
@@ -50,7 +51,8 @@ class ArmLoopParams(NamedTuple):
 
 
 def arm_loop_params(tau_max=(40.0, 15.0), dtype=None, **arm) -> ArmLoopParams:
-    """Validated :class:`ArmLoopParams` (``arm``: :func:`~vcjax.vehicles.arm.arm_params`
+    """Validated [`ArmLoopParams`][vcjax.loops.arm.ArmLoopParams] (``arm``:
+    [`arm_params`][vcjax.vehicles.arm.arm_params]
     keywords)."""
     check_positive("tau_max", tau_max, (2,))
     a = arm_params(**arm)

@@ -1,7 +1,10 @@
-""":func:`simulate`, which rolls any loop out in its environment: the components of
-:mod:`vcjax.environment` (:attr:`Scenario.environment`, and the older :class:`Disturbances`
-— a Gauss–Markov current, sensor noise — and :attr:`Scenario.sea` mapped onto them), their
-processes through :func:`vcjax.rollout.rollout`'s exogenous hook, the water inside the plant's
+"""[`simulate`][vcjax.loops.disturbances.simulate], which rolls any loop out in its environment: the
+components of
+[`vcjax.environment`][vcjax.environment] (``Scenario.environment``, and the older
+[`Disturbances`][vcjax.loops.disturbances.Disturbances]
+— a Gauss–Markov current, sensor noise — and ``Scenario.sea`` mapped onto them), their
+processes through [`vcjax.rollout.rollout`][vcjax.rollout.rollout]'s exogenous hook, the water
+inside the plant's
 vector field."""
 
 from __future__ import annotations
@@ -37,10 +40,12 @@ class Disturbances:
 
     Attributes:
         gauss_markov: the horizontal current is the Gauss–Markov process of
-            :mod:`vcjax.environment.current` around ``Scenario.current`` (per-step, exact
+            [`vcjax.environment.current`][vcjax.environment.current] around ``Scenario.current``
+            (per-step, exact
             discretisation, linear between samples); False: the constant ``Scenario.current``.
         sensor_noise: white Gaussian noise on what the controller measures
-            (:meth:`Loop.measure`), drawn per step from ``fold_in(key, k)`` and held.
+            ([`Loop.measure`][vcjax.loops.loop.Loop.measure]), drawn per step from ``fold_in(key,
+            k)`` and held.
     """
 
     gauss_markov: bool = False
@@ -52,10 +57,11 @@ class Disturbances:
 
 
 class DisturbanceParams(NamedTuple):
-    """Traced parameters of :class:`Disturbances`.
+    """Traced parameters of [`Disturbances`][vcjax.loops.disturbances.Disturbances].
 
     Attributes:
-        current: :class:`~vcjax.environment.current.GaussMarkovCurrent` (mean: the horizontal part
+        current: [`GaussMarkovCurrent`][vcjax.environment.current.GaussMarkovCurrent] (mean: the
+            horizontal part
             of ``Scenario.current``); noise_std: (n,) sensor-noise standard deviations;
         key: (2,) PRNG key of the run's random processes.
     """
@@ -129,8 +135,9 @@ def _process_keys(key):
 
 
 def _environment(loop: Loop, sc: Scenario, dist: Disturbances, dist_params):
-    """``(Environment, base current (3,))`` of a run: the :class:`Disturbances` and the
-    scenario's sea as components, then the scenario's own :attr:`Scenario.environment`."""
+    """``(Environment, base current (3,))`` of a run: the
+    [`Disturbances`][vcjax.loops.disturbances.Disturbances] and the
+    scenario's sea as components, then the scenario's own ``Scenario.environment``."""
     comps, params = [], []
     base = sc.current
     dtype = sc.eta0.dtype
@@ -169,21 +176,25 @@ def simulate(
 
     ``loop``, ``config``, ``dist`` and the components of ``sc.environment`` are static;
     ``gains``, ``sc`` (the components' parameters included), ``dt`` and ``dist_params`` are
-    traced. Without an environment this is one :func:`vcjax.rollout.rollout` of
+    traced. Without an environment this is one [`vcjax.rollout.rollout`][vcjax.rollout.rollout] of
     ``loop.plant`` / ``loop.control``. Otherwise every component enters through the one seam
-    (:mod:`vcjax.environment`): processes (a Gauss–Markov current, sensor noise) advance once
+    ([`vcjax.environment`][vcjax.environment]): processes (a Gauss–Markov current, sensor noise)
+    advance once
     per step through the rollout's ``exogenous`` hook; uniform currents reach the plant through
-    :meth:`Loop.plant_args` (constant) or :meth:`Loop.with_current` (time-varying, every stage);
+    [`Loop.plant_args`][vcjax.loops.loop.Loop.plant_args] (constant) or
+    [`Loop.with_current`][vcjax.loops.loop.Loop.with_current] (time-varying, every stage);
     water that varies in space (a sea: ``sc.sea`` or a ``"waves"`` component) is evaluated at
-    the vehicle's position in every stage (:meth:`Loop.plant_in_sea`; a calm sea gives exactly
-    the run without one); forces add to :attr:`Scenario.disturbance`; noise is added to what
-    the controller measures (:meth:`Loop.measure`). ``dist``/``dist_params`` (a Gauss–Markov
+    the vehicle's position in every stage
+    ([`Loop.plant_in_sea`][vcjax.loops.loop.Loop.plant_in_sea]; a calm sea gives exactly
+    the run without one); forces add to ``Scenario.disturbance``; noise is added to what
+    the controller measures ([`Loop.measure`][vcjax.loops.loop.Loop.measure]).
+    ``dist``/``dist_params`` (a Gauss–Markov
     current around ``sc.current`` and sensor noise) are mapped onto the same components. A
     component the loop cannot feel raises ``ValueError`` naming it before any work.
 
-    Returns the :class:`~vcjax.rollout.Trajectory`; with a ``reduction``
-    (:class:`~vcjax.rollout.Reduction`) the record is folded segment by segment instead
-    (:func:`~vcjax.rollout.rollout_reduce`) and ``(acc, outs)`` is returned.
+    Returns the [`Trajectory`][vcjax.rollout.Trajectory]; with a ``reduction``
+    ([`Reduction`][vcjax.rollout.Reduction]) the record is folded segment by segment instead
+    ([`rollout_reduce`][vcjax.rollout.rollout_reduce]) and ``(acc, outs)`` is returned.
     """
     if dist.gauss_markov and not loop.can_feel("varying_current"):
         raise ValueError(

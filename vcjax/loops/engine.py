@@ -1,7 +1,9 @@
 """The generic engine as a controller: any mechanical system whose point ``p(q)`` must follow a
-path becomes a loop (:class:`EngineLoop`), rolled out, swept and tuned like the marine ones.
+path becomes a loop ([`EngineLoop`][vcjax.loops.engine.EngineLoop]), rolled out, swept and tuned
+like the marine ones.
 
-Virtual constraints (paper Sections 2–3, :mod:`vcjax.mechanics`): a path particle ``varpi``
+Virtual constraints (paper Sections 2–3, [`vcjax.mechanics`][vcjax.mechanics]): a path particle
+``varpi``
 (controller state) moves as in (22), ``varpi_dot = (u_d + sigma s) / |p_bar'(varpi)|``, and the
 holonomic constraints are the path errors of the point in the particle's frame (23),
 ``G(q, varpi) = [s, e] = R(psi_p)^T (p(q) - p_bar(varpi))`` — horizontal (north, east) for a
@@ -25,18 +27,20 @@ A subclass supplies the mechanics and the point that follows the path::
         def default_gains(self): ...            # EngineGains
 
 (plus ``initial_keys`` / ``initial_from``); ``tests/test_loops.py`` does exactly this for a point
-mass, and :mod:`vcjax.loops.arm` for the two-link arm.
+mass, and [`vcjax.loops.arm`][vcjax.loops.arm] for the two-link arm.
 
 **Currents.** The plant's bias force sees the velocity relative to the water,
-``n(q, qd - qd_c, p)``, where ``qd_c`` (:meth:`EngineLoop.water_velocity`) is the generalised
+``n(q, qd - qd_c, p)``, where ``qd_c``
+([`EngineLoop.water_velocity`][vcjax.loops.engine.EngineLoop.water_velocity]) is the generalised
 velocity at which the point would move with the water: by default the solution of
 ``J(q) qd_c = V_c`` with ``J = dp/dq`` (the point's Jacobian; least squares when not square)
 and ``V_c`` the current's first 2 or 3 NED components — right for a body whose drag is written on
 its velocity over ground (a puck, a craft in its own coordinates). The current's acceleration
 (added-mass force) is not modelled; a time-varying (Gauss–Markov) current is taken the same way.
-A system without water (:mod:`vcjax.loops.arm`) leaves ``"current"`` and
-``"varying_current"`` out of :attr:`~vcjax.loops.Loop.feels`: configs asking for a current are
-then refused (:func:`vcjax.loops.check_disturbances`) and the plant ignores
+A system without water ([`vcjax.loops.arm`][vcjax.loops.arm]) leaves ``"current"`` and
+``"varying_current"`` out of ``feels``: configs asking for a current are
+then refused ([`vcjax.loops.check_disturbances`][vcjax.loops.scenario.check_disturbances]) and the
+plant ignores
 ``Scenario.current``. No engine loop feels waves (``feels["waves"]`` is its reason): the orbital
 motion's
 acceleration would need the added-mass and Froude–Krylov forces the engine's plant does not
@@ -78,7 +82,7 @@ class EngineGains(NamedTuple):
 
 
 def engine_gains(P_G=(2.0, 2.0), P_Phi=(3.0, 3.0), sigma=1.0) -> EngineGains:
-    """Validated :class:`EngineGains` (every gain > 0)."""
+    """Validated [`EngineGains`][vcjax.loops.engine.EngineGains] (every gain > 0)."""
     check_positive("P_G", P_G, (2,))
     check_positive("P_Phi", P_Phi, (2,))
     check_positive("sigma", sigma, ())
@@ -121,7 +125,8 @@ class EngineArgs(NamedTuple):
 @dataclasses.dataclass(frozen=True)
 class EngineLaw(Law):
     """The generic engine's law: the reaction force (16) of the virtual constraints (module
-    docstring) on the loop's design mechanics; gains :class:`EngineGains`.
+    docstring) on the loop's design mechanics; gains
+    [`EngineGains`][vcjax.loops.engine.EngineGains].
 
     ``params(loop, gains, sc)``; ``step(loop, params, t, (q, qd), z) -> (tau, z_dot, aux)``.
     """

@@ -71,12 +71,12 @@ def start_parameter(path: paths.Path, coeffs, point, w_range=(-50.0, 50.0), num:
 
 
 def path_frames(path, coeffs, w):
-    """:class:`~vcjax.paths.PathFrame` at every parameter of ``w`` (N,)."""
+    """[`PathFrame`][vcjax.paths.PathFrame] at every parameter of ``w`` (N,)."""
     return jax.vmap(lambda w1: paths.path_frame(path, coeffs, w1))(w)
 
 
 def path_poses(path, coeffs, w):
-    """:class:`~vcjax.paths.PathPose` at every parameter of ``w`` (N,): the frames' values
+    """[`PathPose`][vcjax.paths.PathPose] at every parameter of ``w`` (N,): the frames' values
     without their rates (what a loop's signals, and so a tuning loss, need)."""
     return jax.vmap(lambda w1: paths.path_pose(path, coeffs, w1))(w)
 

@@ -2,26 +2,28 @@
 ILOS / ALOS baselines on the underactuated INFANTE-class plant (Simulation 1's loop, any path kind).
 
 Every controller maps its ``[tau_u, tau_r]`` to thrust and rudder commands with the *design*
-vehicle's actuator model (:func:`vcjax.vehicles.infante.actuator_commands`), using the
+vehicle's actuator model ([`actuator_commands`][vcjax.vehicles.infante.actuator_commands]), using
+the
 *measured* velocity over ground (the current is unknown to the controllers).
 
-Controllers (the laws of :attr:`InfanteLoop.laws`): ``vcm`` (31)/(38); ``vcm_integral``
+Controllers (the laws of ``InfanteLoop.laws``): ``vcm`` (31)/(38); ``vcm_integral``
 (+ integral action (41)); ``vcm_ilos`` (``vcm_integral`` with the integral-LOS approach angle
 inside the VCM heading row); ``ilos`` (40), ``los_pid`` (39) and ``alos`` (Fossen's adaptive LOS,
 2023) with a heading PD.
 
-A law of this vehicle (:class:`~vcjax.loops.law.Law`) is called with
+A law of this vehicle ([`Law`][vcjax.loops.law.Law]) is called with
 
 * ``params(loop, gains, sc, model, k_rudder)`` — ``model``: the design model
-  (:func:`vcjax.vehicles.infante.design_model` of ``sc.design``), ``k_rudder``: the rudder's sway
-  force per unit yaw moment (:func:`rudder_ratio`);
+  ([`design_model`][vcjax.vehicles.infante.design_model] of ``sc.design``), ``k_rudder``: the
+  rudder's sway
+  force per unit yaw moment ([`rudder_ratio`][vcjax.loops.infante.rudder_ratio]);
 * ``step(loop, params, t, x, z) -> (tau, z_dot, aux)`` — ``x``: the measured
-  :class:`~vcjax.vehicles.infante.InfanteState` (pose ``x.eta = [x, y, psi]``, velocity over
+  [`InfanteState`][vcjax.vehicles.infante.InfanteState] (pose ``x.eta = [x, y, psi]``, velocity over
   ground ``x.nu = [u, v, r]``), ``tau``: (3,) ``[tau_u, tau_v, tau_r]`` (``tau_v`` is not
   actuated: ignored), ``aux``: a per-step record with the heading error ``psi_tilde``
-  (or the law's :meth:`~vcjax.loops.law.Law.heading_error`);
+  (or the law's [`heading_error`][vcjax.loops.law.Law.heading_error]);
 * ``initial_state(loop, sc)`` — a state whose particle is ``z.varpi`` (or
-  :meth:`~vcjax.loops.law.Law.particle`).
+  [`particle`][vcjax.loops.law.Law.particle]).
 """
 
 from __future__ import annotations
@@ -66,8 +68,8 @@ class InfanteGains(NamedTuple):
     """Gains of the INFANTE-class controllers (traced).
 
     Attributes:
-        vcm: :class:`~vcjax.control.vcm.PMGains` of ``vcm``, ``vcm_integral``, ``vcm_ilos``.
-        baseline: :class:`~vcjax.control.baselines.BaselineGains` of ``ilos``, ``los_pid``,
+        vcm: [`PMGains`][vcjax.control.vcm.PMGains] of ``vcm``, ``vcm_integral``, ``vcm_ilos``.
+        baseline: [`BaselineGains`][vcjax.control.baselines.BaselineGains] of ``ilos``, ``los_pid``,
             ``alos``.
     """
 
@@ -108,7 +110,8 @@ class _InfanteLaw(Law):
 
 @dataclasses.dataclass(frozen=True)
 class InfanteVCMLaw(_InfanteLaw):
-    """The planar VCM law (:func:`vcjax.control.vcm.vcm_law`), underactuated in sway.
+    """The planar VCM law ([`vcjax.control.vcm.vcm_law`][vcjax.control.vcm.vcm_law]), underactuated
+    in sway.
 
     Attributes:
         integral: integral action (41) (gains ``P_int``).
@@ -143,10 +146,12 @@ class InfanteVCMLaw(_InfanteLaw):
 
 @dataclasses.dataclass(frozen=True)
 class InfanteBaselineLaw(_InfanteLaw):
-    """A LOS-family baseline with a heading PD (:func:`vcjax.control.baselines.baseline_law`).
+    """A LOS-family baseline with a heading PD
+    ([`baseline_law`][vcjax.control.baselines.baseline_law]).
 
     Attributes:
-        kind: the baseline (``"ilos"``, ``"los_pid"``, ``"alos"``; :class:`BaselineConfig`).
+        kind: the baseline (``"ilos"``, ``"los_pid"``, ``"alos"``;
+            [`BaselineConfig`][vcjax.control.baselines.BaselineConfig]).
         extra: its own tunable gains besides the shared ``Delta, sigma, k_u, k_psi_p,
             k_psi_d``.
     """
@@ -177,7 +182,7 @@ _SCALAR_FIELDS = tuple(f for f in infante.InfanteParams._fields if f != "cf_x")
 class InfanteLoop(Loop):
     """INFANTE-class craft (3-DOF horizontal plant, thrust + rudder) under one controller.
 
-    Attributes (besides :class:`~vcjax.loops.Loop`'s):
+    Attributes (besides [`Loop`][vcjax.loops.loop.Loop]'s):
         edd: which ``e_ddot`` enters the VCM heading row (``"paper"`` or ``"implied"``).
     """
 

@@ -1,14 +1,15 @@
-"""The controller side of a loop: :class:`Law`.
+"""The controller side of a loop: [`Law`][vcjax.loops.law.Law].
 
-A vehicle's loop (:class:`~vcjax.loops.loop.Loop`) holds its laws in a mapping
+A vehicle's loop ([`Loop`][vcjax.loops.loop.Loop]) holds its laws in a mapping
 ``laws: {controller name: Law}``; the loop is the plant side (plant, actuators, sensors, the
 vehicle's inner loops) and asks its law for everything that depends on the controller:
 
 * ``default_gains(loop)`` — the gains NamedTuple (a vehicle may share one gains tuple between
   its laws, each law reading its own fields);
 * ``gain_specs(loop)`` — the tunable groups (build them with
-  :func:`~vcjax.loops.params.gain_spec`), ``symmetric_pairs(loop)``;
-* ``validate_gains(gains)`` — eager checks run after :func:`~vcjax.loops.params.gains_from_json`
+  [`gain_spec`][vcjax.loops.params.gain_spec]), ``symmetric_pairs(loop)``;
+* ``validate_gains(gains)`` — eager checks run after
+[`gains_from_json`][vcjax.loops.params.gains_from_json]
   (the one gains-JSON reader) has read a file;
 * ``params(loop, gains, sc)`` — the law's traced parameters from the gains and the scenario (the
   design model comes from ``sc.design``);
@@ -17,11 +18,11 @@ vehicle's inner loops) and asks its law for everything that depends on the contr
   holds and what ``tau`` means is the vehicle's convention, written in its loop's docstring
   (INFANTE: the measured state, ``tau = [tau_u, tau_v, tau_r]``);
 * ``particle(z)`` and ``heading_error(aux)`` — what the loop's
-  :class:`~vcjax.loops.types.Signals` read from the law's state and per-step record.
+  [`Signals`][vcjax.loops.types.Signals] read from the law's state and per-step record.
 
 A law is a frozen dataclass (static, hashable); its fields are the law's static options. A new
-law for an existing vehicle is one new file with a :class:`Law` subclass plus one
-:func:`vcjax.loops.register_law` line.
+law for an existing vehicle is one new file with a [`Law`][vcjax.loops.law.Law] subclass plus one
+[`vcjax.loops.register_law`][vcjax.loops.registry.register_law] line.
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ def required(fn):
 
 
 def missing_methods(cls) -> list[str]:
-    """Names of the :func:`required` methods ``cls`` does not override."""
+    """Names of the [`required`][vcjax.loops.law.required] methods ``cls`` does not override."""
     return sorted(
         name for name in dir(cls) if getattr(getattr(cls, name, None), "__vcjax_required__", False)
     )
@@ -58,7 +59,7 @@ class Law:
 
     @required
     def gain_specs(self, loop) -> tuple:
-        """The tunable gain groups (:class:`~vcjax.loops.types.GainSpec`)."""
+        """The tunable gain groups ([`GainSpec`][vcjax.loops.types.GainSpec])."""
         raise NotImplementedError(f"{type(self).__name__}.gain_specs")
 
     def symmetric_pairs(self, loop) -> tuple:

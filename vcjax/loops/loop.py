@@ -1,8 +1,9 @@
-"""The closed-loop abstraction, plant side: :class:`Loop`.
+"""The closed-loop abstraction, plant side: [`Loop`][vcjax.loops.loop.Loop].
 
-A :class:`Loop` is *static* (a frozen, hashable dataclass: vehicle, controller, path kind and the
+A [`Loop`][vcjax.loops.loop.Loop] is *static* (a frozen, hashable dataclass: vehicle, controller,
+path kind and the
 static options of the law), so jitted rollouts compile once per loop; everything continuous is
-traced: the :class:`~vcjax.loops.types.Scenario` (initial state, path coefficients, current,
+traced: the [`Scenario`][vcjax.loops.types.Scenario] (initial state, path coefficients, current,
 desired speed, plant and design parameters) and the loop's gains (a NamedTuple pytree).
 """
 
@@ -28,12 +29,13 @@ class Loop:
     """A closed loop: vehicle (plant, design model, actuator map) x controller x path kind.
 
     Static and hashable (a new gain, current or start never recompiles). Subclasses define the
-    class attributes and the methods marked *required*; see :mod:`vcjax.loops` for a walk-through.
+    class attributes and the methods marked *required*; see [`vcjax.loops`][vcjax.loops] for a
+    walk-through.
 
     Attributes:
-        controller: the law's name (one of :attr:`controllers`).
-        path: the static path kind (:class:`vcjax.paths.Path`); coefficients live in
-            :attr:`Scenario.path`.
+        controller: the law's name (one of [`controllers`][vcjax.loops.registry.controllers]).
+        path: the static path kind ([`vcjax.paths.Path`][vcjax.paths.Path]); coefficients live in
+            ``Scenario.path``.
         smooth: smooth (``tanh``) actuator saturation in the plant, so gradients pass.
     """
 
@@ -43,24 +45,27 @@ class Loop:
 
     #: registry name of the vehicle ("infante", "odin", "arm", ...)
     vehicle: ClassVar[str] = ""
-    #: the laws: controller name -> :class:`~vcjax.loops.law.Law` (the controller side)
+    #: the laws: controller name -> [`Law`][vcjax.loops.law.Law] (the controller side)
     laws: ClassVar[Mapping[str, Law]] = {}
-    #: the controllers this vehicle's loop supports (default: the names of :attr:`laws`)
+    #: the controllers this vehicle's loop supports (default: the names of ``laws``)
     controllers: ClassVar[tuple[str, ...]] = ()
     #: the controller a config means when it names none
     default_controller: ClassVar[str] = ""
     #: [initial] keys of sweeps/tuning: name -> default value (sampled ranges set by configs)
     initial_keys: ClassVar[dict[str, float]] = {}
-    #: sensor-noise channels: name -> number of entries (see :meth:`measure`)
+    #: sensor-noise channels: name -> number of entries (see ``measure``)
     noise_channels: ClassVar[dict[str, int]] = {}
     #: desired speed of the nominal scenario [m/s]
     default_speed: ClassVar[float] = 1.0
-    #: what the plant feels of the environment, by kind (:data:`vcjax.environment.KINDS`):
+    #: what the plant feels of the environment, by kind
+    # ([`vcjax.environment.KINDS`][vcjax.environment.KINDS]):
     #: ``True``, or the one-line reason it cannot; a kind not named is refused with a generic
-    #: reason (:func:`vcjax.loops.check_environment`). ``"current"``: :meth:`plant_args` uses
-    #: its current; ``"varying_current"``: :meth:`with_current`; ``"waves"`` (water that varies
-    #: in space): :meth:`plant_in_sea`; ``"force"``: :attr:`Scenario.disturbance`. Sensor noise
-    #: (``"noise"``) is felt by a loop with :attr:`noise_channels` (and :meth:`measure`).
+    #: reason ([`vcjax.loops.check_environment`][vcjax.loops.scenario.check_environment]).
+    # ``"current"``: ``plant_args`` uses
+    #: its current; ``"varying_current"``: ``with_current``; ``"waves"`` (water that varies
+    #: in space): ``plant_in_sea``; ``"force"``:
+    # [`Scenario.disturbance`][vcjax.loops.loop.Scenario.disturbance]. Sensor noise
+    #: (``"noise"``) is felt by a loop with ``noise_channels`` (and ``measure``).
     feels: ClassVar[Mapping[str, bool | str]] = {}
 
     @classmethod
@@ -89,7 +94,7 @@ class Loop:
 
     @property
     def law(self) -> Law | None:
-        """The :class:`~vcjax.loops.law.Law` of :attr:`controller` (None for a loop that
+        """The [`Law`][vcjax.loops.law.Law] of ``controller`` (None for a loop that
         implements its controller in its own methods)."""
         return type(self).laws.get(self.controller)
 
@@ -122,7 +127,7 @@ class Loop:
     def validate_params(self, params, name: str = "plant"):
         """Eagerly check vehicle parameters however they were built (e.g. ``_replace``d);
         raise ``ValueError`` naming ``name.field``. Default: the parameters must be of the type
-        :meth:`default_params` returns; a vehicle overrides it with its module's ``validate``."""
+        ``default_params`` returns; a vehicle overrides it with its module's ``validate``."""
         kind = type(self.default_params())
         if not isinstance(params, kind):
             raise ValueError(f"{name}: expected {kind.__name__}, got {type(params).__name__}")
@@ -133,7 +138,7 @@ class Loop:
         return self._require_law("default_gains").default_gains(self)
 
     def gain_specs(self) -> tuple[GainSpec, ...]:
-        """The tunable gain groups of :attr:`controller`: the law's."""
+        """The tunable gain groups of ``controller``: the law's."""
         return self._require_law("gain_specs").gain_specs(self)
 
     def _require_law(self, what):
@@ -143,12 +148,12 @@ class Loop:
 
     @required
     def plant(self, t, x, u, args):
-        """Vector field ``x_dot = f(t, x, u, args)`` (args from :meth:`plant_args`)."""
+        """Vector field ``x_dot = f(t, x, u, args)`` (args from ``plant_args``)."""
         raise NotImplementedError
 
     @required
     def control(self, t, x, z, ctrl):
-        """Controller ``(u, z_dot, aux)`` (ctrl from :meth:`ctrl_params`)."""
+        """Controller ``(u, z_dot, aux)`` (ctrl from ``ctrl_params``)."""
         raise NotImplementedError
 
     @required
@@ -174,7 +179,7 @@ class Loop:
 
     @required
     def initial_from(self, values: dict):
-        """``(eta0, nu0)`` from the :attr:`initial_keys` values (traced scalars, SI units:
+        """``(eta0, nu0)`` from the ``initial_keys`` values (traced scalars, SI units:
         keys ending in ``_deg`` are given here already in radians)."""
         raise NotImplementedError
 
@@ -195,7 +200,7 @@ class Loop:
 
     def measure(self, x, noise):
         """The state the controller sees: ``x`` with ``noise`` (concatenated
-        :attr:`noise_channels`, SI units) added. Default: no sensors modelled."""
+        ``noise_channels``, SI units) added. Default: no sensors modelled."""
         raise NotImplementedError(f"{type(self).__name__}: no sensor-noise model")
 
     def noise_std(self, stds: dict) -> np.ndarray:
@@ -211,15 +216,16 @@ class Loop:
         """The plant's vector field in a sea (loops that feel ``"waves"``).
 
         Args:
-            t, x, u: as :meth:`plant`; args: the plant's arguments with the current already in
-                them (:meth:`plant_args`, :meth:`with_current`);
-            water: :class:`~vcjax.loops.types.Water` (the sea and the current at this time).
+            t, x, u: as ``plant``; args: the plant's arguments with the current already in
+                them (``plant_args``, ``with_current``);
+            water: [`Water`][vcjax.loops.types.Water] (the sea and the current at this time).
 
         The loop knows how its plant takes the water: it evaluates ``water`` at the vehicle's
         NED position (every integrator stage: the sea depends on where the vehicle is), hands
         the velocity and material acceleration to the plant's current door and adds the
-        Froude–Krylov correction (:func:`vcjax.environment.waves.current_door_correction`). A calm
-        sea (``hs = 0``) must give exactly :meth:`plant`'s result.
+        Froude–Krylov correction
+        ([`current_door_correction`][vcjax.environment.waves.current_door_correction]). A calm
+        sea (``hs = 0``) must give exactly ``plant``'s result.
         """
         raise NotImplementedError(f"{type(self).__name__}: no waves ({self.refusal('waves')})")
 
@@ -229,9 +235,10 @@ class Loop:
 
     def gains_from_json(self, d: dict, base=None):
         """Gains from a JSON object (entries missing keep ``base``, default the defaults): the
-        one reader (:func:`~vcjax.loops.params.gains_from_json`) with the law's checks.
+        one reader ([`gains_from_json`][vcjax.loops.params.gains_from_json]) with the law's checks.
 
-        A file that records its ``"vehicle"`` (what :meth:`gains_to_json` writes) is refused
+        A file that records its ``"vehicle"`` (what
+        [`gains_to_json`][vcjax.loops.params.gains_to_json] writes) is refused
         for another vehicle, and one whose ``"controller"`` is not a controller of this vehicle
         too (``ValueError`` naming both); a vehicle's controllers share its gains (a sweep runs
         one gains file with every variant). Older files without these keys still load."""
@@ -251,8 +258,9 @@ class Loop:
         return f"{self.vehicle} / {self.controller} on a {self.path.name}"
 
 
-#: the methods a :class:`Loop` subclass must define (``default_gains``/``gain_specs`` too when
-#: it has no :attr:`Loop.laws`)
+#: the methods a [`Loop`][vcjax.loops.loop.Loop] subclass must define
+# (``default_gains``/``gain_specs`` too when
+#: it has no [`Loop.laws`][vcjax.loops.loop.Loop.laws])
 REQUIRED = tuple(
     n for n in dir(Loop) if getattr(getattr(Loop, n, None), "__vcjax_required__", False)
 )

@@ -1,16 +1,20 @@
 """ODIN-class loop (Simulation 2's): horizontal VCM + depth PID + roll/pitch PD + thruster
 allocation, on any path kind.
 
-1. **Horizontal plane** — the VCM law :func:`vcjax.control.vcm.vcm_law` on the horizontal
+1. **Horizontal plane** — the VCM law [`vcjax.control.vcm.vcm_law`][vcjax.control.vcm.vcm_law] on
+the horizontal
    projection of the path, with the sphere's 3-DOF design model (20)
-   (:func:`vcjax.vehicles.odin.design_model` at ``u_d``), fed ``[x, y, psi]`` and ``[u, v, r]``;
+   ([`design_model`][vcjax.vehicles.odin.design_model] at ``u_d``), fed ``[x, y, psi]`` and
+   ``[u, v, r]``;
    it gives ``[tau_u, tau_v, tau_r]``. Controller ``"vcm"`` (the paper: "the AUV is
    underactuated"): ``tau_v = 0`` and ``v_d`` follows (38); ``"vcm_full"``: ODIN's thrusters also
    give the sway force the law asks for (``v_d = 0``).
-2. **Depth** — :func:`vcjax.control.depth.depth_pid` on ``z - z_p(w)`` at the particle, the
+2. **Depth** — [`vcjax.control.depth.depth_pid`][vcjax.control.depth.depth_pid] on ``z - z_p(w)`` at
+the particle, the
    reference moving with it (``w_ddot = (sigma s_dot - |p_bar'|' w_dot^2) / |p_bar'|`` from (22)).
-3. **Roll/pitch** — :func:`vcjax.control.attitude.roll_pitch_pd`.
-4. ``tau = [tau_u, tau_v, tau_Z, tau_K, tau_M, tau_r]`` -> :func:`vcjax.allocation.allocate`
+3. **Roll/pitch** — [`roll_pitch_pd`][vcjax.control.attitude.roll_pitch_pd].
+4. ``tau = [tau_u, tau_v, tau_Z, tau_K, tau_M, tau_r]`` ->
+[`vcjax.allocation.allocate`][vcjax.allocation.allocate]
    (redistributed pseudo-inverse within the thrust limits) -> 8 thruster commands -> the plant's
    first-order thruster lags.
 """
@@ -64,7 +68,7 @@ class OdinGains(NamedTuple):
     """Gains of the ODIN-class loop (traced).
 
     Attributes:
-        vcm: :class:`~vcjax.control.vcm.PMGains` of the horizontal VCM law.
+        vcm: [`PMGains`][vcjax.control.vcm.PMGains] of the horizontal VCM law.
         depth: (3,) ``[k_p 1/s^2, k_d 1/s, k_i 1/s^3]`` of the depth PID (acceleration gains).
         attitude: (2,) ``[k_p N m/rad, k_d N m s/rad]`` of the roll/pitch PD.
         int_z_limit: () anti-windup clamp of the depth integral [m s].
@@ -77,7 +81,8 @@ class OdinGains(NamedTuple):
 
 
 def default_vcm_gains(P_int=(0.008, 0.0)):
-    """VCM gains for ODIN-class at ``u_d = 0.5 m/s`` (see :func:`default_odin_gains`)."""
+    """VCM gains for ODIN-class at ``u_d = 0.5 m/s`` (see
+    [`default_odin_gains`][vcjax.loops.odin.default_odin_gains])."""
     return pm_gains(
         P_G=(0.5, 0.2, 0.2),
         P_Phi=(0.5, 0.5, 1.0, 0.2, 0.2),
@@ -88,8 +93,9 @@ def default_vcm_gains(P_int=(0.008, 0.0)):
 
 
 def odin_gains(vcm=None, depth=(0.09, 0.6, 0.005), attitude=(10.0, 8.0), int_z_limit=20.0):
-    """Validated :class:`OdinGains`; ``vcm`` (:class:`~vcjax.control.vcm.PMGains`) defaults to
-    :func:`default_vcm_gains`.
+    """Validated [`OdinGains`][vcjax.loops.odin.OdinGains]; ``vcm``
+    ([`PMGains`][vcjax.control.vcm.PMGains]) defaults to
+    [`default_vcm_gains`][vcjax.loops.odin.default_vcm_gains].
 
     Raises ``ValueError`` naming the field for bad shapes, non-positive gains, or a depth PID
     that is unstable on the double integrator (Routh–Hurwitz: ``k_d k_p > k_i``).
@@ -131,7 +137,8 @@ def default_odin_gains(actuation: str = "underactuated") -> OdinGains:
 
 
 class OdinCtrlParams(NamedTuple):
-    """Traced controller parameters: VCM params, :class:`OdinGains`, the design vehicle."""
+    """Traced controller parameters: VCM params, [`OdinGains`][vcjax.loops.odin.OdinGains], the
+    design vehicle."""
 
     vcm: Any
     gains: OdinGains
@@ -139,7 +146,7 @@ class OdinCtrlParams(NamedTuple):
 
 
 class OdinCtrlState(NamedTuple):
-    """Controller state: :class:`~vcjax.control.vcm.VCMState` and the depth integral [m s]."""
+    """Controller state: [`VCMState`][vcjax.control.vcm.VCMState] and the depth integral [m s]."""
 
     vcm: VCMState
     int_z: Any
@@ -149,7 +156,7 @@ class OdinAux(NamedTuple):
     """Signals recorded per step.
 
     Attributes:
-        vcm: :class:`~vcjax.control.vcm.VCMAux` of the horizontal law.
+        vcm: [`VCMAux`][vcjax.control.vcm.VCMAux] of the horizontal law.
         p_err: (3,) ``p - p_p(w)``, NED [m] (the 3-D distance-error components).
         depth_err: () ``z - z_p(w)`` [m].
         tau_cmd: (6,) generalised force asked of the allocation [N, N m].
@@ -174,8 +181,9 @@ def _depth_i_bound(g):
 
 @dataclasses.dataclass(frozen=True)
 class OdinLaw(Law):
-    """The ODIN controller: the horizontal VCM law (:func:`vcjax.control.vcm.vcm_law`) and the
-    gains of the loop's depth and attitude loops (:class:`OdinGains`).
+    """The ODIN controller: the horizontal VCM law
+    ([`vcjax.control.vcm.vcm_law`][vcjax.control.vcm.vcm_law]) and the
+    gains of the loop's depth and attitude loops ([`OdinGains`][vcjax.loops.odin.OdinGains]).
 
     ``params(loop, gains, sc) -> OdinCtrlParams``; ``step(loop, params, t, (eta3, nu3), z) ->
     (tau3, z_dot, aux)`` on the horizontal projection ``[x, y, psi]``, ``[u, v, r]``.
@@ -240,10 +248,11 @@ class OdinLoop(Loop):
     """ODIN-class sphere (6-DOF plant, 8 thrusters) under the horizontal VCM law + depth and
     attitude loops + allocation (module docstring).
 
-    Attributes (besides :class:`~vcjax.loops.Loop`'s):
+    Attributes (besides [`Loop`][vcjax.loops.loop.Loop]'s):
         integral: integral action (41) in the VCM law (gains ``P_int``).
-        edd: ``"paper"`` or ``"implied"`` (see :mod:`vcjax.control.vcm`).
-        polish: projected-gradient steps of the allocation (see :mod:`vcjax.allocation`).
+        edd: ``"paper"`` or ``"implied"`` (see [`vcjax.control.vcm`][vcjax.control.vcm]).
+        polish: projected-gradient steps of the allocation (see
+        [`vcjax.allocation`][vcjax.allocation]).
     """
 
     integral: bool = True
@@ -350,7 +359,8 @@ class OdinLoop(Loop):
     def plant_in_sea(self, t, x, u, args, water):
         """The 6-DOF plant in a sea: the water's velocity and material acceleration at the
         vehicle's position (current + orbital motion) through the plant's (3,) current door,
-        the Froude–Krylov correction (:func:`vcjax.environment.waves.current_door_correction`: the
+        the Froude–Krylov correction
+        ([`current_door_correction`][vcjax.environment.waves.current_door_correction]: the
         pendulum moment of the CG below the CB, plus the buoyancy excess if ``B != W``) added to the
         body disturbance. A calm sea changes nothing (every added term is exactly 0)."""
         v_w, a_w = water.at(t, x.eta[:3])

@@ -1,5 +1,5 @@
 """Parameter and gains NamedTuples by name: dotted parameter names, lookup and replacement;
-the one gains-JSON reader and writer; the one :class:`~vcjax.loops.types.GainSpec` builder."""
+the one gains-JSON reader and writer; the one [`GainSpec`][vcjax.loops.types.GainSpec] builder."""
 
 from __future__ import annotations
 
@@ -112,7 +112,7 @@ def _read(d, default, where):
 
 
 def gain_spec(name: str, field: str | None = None, size: int = 1, index=None, bound=None):
-    """The :class:`~vcjax.loops.types.GainSpec` of the gains field ``field`` (dotted for nested
+    """The [`GainSpec`][vcjax.loops.types.GainSpec] of the gains field ``field`` (dotted for nested
     NamedTuples; default ``name``), or of its entries ``index`` (a ``slice``).
 
     ``size`` entries (a slice's length when ``index`` is given); a ``size``-1 group of a ``()``

@@ -1,6 +1,7 @@
-"""Pieces shared by the loops whose law is the planar VCM law (:mod:`vcjax.control.vcm`):
+"""Pieces shared by the loops whose law is the planar VCM law
+([`vcjax.control.vcm`][vcjax.control.vcm]):
 the Routh–Hurwitz bound of its integral gains and the tunable groups of its
-:class:`~vcjax.control.vcm.PMGains`, wherever they sit in a vehicle's gains."""
+[`PMGains`][vcjax.control.vcm.PMGains], wherever they sit in a vehicle's gains."""
 
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ def rh_bound(P_G, P_Phi):
 
 
 def pm_gain_specs(field: str, integral: bool, ilos: bool) -> tuple:
-    """The tunable groups of the :class:`~vcjax.control.vcm.PMGains` at gains field ``field``:
+    """The tunable groups of the [`PMGains`][vcjax.control.vcm.PMGains] at gains field ``field``:
     ``P_int`` only with integral action, ``sigma_i`` only with the integral-LOS angle."""
 
     def int_bound(gains):

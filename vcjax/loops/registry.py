@@ -1,8 +1,11 @@
 """The registry of loops: ``vehicle name -> Loop subclass``, and each loop's laws.
 
-:func:`register` adds a vehicle (refusing a class that lacks a required method, naming them, and
-a name already taken unless ``replace=True``); :func:`register_law` adds a law to a registered
-vehicle (one line beside a new law's file). :func:`make_loop` builds a loop by name.
+[`register`][vcjax.loops.registry.register] adds a vehicle (refusing a class that lacks a required
+method, naming them, and
+a name already taken unless ``replace=True``); [`register_law`][vcjax.loops.registry.register_law]
+adds a law to a registered
+vehicle (one line beside a new law's file). [`make_loop`][vcjax.loops.registry.make_loop] builds a
+loop by name.
 """
 
 from __future__ import annotations
@@ -48,13 +51,15 @@ def _same(a: type, b: type) -> bool:
 
 
 def register(cls: type[Loop], *, replace: bool = False, check: bool = True) -> type[Loop]:
-    """Register a :class:`Loop` subclass under ``cls.vehicle`` (usable as a decorator).
+    """Register a [`Loop`][vcjax.loops.loop.Loop] subclass under ``cls.vehicle`` (usable as a
+    decorator).
 
     Refused (``ValueError``): not a Loop subclass or no vehicle name; no controllers; required
     methods not defined (listed by name; ``default_gains``/``gain_specs`` may come from the
     laws); a vehicle name that another class already holds, unless ``replace=True`` (the
     message names the module that tried and the registered class); with ``check`` (the
-    default), a controller whose one step does not trace (:func:`check_step`: signatures,
+    default), a controller whose one step does not trace
+    ([`check_step`][vcjax.loops.registry.check_step]: signatures,
     gains, output shapes), named with what is wrong. vcjax's own loops register with
     ``check=False`` (at import, before JAX's devices are set up; the conformance suite traces
     them).
@@ -108,7 +113,7 @@ def register_law(
     Refused (``ValueError``): an unknown vehicle, a law missing required methods (named), a
     controller name the vehicle already has unless ``replace=True``; with ``check`` (the
     default), a law whose one step does not trace or gives outputs of the wrong shape
-    (:func:`check_step`; the law is then not registered).
+    ([`check_step`][vcjax.loops.registry.check_step]; the law is then not registered).
     """
     cls = loop_class(vehicle)
     if not isinstance(controller, str) or not controller:
@@ -148,11 +153,13 @@ def _same_shapes(a, b) -> bool:
 
 
 class _Wrong(ValueError):
-    """What :func:`check_step` found wrong before tracing (said as it is)."""
+    """What [`check_step`][vcjax.loops.registry.check_step] found wrong before tracing (said as it
+    is)."""
 
 
 class _Spy:
-    """A law that records what its ``step`` returned (for :func:`check_step`)."""
+    """A law that records what its ``step`` returned (for
+    [`check_step`][vcjax.loops.registry.check_step])."""
 
     def __init__(self, law, seen: list):
         self._law, self._seen = law, seen
@@ -220,7 +227,7 @@ def _same_force(cls: type[Loop], taus: dict) -> None:
 
 
 def check_step(cls: type[Loop], controller: str, who: str = "check_step", compare: bool = True):
-    """Trace one step of ``cls``'s loop with ``controller`` (:func:`jax.eval_shape`, default
+    """Trace one step of ``cls``'s loop with ``controller`` (``jax.eval_shape``, default
     gains and scenario) before any work, and refuse (``ValueError`` naming the vehicle, the law
     and what is wrong) a law whose methods do not take the arguments the loop passes (a
     ``step`` without ``z``), whose gains are not a NamedTuple (a dict), whose ``z_dot`` does
@@ -228,7 +235,7 @@ def check_step(cls: type[Loop], controller: str, who: str = "check_step", compar
     laws' (a (2,) force for a 3-DOF plant, which indexing would silently clamp), or whose
     plant derivative does not match the state. Returns the shapes of the law's force ``tau``
     (None for a loop without laws); ``compare=False`` leaves out the comparison with the other
-    laws (:func:`register` compares them all at once)."""
+    laws ([`register`][vcjax.loops.registry.register] compares them all at once)."""
     law = cls.laws.get(controller)
     what = f"{who}: {cls.vehicle} " + (
         f"law {controller!r} ({type(law).__name__})" if law is not None else repr(controller)
@@ -282,7 +289,8 @@ def vehicles() -> tuple[str, ...]:
 
 
 def loop_class(vehicle: str) -> type[Loop]:
-    """The :class:`Loop` subclass of ``vehicle``; ``ValueError`` listing the vehicles if none."""
+    """The [`Loop`][vcjax.loops.loop.Loop] subclass of ``vehicle``; ``ValueError`` listing the
+    vehicles if none."""
     if vehicle not in _REGISTRY:
         raise ValueError(f"vehicle: expected one of {list(vehicles())}, got {vehicle!r}")
     return _REGISTRY[vehicle]

@@ -1,19 +1,22 @@
 """REMUS 100 loops: the PVS REMUS 100 plant under the 3-D VCM law or a 3-D baseline.
 
-Controllers (see :mod:`vcjax.experiments.remus100` for the experiment built on the same laws):
+Controllers (see [`vcjax.experiments.remus100`][vcjax.experiments.remus100] for the experiment built
+on the same laws):
 
-* ``vcm3d_ilos``: 3-D VCM (:mod:`vcjax.control.vcm3d`), underactuated in sway and heave (fin
+* ``vcm3d_ilos``: 3-D VCM ([`vcjax.control.vcm3d`][vcjax.control.vcm3d]), underactuated in sway and
+heave (fin
   forces tied to their moments), integral action and integral-LOS angles in both planes;
 * ``vcm3d``: the same with the paper's approach angles (24) (integral action kept);
 * ``decoupled``: horizontal VCM (31)/(38) + depth through pitch (the paper's decoupled design;
   the 2-D law's mass matrix is the 3-DOF model's, its body bias the design model's ``X, Y, N``
-  rows, see :mod:`vcjax.control.baselines3d`);
+  rows, see [`vcjax.control.baselines3d`][vcjax.control.baselines3d]);
 * ``alos3d``: ALOS3D guidance + PID heading/pitch autopilots + surge PI;
 * ``pvs_pid``: the same autopilots with plain LOS angles.
 
-Every law's body force goes through :func:`vcjax.vehicles.remus100_design.actuator_map` of the
+Every law's body force goes through [`actuator_map`][vcjax.vehicles.remus100_design.actuator_map] of
+the
 *design* vehicle at the measured velocity over ground. The design model is
-:func:`~vcjax.vehicles.remus100_design.design_model` of ``sc.design`` at ``u_d``.
+[`design_model`][vcjax.vehicles.remus100_design.design_model] of ``sc.design`` at ``u_d``.
 """
 
 from __future__ import annotations
@@ -73,9 +76,10 @@ class RemusGains(NamedTuple):
     """Gains of every REMUS 100 controller (traced).
 
     Attributes:
-        vcm3d: :class:`~vcjax.control.vcm3d.VCM3DGains` (``vcm3d``, ``vcm3d_ilos``).
-        horizontal: :class:`~vcjax.control.vcm.PMGains` of ``decoupled``'s 2-D law.
-        autopilot: :class:`~vcjax.control.baselines3d.AutopilotGains` (baselines; ``decoupled``
+        vcm3d: [`VCM3DGains`][vcjax.control.vcm3d.VCM3DGains] (``vcm3d``, ``vcm3d_ilos``).
+        horizontal: [`PMGains`][vcjax.control.vcm.PMGains] of ``decoupled``'s 2-D law.
+        autopilot: [`AutopilotGains`][vcjax.control.baselines3d.AutopilotGains] (baselines;
+            ``decoupled``
             uses its pitch autopilot, ``Delta[1]`` and ``gamma[1]`` as the vertical ILOS gain).
         decoupled_autopilot: the autopilot gains of ``decoupled``.
     """
@@ -158,7 +162,8 @@ class _RemusLaw(Law):
 
 @dataclasses.dataclass(frozen=True)
 class RemusVCM3DLaw(_RemusLaw):
-    """The 3-D VCM law (:mod:`vcjax.control.vcm3d`), underactuated in sway and heave, with
+    """The 3-D VCM law ([`vcjax.control.vcm3d`][vcjax.control.vcm3d]), underactuated in sway and
+    heave, with
     integral action; ``guidance``: ``"ilos"`` (integral-LOS angles, gains ``sigma_i``) or
     ``"los"`` (the paper's approach angles (24))."""
 
@@ -191,7 +196,8 @@ class RemusVCM3DLaw(_RemusLaw):
 
 @dataclasses.dataclass(frozen=True)
 class RemusDecoupledLaw(_RemusLaw):
-    """Horizontal VCM (31)/(38) + depth through pitch (:mod:`vcjax.control.baselines3d`)."""
+    """Horizontal VCM (31)/(38) + depth through pitch
+    ([`vcjax.control.baselines3d`][vcjax.control.baselines3d])."""
 
     def gain_specs(self, loop):
         names = [("P_G", 3), ("P_Phi", 5), ("Delta", 1), ("sigma", 1), ("sigma_i", 1)]
@@ -221,7 +227,8 @@ class RemusDecoupledLaw(_RemusLaw):
 @dataclasses.dataclass(frozen=True)
 class RemusAutopilotLaw(_RemusLaw):
     """LOS (``"los"``, ``pvs_pid``) or ALOS3D (``"alos"``, gains ``gamma``) guidance with PID
-    heading/pitch autopilots and a surge PI (:mod:`vcjax.control.baselines3d`)."""
+    heading/pitch autopilots and a surge PI
+    ([`vcjax.control.baselines3d`][vcjax.control.baselines3d])."""
 
     guidance: Literal["los", "alos"] = "los"
 
@@ -242,7 +249,8 @@ class RemusAutopilotLaw(_RemusLaw):
         return autopilot_law(acfg, params, t, m.q, m.qd, m.nu, z)
 
 
-#: the REMUS 100 controllers, in the order of :attr:`Remus100Loop.laws`
+#: the REMUS 100 controllers, in the order of
+# [`Remus100Loop.laws`][vcjax.loops.remus100.Remus100Loop.laws]
 REMUS_LAWS = {
     "vcm3d_ilos": RemusVCM3DLaw("ilos"),
     "vcm3d": RemusVCM3DLaw("los"),
@@ -257,9 +265,9 @@ REMUS_CONTROLLERS = tuple(REMUS_LAWS)
 class Remus100Loop(Loop):
     """The PVS REMUS 100 (6-DOF, fins + propeller) under one 3-D path-following controller.
 
-    Attributes (besides :class:`~vcjax.loops.Loop`'s):
+    Attributes (besides [`Loop`][vcjax.loops.loop.Loop]'s):
         edd: which ``e_ddot`` enters the heading row of ``decoupled``'s 2-D VCM law
-            (``"paper"`` or ``"implied"``, :class:`~vcjax.control.vcm.VCMConfig`).
+            (``"paper"`` or ``"implied"``, [`VCMConfig`][vcjax.control.vcm.VCMConfig]).
     """
 
     edd: Literal["paper", "implied"] = "paper"
@@ -331,8 +339,9 @@ class Remus100Loop(Loop):
     def plant_in_sea(self, t, x, u, args, water):
         """The PVS plant in a sea: the current keeps PVS's yaw-only door (``args.v_c``), the
         orbital motion at the hull's position goes through the full rotation on top of it
-        (:attr:`~vcjax.vehicles.remus100.Remus100Args.v_w`), and the pendulum moment of the CG
-        below the CB (:func:`vcjax.environment.waves.current_door_correction`; ``W = B``, CB at the
+        (``v_w``), and the pendulum moment of the CG
+        below the CB ([`current_door_correction`][vcjax.environment.waves.current_door_correction];
+        ``W = B``, CB at the
         CO) joins the force sum. A calm sea changes nothing (every added term is exactly 0)."""
         u_w, a_w = water.waves_at(t, x.eta[:3])
         b = args.vehicle.body

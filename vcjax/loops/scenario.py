@@ -1,5 +1,8 @@
-"""Scenarios by hand and from files: :func:`make_scenario` (validated, eager), parameter files
-(:func:`read_param_file`, :func:`apply_params`), and :func:`check_disturbances` (whether a loop
+"""Scenarios by hand and from files: [`make_scenario`][vcjax.loops.scenario.make_scenario]
+(validated, eager), parameter files
+([`read_param_file`][vcjax.loops.scenario.read_param_file],
+[`apply_params`][vcjax.loops.scenario.apply_params]), and
+[`check_disturbances`][vcjax.loops.scenario.check_disturbances] (whether a loop
 can take the current a config asks for)."""
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ def check_disturbances(
     take.
 
     Args:
-        loop: a :class:`Loop` or a Loop subclass.
+        loop: a [`Loop`][vcjax.loops.loop.Loop] or a Loop subclass.
         current_nonzero: the config asks for a non-zero (mean) current.
         gauss_markov: the config asks for a time-varying (Gauss–Markov) current.
         waves: the config asks for waves (a sea state, even a calm one); the message then
@@ -55,8 +58,9 @@ def check_disturbances(
 
 def check_environment(loop, environment) -> None:
     """Refuse (``ValueError``, one line ``section: the X loop cannot take ...: reason``), before
-    any work, every component of ``environment`` (a :class:`vcjax.environment.Environment`, or
-    an iterable of components) the loop cannot feel (:attr:`Loop.feels`)."""
+    any work, every component of ``environment`` (a
+    [`vcjax.environment.Environment`][vcjax.environment.component.Environment], or
+    an iterable of components) the loop cannot feel (``Loop.feels``)."""
     cls = loop if isinstance(loop, type) else type(loop)
     name = cls.vehicle or cls.__name__
     comps = getattr(environment, "components", environment) or ()
@@ -86,7 +90,8 @@ def make_scenario(
     environment=None,
     dtype=None,
 ) -> Scenario:
-    """A validated :class:`Scenario` for ``loop`` (eager; not for use under ``jit``).
+    """A validated [`Scenario`][vcjax.loops.types.Scenario] for ``loop`` (eager; not for use under
+    ``jit``).
 
     Args:
         coeffs: path coefficients (default: the vehicle's default path's).
@@ -100,12 +105,14 @@ def make_scenario(
             ``plant``).
         disturbance: constant generalised disturbance (default zeros).
         varpi0: initial particle (default: the path point nearest to the start).
-        sea: a :class:`vcjax.environment.waves.Sea` (e.g.
-        :func:`vcjax.environment.waves.sea_state`) the plant feels,
+        sea: a [`vcjax.environment.waves.Sea`][vcjax.environment.waves.Sea] (e.g.
+        [`sea_state`][vcjax.environment.waves.sea_state]) the plant feels,
             or None (no waves; refused by a loop that cannot take waves).
         origin_depth: depth of the NED origin below the sea's mean free surface [m].
-        environment: a :class:`vcjax.environment.Environment` (e.g. from
-            :func:`vcjax.environment.sample`), or None; a component the loop cannot feel is
+        environment: a [`vcjax.environment.Environment`][vcjax.environment.component.Environment]
+            (e.g. from
+            [`vcjax.environment.sample`][vcjax.environment.component.sample]), or None; a component
+            the loop cannot feel is
             refused by its section name.
     """
     plant = loop.default_params(dtype) if plant is None else loop.validate_params(plant, "plant")
@@ -177,7 +184,7 @@ def make_scenario(
 
 
 def _check_sea(sea, dtype):
-    """A :class:`~vcjax.environment.waves.Sea` of five finite (N,) arrays cast to ``dtype``."""
+    """A [`Sea`][vcjax.environment.waves.Sea] of five finite (N,) arrays cast to ``dtype``."""
     if not isinstance(sea, waves.Sea):
         raise ValueError(f"sea: expected a vcjax.environment.waves.Sea, got {type(sea).__name__}")
     arrs = [np.asarray(a, dtype=float) for a in sea]

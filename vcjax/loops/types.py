@@ -1,5 +1,7 @@
-"""The data every loop shares: :class:`Scenario` (traced data of one run), :class:`Signals`
-(what metrics and losses read from a run) and :class:`GainSpec` (one tunable gain group)."""
+"""The data every loop shares: [`Scenario`][vcjax.loops.types.Scenario] (traced data of one run),
+[`Signals`][vcjax.loops.types.Signals]
+(what metrics and losses read from a run) and [`GainSpec`][vcjax.loops.types.GainSpec] (one tunable
+gain group)."""
 
 from __future__ import annotations
 
@@ -24,19 +26,22 @@ class Scenario(NamedTuple):
             planar craft use its first two components; ignored by loops without water).
         u_d: () desired speed along the path [m/s].
         varpi0: () initial path-particle parameter.
-        path: coefficients of the loop's path (kind: :attr:`Loop.path`).
+        path: coefficients of the loop's path (kind: ``Loop.path``).
         plant: parameters of the simulated plant (the vehicle's parameter NamedTuple).
         design: parameters the *controller* believes (its design model and actuator map come
             from them); equal to ``plant`` unless a study perturbs the plant (model error).
         disturbance: (n_nu,) constant generalised disturbance force on the plant (body frame
             for craft) [N, N m]; zeros where the plant takes none.
-        sea: a :class:`vcjax.environment.waves.Sea` (``N`` regular components, (N,) arrays) whose
-            orbital motion the plant feels on top of ``current`` (:meth:`Loop.plant_in_sea`), or
+        sea: a [`vcjax.environment.waves.Sea`][vcjax.environment.waves.Sea] (``N`` regular
+            components, (N,) arrays) whose
+            orbital motion the plant feels on top of ``current``
+            ([`Loop.plant_in_sea`][vcjax.loops.loop.Loop.plant_in_sea]), or
             ``None``: no waves. Whether it is ``None`` is static (it changes the program).
         origin_depth: () depth of the NED origin below the sea's mean free surface [m]: the sea
             is felt at depth ``origin_depth + z`` (the same mission at another survey depth);
             ``None`` is 0. Unused without a sea.
-        environment: a :class:`vcjax.environment.Environment` (components with their sampled
+        environment: a [`vcjax.environment.Environment`][vcjax.environment.component.Environment]
+            (components with their sampled
             parameters) the plant and the controller feel on top of the fields above, or
             ``None``. Its components are static (part of the tree's structure).
     """
@@ -57,12 +62,14 @@ class Scenario(NamedTuple):
 
 class Water(NamedTuple):
     """The water a plant moves in during one integration step (traced; built by
-    :func:`vcjax.loops.simulate` for :meth:`Loop.plant_in_sea`): a uniform current plus the
+    [`vcjax.loops.simulate`][vcjax.loops.disturbances.simulate] for
+    [`Loop.plant_in_sea`][vcjax.loops.loop.Loop.plant_in_sea]): a uniform current plus the
     environment's components that vary in space (kind ``"waves"``).
 
     Attributes:
         fields: tuple of ``(component, params, held)``: each
-            :class:`~vcjax.environment.Component` that varies in space, its parameters and
+            [`Component`][vcjax.environment.component.Component] that varies in space, its
+            parameters and
             what its process holds over this step;
         current: (3,) uniform current in NED at this time [m/s];
         current_dot: (3,) its rate [m/s^2], or ``None`` (a constant current).
@@ -74,15 +81,16 @@ class Water(NamedTuple):
 
     @classmethod
     def of_sea(cls, sea, origin_depth, current, current_dot=None) -> Water:
-        """The water of one sea (:class:`vcjax.environment.waves.Sea`) whose NED origin is
+        """The water of one sea ([`vcjax.environment.waves.Sea`][vcjax.environment.waves.Sea]) whose
+        NED origin is
         ``origin_depth`` [m] below the mean free surface."""
         params = SeaParams(sea, jnp.asarray(origin_depth, jnp.asarray(current).dtype))
         return cls(((Waves(), params, None),), current, current_dot)
 
     def waves_at(self, t, p_ned):
-        """``(u (3,), a (3,))``: the share of the fields in :meth:`at`, their velocity and
+        """``(u (3,), a (3,))``: the share of the fields in ``at``, their velocity and
         material acceleration (advected by the current, e.g. the orbital motion of a sea,
-        :func:`vcjax.environment.waves.orbital_kinematics`); ``at = (current + u,
+        [`orbital_kinematics`][vcjax.environment.waves.orbital_kinematics]); ``at = (current + u,
         current_dot + a)``."""
         u = a = None
         for comp, params, held in self.fields:
@@ -104,7 +112,7 @@ class Water(NamedTuple):
 
 
 class GainSpec(NamedTuple):
-    """One tunable gain group of a loop (static; :mod:`tuning` builds its parameter vector
+    """One tunable gain group of a loop (static; [`tuning`][tuning] builds its parameter vector
     from these).
 
     Attributes:
@@ -125,13 +133,15 @@ class GainSpec(NamedTuple):
 
 
 class Signals(NamedTuple):
-    """What the one metrics function (:func:`vcjax.metrics.run_metrics`) and the tuning loss
+    """What the one metrics function ([`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]) and
+    the tuning loss
     read from a run: N per-step samples (the state at the start of each step), true values
     (not what a noisy sensor told the controller).
 
     Attributes:
         eps: (N, 2) path errors ``[s, e]`` (along-, cross-track) [m].
-        pos: (N, 3) NED position of what follows the path (:meth:`Loop.position`) [m].
+        pos: (N, 3) NED position of what follows the path
+            ([`Loop.position`][vcjax.loops.loop.Loop.position]) [m].
         p_err: (N, 3) position minus the path particle's point ``p_p(varpi)``, NED [m].
         u_err: (N,) speed error [m/s].
         psi_err: (N,) heading (or attitude) error [rad]; zeros where the law has none.

@@ -1,13 +1,17 @@
 """Figures (Matplotlib, Agg backend: files, never windows): public helpers and one module per
 experiment and one for sweeps.
 
-* :func:`pyplot` -- ``matplotlib.pyplot`` with the Agg backend selected;
-* :func:`save` -- lay a figure out, write it (PNG, 120 dpi), close it; returns the path;
-* :data:`STYLE` -- the line style of each INFANTE-class controller (experiments and sweeps);
-* :mod:`vcjax.plots.sim1`, :mod:`vcjax.plots.sim2`, :mod:`vcjax.plots.remus100`,
-  :mod:`vcjax.plots.arm` -- the figures of each experiment (:mod:`vcjax.experiments`);
-* :mod:`vcjax.plots.sweep` -- the figures of a Monte-Carlo sweep (the CLI draws them from the
-  result :func:`vcjax.sweep.run_sweep_config` returns).
+* [`pyplot`][vcjax.plots.pyplot] -- ``matplotlib.pyplot`` with the Agg backend selected;
+* [`save`][vcjax.plots.save] -- lay a figure out, write it (PNG, 120 dpi), close it; returns the
+path;
+* ``STYLE`` -- the line style of each INFANTE-class controller (experiments and sweeps);
+* [`vcjax.plots.sim1`][vcjax.plots.sim1], [`vcjax.plots.sim2`][vcjax.plots.sim2],
+[`vcjax.plots.remus100`][vcjax.plots.remus100],
+  [`vcjax.plots.arm`][vcjax.plots.arm] -- the figures of each experiment
+  ([`vcjax.experiments`][vcjax.experiments]);
+* [`vcjax.plots.sweep`][vcjax.plots.sweep] -- the figures of a Monte-Carlo sweep (the CLI draws them
+from the
+  result [`vcjax.sweep.run_sweep_config`][vcjax.sweep.config.run_sweep_config] returns).
 
 Layering: figures sit above loops, sweep and tuning; they read results (trajectories, sweep
 results) and never run a simulation. Only experiments, the CLI and the tuning/fit reports import

@@ -1,4 +1,4 @@
-"""Figure of the arm demo (:mod:`vcjax.experiments.arm`)."""
+"""Figure of the arm demo ([`vcjax.experiments.arm`][vcjax.experiments.arm])."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Figures of the REMUS 100 survey mission (:mod:`vcjax.experiments.remus100`)."""
+"""Figures of the REMUS 100 survey mission
+([`vcjax.experiments.remus100`][vcjax.experiments.remus100])."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Figures of Simulation 1 (:mod:`vcjax.experiments.sim1`): the paper's Figs. 4-5."""
+"""Figures of Simulation 1 ([`vcjax.experiments.sim1`][vcjax.experiments.sim1]): the paper's Figs.
+4-5."""
 
 from __future__ import annotations
 

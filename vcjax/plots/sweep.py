@@ -1,4 +1,4 @@
-"""Figures of a Monte-Carlo sweep (:mod:`vcjax.sweep`; Agg backend, files, never windows).
+"""Figures of a Monte-Carlo sweep ([`vcjax.sweep`][vcjax.sweep]; Agg backend, files, never windows).
 
 * ``sweep_error_vs_current.png``: steady-state |e| of every run against the mean current speed
   and against the current direction, one colour per variant, with binned medians;
@@ -255,7 +255,7 @@ def _paths(result, out: Path, max_paths: int = 60) -> Path:
 
 
 def sweep_figures(result, out: Path) -> list[Path]:
-    """Write the sweep figures for a :class:`~vcjax.sweep.SweepResult` into ``out``.
+    """Write the sweep figures for a [`SweepResult`][vcjax.sweep.results.SweepResult] into ``out``.
 
     The envelope and path figures need recorded traces (``record_points > 0``).
     """

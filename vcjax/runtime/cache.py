@@ -7,10 +7,12 @@ identical ``vcjax`` command reads the compiled programs back from disk instead. 
 * else ``$XDG_CACHE_HOME/vcjax/jax``;
 * else ``~/.cache/vcjax/jax``.
 
-:func:`enable_compilation_cache` is called once at the start of :func:`vcjax.cli.main`, before
+[`enable_compilation_cache`][vcjax.runtime.cache.enable_compilation_cache] is called once at the
+start of ``vcjax.cli.main``, before
 anything is compiled; the library itself never turns the cache on (``import vcjax`` changes no
 JAX setting), so tests and user programs get JAX's defaults unless they call it.
-``run.json`` records the folder used (:func:`cache_dir`; ``null`` when off).
+``run.json`` records the folder used ([`cache_dir`][vcjax.runtime.cache.cache_dir]; ``null`` when
+off).
 
 Thresholds: JAX writes an entry only for programs that took at least
 ``jax_persistent_cache_min_compile_time_secs`` (default 1 s) to compile. We set 0: a CLI run
@@ -18,19 +20,19 @@ also compiles dozens of small programs (scenario set-up, metrics, held-out evalu
 at 10-100 ms each on a loaded 2-core machine, which add up to seconds, while reading an entry
 back costs about a millisecond; with 0 a second identical run compiles nothing at all (what the
 tests check). ``jax_persistent_cache_min_entry_size_bytes`` is set to 0 (no size floor), and the
-folder is capped at :data:`MAX_BYTES` where the JAX version supports it and the ``filelock``
+folder is capped at ``MAX_BYTES`` where the JAX version supports it and the ``filelock``
 package is installed (JAX needs it to remove the least recently used entries); otherwise the
 folder is not capped. Settings a JAX version does not know are skipped.
 
-Only on JAX versions whose cache reads programs back correctly (:data:`SAFE_FROM`): jax 0.5.1
+Only on JAX versions whose cache reads programs back correctly (``SAFE_FROM``): jax 0.5.1
 reads back a program drawing gamma or beta random numbers (``jax.random.gamma``, the sea's
 directional spreading) as one that returns a constant -- silently wrong results on a second
-run. Checked: 0.5.1 wrong, 0.6.2 and 0.10.2 right; below :data:`SAFE_FROM` the cache stays off
-and :func:`cache_off_reason` says why (``run.json`` records it).
+run. Checked: 0.5.1 wrong, 0.6.2 and 0.10.2 right; below ``SAFE_FROM`` the cache stays off
+and [`cache_off_reason`][vcjax.runtime.cache.cache_off_reason] says why (``run.json`` records it).
 
 JAX traces before it computes its cache key, so the cache alone does not spare a run the tracing;
 the lowered programs themselves are kept in ``programs/`` inside the same folder
-(:mod:`vcjax.runtime.programs`), turned on and off with it.
+(``vcjax.runtime.programs``), turned on and off with it.
 """
 
 from __future__ import annotations
@@ -100,7 +102,8 @@ def _update(name: str, value) -> bool:
 
 
 def enable_compilation_cache(environ=None) -> str | None:
-    """Turn JAX's persistent compilation cache on in the folder of :func:`default_cache_dir`
+    """Turn JAX's persistent compilation cache on in the folder of
+    [`default_cache_dir`][vcjax.runtime.cache.default_cache_dir]
     (or off); returns the folder used as a string, or None when disabled or the folder cannot be
     created (the run goes on without a cache)."""
     global _ACTIVE
@@ -154,11 +157,13 @@ def _has_filelock() -> bool:
 
 
 def cache_dir() -> str | None:
-    """The folder :func:`enable_compilation_cache` set in this process (None: none)."""
+    """The folder [`enable_compilation_cache`][vcjax.runtime.cache.enable_compilation_cache] set in
+    this process (None: none)."""
     return _ACTIVE
 
 
 def cache_off_reason() -> str | None:
-    """Why :func:`enable_compilation_cache` left the cache off although the environment asked
+    """Why [`enable_compilation_cache`][vcjax.runtime.cache.enable_compilation_cache] left the cache
+    off although the environment asked
     for it (None: it did not, or it is on)."""
     return _OFF_REASON[0] if _OFF_REASON else None

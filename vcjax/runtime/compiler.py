@@ -10,17 +10,20 @@ in half the time and runs faster; the INFANTE-class batch gradient of 1024 compi
 and runs 4-6 % slower; the batched sweeps of ``benchmarks/before_after.py --cli-compiler`` are
 no slower than before this round.
 
-:func:`prefer_fast_compile` (called once at the start of :func:`vcjax.cli.main`, before JAX
+[`prefer_fast_compile`][vcjax.runtime.compiler.prefer_fast_compile] (called once at the start of
+``vcjax.cli.main``, before JAX
 creates its backend) adds that flag to ``XLA_FLAGS`` unless
 
 * ``XLA_FLAGS`` already says ``--xla_cpu_use_fusion_emitters=...`` (yours wins), or
 * ``VCJAX_FAST_COMPILE`` is ``0``, ``off``, ``false`` or ``no``, or
 * the installed jaxlib predates the flag (before 0.6: an unknown XLA flag aborts the process)
-  or is newer than the newest release it was checked with (:data:`CHECKED`): XLA may retire a
+  or is newer than the newest release it was checked with (``CHECKED``): XLA may retire a
   flag, and an unknown flag aborts the process, so an untested jaxlib gets XLA's default.
 
 The library itself never sets it on import (``import vcjax`` changes no JAX or XLA setting); a
-Python program or notebook opts in with one call, :func:`vcjax.fast_compile` (:func:`fast_compile`
+Python program or notebook opts in with one call,
+[`vcjax.fast_compile`][vcjax.runtime.compiler.fast_compile]
+([`fast_compile`][vcjax.runtime.compiler.fast_compile]
 here), before its first JAX computation, or by exporting
 ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=false`` before it starts. JAX's persistent
 compilation cache keys its entries by ``XLA_FLAGS``, so programs compiled either way never mix.
@@ -68,7 +71,7 @@ def _jaxlib_version() -> tuple[int, ...]:
 
 
 def prefer_fast_compile(environ=None) -> bool:
-    """Add :data:`FLAG` to ``XLA_FLAGS`` of ``environ`` (default ``os.environ``) unless the
+    """Add ``FLAG`` to ``XLA_FLAGS`` of ``environ`` (default ``os.environ``) unless the
     module docstring's exceptions apply; returns whether it is in effect for XLA's CPU
     backend. Call it before the first JAX computation (XLA reads its flags once)."""
     env = os.environ if environ is None else environ
@@ -82,7 +85,8 @@ def prefer_fast_compile(environ=None) -> bool:
 
 
 class BackendStartedError(RuntimeError):
-    """:func:`fast_compile` was called after JAX had started its backend (XLA reads its flags
+    """[`fast_compile`][vcjax.runtime.compiler.fast_compile] was called after JAX had started its
+    backend (XLA reads its flags
     once, when the first computation creates the backend)."""
 
 
@@ -111,7 +115,8 @@ def fast_compile() -> bool:
     250-step gradient compiles in about half the time; batched runs are a few per cent slower or
     faster, see ``docs/performance.md``). Call it once, at the top of a script or notebook,
     **before the first JAX computation**: XLA reads ``XLA_FLAGS`` once, when JAX starts its
-    backend, so a later call could not take effect and raises :class:`BackendStartedError`
+    backend, so a later call could not take effect and raises
+    [`BackendStartedError`][vcjax.runtime.compiler.BackendStartedError]
     instead (restart the kernel and call it first). Importing ``vcjax`` or ``jax`` is fine; it is
     the first array, ``jit`` call or ``jax.devices()`` that starts the backend.
 

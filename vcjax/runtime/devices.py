@@ -2,10 +2,12 @@
 
 On a CPU, JAX sees one device by default, and a ``vmap``-ed batch on one device runs on one
 core (XLA's CPU backend does not spread elementwise loops over threads). Splitting the host into
-as many CPU devices as cores and sharding the batch axis over them (as :mod:`vcjax.sweep` does
+as many CPU devices as cores and sharding the batch axis over them (as [`vcjax.sweep`][vcjax.sweep]
+does
 over its local devices) keeps every core busy. The split is a process-wide JAX setting
 (``jax_num_cpu_devices``) that must be made before the first JAX computation, so command-line
-entry points call :func:`use_cpu_cores` first thing; a library call never changes it for you.
+entry points call [`use_cpu_cores`][vcjax.runtime.devices.use_cpu_cores] first thing; a library call
+never changes it for you.
 
 Which count, first match wins:
 
@@ -80,13 +82,15 @@ def _backends_initialised() -> bool:
 
 
 def use_cpu_cores(n=None) -> int | None:
-    """Split the host CPU into :func:`cpu_device_count` JAX devices; return that count.
+    """Split the host CPU into [`cpu_device_count`][vcjax.runtime.devices.cpu_device_count] JAX
+    devices; return that count.
 
     Call it before any JAX computation (``import jax`` is fine; creating an array is not).
     Returns ``None`` when the count is left to ``XLA_FLAGS``.
 
     Raises:
-        ValueError: for a bad count (see :func:`cpu_device_count`), or when JAX has already
+        ValueError: for a bad count (see
+            [`cpu_device_count`][vcjax.runtime.devices.cpu_device_count]), or when JAX has already
             initialised its CPU backend with a different number of devices and the count was
             asked for explicitly (argument or environment variable); the default (one device
             per core) then quietly keeps the devices JAX already has.

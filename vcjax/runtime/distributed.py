@@ -8,14 +8,18 @@ vcjax uses it two ways:
 * **Independent shares** (sweeps): process ``p`` of ``P`` runs its share of the chunks on its
   local devices; no arrays cross processes; process 0 merges the parts (``vcjax.sweep``).
 * **One sharded batch** (tuning): the scenario batch of a loss is placed along a global 1-D mesh
-  of every process's devices (:func:`global_mesh`, :func:`shard_batch`); the jitted loss and its
+  of every process's devices ([`global_mesh`][vcjax.runtime.distributed.global_mesh],
+  [`shard_batch`][vcjax.runtime.distributed.shard_batch]); the jitted loss and its
   gradient then reduce across processes (CPU: gloo collectives), and every process gets the
   same, replicated value -- equal to the single-process one.
 
-Starting processes: :func:`spawn` starts ``n`` local processes with the coordinator address,
-process count and id in the environment (:data:`ENV_COORDINATOR`, :data:`ENV_NUM_PROCESSES`,
-:data:`ENV_PROCESS_ID`); :func:`initialize_from_env`, called first thing by the ``vcjax`` CLI,
-joins them. Under SLURM (``srun``), :func:`initialize_from_env` uses JAX's cluster
+Starting processes: [`spawn`][vcjax.runtime.distributed.spawn] starts ``n`` local processes with the
+coordinator address,
+process count and id in the environment (``ENV_COORDINATOR``, ``ENV_NUM_PROCESSES``,
+``ENV_PROCESS_ID``); [`initialize_from_env`][vcjax.runtime.distributed.initialize_from_env], called
+first thing by the ``vcjax`` CLI,
+joins them. Under SLURM (``srun``),
+[`initialize_from_env`][vcjax.runtime.distributed.initialize_from_env] uses JAX's cluster
 auto-detection instead, so the same command line works there (``vcjax launch`` spawns nothing
 inside an ``srun`` step).
 """
@@ -90,8 +94,9 @@ def _env_triplet(env) -> tuple[str, int, int] | None:
 def initialize_from_env(environ=None, timeout_s: int = 120) -> bool:
     """Join a multi-process run if this process was started as part of one; else do nothing.
 
-    With :data:`ENV_COORDINATOR`, :data:`ENV_NUM_PROCESSES` and :data:`ENV_PROCESS_ID` set (as
-    :func:`spawn` sets them) this calls ``jax.distributed.initialize(address, n, id)``; inside a
+    With ``ENV_COORDINATOR``, ``ENV_NUM_PROCESSES`` and ``ENV_PROCESS_ID`` set (as
+    [`spawn`][vcjax.runtime.distributed.spawn] sets them) this calls
+    ``jax.distributed.initialize(address, n, id)``; inside a
     multi-task SLURM step, ``jax.distributed.initialize()`` (auto-detection). CPU collectives
     use gloo (the default from jax 0.5.1; set explicitly so older settings cannot pick the
     unimplemented one). Must run before any JAX computation. Returns whether it joined a run.
@@ -115,14 +120,16 @@ def initialize_from_env(environ=None, timeout_s: int = 120) -> bool:
 
 
 def process_index() -> int:
-    """This process's rank: ``jax.process_index()`` in a run :func:`initialize_from_env` joined,
+    """This process's rank: ``jax.process_index()`` in a run
+    [`initialize_from_env`][vcjax.runtime.distributed.initialize_from_env] joined,
     else 0 (no environment variable is read: ``SLURM_PROCID`` set outside a real step, or a
     ``VCJAX_PROCESS_ID`` without its coordinator, does not make a rank)."""
     return int(jax.process_index()) if _initialized else 0
 
 
 def joined() -> bool:
-    """Whether :func:`initialize_from_env` joined this process to a multi-process run."""
+    """Whether [`initialize_from_env`][vcjax.runtime.distributed.initialize_from_env] joined this
+    process to a multi-process run."""
     return _initialized
 
 
@@ -162,13 +169,13 @@ def spawn(
 ) -> list[int]:
     """Run ``argv`` as ``n`` local processes of one JAX distributed run and wait for them.
 
-    Process ``i`` gets :data:`ENV_COORDINATOR` = ``localhost:port`` (a free port unless given),
-    :data:`ENV_NUM_PROCESSES` = ``n`` and :data:`ENV_PROCESS_ID` = ``i`` on top of ``env``
+    Process ``i`` gets ``ENV_COORDINATOR`` = ``localhost:port`` (a free port unless given),
+    ``ENV_NUM_PROCESSES`` = ``n`` and ``ENV_PROCESS_ID`` = ``i`` on top of ``env``
     (default: this process's environment); with ``cpu_devices`` each process splits the host CPU
     into that many devices (``VCJAX_CPU_DEVICES``, read by the ``vcjax`` commands, and
     ``XLA_FLAGS=--xla_force_host_platform_device_count`` for any other JAX program). If one
     process fails, or ``timeout_s`` passes, the others are terminated. Called inside
-    :func:`vcjax.runtime.interrupts.interrupt_guard`, an interrupt is forwarded to the processes
+    ``interrupt_guard``, an interrupt is forwarded to the processes
     (SIGINT) and they are waited for: each keeps and writes what it has done.
 
     Returns:

@@ -1,15 +1,18 @@
 """Interrupts that keep what is done.
 
-:func:`interrupt_guard`: SIGINT and SIGTERM set a flag (:func:`stop_requested`) that the long
+``interrupt_guard``: SIGINT and SIGTERM set a flag (``stop_requested``) that the long
 loops poll at safe points (after a sweep chunk, a tuning step, a fit iteration); they stop there
 and write what is done, marked ``interrupted``. The CLI then prints one line and exits with
-:data:`EXIT_INTERRUPTED` (130). A second signal more than :data:`SAME_INTERRUPT_S` later raises
-:class:`KeyboardInterrupt` (the CLI turns it into a one-line exit too). ``vcjax launch``
+[`EXIT_INTERRUPTED`][vcjax.runtime.interrupts.EXIT_INTERRUPTED] (130). A second signal more than
+[`SAME_INTERRUPT_S`][vcjax.runtime.interrupts.SAME_INTERRUPT_S] later raises
+``KeyboardInterrupt`` (the CLI turns it into a one-line exit too). ``vcjax launch``
 forwards its interrupt to the processes it started and waits for them to write their results;
-the processes of a tuning agree on the step to stop at (:func:`stop_requested_everywhere`).
+the processes of a tuning agree on the step to stop at
+([`stop_requested_everywhere`][vcjax.runtime.interrupts.stop_requested_everywhere]).
 After an interrupted guard, the interrupt's duplicate (a terminal's Ctrl-C reaches every
 process of the group, and ``vcjax launch`` forwards it as well) is swallowed until
-:data:`SAME_INTERRUPT_S` after it, so it cannot break the process's shutdown.
+[`SAME_INTERRUPT_S`][vcjax.runtime.interrupts.SAME_INTERRUPT_S] after it, so it cannot break the
+process's shutdown.
 """
 
 from __future__ import annotations
@@ -43,15 +46,15 @@ SAME_INTERRUPT_S = 1.0
 
 
 def stop_requested() -> bool:
-    """Whether SIGINT / SIGTERM arrived inside :func:`interrupt_guard` (polled by the loops)."""
+    """Whether SIGINT / SIGTERM arrived inside ``interrupt_guard`` (polled by the loops)."""
     return _stop.is_set()
 
 
 def stop_requested_everywhere() -> bool:
-    """:func:`stop_requested` agreed by every process of a multi-process run (one small
+    """``stop_requested`` agreed by every process of a multi-process run (one small
     all-gather; call it at the same point in every process, e.g. after each tuning step, so
     that they all stop at the same step and none waits in a collective for one that stopped).
-    One process: :func:`stop_requested`."""
+    One process: ``stop_requested``."""
     import jax
 
     if jax.process_count() == 1:
@@ -76,10 +79,11 @@ def request_stop(signum: int = signal.SIGINT) -> None:
 
 @contextlib.contextmanager
 def interrupt_guard():
-    """Within the block, SIGINT / SIGTERM request a stop (:func:`stop_requested`) instead of
-    killing the process; a second signal raises :class:`KeyboardInterrupt`. On exit the
+    """Within the block, SIGINT / SIGTERM request a stop (``stop_requested``) instead of
+    killing the process; a second signal raises ``KeyboardInterrupt``. On exit the
     handlers are restored and the flag cleared (a later run in the same process starts afresh;
-    :func:`stop_signal` still names the signal). Only in the main thread (elsewhere: no-op)."""
+    [`stop_signal`][vcjax.runtime.interrupts.stop_signal] still names the signal). Only in the main
+    thread (elsewhere: no-op)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -112,8 +116,9 @@ def interrupt_guard():
 
 
 def _after_interrupt(old):
-    """The handler to restore after an interrupted :func:`interrupt_guard`: a signal within
-    :data:`SAME_INTERRUPT_S` of the interrupt is the same interrupt (ignored); a later one gets
+    """The handler to restore after an interrupted ``interrupt_guard``: a signal within
+    [`SAME_INTERRUPT_S`][vcjax.runtime.interrupts.SAME_INTERRUPT_S] of the interrupt is the same
+    interrupt (ignored); a later one gets
     the old handler's behaviour (which is also restored)."""
     old = signal.SIG_DFL if old is None else old
 

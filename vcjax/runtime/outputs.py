@@ -2,35 +2,40 @@
 writes.
 
 Every ``vcjax`` command that writes a folder (``simulate``, ``sweep``, ``tune``, ``fit``) calls
-:func:`prepare_out` before it compiles or runs anything:
+[`prepare_out`][vcjax.runtime.outputs.prepare_out] before it compiles or runs anything:
 
 * ``--out`` must be creatable and writable (a file in the way, a read-only parent, a folder
   without write permission: exit 2 naming it). Checked by creating the folder and writing (then
   removing) a probe file, so what is reported is what the operating system allows.
-* A non-empty ``--out`` that holds another vcjax run (its manifest :data:`MANIFEST`, or one of
-  :data:`MARKERS` from a vcjax that wrote no manifest) is refused unless ``--overwrite`` is
+* A non-empty ``--out`` that holds another vcjax run (its manifest ``MANIFEST``, or one of
+  ``MARKERS`` from a vcjax that wrote no manifest) is refused unless ``--overwrite`` is
   given. With it, exactly the files the earlier run's manifest lists are removed (its data
   files and figures): nothing is matched by name, so a user's own ``metrics.json`` stays, and a
   file that is an input of the command (``keep``: the config, a gains file, every file the
-  config names) is never removed. The commands call :func:`prepare_out` only after every
+  config names) is never removed. The commands call
+  [`prepare_out`][vcjax.runtime.outputs.prepare_out] only after every
   check of their inputs passed, so a bad input leaves the earlier results untouched.
-* A lock file (:data:`LOCK`, holding ``pid``, host, the process's start time and the command)
+* A lock file (``LOCK``, holding ``pid``, host, the process's start time and the command)
   makes one writer per folder: a second process writing the same ``--out`` gets exit 2 naming
   the holder. The lock is created whole (a temporary file hard-linked into place) and released
-  when the process ends (``atexit``; also by :meth:`OutDir.release`). A lock that is empty or
+  when the process ends (``atexit``; also by
+  [`OutDir.release`][vcjax.runtime.outputs.OutDir.release]). A lock that is empty or
   unparsable, or whose process (same host) is gone or is now another program (a reused PID:
   another start time), is stale and taken over.
 
 In a multi-process run (``vcjax launch``) only process 0 checks contents, locks and writes the
 shared files; the others only check that the folder is writable (they write their
-``results.part`` files there). The rank is the distributed runtime's (:func:`process_rank`):
+``results.part`` files there). The rank is the distributed runtime's
+([`process_rank`][vcjax.runtime.outputs.process_rank]):
 environment variables alone never make a process skip the checks.
 
-Writes are atomic (:func:`write_json_atomic`, :func:`save_npz_atomic`, :func:`savefig_atomic`):
+Writes are atomic ([`write_json_atomic`][vcjax.runtime.outputs.write_json_atomic],
+[`save_npz_atomic`][vcjax.runtime.outputs.save_npz_atomic],
+[`savefig_atomic`][vcjax.runtime.outputs.savefig_atomic]):
 a temporary file in the same folder, then ``os.replace``, so a killed run never leaves a
 half-written JSON or npz behind.
 
-Interrupts that keep what is done: :mod:`vcjax.runtime.interrupts`.
+Interrupts that keep what is done: ``vcjax.runtime.interrupts``.
 """
 
 from __future__ import annotations
@@ -166,7 +171,8 @@ def savefig_atomic(fig, path, **kwargs) -> Path:
 
 def process_rank() -> int:
     """This process's index in a multi-process run: the distributed runtime's
-    (``jax.process_index()`` once :func:`vcjax.runtime.distributed.initialize_from_env` has
+    (``jax.process_index()`` once
+    [`initialize_from_env`][vcjax.runtime.distributed.initialize_from_env] has
     joined one), else 0. Environment variables alone (``SLURM_PROCID`` outside a real step, a
     stray ``VCJAX_PROCESS_ID``) never make a process a non-writer: only a joined run does."""
     from vcjax.runtime import distributed
@@ -226,7 +232,7 @@ def _lock_is_stale(holder: dict | None) -> bool:
 
 
 class OutDir:
-    """A checked, locked output folder (from :func:`prepare_out`).
+    """A checked, locked output folder (from [`prepare_out`][vcjax.runtime.outputs.prepare_out]).
 
     Attributes:
         path: the folder; writer: whether this process writes the shared files (process 0);
@@ -254,8 +260,9 @@ class OutDir:
         return snap
 
     def record_written(self) -> Path | None:
-        """Write the manifest :data:`MANIFEST`: every file created or rewritten since
-        :func:`prepare_out` (what ``--overwrite`` of a later run removes; a user's file that
+        """Write the manifest ``MANIFEST``: every file created or rewritten since
+        [`prepare_out`][vcjax.runtime.outputs.prepare_out] (what ``--overwrite`` of a later run
+        removes; a user's file that
         was there before and left alone is not listed)."""
         if not self.writer:
             return None
@@ -265,7 +272,8 @@ class OutDir:
         return write_json_atomic(self.path / MANIFEST, {"files": names})
 
     def written(self) -> list[str]:
-        """Files (relative names) created or rewritten since :func:`prepare_out`."""
+        """Files (relative names) created or rewritten since
+        [`prepare_out`][vcjax.runtime.outputs.prepare_out]."""
         now = self._snapshot()
         return [n for n, t in now.items() if self._before.get(n) != t]
 
@@ -349,7 +357,7 @@ def _read_manifest(path: Path) -> list[str]:
 
 def _earlier_run(path: Path) -> list[str]:
     """Names that show ``path`` holds an earlier vcjax run: its manifest, or (a folder from a
-    vcjax without manifests) one of :data:`MARKERS`. Only for refusing to write there without
+    vcjax without manifests) one of ``MARKERS``. Only for refusing to write there without
     ``--overwrite``: what ``--overwrite`` removes comes from the manifest alone."""
     found = [m for m in MARKERS if (path / m).is_file()]
     return found + ([MANIFEST] if (path / MANIFEST).is_file() else [])
@@ -400,7 +408,7 @@ def prepare_out(
         overwrite: remove an earlier vcjax run's files first instead of refusing.
         command: what runs (written into the lock file, named in messages).
         writer: whether this process writes the shared outputs (default: process 0 of a
-            multi-process run, :func:`process_rank`).
+            multi-process run, [`process_rank`][vcjax.runtime.outputs.process_rank]).
         keep: files never removed (the command's inputs, e.g. ``--gains out/gains.json``).
 
     Raises:

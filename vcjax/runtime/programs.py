@@ -1,12 +1,15 @@
 """Lowered programs kept on disk, so that a second identical ``vcjax`` command does not trace.
 
-JAX's persistent compilation cache (:mod:`vcjax.runtime.cache`) keeps XLA's executables, but it
+JAX's persistent compilation cache ([`vcjax.runtime.cache`][vcjax.runtime.cache]) keeps XLA's
+executables, but it
 finds them by hashing the lowered program: every run still traces the closed loop in Python and
 lowers it first (REMUS 100's batch program: seconds). This store keeps the lowered program itself,
-serialised with :mod:`jax.export`, in ``programs/`` inside the compilation cache's folder, keyed
+serialised with [`jax.export`][vcjax.runtime.programs.jax.export], in ``programs/`` inside the
+compilation cache's folder, keyed
 by a SHA-256 of everything that can change it:
 
-* the program's name and its static inputs, described field by field (:func:`describe`: the loop
+* the program's name and its static inputs, described field by field
+([`describe`][vcjax.runtime.programs.describe]: the loop
   dataclass with its path function's module, name, code and closure, the rollout settings);
 * the argument pytree's structure and every leaf's shape, dtype and sharding (values are traced
   inputs: gains and scenarios never enter the key, so new values reuse the program);
@@ -19,14 +22,18 @@ Multi-process runs (``vcjax launch``) build their programs as before, one after 
 static input that cannot be described stably (an object whose ``repr`` holds a memory address,
 a function closing over something else) is not stored: the program is built as before.
 
-:func:`build` is the one entry point. With the store on, a program is always compiled from its
+[`build`][vcjax.runtime.programs.build] is the one entry point. With the store on, a program is
+always compiled from its
 exported form (the first run exports and saves it, then compiles the loaded form exactly as the
 second run will), so the first and second runs compile the same module and the second reads
 XLA's executable back from the persistent cache: no tracing, no compiling. With the store off
 (``VCJAX_CACHE_DIR=off``, or the compilation cache off) it is ``jax.jit(f).lower(...).compile()``
-as before. The store is bounded (:data:`MAX_BYTES`; least recently used files removed first) and
-the library never turns it on by itself: :func:`vcjax.runtime.cache.enable_compilation_cache`
-(the command line) does. :func:`report` lists what this process built or reused (``run.json``'s
+as before. The store is bounded ([`MAX_BYTES`][vcjax.runtime.programs.MAX_BYTES]; least recently
+used files removed first) and
+the library never turns it on by itself:
+[`enable_compilation_cache`][vcjax.runtime.cache.enable_compilation_cache]
+(the command line) does. [`report`][vcjax.runtime.programs.report] lists what this process built or
+reused (``run.json``'s
 ``"programs"``).
 """
 
@@ -69,7 +76,8 @@ SUFFIX = ".jaxexport"
 #: the environment variable that turns the store off alone (the compilation cache stays on)
 STORE_ENV = "VCJAX_PROGRAM_STORE"
 _OFF = ("off", "none", "0", "false", "no")
-#: the environment variable that caps :func:`build_all`'s threads (1: serial)
+#: the environment variable that caps [`build_all`][vcjax.runtime.programs.build_all]'s threads (1:
+# serial)
 WORKERS_ENV = "VCJAX_COMPILE_WORKERS"
 _FORMAT = 1  # bump when the key's material or the file layout changes
 
@@ -85,8 +93,10 @@ class Unstable(Exception):
 
 def set_store(path) -> Path | None:
     """Use ``path`` (a folder, created on demand) for the store; None turns it off. Called by
-    :func:`vcjax.runtime.cache.enable_compilation_cache` with ``<cache>/programs``. Stays off
-    (:func:`off_reason` says why) with ``VCJAX_PROGRAM_STORE=off`` and where :mod:`jax.export`
+    [`enable_compilation_cache`][vcjax.runtime.cache.enable_compilation_cache] with
+    ``<cache>/programs``. Stays off
+    ([`off_reason`][vcjax.runtime.programs.off_reason] says why) with ``VCJAX_PROGRAM_STORE=off``
+    and where [`jax.export`][vcjax.runtime.programs.jax.export]
     cannot serialise (it needs the ``flatbuffers`` package)."""
     _REPORT.clear()
     _OFF_REASON.clear()
@@ -101,7 +111,8 @@ def set_store(path) -> Path | None:
 
 
 def off_reason() -> str | None:
-    """Why :func:`set_store` left the store off although asked for a folder (None: it did not)."""
+    """Why [`set_store`][vcjax.runtime.programs.set_store] left the store off although asked for a
+    folder (None: it did not)."""
     return _OFF_REASON[0] if _OFF_REASON else None
 
 
@@ -111,7 +122,8 @@ def store_dir() -> Path | None:
 
 
 def report() -> list[dict]:
-    """What :func:`build` did in this process, one entry per program: ``name``, ``key`` (None:
+    """What [`build`][vcjax.runtime.programs.build] did in this process, one entry per program:
+    ``name``, ``key`` (None:
     not storable), ``reused`` (loaded from the store, not traced), ``build_s`` (export or load,
     lower and compile)."""
     with _LOCK:
@@ -122,7 +134,8 @@ def report() -> list[dict]:
 
 
 def describe(x, _depth: int = 0):
-    """A plain, process-independent description of a static value (raises :class:`Unstable`)."""
+    """A plain, process-independent description of a static value (raises
+    [`Unstable`][vcjax.runtime.programs.Unstable])."""
     if _depth > 40:
         raise Unstable("too deep")
     d = _depth + 1
@@ -188,7 +201,8 @@ def _user_source(module: str | None) -> str | None:
     """SHA-256 of the source file of ``module`` when it is code of the user's (a law, a loop or
     a component in a file a config imports: its methods and the module's helpers are traced
     into the program, and only a hash of the whole file notices an edit anywhere in it); None
-    for vcjax and tuning (:func:`source_hash`) and for installed packages (their versions)."""
+    for vcjax and tuning ([`source_hash`][vcjax.runtime.programs.source_hash]) and for installed
+    packages (their versions)."""
     if not module or module.split(".")[0] in ("vcjax", "tuning", "builtins"):
         return None
     f = getattr(sys.modules.get(module), "__file__", None)
@@ -223,7 +237,8 @@ def _installed_roots() -> tuple[Path, ...]:
 
 def user_sources() -> tuple:
     """``(path, sha256)`` of every module loaded in this process from a file that is neither
-    vcjax's nor tuning's (:func:`source_hash`) nor part of Python or an installed package: the
+    vcjax's nor tuning's ([`source_hash`][vcjax.runtime.programs.source_hash]) nor part of Python or
+    an installed package: the
     laws, loops and components a config imports (``[scenario] module``), whose code is traced
     into the programs. An edit anywhere in such a file changes the key."""
     own = Path(__file__).resolve().parents[2]
@@ -288,7 +303,7 @@ def argument_spec(args) -> tuple:
 def program_key(name: str, static, args) -> str:
     """The store's key of program ``name`` with static inputs ``static`` at ``args`` (a tuple of
     pytrees: only their structure, shapes, dtypes and shardings count); raises
-    :class:`Unstable` when ``static`` cannot be described."""
+    [`Unstable`][vcjax.runtime.programs.Unstable] when ``static`` cannot be described."""
     material = (("name", name), ("static", describe(static)), argument_spec(args), environment())
     return hashlib.sha256(repr(material).encode()).hexdigest()
 
@@ -299,7 +314,7 @@ def program_key(name: str, static, args) -> str:
 def build(name: str, fn, static, args: tuple):
     """Compile ``fn(*args)`` (``fn`` with its static inputs bound; ``static``: those inputs, for
     the key) and return ``(call, info)``: ``call(*args)`` runs the compiled program on new values
-    of the same shapes; ``info`` is this program's :func:`report` entry.
+    of the same shapes; ``info`` is this program's [`report`][vcjax.runtime.programs.report] entry.
 
     With the store on, the program is loaded from it when an identical one was stored (no
     tracing), else exported, stored and loaded back; either way compiled from the exported
@@ -348,7 +363,8 @@ def build(name: str, fn, static, args: tuple):
 
 
 def build_all(jobs, workers: int | None = None) -> list:
-    """:func:`build` every ``(name, fn, static, args)`` of ``jobs`` concurrently (threads: XLA
+    """[`build`][vcjax.runtime.programs.build] every ``(name, fn, static, args)`` of ``jobs``
+    concurrently (threads: XLA
     compiles outside Python's lock, so independent programs compile in parallel on several
     cores); returns their ``(call, info)`` in order. ``workers`` defaults to
     ``$VCJAX_COMPILE_WORKERS`` (1: one after another), else the CPU count; ``info["build_s"]``
@@ -390,7 +406,8 @@ def _load(folder: Path, key: str):
 
 
 def _save(folder: Path, key: str, blob: bytes) -> None:
-    """Write atomically (a temporary file renamed), then keep the folder under :data:`MAX_BYTES`
+    """Write atomically (a temporary file renamed), then keep the folder under
+    [`MAX_BYTES`][vcjax.runtime.programs.MAX_BYTES]
     by removing the least recently used files. A folder that cannot be written is skipped."""
     try:
         folder.mkdir(parents=True, exist_ok=True)

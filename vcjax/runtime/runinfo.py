@@ -3,7 +3,8 @@
 Enough to reproduce the run: the command line, the configuration as parsed (after defaults and
 validation), the seeds, the vcjax version and git commit (with a flag for uncommitted changes),
 the Python, jax, jaxlib, numpy versions, the float precision, the devices and processes, and
-wall times. :func:`run_info` collects it, :func:`write_run_json` writes it (in a multi-process
+wall times. [`run_info`][vcjax.runtime.runinfo.run_info] collects it,
+[`write_run_json`][vcjax.runtime.runinfo.write_run_json] writes it (in a multi-process
 run, only process 0 writes).
 """
 
@@ -165,7 +166,8 @@ def _programs() -> dict:
 
 
 def write_run_json(out_dir, command: str, **kwargs) -> Path | None:
-    """Write :func:`run_info` to ``out_dir/run.json``; returns the path (None on processes other
+    """Write [`run_info`][vcjax.runtime.runinfo.run_info] to ``out_dir/run.json``; returns the path
+    (None on processes other
     than 0 of a multi-process run, which write nothing)."""
     if jax.process_index() != 0:
         return None

@@ -3,16 +3,21 @@ configuration, and refused (exit 2, with the estimate and the limit) when they c
 
 The checks run after the configuration is parsed and before anything is compiled:
 
-* **Steps per run**: ``horizon / dt`` steps of one rollout, at most :data:`MAX_STEPS` (10
+* **Steps per run**: ``horizon / dt`` steps of one rollout, at most
+[`MAX_STEPS`][vcjax.runtime.sizing.MAX_STEPS] (10
   million, the limit ``vcjax simulate`` has always had); ``--max-steps N`` raises it.
 * **Memory**: an estimate of the peak memory (bytes) compared with ``--max-memory-gb`` (default:
-  80 % of this machine's physical memory, :func:`default_memory_limit`):
+  80 % of this machine's physical memory,
+  [`default_memory_limit`][vcjax.runtime.sizing.default_memory_limit]):
 
-  - a sweep keeps per scenario and variant its metrics (:data:`METRIC_FLOATS` float64 values)
+  - a sweep keeps per scenario and variant its metrics
+  ([`METRIC_FLOATS`][vcjax.runtime.sizing.METRIC_FLOATS] float64 values)
     and ``record_points`` trace samples (cross-track error and position, 3 float32), plus the
-    sampled scenario (:data:`SCENARIO_FLOATS` float64), all on the host until the end; on the
+    sampled scenario ([`SCENARIO_FLOATS`][vcjax.runtime.sizing.SCENARIO_FLOATS] float64), all on the
+    host until the end; on the
     device one chunk of ``chunk_size`` scenarios holds one segment of the streamed record
-    (:func:`vcjax.sweep.run.segment_length` steps of :data:`STATE_FLOATS` float64 each, x 4
+    ([`vcjax.sweep.run.segment_length`][vcjax.sweep.run.segment_length] steps of
+    [`STATE_FLOATS`][vcjax.runtime.sizing.STATE_FLOATS] float64 each, x 4
     for the integrator's stages and work buffers);
   - a tuning run in reverse mode keeps the gradient tape: for each of the ``train.size``
     scenarios every step's state at every RK4 stage (``4 x STATE_FLOATS`` float64), or with
@@ -21,29 +26,35 @@ The checks run after the configuration is parsed and before anything is compiled
 
   - a sea (``[waves]``, ``components = N``) adds per scenario its ``N`` components (5 float64
     arrays: frequency, amplitude, wavenumber, phase, direction;
-    :class:`vcjax.environment.waves.Sea`) and,
-    while the kinematics are evaluated at the vehicle's position, :data:`WAVE_WORK_ARRAYS` more
+    [`vcjax.environment.waves.Sea`][vcjax.environment.waves.Sea]) and,
+    while the kinematics are evaluated at the vehicle's position,
+    [`WAVE_WORK_ARRAYS`][vcjax.runtime.sizing.WAVE_WORK_ARRAYS] more
     ``(N,)`` arrays per scenario of a chunk (phases, attenuation, the sines and cosines and the
     per-component terms of the velocity and acceleration); a reverse-mode tuning run keeps
-    :data:`WAVE_TAPE_ARRAYS` of them per scenario, step and RK4 stage on its tape. 10 million
+    [`WAVE_TAPE_ARRAYS`][vcjax.runtime.sizing.WAVE_TAPE_ARRAYS] of them per scenario, step and RK4
+    stage on its tape. 10 million
     components x 256 scenarios: one such array is 20 GB, the whole 410 GB.
 
-  :data:`STATE_FLOATS` (64) is an upper estimate of what one step records for the built-in
+  [`STATE_FLOATS`][vcjax.runtime.sizing.STATE_FLOATS] (64) is an upper estimate of what one step
+  records for the built-in
   loops (state, controller state, controller outputs and diagnostics; the 6-DOF REMUS 100 loop
   is the largest, at about 50). The estimate is an order-of-magnitude guard against work that
   cannot fit (``num_scenarios = 1e9``, ``horizon = 1e9``), not a measurement.
-* **Wall time of a sea** (a warning, not a refusal; :func:`time_warnings`): the kinematics cost
-  about :data:`WAVE_SECONDS_PER_COMPONENT` per component and RK4 stage, four stages per step;
-  above :data:`WALL_WARN_S` seconds of it the command says so (with the estimate) before it
+* **Wall time of a sea** (a warning, not a refusal;
+[`time_warnings`][vcjax.runtime.sizing.time_warnings]): the kinematics cost
+  about [`WAVE_SECONDS_PER_COMPONENT`][vcjax.runtime.sizing.WAVE_SECONDS_PER_COMPONENT] per
+  component and RK4 stage, four stages per step;
+  above [`WALL_WARN_S`][vcjax.runtime.sizing.WALL_WARN_S] seconds of it the command says so (with
+  the estimate) before it
   starts.
 * **Fit**: the multiple-shooting residuals and Jacobians of ``vcjax fit``
-  (:func:`fit_estimate`), against the same memory limit.
+  (``fit_estimate``), against the same memory limit.
 * **Seeds**: ``jax.random.PRNGKey`` takes integers of the default integer type: seeds must lie
   in ``0 .. 2**63 - 1`` in float64 mode and ``0 .. 2**31 - 1`` with ``--no-x64``
-  (:func:`check_seed`).
+  ([`check_seed`][vcjax.runtime.sizing.check_seed]).
 * **vcjax launch**: ``-n`` at most the number of usable cores (and at least 2 are always
   allowed) unless ``--max-processes`` allows more; ``--timeout`` must be positive
-  (:func:`check_launch`).
+  ([`check_launch`][vcjax.runtime.sizing.check_launch]).
 """
 
 from __future__ import annotations
@@ -79,7 +90,8 @@ STATE_FLOATS = 64
 METRIC_FLOATS = 48
 #: Sampled values kept per scenario (initial state, current, model factors, ...).
 SCENARIO_FLOATS = 32
-#: ``(N,)`` arrays of a sea per scenario: the :class:`vcjax.environment.waves.Sea` itself.
+#: ``(N,)`` arrays of a sea per scenario: the
+# [`vcjax.environment.waves.Sea`][vcjax.environment.waves.Sea] itself.
 WAVE_SEA_ARRAYS = 5
 #: ``(N,)`` work arrays per scenario while a sea's kinematics are evaluated (phase, attenuation,
 #: cos, sin, c, s, the convective terms q and A, the acceleration's sums, the sampler's draws).
@@ -125,7 +137,8 @@ def _gb(x: float) -> str:
 
 
 def sweep_estimate(spec) -> Estimate:
-    """Steps and memory of a :class:`~vcjax.sweep.spec.SweepSpec` (see the module docstring)."""
+    """Steps and memory of a [`SweepSpec`][vcjax.sweep.spec.SweepSpec] (see the module
+    docstring)."""
     n_steps = max(1, int(round(spec.horizon / spec.dt)))
     n, v = int(spec.num_scenarios), len(spec.variants)
     points = min(int(spec.record_points), n_steps + 1)
@@ -215,10 +228,13 @@ def check_estimate(
     max_memory_gb: float | None = None,
     notes=(),
 ) -> None:
-    """Raise :class:`SizeError` if ``est`` exceeds the step limit (default :data:`MAX_STEPS`)
-    or the memory limit (default :func:`default_memory_limit`), naming both and the option
+    """Raise [`SizeError`][vcjax.runtime.sizing.SizeError] if ``est`` exceeds the step limit
+    (default [`MAX_STEPS`][vcjax.runtime.sizing.MAX_STEPS])
+    or the memory limit (default
+    [`default_memory_limit`][vcjax.runtime.sizing.default_memory_limit]), naming both and the option
     that raises the limit; then print ``notes`` (e.g. the sea's validity,
-    :func:`vcjax.environment.waves.envelope_warnings`) and :func:`time_warnings` on stderr, one
+    [`envelope_warnings`][vcjax.environment.waves.envelope_warnings]) and
+    [`time_warnings`][vcjax.runtime.sizing.time_warnings] on stderr, one
     line each, before the run starts."""
     limit_steps = MAX_STEPS if max_steps is None else int(max_steps)
     if est["steps_per_run"] > limit_steps:
@@ -240,8 +256,9 @@ def check_estimate(
 
 def time_warnings(est: Estimate, what: str) -> list[str]:
     """Warnings (one line each) about the wall time of ``est``: a sea whose kinematics alone
-    take more than :data:`WALL_WARN_S` (``trajectory_steps x 4 stages x components x``
-    :data:`WAVE_SECONDS_PER_COMPONENT`)."""
+    take more than [`WALL_WARN_S`][vcjax.runtime.sizing.WALL_WARN_S] (``trajectory_steps x 4 stages
+    x components x``
+    [`WAVE_SECONDS_PER_COMPONENT`][vcjax.runtime.sizing.WAVE_SECONDS_PER_COMPONENT])."""
     comps = int(est.get("wave_components", 0))
     if not comps:
         return []
@@ -273,7 +290,8 @@ def check_limits_options(max_steps, max_memory_gb) -> None:
 
 
 def check_seed(name: str, seed, x64: bool) -> None:
-    """Raise :class:`SizeError` if ``seed`` is not an integer ``jax.random.PRNGKey`` accepts in
+    """Raise [`SizeError`][vcjax.runtime.sizing.SizeError] if ``seed`` is not an integer
+    ``jax.random.PRNGKey`` accepts in
     this precision: ``0 .. 2**63 - 1`` (float64 mode) or ``0 .. 2**31 - 1`` (``--no-x64``)."""
     hi = 2**63 - 1 if x64 else 2**31 - 1
     if isinstance(seed, bool) or not isinstance(seed, int):

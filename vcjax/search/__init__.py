@@ -1,13 +1,19 @@
 """Worst-case scenario search (``vcjax falsify``): which current, sea and start within an
 envelope make a controller's metric largest.
 
-* :mod:`vcjax.search.envelope`: :class:`Envelope` (parameter names in config units -> boxes),
-  :class:`Setting` (what is held fixed), :func:`scenario_from` (a parameter vector -> the traced
+* [`vcjax.search.envelope`][vcjax.search.envelope]: [`Envelope`][vcjax.search.envelope.Envelope]
+(parameter names in config units -> boxes),
+  [`Setting`][vcjax.search.envelope.Setting] (what is held fixed),
+  [`scenario_from`][vcjax.search.envelope.scenario_from] (a parameter vector -> the traced
   scenario; the one place that knows how a scenario is built);
-* :mod:`vcjax.search.core`: :func:`falsify` (multi-start projected gradient ascent, with random
-  sampling as its baseline), :func:`evaluate` (metrics of given parameters: a replay);
-* :mod:`vcjax.search.config`: ``vcjax falsify CONFIG``: the TOML file, outputs, replay;
-* :mod:`vcjax.search.figures`: the worst trajectory, worst metric found vs rollouts.
+* [`vcjax.search.core`][vcjax.search.core]: [`falsify`][vcjax.search.core.falsify] (multi-start
+projected gradient ascent, with random
+  sampling as its baseline), [`evaluate`][vcjax.search.core.evaluate] (metrics of given parameters:
+  a replay);
+* [`vcjax.search.config`][vcjax.search.config]: ``vcjax falsify CONFIG``: the TOML file, outputs,
+replay;
+* [`vcjax.search.figures`][vcjax.search.figures]: the worst trajectory, worst metric found vs
+rollouts.
 """
 
 from vcjax.search.core import ALIASES, FalsifyResult, evaluate, falsify, metric_name

@@ -1,7 +1,9 @@
 """``vcjax falsify CONFIG``: a sweep-style TOML file whose ranges are the envelope searched,
-:func:`load_config`, :func:`run_falsify_config` (search, outputs) and :func:`replay_worst`.
+[`load_config`][vcjax.search.config.load_config],
+[`run_falsify_config`][vcjax.search.config.run_falsify_config] (search, outputs) and
+[`replay_worst`][vcjax.search.config.replay_worst].
 
-The file is a sweep config (:mod:`vcjax.sweep`: ``[scenario]``, ``[simulation]``,
+The file is a sweep config ([`vcjax.sweep`][vcjax.sweep]: ``[scenario]``, ``[simulation]``,
 ``[current]``, ``[waves]``, ``[initial]``, ``[model_error]``, ``[disturbance]``,
 ``[metrics]``) in which every range ``[lo, hi]`` is a box searched and every number is held
 fixed, with a ``[falsify]`` section instead of ``[sweep]``::
@@ -68,7 +70,8 @@ def load_config(path, metric: str | None = None, bound: float | None = None) -> 
     """Read and check a falsify config (everything, before any work or output).
 
     Returns ``{"spec", "gains_path", "figures", "loop", "gains", "envelope", "setting",
-    "metric", "bound", "opts"}``. Raises :class:`~vcjax.config.ConfigError` naming the file,
+    "metric", "bound", "opts"}``. Raises [`ConfigError`][vcjax.config.values.ConfigError] naming the
+    file,
     section and key.
     """
     from vcjax.sweep.config import load_config as load_sweep
@@ -151,7 +154,8 @@ def load_config(path, metric: str | None = None, bound: float | None = None) -> 
 
 
 def run_falsify_config(cfg: dict, out_dir, progress=None) -> dict:
-    """Search (:func:`~vcjax.search.falsify`) and write ``worst.json``, ``summary.json`` and the
+    """Search ([`falsify`][vcjax.search.core.falsify]) and write ``worst.json``, ``summary.json``
+    and the
     figures into ``out_dir``. Returns ``{"summary", "files", "result"}``."""
     from vcjax.runtime.outputs import write_json_atomic
 

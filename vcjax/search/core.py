@@ -1,6 +1,8 @@
-"""Gradient scenario search (:func:`falsify`): multi-start projected gradient ascent of a sweep
-metric over an :class:`~vcjax.search.envelope.Envelope`, with plain random sampling of the same
-envelope as its baseline, and :func:`evaluate` (the metric of given parameter vectors: a
+"""Gradient scenario search ([`falsify`][vcjax.search.core.falsify]): multi-start projected gradient
+ascent of a sweep
+metric over an [`Envelope`][vcjax.search.envelope.Envelope], with plain random sampling of the same
+envelope as its baseline, and [`evaluate`][vcjax.search.core.evaluate] (the metric of given
+parameter vectors: a
 replay)."""
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ _FLOOR = -1.0e6  # log-domain stand-in for an empty or masked sample (finite: no
 
 
 def metric_name(loop, gains, setting: Setting, name: str) -> str:
-    """The sweep metric ``name`` (or an alias of :data:`ALIASES`) of ``loop``'s metrics
+    """The sweep metric ``name`` (or an alias of ``ALIASES``) of ``loop``'s metrics
     (``ValueError`` listing them)."""
     env = Envelope.build(loop, {})
     sc = scenario_from(jnp.asarray(env.lo), 0, env, dataclasses.replace(setting, sea=None))
@@ -149,10 +151,10 @@ def _rank(v) -> np.ndarray:
 
 @dataclasses.dataclass
 class FalsifyResult:
-    """What :func:`falsify` found.
+    """What [`falsify`][vcjax.search.core.falsify] found.
 
     Attributes:
-        metric: the metric's name; envelope: the :class:`Envelope`.
+        metric: the metric's name; envelope: the [`Envelope`][vcjax.search.envelope.Envelope].
         x: (S, P) each start's worst parameters found (config units); index: (S,) their random
             draws' scenario numbers; value: (S,) their metric; diverged: (S,) flags.
         curve: (rollouts, worst so far) after each ascent step (rollouts = starts x steps).
@@ -254,14 +256,17 @@ def falsify(
     scenario numbers) in batches of ``random_batch`` (at least ``starts``): the baseline.
 
     Args:
-        loop, gains: the closed loop and its gains; envelope: an :class:`Envelope`, or a
-            mapping name -> ``(lo, hi)`` or number (:meth:`Envelope.build`);
-        metric: a sweep metric of the loop (or an alias, :data:`ALIASES`).
-        setting: :class:`Setting` (horizon, dt, nominal parameters, sea, seed); default:
-            :func:`~vcjax.search.envelope.make_setting` of ``setting_options``.
+        loop, gains: the closed loop and its gains; envelope: an
+            [`Envelope`][vcjax.search.envelope.Envelope], or a
+            mapping name -> ``(lo, hi)`` or number
+            ([`Envelope.build`][vcjax.search.envelope.Envelope.build]);
+        metric: a sweep metric of the loop (or an alias, ``ALIASES``).
+        setting: [`Setting`][vcjax.search.envelope.Setting] (horizon, dt, nominal parameters, sea,
+            seed); default:
+            [`make_setting`][vcjax.search.envelope.make_setting] of ``setting_options``.
         bound: stop (each search) as soon as a scenario's metric exceeds it.
         progress: receives a line per step / batch; stop: polled between steps (default:
-            :func:`vcjax.runtime.interrupts.stop_requested`); the result keeps what was found.
+            ``stop_requested``); the result keeps what was found.
     """
     if not isinstance(envelope, Envelope):
         envelope = Envelope.build(loop, envelope, dt=setting_options.get("dt", 0.05))

@@ -1,8 +1,10 @@
 """The envelope a falsification searches: scenario parameters by name (config units) with their
-``(lo, hi)`` boxes (:class:`Envelope`), the static rest of the problem (:class:`Setting`), and
-the one function that turns a parameter vector into a traced scenario (:func:`scenario_from`).
+``(lo, hi)`` boxes ([`Envelope`][vcjax.search.envelope.Envelope]), the static rest of the problem
+([`Setting`][vcjax.search.envelope.Setting]), and
+the one function that turns a parameter vector into a traced scenario
+([`scenario_from`][vcjax.search.envelope.scenario_from]).
 
-Parameter names (config units, the sweep's :class:`~vcjax.sweep.ScenarioSpec` fields):
+Parameter names (config units, the sweep's [`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec] fields):
 
 * ``current_speed`` [m/s, >= 0], ``current_direction_deg`` [deg, towards, clockwise from north];
 * ``u_d`` [m/s, > 0], the desired speed;
@@ -20,7 +22,8 @@ as scenario ``index`` of a sweep with that seed; the search holds it fixed per s
 only the parameters.
 
 This module is the seam to the environment components: a new disturbance component adds its
-names here and its part of :func:`scenario_from`; the search itself sees only a vector.
+names here and its part of [`scenario_from`][vcjax.search.envelope.scenario_from]; the search itself
+sees only a vector.
 """
 
 from __future__ import annotations
@@ -49,9 +52,9 @@ class Setting:
     """What a falsification holds fixed (static, hashable except the arrays in ``nominal``).
 
     Attributes:
-        loop: the closed loop; config: :class:`~vcjax.sweep.MCConfig` (horizon, integrator,
+        loop: the closed loop; config: [`MCConfig`][vcjax.sweep.spec.MCConfig] (horizon, integrator,
             model fields, window); dt: step [s]; diverge_e: cross-track bound of ``diverged``.
-        nominal: ``(plant, design, coeffs)`` (:func:`vcjax.sweep.nominal`).
+        nominal: ``(plant, design, coeffs)`` ([`vcjax.sweep.nominal`][vcjax.sweep.run.nominal]).
         sea: ``(spectrum, components, gamma)`` or None (no waves).
         current_gm: ``(sigma, tau, max_speed)`` of a Gauss-Markov current (``config``'s
             ``current_model``); noise_std: (S,) sensor-noise standard deviations (SI).
@@ -73,7 +76,7 @@ class Setting:
 class Envelope:
     """Named boxes ``(lo, hi)`` in config units (``lo == hi``: held fixed), in a fixed order.
 
-    Build it with :meth:`build` (checks the names and the ranges); ``names``, ``lo``, ``hi`` are
+    Build it with ``build`` (checks the names and the ranges); ``names``, ``lo``, ``hi`` are
     the full parameter vector a scenario needs, the fixed ones included.
     """
 
@@ -313,7 +316,8 @@ def envelope_from_spec(spec: SweepSpec) -> Envelope:
 
 
 def setting_from_spec(spec: SweepSpec, env: Envelope, variant: str | None = None) -> Setting:
-    """The :class:`Setting` of a sweep spec (its first variant unless named), gradient
+    """The [`Setting`][vcjax.search.envelope.Setting] of a sweep spec (its first variant unless
+    named), gradient
     checkpointed per streamed segment."""
     from vcjax.sweep import nominal
 
@@ -352,7 +356,8 @@ def make_setting(
     nominal=None,
     dtype=None,
 ) -> Setting:
-    """A :class:`Setting` for ``loop`` by hand: its default plant, design model and path
+    """A [`Setting`][vcjax.search.envelope.Setting] for ``loop`` by hand: its default plant, design
+    model and path
     coefficients unless ``nominal = (plant, design, coeffs)`` is given; a sea (``spectrum``,
     ``components``, ``gamma``) when the envelope has one; gradient checkpointed per segment."""
     if nominal is None:

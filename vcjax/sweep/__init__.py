@@ -1,14 +1,15 @@
 """Batch Monte-Carlo studies of any registered closed loop: ``vmap`` over scenarios, chunks,
 devices, hosts.
 
-A sweep runs every controller variant of a vehicle's loop (:mod:`vcjax.loops`; default:
+A sweep runs every controller variant of a vehicle's loop ([`vcjax.loops`][vcjax.loops]; default:
 Simulation 1's INFANTE-class craft with ``vcm``, ``vcm_integral``, ``ilos``, ``los_pid``,
 ``vcm_ilos`` on the line ``[10, w]``) on the *same* batch of sampled scenarios (paired
 comparison). A scenario draws:
 
 * the ocean current: mean speed [m/s] and direction [deg, towards which the water flows,
   clockwise from north]; constant, or slowly varying as a first-order Gauss–Markov process
-  around that mean (:mod:`vcjax.environment.current`, exact discretisation, clipped to a
+  around that mean ([`vcjax.environment.current`][vcjax.environment.current], exact discretisation,
+  clipped to a
   maximum speed);
 * the initial state: the vehicle's ``[initial]`` keys (INFANTE-class: position ``x, y`` [m],
   ``heading_deg``, surge ``speed`` [m/s]); and the desired speed ``u_d`` [m/s];
@@ -21,26 +22,36 @@ comparison). A scenario draws:
 * a random sea (``[waves]``; loops whose plant feels one, REMUS 100 and ODIN-class):
   significant height ``hs`` [m], peak period ``tp`` [s], direction [deg, towards which the
   waves travel] and the depth of the NED origin below the mean surface [m], then the sea's
-  frequencies, phases and directions (:func:`vcjax.environment.waves.sea_state`).
+  frequencies, phases and directions ([`sea_state`][vcjax.environment.waves.sea_state]).
 
 Everything a scenario draws comes from ``jax.random.fold_in(PRNGKey(seed), index)``, so scenario
 ``i`` is the same whatever the chunk size, the number of devices or of hosts.
 
 Modules, by job:
 
-* :mod:`vcjax.sweep.spec`: :class:`SweepSpec`, :class:`ScenarioSpec`, :func:`sample_scenarios`
-  -> :class:`MCScenario`;
-* :mod:`vcjax.sweep.run`: :func:`simulate_scenario` (one scenario, pure; ``jax.vmap`` it),
-  :func:`scenario_metrics` (:func:`vcjax.metrics.run_metrics` of its trajectory),
-  :func:`streamed_metrics` (the same without storing the trajectory: the rollout folds its
-  record into the metrics segment by segment, :func:`vcjax.rollout.rollout_reduce`),
-  :func:`run_batch` (jitted ``vmap`` of the streamed metrics, one compile per loop and static
-  :class:`MCConfig`), :func:`run_sweep` (fixed-size
+* [`vcjax.sweep.spec`][vcjax.sweep.spec]: [`SweepSpec`][vcjax.sweep.spec.SweepSpec],
+[`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec],
+[`sample_scenarios`][vcjax.sweep.spec.sample_scenarios]
+  -> [`MCScenario`][vcjax.sweep.spec.MCScenario];
+* [`vcjax.sweep.run`][vcjax.sweep.run]: [`simulate_scenario`][vcjax.sweep.run.simulate_scenario]
+(one scenario, pure; ``jax.vmap`` it),
+  [`scenario_metrics`][vcjax.sweep.run.scenario_metrics]
+  ([`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics] of its trajectory),
+  [`streamed_metrics`][vcjax.sweep.run.streamed_metrics] (the same without storing the trajectory:
+  the rollout folds its
+  record into the metrics segment by segment,
+  [`vcjax.rollout.rollout_reduce`][vcjax.rollout.rollout_reduce]),
+  [`run_batch`][vcjax.sweep.run.run_batch] (jitted ``vmap`` of the streamed metrics, one compile per
+  loop and static
+  [`MCConfig`][vcjax.sweep.spec.MCConfig]), [`run_sweep`][vcjax.sweep.run.run_sweep] (fixed-size
   chunks, the last one padded, the scenario axis sharded over the local devices, a progress bar;
   in a multi-process run each process takes its share of chunks);
-* :mod:`vcjax.sweep.results`: :func:`summarize`, :func:`save_results`, :func:`load_results`,
-  :func:`merge_results`;
-* :mod:`vcjax.sweep.config`: :func:`run_sweep_config`: TOML file -> ``summary.json``,
+* [`vcjax.sweep.results`][vcjax.sweep.results]: [`summarize`][vcjax.sweep.results.summarize],
+[`save_results`][vcjax.sweep.results.save_results],
+[`load_results`][vcjax.sweep.results.load_results],
+  [`merge_results`][vcjax.sweep.results.merge_results];
+* [`vcjax.sweep.config`][vcjax.sweep.config]:
+[`run_sweep_config`][vcjax.sweep.config.run_sweep_config]: TOML file -> ``summary.json``,
   ``results.npz`` and figures.
 
 TOML schema (every key optional unless marked; a value written ``range`` is either a number
@@ -119,8 +130,10 @@ TOML schema (every key optional unless marked; a value written ``range`` is eith
                                 # (0: none; the envelope and path figures then are skipped)
     figures = true
 
-Metrics (per scenario and variant; :func:`vcjax.metrics.metric_names`), evaluated on the *true*
-state (with sensor noise the controller's own error signals differ): see :mod:`vcjax.metrics`.
+Metrics (per scenario and variant; [`vcjax.metrics.metric_names`][vcjax.metrics.metric_names]),
+evaluated on the *true*
+state (with sensor noise the controller's own error signals differ): see
+[`vcjax.metrics`][vcjax.metrics].
 Summaries use the runs that did not diverge.
 
 Precision follows JAX's default float (the CLI enables float64 unless told otherwise).

@@ -1,5 +1,6 @@
-"""``vcjax sweep CONFIG.toml``: the TOML schema (see :mod:`vcjax.sweep`), :func:`load_config`
-and :func:`run_sweep_config`."""
+"""``vcjax sweep CONFIG.toml``: the TOML schema (see [`vcjax.sweep`][vcjax.sweep]),
+[`load_config`][vcjax.sweep.config.load_config]
+and [`run_sweep_config`][vcjax.sweep.config.run_sweep_config]."""
 
 from __future__ import annotations
 
@@ -109,7 +110,8 @@ def check_waves(table) -> None:
 
 
 def refusal(err: ValueError) -> str:
-    """:func:`vcjax.loops.check_disturbances`'s message with its TOML section first."""
+    """[`vcjax.loops.check_disturbances`][vcjax.loops.scenario.check_disturbances]'s message with
+    its TOML section first."""
     msg = str(err)
     for sec in ("waves", "current"):
         if msg.startswith(f"{sec}: "):
@@ -118,7 +120,8 @@ def refusal(err: ValueError) -> str:
 
 
 def _sections(raw: dict, where: str) -> dict:
-    """The shared sections (:mod:`vcjax.config.schema`) of a sweep config, parsed."""
+    """The shared sections ([`vcjax.config.schema`][vcjax.config.schema]) of a sweep config,
+    parsed."""
     kinds = {
         "simulation": Simulation,
         "current": Current,
@@ -137,8 +140,9 @@ def _sections(raw: dict, where: str) -> dict:
 
 def environment_sections(raw: dict, schema, where: str) -> tuple[dict, tuple]:
     """``(rest, environment)``: the sections of ``raw`` that are registered components of
-    :mod:`vcjax.environment` and not sections of the command itself, checked and frozen
-    (:func:`vcjax.environment.freeze`), and the rest of ``raw``."""
+    [`vcjax.environment`][vcjax.environment] and not sections of the command itself, checked and
+    frozen
+    ([`vcjax.environment.freeze`][vcjax.environment.component.freeze]), and the rest of ``raw``."""
     known = set(environment.components()) - set(schema)
     env = []
     for sec in [s for s in raw if s in known]:
@@ -181,13 +185,15 @@ def _check_spellings(raw: dict, choice, spec_kw: dict) -> None:
 
 
 def load_config(config_path, raw: dict | None = None) -> tuple[SweepSpec, dict]:
-    """Read and validate a sweep TOML file (schema: :mod:`vcjax.sweep`); ``raw``: its tables
+    """Read and validate a sweep TOML file (schema: [`vcjax.sweep`][vcjax.sweep]); ``raw``: its
+    tables
     already read (e.g. ``vcjax falsify``'s, without its own section).
 
     Returns:
-        ``(spec, extras)``: the :class:`~vcjax.sweep.spec.SweepSpec` and ``extras = {"gains":
+        ``(spec, extras)``: the [`SweepSpec`][vcjax.sweep.spec.SweepSpec] and ``extras = {"gains":
         path or None, "figures": bool, "sections": {name: section}}`` (``sections``: the
-        sections added by :func:`vcjax.config.register_section`, parsed).
+        sections added by [`vcjax.config.register_section`][vcjax.config.schema.register_section],
+        parsed).
 
     Raises:
         ConfigError: naming the file, section and key (unknown section or key, wrong type,
@@ -278,22 +284,25 @@ def run_sweep_config(
 ) -> dict:
     """Run the sweep described by a TOML file and write its results (the ``vcjax sweep`` CLI).
 
-    Writes into ``out_dir``: ``summary.json`` (:func:`~vcjax.sweep.results.summarize`),
-    ``results.npz`` (:func:`~vcjax.sweep.results.save_results`) and, with ``draw`` and unless
+    Writes into ``out_dir``: ``summary.json`` ([`summarize`][vcjax.sweep.results.summarize]),
+    ``results.npz`` ([`save_results`][vcjax.sweep.results.save_results]) and, with ``draw`` and
+    unless
     ``[output] figures = false``, the figures ``draw`` writes. In a multi-process run
     (after ``jax.distributed.initialize``) every process runs its share of chunks and writes
     ``results.part<p>-of-<P>.npz`` into the (shared) ``out_dir``; process 0 waits for the others,
     merges the parts and writes the outputs. With ``netcdf``, also ``results.nc``
-    (:meth:`~vcjax.sweep.results.SweepResult.to_xarray`; needs the ``xarray`` extra).
+    ([`to_xarray`][vcjax.sweep.results.SweepResult.to_xarray]; needs the ``xarray`` extra).
 
     Args:
         config_path: the TOML file; out_dir: output folder (created).
         progress: True: a bar on stderr; a callable: one line per chunk; False: silent.
         netcdf: also write ``results.nc``.
-        loaded: the file already parsed by :func:`load_config` (the CLI parses it once and
+        loaded: the file already parsed by [`load_config`][vcjax.sweep.config.load_config] (the CLI
+            parses it once and
             records it); default: parse ``config_path``.
         draw: ``draw(result, out_dir) -> [Path, ...]`` writes the figures (the CLI passes
-            :func:`vcjax.plots.sweep.sweep_figures`; the sweep itself draws nothing), called
+            [`sweep_figures`][vcjax.plots.sweep.sweep_figures]; the sweep itself draws nothing),
+            called
             unless ``[output] figures = false``.
 
     Returns:
@@ -345,7 +354,8 @@ def run_sweep_config(
 
 
 #: (section, key) -> (unit, description) of the sweep-only keys (the shared sections are
-#: described in :mod:`vcjax.config.schema`); the configuration reference is generated from it
+#: described in [`vcjax.config.schema`][vcjax.config.schema]); the configuration reference is
+# generated from it
 KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     ("sweep", "num_scenarios"): ("", "number of sampled scenarios (required; int >= 1)"),
     ("sweep", "seed"): ("", "seed of the scenario draws (scenario i uses fold_in(seed, i))"),

@@ -1,11 +1,14 @@
 """Sweep results as a labelled ``xarray.Dataset`` (optional: ``pip install "vcjax[xarray]"``).
 
-:func:`to_xarray` (also :meth:`SweepResult.to_xarray`) gives one dataset with the dimensions
+[`to_xarray`][vcjax.sweep.labelled.to_xarray] (also
+[`SweepResult.to_xarray`][vcjax.sweep.results.SweepResult.to_xarray]) gives one dataset with the
+dimensions
 ``variant`` x ``scenario`` (coordinate: the scenario numbers), the sampled inputs as variables
 over ``scenario`` (vector inputs get a labelled component dimension), every metric and health
 flag as a variable over ``variant`` x ``scenario``, the decimated traces over ``variant`` x
 ``scenario`` x ``time``, units as ``units`` attributes, and the study (its spec as JSON, seed,
-sizes) as dataset attributes. :func:`write_netcdf` writes it as ``results.nc`` (netCDF via scipy,
+sizes) as dataset attributes. [`write_netcdf`][vcjax.sweep.labelled.write_netcdf] writes it as
+``results.nc`` (netCDF via scipy,
 so no compiled netCDF library is needed; booleans are stored as int8 with a ``flag`` attribute).
 """
 
@@ -35,7 +38,7 @@ METRIC_UNITS = {
     "rms_depth_err": "m",
     "sat_fraction": "1",
 }
-#: Units and components of the sampled inputs (:class:`~vcjax.sweep.spec.MCScenario` fields).
+#: Units and components of the sampled inputs ([`MCScenario`][vcjax.sweep.spec.MCScenario] fields).
 INPUT_UNITS = {
     "u_d": ("m/s", None),
     "current_speed": ("m/s", None),
@@ -82,7 +85,8 @@ def _metric_units(name: str) -> str | None:
 
 
 def to_xarray(result):
-    """The :class:`~vcjax.sweep.results.SweepResult` as an ``xarray.Dataset`` (see the module)."""
+    """The [`SweepResult`][vcjax.sweep.results.SweepResult] as an ``xarray.Dataset`` (see the
+    module)."""
     from vcjax.sweep.spec import spec_to_dict
 
     xr = _xr()
@@ -155,7 +159,8 @@ def to_xarray(result):
 
 
 def write_netcdf(result, path) -> Path:
-    """Write :func:`to_xarray` of ``result`` to ``path`` (netCDF 3 via scipy's writer)."""
+    """Write [`to_xarray`][vcjax.sweep.labelled.to_xarray] of ``result`` to ``path`` (netCDF 3 via
+    scipy's writer)."""
     ds = to_xarray(result)
     for name in list(ds.data_vars):
         if ds[name].dtype == bool:

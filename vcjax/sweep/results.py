@@ -1,5 +1,7 @@
-"""Sweep results: :class:`SweepResult`, statistics (:func:`summarize`), ``.npz`` files
-(:func:`save_results`, :func:`load_results`) and the merge of per-process parts."""
+"""Sweep results: [`SweepResult`][vcjax.sweep.results.SweepResult], statistics
+([`summarize`][vcjax.sweep.results.summarize]), ``.npz`` files
+([`save_results`][vcjax.sweep.results.save_results],
+[`load_results`][vcjax.sweep.results.load_results]) and the merge of per-process parts."""
 
 from __future__ import annotations
 
@@ -31,17 +33,19 @@ class SweepResult:
     """Per-scenario results of a sweep (host numpy arrays, aligned with ``index``).
 
     Attributes:
-        spec: the :class:`~vcjax.sweep.spec.SweepSpec`.
+        spec: the [`SweepSpec`][vcjax.sweep.spec.SweepSpec].
         index: (n,) scenario numbers (sorted; all of them unless this is one process's share).
         scenarios: sampled parameters, e.g. ``"eta0"`` (n, n_eta), ``"current_speed"`` (n,),
             ``"model_factors"`` (n, F) (columns: the spec's model fields).
-        metrics: ``metrics[variant][name]`` (n,): :func:`vcjax.metrics.metric_names` and
-            :data:`vcjax.metrics.FLAGS`.
+        metrics: ``metrics[variant][name]`` (n,):
+            [`vcjax.metrics.metric_names`][vcjax.metrics.metric_names] and
+            ``vcjax.metrics.FLAGS``.
         traces: ``traces[variant]["e"]`` (n, P) cross-track error [m], ``["xy"]`` (n, P, 2)
             position [m] at times ``trace_t`` (P,) [s] (float32).
         trace_t: (P,) [s].
         wall_s: wall time of the sweep [s]; devices: number of devices used (per process).
-        timing: ``timing[variant]``: :func:`run_timing` (compile and run seconds, throughput).
+        timing: ``timing[variant]``: [`run_timing`][vcjax.sweep.results.run_timing] (compile and run
+            seconds, throughput).
         interrupted: the sweep was stopped (SIGINT / SIGTERM) after its first ``len(index)``
             scenarios' chunks; the result is valid, only smaller.
     """
@@ -59,7 +63,8 @@ class SweepResult:
 
     def to_xarray(self):
         """An ``xarray.Dataset``: dimensions ``variant`` x ``scenario``, sampled inputs and
-        metrics as labelled variables, units as attributes (:mod:`vcjax.sweep.labelled`;
+        metrics as labelled variables, units as attributes
+        ([`vcjax.sweep.labelled`][vcjax.sweep.labelled];
         needs ``pip install "vcjax[xarray]"``)."""
         from vcjax.sweep.labelled import to_xarray
 
@@ -142,12 +147,12 @@ def _stats(x: np.ndarray) -> dict:
     return {k: (float(v) if np.isfinite(v) else None) for k, v in vals.items()}
 
 
-#: the metrics :func:`wave_table` bins
+#: the metrics [`wave_table`][vcjax.sweep.results.wave_table] bins
 WAVE_TABLE_METRICS = ("rms_cross_track_e", "rms_depth_err")
 
 
 def wave_table(result: SweepResult, hs_bins: int = 3, depth_bins: int = 3) -> dict:
-    """Medians of :data:`WAVE_TABLE_METRICS` per significant-wave-height bin x origin-depth bin
+    """Medians of ``WAVE_TABLE_METRICS`` per significant-wave-height bin x origin-depth bin
     (equal-width bins over the sampled ranges of a sweep with ``[waves]``; one depth bin when
     ``origin_depth`` is fixed), per variant, over the runs that did not diverge.
 
@@ -192,9 +197,11 @@ def summarize(result: SweepResult) -> dict:
 
     ``summary["variants"][v]``: ``n``, ``n_diverged``, ``n_nonfinite`` and, for every metric,
     ``mean``, ``std``, ``p5``, ``p50``, ``p95``, ``min``, ``max`` over the runs that did not
-    diverge (``None`` where there are none); ``timing`` (:func:`run_timing`: ``compile_s``,
+    diverge (``None`` where there are none); ``timing``
+    ([`run_timing`][vcjax.sweep.results.run_timing]: ``compile_s``,
     ``run_s``, ``traj_steps_per_s``, ...). A sweep with ``[waves]`` also has ``waves``
-    (:func:`wave_table`: median errors per wave height and depth bin). A sweep stopped by
+    ([`wave_table`][vcjax.sweep.results.wave_table]: median errors per wave height and depth bin). A
+    sweep stopped by
     SIGINT / SIGTERM also has
     ``"interrupted": true`` and ``num_scenarios_planned`` (``num_scenarios`` is then the number
     of scenarios that ran: the chunks completed).
@@ -231,7 +238,7 @@ def summarize(result: SweepResult) -> dict:
 def save_results(result: SweepResult, path: Path) -> Path:
     """Write ``result`` to an ``.npz`` file (no pickles).
 
-    Keys: ``index``; ``scenario.<field>`` (see :class:`~vcjax.sweep.spec.MCScenario`;
+    Keys: ``index``; ``scenario.<field>`` (see [`MCScenario`][vcjax.sweep.spec.MCScenario];
     ``model_factors`` columns are ``model_fields``; with ``[waves]`` also ``scenario.wave_hs``
     [m], ``scenario.wave_tp`` [s], ``scenario.wave_direction_deg`` [deg] and
     ``scenario.wave_origin_depth`` [m]); ``<variant>.<metric>``;
@@ -258,7 +265,7 @@ def save_results(result: SweepResult, path: Path) -> Path:
 
 
 def load_results(path: Path) -> SweepResult:
-    """Inverse of :func:`save_results`."""
+    """Inverse of [`save_results`][vcjax.sweep.results.save_results]."""
     with np.load(Path(path), allow_pickle=False) as z:
         spec = spec_from_dict(json.loads(str(z["spec_json"])))
         meta = json.loads(str(z["meta_json"]))

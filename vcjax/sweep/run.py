@@ -1,6 +1,8 @@
-"""Running a sweep: one scenario (:func:`simulate_scenario`, :func:`scenario_metrics`), a
-jitted batch (:func:`run_batch`), a whole study in chunks sharded over devices and processes
-(:func:`run_sweep`)."""
+"""Running a sweep: one scenario ([`simulate_scenario`][vcjax.sweep.run.simulate_scenario],
+[`scenario_metrics`][vcjax.sweep.run.scenario_metrics]), a
+jitted batch ([`run_batch`][vcjax.sweep.run.run_batch]), a whole study in chunks sharded over
+devices and processes
+([`run_sweep`][vcjax.sweep.run.run_sweep])."""
 
 from __future__ import annotations
 
@@ -44,7 +46,7 @@ __all__ = [
     "SCENARIO_FIELDS",
 ]
 
-#: The sampled fields a :class:`~vcjax.sweep.results.SweepResult` keeps per scenario (those
+#: The sampled fields a [`SweepResult`][vcjax.sweep.results.SweepResult] keeps per scenario (those
 #: that are not None: the ``wave_*`` ones only with waves; the sea itself follows from the key).
 SCENARIO_FIELDS = tuple(f for f in MCScenario._fields if f not in ("index", "key", "sea"))
 
@@ -73,7 +75,7 @@ def perturb_params(nominal_params, fields: tuple[str, ...], factors):
 
 
 def to_scenario(loop, sc: MCScenario, plant, design, coeffs, config: MCConfig) -> loops.Scenario:
-    """The loop's :class:`~vcjax.loops.Scenario` of a sampled scenario (pure): the plant
+    """The loop's [`Scenario`][vcjax.loops.types.Scenario] of a sampled scenario (pure): the plant
     perturbed by the model factors, the design model nominal, the particle starting at the path
     point nearest to the start, the scenario's sea (if any)."""
     return loops.Scenario(
@@ -101,13 +103,16 @@ def simulate_scenario(
     """Closed-loop rollout of one loop on one sampled scenario (pure, not jitted).
 
     ``loop`` and ``config`` are static; ``gains``, ``nominal_params`` (``(plant, design,
-    coeffs)``, see :func:`nominal`), ``sc`` and ``dt`` [s] are traced. With a constant current
-    and no sensor noise this *is* :func:`vcjax.loops.simulate`; otherwise the same loop gets a
-    Gauss–Markov current and/or measurement noise (:class:`~vcjax.loops.Disturbances`). A
+    coeffs)``, see [`nominal`][vcjax.sweep.run.nominal]), ``sc`` and ``dt`` [s] are traced. With a
+    constant current
+    and no sensor noise this *is* [`vcjax.loops.simulate`][vcjax.loops.disturbances.simulate];
+    otherwise the same loop gets a
+    Gauss–Markov current and/or measurement noise
+    ([`Disturbances`][vcjax.loops.disturbances.Disturbances]). A
     scenario with a sea (``[waves]``) hands it to the loop's plant.
 
     Returns:
-        ``(traj, scenario)``; with a ``reduction`` (:class:`~vcjax.rollout.Reduction`, built
+        ``(traj, scenario)``; with a ``reduction`` ([`Reduction`][vcjax.rollout.Reduction], built
         from the scenario by ``reduction(scenario)``) ``((acc, outs), scenario)`` instead.
     """
     plant, design, coeffs = nominal_params
@@ -141,7 +146,8 @@ def _traces(sig, idx) -> dict:
 
 
 def scenario_metrics(loop, traj: Trajectory, sc: loops.Scenario, config: MCConfig, diverge_e):
-    """Metrics and health flags of one run (:func:`vcjax.metrics.run_metrics` over the last
+    """Metrics and health flags of one run ([`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]
+    over the last
     ``config.tail`` of the run), and the recorded traces, from its whole trajectory.
 
     Returns:
@@ -162,9 +168,12 @@ def segment_length(config: MCConfig) -> int:
 
 
 def streamed_metrics(loop, gains, nominal_params, sc: MCScenario, config: MCConfig, dt, diverge_e):
-    """:func:`simulate_scenario` + :func:`scenario_metrics` without the trajectory: the rollout
-    folds its record into the metrics' accumulator every :func:`segment_length` steps
-    (:func:`vcjax.rollout.rollout_reduce`), so memory does not grow with the horizon. Same
+    """[`simulate_scenario`][vcjax.sweep.run.simulate_scenario] +
+    [`scenario_metrics`][vcjax.sweep.run.scenario_metrics] without the trajectory: the rollout
+    folds its record into the metrics' accumulator every
+    [`segment_length`][vcjax.sweep.run.segment_length] steps
+    ([`vcjax.rollout.rollout_reduce`][vcjax.rollout.rollout_reduce]), so memory does not grow with
+    the horizon. Same
     metrics and traces as the two functions (the sums in another order: equal to round-off).
     """
     n = config.num_steps
@@ -259,7 +268,8 @@ def _run_batch(loop, gains, nominal_params, scenarios, config, dt, diverge_e):
 
 
 def _batch_program(loop, config):
-    """:func:`_run_batch` with its static inputs bound (what :func:`programs.build` compiles)."""
+    """``_run_batch`` with its static inputs bound (what
+    [`programs.build`][vcjax.runtime.programs.build] compiles)."""
 
     def program(gains, nominal_params, scenarios, dt, diverge_e):
         return _run_batch(loop, gains, nominal_params, scenarios, config, dt, diverge_e)
@@ -268,7 +278,8 @@ def _batch_program(loop, config):
 
 
 def run_batch(loop, gains, nominal_params, scenarios: MCScenario, config: MCConfig, dt, diverge_e):
-    """Jitted ``vmap`` of :func:`simulate_scenario` + :func:`scenario_metrics` over a batch.
+    """Jitted ``vmap`` of [`simulate_scenario`][vcjax.sweep.run.simulate_scenario] +
+    [`scenario_metrics`][vcjax.sweep.run.scenario_metrics] over a batch.
 
     ``loop`` and ``config`` are static (one compile each); a batch of the same size with new
     values reuses the compiled program (``dt`` [s] and ``diverge_e`` [m] are converted to
@@ -312,7 +323,7 @@ def run_sweep(
     process's local devices; one device: no sharding). With several processes (default:
     ``jax.process_index()`` / ``jax.process_count()``), process ``p`` runs chunks
     ``p, p + P, p + 2P, ...`` on its own devices and returns only those scenarios; combine the
-    parts with :func:`~vcjax.sweep.results.merge_results`.
+    parts with [`merge_results`][vcjax.sweep.results.merge_results].
 
     Args:
         spec: the study; gains: the vehicle's gains NamedTuple, used by every variant whose
@@ -324,11 +335,11 @@ def run_sweep(
         process_index, process_count: this process's share (default from JAX).
         stop: polled after each chunk; when it returns True the sweep ends there and returns
             the chunks done so far, with ``interrupted = True`` (default:
-            :func:`vcjax.runtime.interrupts.stop_requested`, set by SIGINT / SIGTERM inside
-            :func:`vcjax.runtime.interrupts.interrupt_guard`).
+            ``stop_requested``, set by SIGINT / SIGTERM inside
+            ``interrupt_guard``).
 
     Each variant's program is traced and compiled once, timed apart from running it:
-    :attr:`~vcjax.sweep.results.SweepResult.timing` holds per variant ``compile_s``, ``run_s``
+    ``timing`` holds per variant ``compile_s``, ``run_s``
     (executing every chunk and fetching its results, compilation excluded) and
     ``traj_steps_per_s`` (this process's scenarios x steps / ``run_s``).
     """

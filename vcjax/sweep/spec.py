@@ -1,5 +1,8 @@
-"""What a sweep simulates (:class:`SweepSpec`), the distribution its scenarios are drawn from
-(:class:`ScenarioSpec`), and the sampling (:func:`sample_scenarios` -> :class:`MCScenario`).
+"""What a sweep simulates ([`SweepSpec`][vcjax.sweep.spec.SweepSpec]), the distribution its
+scenarios are drawn from
+([`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec]), and the sampling
+([`sample_scenarios`][vcjax.sweep.spec.sample_scenarios] ->
+[`MCScenario`][vcjax.sweep.spec.MCScenario]).
 
 Everything a scenario draws comes from ``jax.random.fold_in(PRNGKey(seed), index)``, so
 scenario ``i`` is the same whatever the chunk size, the number of devices or of hosts; its sea
@@ -59,14 +62,17 @@ class ScenarioSpec:
         disturbance: per component of the generalised disturbance force, a range [N, N m]
             (empty: none).
         wave_spectrum: ``"jonswap"`` or ``"pm"``: every scenario gets a random sea
-            (:func:`vcjax.environment.waves.sea_state`) of ``wave_components`` components with its
+            ([`sea_state`][vcjax.environment.waves.sea_state]) of ``wave_components`` components
+            with its
             own ``wave_hs`` [m], ``wave_tp`` [s], ``wave_direction_deg`` (towards, clockwise from
             north) and ``wave_origin_depth`` [m] drawn from the ranges; ``None``: no waves.
         wave_gamma: JONSWAP peak enhancement; wave_spreading: ``s`` of the ``cos^2s``
             spreading (0: long-crested).
         environment: ``((section, table), ...)``: further components of
-            :mod:`vcjax.environment` by their section name, each table checked by its
-            component (:func:`vcjax.environment.freeze`) and sampled per scenario from the
+            [`vcjax.environment`][vcjax.environment] by their section name, each table checked by
+            its
+            component ([`vcjax.environment.freeze`][vcjax.environment.component.freeze]) and sampled
+            per scenario from the
             scenario's key.
     """
 
@@ -175,11 +181,12 @@ class ScenarioSpec:
 
     @property
     def waves(self) -> bool:
-        """Every scenario has a sea (:attr:`wave_spectrum` set)."""
+        """Every scenario has a sea (``wave_spectrum`` set)."""
         return self.wave_spectrum is not None
 
     def check_dt(self, dt: float) -> None:
-        """With waves, :func:`check_wave_step` of the shortest ``wave_tp``."""
+        """With waves, [`check_wave_step`][vcjax.sweep.spec.check_wave_step] of the shortest
+        ``wave_tp``."""
         if self.waves:
             check_wave_step(self.wave_tp[0], dt)
 
@@ -233,7 +240,7 @@ class ScenarioSpec:
 
 def check_wave_step(tp: float, dt: float, name: str = "wave_tp") -> None:
     """The step ``dt`` [s] resolves a sea of peak period ``tp`` [s]: its shortest component
-    (``tp / 4``, the top of :data:`vcjax.environment.waves.BAND`) with 10 steps, ``tp >= 40 dt``
+    (``tp / 4``, the top of ``vcjax.environment.waves.BAND``) with 10 steps, ``tp >= 40 dt``
     (``ConfigError`` naming ``name``)."""
     if tp < 10.0 * waves.BAND[1] * dt:
         raise ConfigError(
@@ -248,7 +255,7 @@ def _zeros(loop):
 
 @dataclasses.dataclass(frozen=True)
 class SweepSpec:
-    """A whole study (validated on construction); see :mod:`vcjax.sweep` for the fields.
+    """A whole study (validated on construction); see [`vcjax.sweep`][vcjax.sweep] for the fields.
 
     ``choice`` says what is simulated (vehicle, path, parameter overrides, loop options; the
     default is Simulation 1's INFANTE-class craft on the line ``[10, w]``); ``variants`` are
@@ -330,7 +337,8 @@ class MCConfig:
     """Static settings of a batched Monte-Carlo rollout.
 
     Attributes:
-        num_steps: rollout steps N; integrator, timing: as :class:`~vcjax.rollout.RolloutConfig`.
+        num_steps: rollout steps N; integrator, timing: as
+            [`RolloutConfig`][vcjax.rollout.RolloutConfig].
         current_model: ``"constant"`` or ``"gauss_markov"``.
         sensor_noise: add measurement noise (``MCScenario.noise_std``) to what the controller
             sees; False skips the noise code entirely.
@@ -338,9 +346,10 @@ class MCConfig:
         tail: steady-state window (last fraction of the run).
         record_stride: keep every ``record_stride``-th sample of ``e`` and the path (0: none).
         environment: ``((section, table), ...)`` further environment components
-            (:attr:`ScenarioSpec.environment`).
+            (``ScenarioSpec.environment``).
         checkpoint: rematerialise each streamed segment in the backward pass (a gradient
-            through the rollout, e.g. :func:`vcjax.search.falsify`; no effect on the values).
+            through the rollout, e.g. [`vcjax.search.falsify`][vcjax.search.core.falsify]; no effect
+            on the values).
     """
 
     num_steps: int
@@ -384,7 +393,8 @@ class MCScenario(NamedTuple):
         wave_tp: () peak period [s].
         wave_direction_deg: () direction the waves travel towards [deg, clockwise from north].
         wave_origin_depth: () depth of the NED origin below the mean free surface [m].
-        sea: the scenario's :class:`vcjax.environment.waves.Sea` ((N,) arrays), drawn from its own
+        sea: the scenario's [`vcjax.environment.waves.Sea`][vcjax.environment.waves.Sea] ((N,)
+            arrays), drawn from its own
             key.
     """
 
@@ -514,7 +524,8 @@ def sample_scenarios(
 
     Scenario ``i`` depends only on ``(spec, seed, i)``; ``seed`` is an integer in
     ``0 .. vcjax.config.SEED_MAX`` (``ConfigError`` otherwise). ``dtype``: float dtype
-    (default: JAX's default float). Returns an :class:`MCScenario` with a leading batch axis B.
+    (default: JAX's default float). Returns an [`MCScenario`][vcjax.sweep.spec.MCScenario] with a
+    leading batch axis B.
     """
     if not isinstance(spec, ScenarioSpec):
         raise ConfigError(f"spec: expected ScenarioSpec, got {type(spec).__name__}")
@@ -529,7 +540,7 @@ def sample_scenarios(
 
 
 def spec_to_dict(spec: SweepSpec) -> dict:
-    """Plain-JSON form of a :class:`~vcjax.sweep.spec.SweepSpec`."""
+    """Plain-JSON form of a [`SweepSpec`][vcjax.sweep.spec.SweepSpec]."""
     d = {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec)}
     sc = spec.scenario
     d["scenario"] = {f.name: getattr(sc, f.name) for f in dataclasses.fields(sc)}
@@ -540,7 +551,7 @@ def spec_to_dict(spec: SweepSpec) -> dict:
 
 
 def spec_from_dict(d: dict) -> SweepSpec:
-    """Inverse of :func:`spec_to_dict`."""
+    """Inverse of [`spec_to_dict`][vcjax.sweep.spec.spec_to_dict]."""
     d = dict(d)
     sc = dict(d.pop("scenario"))
     sc["initial"] = tuple((k, tuple(v)) for k, v in sc["initial"].items())

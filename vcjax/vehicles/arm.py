@@ -1,6 +1,6 @@
 """Non-marine example systems for the generic engine (the engine knows nothing about craft).
 
-:data:`TWO_LINK_ARM` is a planar two-link arm in a vertical plane (y up, gravity -y), joint angles
+``TWO_LINK_ARM`` is a planar two-link arm in a vertical plane (y up, gravity -y), joint angles
 ``q = [q1, q2]`` (q1 from the x axis, q2 relative), point-mass-plus-inertia links.
 """
 
@@ -43,7 +43,8 @@ class ArmParams(NamedTuple):
 
 
 def arm_params(l1=1.0, l2=0.8, lc1=0.5, lc2=0.4, m1=2.0, m2=1.5, I1=0.2, I2=0.1, g=9.81):
-    """Validated :class:`ArmParams` (lengths, masses, inertias > 0; ``g >= 0``)."""
+    """Validated [`ArmParams`][vcjax.vehicles.arm.ArmParams] (lengths, masses, inertias > 0; ``g >=
+    0``)."""
     for name, v in dict(l1=l1, l2=l2, lc1=lc1, lc2=lc2, m1=m1, m2=m2, I1=I1, I2=I2).items():
         check_positive(name, v, ())
     check_positive("g", g, (), strict=False)
@@ -78,7 +79,8 @@ def _arm_bias(q, qd, p: ArmParams):
     return cor + grav
 
 
-#: The arm as a :class:`~vcjax.mechanics.MechanicalSystem`; ``args`` is an :class:`ArmParams`.
+#: The arm as a [`MechanicalSystem`][vcjax.mechanics.MechanicalSystem]; ``args`` is an
+# [`ArmParams`][vcjax.vehicles.arm.ArmParams].
 TWO_LINK_ARM = MechanicalSystem(mass_matrix=_arm_mass, bias_force=_arm_bias)
 
 

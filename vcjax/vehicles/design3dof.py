@@ -64,7 +64,8 @@ class Design3DOF(NamedTuple):
 
 
 def design3dof(m11, m22, m23, m33, d11=0.0, d22=0.0, d23=0.0, d32=0.0, d33=0.0) -> Design3DOF:
-    """Build validated :class:`Design3DOF` (``M_b`` must be SPD; values finite scalars)."""
+    """Build validated [`Design3DOF`][vcjax.vehicles.design3dof.Design3DOF] (``M_b`` must be SPD;
+    values finite scalars)."""
     vals = dict(m11=m11, m22=m22, m23=m23, m33=m33, d11=d11, d22=d22, d23=d23, d32=d32, d33=d33)
     for name, v in vals.items():
         check_array(name, v, ())
@@ -186,7 +187,8 @@ def _J(q, p):
 
 
 #: The design model in generalised coordinates ``q = eta`` for the generic engine
-#: (:mod:`vcjax.mechanics`); its ``args`` must be a :class:`Design3DOF`. Forces on it are
+#: ([`vcjax.mechanics`][vcjax.mechanics]); its ``args`` must be a
+# [`Design3DOF`][vcjax.vehicles.design3dof.Design3DOF]. Forces on it are
 #: generalised (inertial-frame) forces ``tau = J^{-T} tau_b``. A module constant, so that jitted
 #: functions taking it as a static argument compile once.
 DESIGN3DOF_SYSTEM: MechanicalSystem = from_body_frame(_mb, _nb, _J)

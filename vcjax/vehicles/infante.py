@@ -52,7 +52,8 @@ Horizontal-plane model (w = p = q = 0, z = 0, phi = theta = 0), state
       h_i = v + x_i r.
 
   ``h_i`` is linear along the hull, so it changes sign at most once: the sums are evaluated in
-  closed form (:func:`crossflow_forces`), equal to the strip sum within round-off.
+  closed form ([`crossflow_forces`][vcjax.vehicles.infante.crossflow_forces]), equal to the strip
+  sum within round-off.
 
 * Surge: NPS's propeller/drag model is replaced by a thrust *force* actuator and an axial
   quadratic drag ``X_u|u|`` calibrated so that ``thrust_max`` gives exactly
@@ -63,8 +64,10 @@ Horizontal-plane model (w = p = q = 0, z = 0, phi = theta = 0), state
 
       act_dot = (sat(u_cmd) - act) / [T_thrust, T_rudder]
 
-  ``sat`` is a hard clip (:func:`infante_plant`) or ``limit * tanh(cmd / limit)``
-  (:func:`infante_plant_smooth`, for gradients; note it maps a command equal to the limit to
+  ``sat`` is a hard clip ([`infante_plant`][vcjax.vehicles.infante.infante_plant]) or ``limit *
+  tanh(cmd / limit)``
+  ([`infante_plant_smooth`][vcjax.vehicles.infante.infante_plant_smooth], for gradients; note it
+  maps a command equal to the limit to
   0.76 × the limit). Starting inside the limits, the actuator states stay inside them (exactly
   in continuous time; with RK4 and a command held over the step while ``dt < 2.7 T``).
   ``T_rudder = 0.1 s`` is npsauv.m's value; ``T_thrust = 0.5 s`` is **[INF]** (chosen here; the
@@ -164,7 +167,8 @@ NPS_PRIME: dict[str, float] = {
 }
 
 
-#: Fields of :class:`InfanteParams` holding damping, lift, cross-flow and rudder coefficients.
+#: Fields of [`InfanteParams`][vcjax.vehicles.infante.InfanteParams] holding damping, lift,
+# cross-flow and rudder coefficients.
 HYDRODYNAMIC_FIELDS = (
     "X_uu",
     "X_vv",
@@ -202,7 +206,8 @@ class InfanteParams(NamedTuple):
         cf_x: (n+1,) strip stations along the hull, uniformly spaced by ``cf_dx`` from the stern
             ``cf_x[0]`` [m] (its length fixes n); cf_dx: () strip weight and spacing [m].
         thrust_max: () [N]; rudder_max: () [rad]; T_thrust, T_rudder: () time constants [s].
-        rudder_speed_min: () speed floor used by :func:`actuator_commands` [m/s].
+        rudder_speed_min: () speed floor used by
+            [`actuator_commands`][vcjax.vehicles.infante.actuator_commands] [m/s].
     """
 
     length: Any
@@ -253,10 +258,10 @@ class InfanteState(NamedTuple):
 
 
 class PlantArgs(NamedTuple):
-    """Traced arguments of :func:`infante_plant`.
+    """Traced arguments of [`infante_plant`][vcjax.vehicles.infante.infante_plant].
 
     Attributes:
-        vehicle: :class:`InfanteParams`.
+        vehicle: [`InfanteParams`][vcjax.vehicles.infante.InfanteParams].
         V_c: (2,) ocean current in the inertial (NED) frame [m/s].
         V_c_dot: (2,) its time derivative [m/s^2] (zero for a constant current).
     """
@@ -294,7 +299,8 @@ def infante_params(
             ``X_u|u|`` is calibrated from it.
         rho: water density [kg/m^3] (npsauv.m: 1025).
         x_g: longitudinal CG position [m] (npsauv.m: 0).
-        rudder_speed_min: speed floor of :func:`actuator_commands` [m/s].
+        rudder_speed_min: speed floor of
+            [`actuator_commands`][vcjax.vehicles.infante.actuator_commands] [m/s].
         dtype: float dtype of every array (default: JAX's default float).
 
     Raises:
@@ -380,7 +386,8 @@ def infante_params(
 
 
 def validate(params: InfanteParams, name: str = "vehicle") -> InfanteParams:
-    """Eagerly check :class:`InfanteParams` however they were built (also after ``_replace``):
+    """Eagerly check [`InfanteParams`][vcjax.vehicles.infante.InfanteParams] however they were built
+    (also after ``_replace``):
     every field finite; lengths, density, mass, inertia, limits, time constants > 0; the mass
     matrix ``M`` (mass, ``Iz``, ``x_g``, added mass) with a positive-definite symmetric part
     (``infante_params`` builds it symmetric; a model-error study may perturb ``Y_rdot`` and
@@ -420,7 +427,7 @@ def ideal_fluid(params: InfanteParams) -> InfanteParams:
 
 
 def infante_state(eta, nu, act=None, dtype=None) -> InfanteState:
-    """Validated :class:`InfanteState`.
+    """Validated [`InfanteState`][vcjax.vehicles.infante.InfanteState].
 
     Args:
         eta: (3,) pose; nu: (3,) body velocity; act: (2,) actuator states
@@ -438,7 +445,8 @@ def infante_state(eta, nu, act=None, dtype=None) -> InfanteState:
 
 
 def plant_args(vehicle: InfanteParams, V_c=None, V_c_dot=None) -> PlantArgs:
-    """Validated :class:`PlantArgs`; ``V_c`` and ``V_c_dot`` (2,) default to zero.
+    """Validated [`PlantArgs`][vcjax.vehicles.infante.PlantArgs]; ``V_c`` and ``V_c_dot`` (2,)
+    default to zero.
 
     The arrays take the dtype of ``vehicle.mass``.
     """
@@ -480,7 +488,8 @@ def crossflow_forces(p: InfanteParams, v, r):
     The strip sums of the model (``Y_cf = -k sum_i h_i |h_i|``, ``N_cf = -k sum_i x_i h_i |h_i|``,
     ``k = cf_coeff cf_dx``, ``h_i = v + x_i r``) over the uniformly spaced stations
     ``x_i = cf_x[0] + i cf_dx``, ``i = 0..n``, evaluated in closed form
-    (:func:`vcjax.linalg.signed_square_sums`: ``h_i`` is linear in ``i`` and changes sign at most
+    ([`signed_square_sums`][vcjax.linalg.signed_square_sums]: ``h_i`` is linear in ``i`` and changes
+    sign at most
     once along the hull). Equal to the 11-station sum within round-off, with the same finite
     gradient ``2 |h_i|`` per strip (zero at ``h_i = 0``).
 
@@ -543,18 +552,20 @@ def infante_plant(t, x: InfanteState, u, args: PlantArgs) -> InfanteState:
 
     Args:
         t: () time [s] (unused; the plant is autonomous).
-        x: :class:`InfanteState`.
+        x: [`InfanteState`][vcjax.vehicles.infante.InfanteState].
         u: (2,) commands [thrust_cmd N, rudder_cmd rad].
-        args: :class:`PlantArgs` (vehicle, current ``V_c`` (2,), ``V_c_dot`` (2,)).
+        args: [`PlantArgs`][vcjax.vehicles.infante.PlantArgs] (vehicle, current ``V_c`` (2,),
+            ``V_c_dot`` (2,)).
 
     Returns:
-        :class:`InfanteState` of time derivatives.
+        [`InfanteState`][vcjax.vehicles.infante.InfanteState] of time derivatives.
     """
     return _plant(t, x, u, args, smooth=False)
 
 
 def infante_plant_smooth(t, x: InfanteState, u, args: PlantArgs) -> InfanteState:
-    """As :func:`infante_plant`, with ``limit * tanh(cmd / limit)`` saturation (for gradients)."""
+    """As [`infante_plant`][vcjax.vehicles.infante.infante_plant], with ``limit * tanh(cmd /
+    limit)`` saturation (for gradients)."""
     return _plant(t, x, u, args, smooth=True)
 
 
@@ -646,7 +657,8 @@ def actuator_commands(p: InfanteParams, nu_r, tau_u, tau_r):
 def rudder_sway_force(p: InfanteParams, nu_r, tau_r):
     """() Sway force [N] of the rudder when it delivers yaw moment ``tau_r`` (Remark 4: tau_0v).
 
-    ``Y_delta(u_r) * rudder_cmd`` with the rudder angle of :func:`actuator_commands`; for
+    ``Y_delta(u_r) * rudder_cmd`` with the rudder angle of
+    [`actuator_commands`][vcjax.vehicles.infante.actuator_commands]; for
     ``|u_r| >= rudder_speed_min`` this is ``tau_r * Y_uudr / N_uudr`` = ``tau_r Ydr / (Ndr L)``.
     """
     Y_delta, _ = rudder_gains(p, nu_r)

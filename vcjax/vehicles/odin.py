@@ -37,23 +37,26 @@ constant keeps it a minor term. A sphere has no rotational added inertia or pres
 rotation; the real ODIN's thrusters and housings do resist rotation, which a 2 s time constant
 stands for. ``z_g = 2 cm`` gives roll/pitch restoring ``z_g W = 22.7 N m/rad`` (natural period
 ~2.7 s, open-loop damping ratio ~0.1), so that the vehicle is "structurally stable in roll and
-pitch" as Corollaries 2-3 assume; the attitude PD of :mod:`vcjax.experiments.sim2` adds the damping.
+pitch" as Corollaries 2-3 assume; the attitude PD of
+[`vcjax.experiments.sim2`][vcjax.experiments.sim2] adds the damping.
 The CG offset makes ``M_RB`` couple surge-pitch and sway-roll (``m z_g = 2.3 kg m``), as Fossen's
 ``H(r_bg)`` transformation prescribes. Quadratic drag is isotropic (``|v_r| v_r``, the physics of
 a sphere) rather than Fossen's axis-by-axis ``|u| u``: the drag of a sphere does not depend on
 the direction of the flow.
 
-Model (6-DOF, built on :mod:`vcjax.vehicles.sixdof`: ``m2c`` Coriolis of rigid body + added mass,
+Model (6-DOF, built on [`vcjax.vehicles.sixdof`][vcjax.vehicles.sixdof]: ``m2c`` Coriolis of rigid
+body + added mass,
 ``gvect`` restoring, ``J(Theta)`` kinematics, relative velocity to an irrotational current)::
 
     M nu_r_dot + C(nu_r) nu_r + D_lin nu_r + g(eta) = T f + tau_dist + tau_drag(nu_r)
     tau_drag = [-k |v_r| v_r; 0],   f_dot = (sat(f_cmd) - f) / T_thrust
 
 with ``f`` (8,) the thruster forces (state), ``f_cmd`` (8,) the commands (input; clipped to
-``±thrust_max``, or ``thrust_max tanh(f_cmd / thrust_max)`` in :func:`odin_plant_smooth`),
+``±thrust_max``, or ``thrust_max tanh(f_cmd / thrust_max)`` in
+[`odin_plant_smooth`][vcjax.vehicles.odin.odin_plant_smooth]),
 ``tau_dist`` (6,) a constant body-frame disturbance (traced) and ``v_c`` (3,) an optional current
 in NED, with ``v_c_dot`` (3,) its time derivative when it varies (a tidal current, a sea):
-``nu_dot = nu_r_dot + nu_c_dot`` as in :func:`vcjax.vehicles.sixdof.vector_field`, so the
+``nu_dot = nu_r_dot + nu_c_dot`` as in [`vector_field`][vcjax.vehicles.sixdof.vector_field], so the
 water's acceleration acts on the rigid body and, through ``M_A``, on the added mass. Thruster
 matrix (``s = 1/sqrt(2)``; rows ``[X Y Z K M N]``, columns
 ``[H1..H4 V1..V4]``; a positive vertical thrust pushes up, i.e. ``-Z``)::
@@ -116,7 +119,7 @@ class OdinParams(NamedTuple):
     """ODIN-class parameters (traced).
 
     Attributes:
-        body: :class:`vcjax.vehicles.sixdof.SixDofParams` — ``M_RB`` (CG offset ``z_g``
+        body: [`SixDofParams`][vcjax.vehicles.sixdof.SixDofParams] — ``M_RB`` (CG offset ``z_g``
             included), ``M_A``, linear damping ``D`` (6, 6), ``W = B``, ``r_bg``, ``r_bb``.
         radius: () hull radius R [m]; rho: () water density [kg/m^3].
         drag_coeff: () isotropic quadratic drag ``k = 1/2 rho Cd pi R^2`` [kg/m].
@@ -149,10 +152,10 @@ class OdinState(NamedTuple):
 
 
 class OdinArgs(NamedTuple):
-    """Traced arguments of :func:`odin_plant`.
+    """Traced arguments of [`odin_plant`][vcjax.vehicles.odin.odin_plant].
 
     Attributes:
-        vehicle: :class:`OdinParams`.
+        vehicle: [`OdinParams`][vcjax.vehicles.odin.OdinParams].
         tau_dist: (6,) constant body-frame disturbance ``[X, Y, Z, K, M, N]`` [N, N m].
         v_c: (3,) ocean current in NED [m/s] (irrotational; uniform over the hull).
         v_c_dot: (3,) its time derivative [m/s^2], or ``None`` (the default: a constant current,
@@ -264,9 +267,10 @@ def odin_params(
 
 
 def validate(params: OdinParams, name: str = "vehicle") -> OdinParams:
-    """Eagerly check :class:`OdinParams` however they were built (also after ``_replace``):
+    """Eagerly check [`OdinParams`][vcjax.vehicles.odin.OdinParams] however they were built (also
+    after ``_replace``):
     every field finite; radius, density, thrust limits and time constant > 0, drag >= 0; the body
-    (:func:`vcjax.vehicles.sixdof.validate`); thruster matrix (6, 8).
+    ([`vcjax.vehicles.sixdof.validate`][vcjax.vehicles.sixdof.validate]); thruster matrix (6, 8).
 
     Returns ``params``. Raises ``ValueError`` naming ``name.field``. Skipped under ``jit``.
     """
@@ -283,7 +287,8 @@ def validate(params: OdinParams, name: str = "vehicle") -> OdinParams:
 
 
 def odin_state(eta, nu=None, thrust=None, dtype=None) -> OdinState:
-    """Validated :class:`OdinState`; ``nu`` (6,) and ``thrust`` (8,) default to zeros.
+    """Validated [`OdinState`][vcjax.vehicles.odin.OdinState]; ``nu`` (6,) and ``thrust`` (8,)
+    default to zeros.
 
     Args:
         eta: (6,) pose; nu: (6,) body velocity; thrust: (8,) thruster forces [N].
@@ -300,10 +305,10 @@ def odin_state(eta, nu=None, thrust=None, dtype=None) -> OdinState:
 
 
 def odin_args(vehicle: OdinParams, tau_dist=None, v_c=None, v_c_dot=None) -> OdinArgs:
-    """Validated :class:`OdinArgs` (arrays take the dtype of ``vehicle``).
+    """Validated [`OdinArgs`][vcjax.vehicles.odin.OdinArgs] (arrays take the dtype of ``vehicle``).
 
     Args:
-        vehicle: :class:`OdinParams`.
+        vehicle: [`OdinParams`][vcjax.vehicles.odin.OdinParams].
         tau_dist: (6,) body disturbance ``[X, Y, Z, K, M, N]``, or (3,) forces only (the paper's
             ``[0, 5, 0]`` N; moments zero). Default zeros.
         v_c: (3,) ocean current in NED [m/s]. Default zeros.
@@ -373,22 +378,25 @@ def _plant(t, x: OdinState, u_cmd, args: OdinArgs, smooth: bool) -> OdinState:
 
 
 def odin_plant(t, x: OdinState, u_cmd, args: OdinArgs) -> OdinState:
-    """Vector field ``x_dot = f(t, x, u_cmd, args)`` (the :mod:`vcjax.rollout` signature).
+    """Vector field ``x_dot = f(t, x, u_cmd, args)`` (the [`vcjax.rollout`][vcjax.rollout]
+    signature).
 
     Args:
         t: () time [s] (unused; autonomous).
-        x: :class:`OdinState`.
+        x: [`OdinState`][vcjax.vehicles.odin.OdinState].
         u_cmd: (8,) thruster commands [N] (hard-clipped to ``±thrust_max``).
-        args: :class:`OdinArgs` (vehicle, ``tau_dist`` (6,), ``v_c`` (3,), ``v_c_dot``).
+        args: [`OdinArgs`][vcjax.vehicles.odin.OdinArgs] (vehicle, ``tau_dist`` (6,), ``v_c`` (3,),
+            ``v_c_dot``).
 
     Returns:
-        :class:`OdinState` of time derivatives.
+        [`OdinState`][vcjax.vehicles.odin.OdinState] of time derivatives.
     """
     return _plant(t, x, u_cmd, args, smooth=False)
 
 
 def odin_plant_smooth(t, x: OdinState, u_cmd, args: OdinArgs) -> OdinState:
-    """As :func:`odin_plant` with ``thrust_max tanh(cmd / thrust_max)`` (for gradients)."""
+    """As [`odin_plant`][vcjax.vehicles.odin.odin_plant] with ``thrust_max tanh(cmd / thrust_max)``
+    (for gradients)."""
     return _plant(t, x, u_cmd, args, smooth=True)
 
 

@@ -11,7 +11,8 @@ used. Mass and added mass come from a prolate spheroid, damping from time consta
 lift/drag and cross-flow drag, the propeller from a linearised Wageningen B-series fit.
 
 Validation: replaying the commands of a 60 s PVS run (commit c717e073, depth/heading autopilot,
-0.5 m/s current; ``tests/data/remus100_pvs_reference.csv``) through :func:`pvs_step` reproduces
+0.5 m/s current; ``tests/data/remus100_pvs_reference.csv``) through
+[`pvs_step`][vcjax.vehicles.remus100.pvs_step] reproduces
 PVS's trajectory to the CSV's 10 significant digits (``tests/test_remus100.py``).
 
 Model (6-DOF, NED / body x forward, z down; ``vcjax.vehicles.sixdof`` conventions)::
@@ -51,7 +52,8 @@ Model (6-DOF, NED / body x forward, z down; ``vcjax.vehicles.sixdof`` convention
   ``v_c = [V_c cos beta_c, V_c sin beta_c]``. As in PVS it is rotated by the **yaw angle only**:
   ``nu_c = [V_c cos(beta_c - psi), V_c sin(beta_c - psi), 0, 0, 0, 0]``,
   ``nu_c_dot = [r v_c, -r u_c, 0, ...]`` (+ the rotated ``v_c_dot`` of a time-varying current,
-  zero in PVS). The generic :mod:`vcjax.vehicles.sixdof` uses the full ``R(Theta)^T``.
+  zero in PVS). The generic [`vcjax.vehicles.sixdof`][vcjax.vehicles.sixdof] uses the full
+  ``R(Theta)^T``.
 * Actuators ``act = [delta_r rad, delta_s rad, n rpm]``: PVS saturates the actuator *states*
   (not the commands) at 15 deg, 15 deg, 1525 rpm at the start of every step, uses the
   saturated values for the forces, and lags them towards the (unsaturated) commands with
@@ -59,18 +61,22 @@ Model (6-DOF, NED / body x forward, z down; ``vcjax.vehicles.sixdof`` convention
 
 Two ways to step it:
 
-* :func:`pvs_step`: PVS's own discrete step, reproduced exactly (forward Euler on ``nu`` and the
+* [`pvs_step`][vcjax.vehicles.remus100.pvs_step]: PVS's own discrete step, reproduced exactly
+(forward Euler on ``nu`` and the
   actuators, then ``eta[k+1] = eta[k] + dt J(eta[k]) nu[k+1]``, as ``attitudeEuler`` does).
-* :func:`remus100_plant`: the continuous-time vector field, for :mod:`vcjax.integrators` and
-  :mod:`vcjax.rollout`. Its actuator lag is the ``dt -> 0`` limit of PVS's: forces use the
+* [`remus100_plant`][vcjax.vehicles.remus100.remus100_plant]: the continuous-time vector field, for
+[`vcjax.integrators`][vcjax.integrators] and
+  [`vcjax.rollout`][vcjax.rollout]. Its actuator lag is the ``dt -> 0`` limit of PVS's: forces use
+  the
   clipped state and the state stops at a limit while the command pushes outwards (no windup).
-  :func:`remus100_plant_smooth` instead lags ``limit * tanh(cmd / limit)`` (gradients pass
+  [`remus100_plant_smooth`][vcjax.vehicles.remus100.remus100_plant_smooth] instead lags ``limit *
+  tanh(cmd / limit)`` (gradients pass
   saturation; note that it maps a command equal to the limit, e.g. 1525 rpm, to 0.76 x it).
 
 Differences from PVS (none at the default parameters): a single ``rho`` is used everywhere
 (PVS hard-codes 1026 in ``gnc.forceLiftDrag`` / ``crossFlowDrag`` and uses ``self.rho = 1026``
 elsewhere); ``M^-1`` is applied with a Cholesky solve (the factor computed once per run,
-:attr:`Remus100Args.M_factor`) instead of a precomputed inverse; square
+``Remus100Args.M_factor``) instead of a precomputed inverse; square
 roots and ``atan2`` are NaN-gradient-safe at zero relative velocity.
 
 Everything traced is a ``NamedTuple`` of arrays; the functions are pure ``jax.numpy``,
@@ -162,7 +168,8 @@ class Remus100Params(NamedTuple):
     """REMUS 100 parameters (traced; scalars are () arrays unless noted).
 
     Attributes:
-        body: :class:`~vcjax.vehicles.sixdof.SixDofParams` with ``M_RB``, ``M_A``, the linear
+        body: [`SixDofParams`][vcjax.vehicles.sixdof.SixDofParams] with ``M_RB``, ``M_A``, the
+            linear
             damping ``D`` (6, 6) *before* the speed fade, ``W``, ``B``, ``r_bg``, ``r_bb``.
         rho: water density [kg/m^3]; length: L [m]; diam: hull diameter [m].
         S: hull planform area [m^2]; CD_0: parasitic drag coefficient (on ``S``);
@@ -224,24 +231,26 @@ class Remus100State(NamedTuple):
 
 
 class Remus100Args(NamedTuple):
-    """Traced arguments of :func:`remus100_plant` / :func:`pvs_step`.
+    """Traced arguments of [`remus100_plant`][vcjax.vehicles.remus100.remus100_plant] /
+    [`pvs_step`][vcjax.vehicles.remus100.pvs_step].
 
     Attributes:
-        vehicle: :class:`Remus100Params`.
+        vehicle: [`Remus100Params`][vcjax.vehicles.remus100.Remus100Params].
         v_c: (2,) horizontal current in NED ``[north, east]`` [m/s] (or (3,): see
-            :func:`current_in_body`).
+            [`current_in_body`][vcjax.vehicles.remus100.current_in_body]).
         v_c_dot: (2,) its time derivative [m/s^2] (zero in PVS; (3,) with a (3,) ``v_c``).
         M_factor: (6, 6) lower Cholesky factor of ``mass_matrix(vehicle)``
-            (:func:`mass_factor`), or ``None``. ``M`` is constant, so :func:`remus100_args`
+            ([`mass_factor`][vcjax.vehicles.remus100.mass_factor]), or ``None``. ``M`` is constant,
+            so [`remus100_args`][vcjax.vehicles.remus100.remus100_args]
             and the loops factor it once, outside the rollout's loop; with ``None`` the plant
             factors it at every evaluation (the same numbers). Rebuild the arguments (or the
             factor) when ``vehicle`` changes.
         v_w: (3,) NED orbital velocity of waves on top of the current [m/s], rotated in full
             (``R(Theta)^T``), or None (no waves); see
-            :func:`vcjax.environment.waves.orbital_kinematics`.
+            [`orbital_kinematics`][vcjax.environment.waves.orbital_kinematics].
         v_w_dot: (3,) its material acceleration [m/s^2] (with ``v_w``).
         tau_w: (6,) extra body force of the waves
-        (:func:`vcjax.environment.waves.current_door_correction`,
+        ([`current_door_correction`][vcjax.environment.waves.current_door_correction],
             the pendulum moment of the CG below the CB) [N, N m], or None.
     """
 
@@ -402,9 +411,11 @@ def remus100_params(
 
 
 def validate(params: Remus100Params, name: str = "vehicle") -> Remus100Params:
-    """Eagerly check :class:`Remus100Params` however they were built (also after
+    """Eagerly check [`Remus100Params`][vcjax.vehicles.remus100.Remus100Params] however they were
+    built (also after
     ``_replace``): every field finite; density, length, diameter, areas, propeller diameter,
-    actuator limits and time constants > 0; the body (:func:`vcjax.vehicles.sixdof.validate`).
+    actuator limits and time constants > 0; the body
+    ([`vcjax.vehicles.sixdof.validate`][vcjax.vehicles.sixdof.validate]).
 
     Returns ``params``. Raises ``ValueError`` naming ``name.field``. Skipped under ``jit``.
     """
@@ -419,7 +430,8 @@ def validate(params: Remus100Params, name: str = "vehicle") -> Remus100Params:
 
 
 def remus100_state(eta=None, nu=None, act=None, dtype=None) -> Remus100State:
-    """Validated :class:`Remus100State`; every field defaults to zeros.
+    """Validated [`Remus100State`][vcjax.vehicles.remus100.Remus100State]; every field defaults to
+    zeros.
 
     Args:
         eta: (6,) pose; nu: (6,) body velocity; act: (3,) ``[delta_r rad, delta_s rad, n rpm]``.
@@ -438,14 +450,14 @@ def remus100_state(eta=None, nu=None, act=None, dtype=None) -> Remus100State:
 def remus100_args(
     vehicle: Remus100Params, V_c=0.0, beta_c=0.0, v_c=None, v_c_dot=None
 ) -> Remus100Args:
-    """Validated :class:`Remus100Args`.
+    """Validated [`Remus100Args`][vcjax.vehicles.remus100.Remus100Args].
 
     The current is given either as PVS does, speed ``V_c`` [m/s] and direction ``beta_c``
     [rad] (the direction it flows to, from north towards east; PVS's constructor takes degrees),
     or directly as the NED vector ``v_c`` (2,) [m/s], which then takes precedence.
 
     Args:
-        vehicle: :class:`Remus100Params`.
+        vehicle: [`Remus100Params`][vcjax.vehicles.remus100.Remus100Params].
         V_c, beta_c: () current speed [m/s] and direction [rad].
         v_c: (2,) NED current ``[north, east]`` [m/s] (overrides ``V_c``, ``beta_c``).
         v_c_dot: (2,) its time derivative [m/s^2] (default 0, as in PVS).
@@ -475,13 +487,14 @@ def mass_matrix(p: Remus100Params):
 
 
 def mass_factor(p: Remus100Params):
-    """(6, 6) lower Cholesky factor ``L`` of :func:`mass_matrix` (``M = L L^T``), for
-    :attr:`Remus100Args.M_factor`."""
+    """(6, 6) lower Cholesky factor ``L`` of [`mass_matrix`][vcjax.vehicles.remus100.mass_matrix]
+    (``M = L L^T``), for
+    ``Remus100Args.M_factor``."""
     return cholesky_small(mass_matrix(p))
 
 
 def coriolis(p: Remus100Params, nu_r):
-    """(6, 6) ``C = m2c(M_RB, nu_r) + C_A``, PVS's ``C_A`` entries :data:`CA_ZEROED` set to 0."""
+    """(6, 6) ``C = m2c(M_RB, nu_r) + C_A``, PVS's ``C_A`` entries ``CA_ZEROED`` set to 0."""
     C_A = m2c(p.body.M_A, nu_r) * jnp.asarray(_CA_MASK, dtype=nu_r.dtype)
     return m2c(p.body.M_RB, nu_r) + C_A
 
@@ -499,8 +512,8 @@ def current_in_body(eta, nu, v_c, v_c_dot=None):
     0, ...]``) and ``nu_c_dot = [r v_c, -r u_c, 0, ...]`` (+ ``Rz(psi)^T v_c_dot``).
 
     A (3,) ``v_c`` (the water's NED velocity, e.g. current + waves,
-    :func:`vcjax.environment.waves.water_kinematics`) takes the full rotation instead,
-    ``nu_c = [R(Theta)^T v_c; 0]`` (:func:`vcjax.vehicles.sixdof.current_in_body`).
+    [`water_kinematics`][vcjax.environment.waves.water_kinematics]) takes the full rotation instead,
+    ``nu_c = [R(Theta)^T v_c; 0]`` ([`current_in_body`][vcjax.vehicles.sixdof.current_in_body]).
 
     Args:
         eta: (6,) pose; nu: (6,) body velocity; v_c, v_c_dot: (2,) NED current and its rate,
@@ -654,7 +667,8 @@ def _nu_dot(x: Remus100State, act_applied, args: Remus100Args):
 
 
 def remus100_plant(t, x: Remus100State, u_cmd, args: Remus100Args) -> Remus100State:
-    """Vector field ``x_dot = f(t, x, u_cmd, args)`` (the :mod:`vcjax.rollout` plant signature).
+    """Vector field ``x_dot = f(t, x, u_cmd, args)`` (the [`vcjax.rollout`][vcjax.rollout] plant
+    signature).
 
     The forces use the clipped actuator state ``sat(act)``; ``act_dot = (u_cmd - sat(act)) / T``,
     set to zero where ``act`` sits at (or beyond) a limit and the command pushes further out:
@@ -662,12 +676,12 @@ def remus100_plant(t, x: Remus100State, u_cmd, args: Remus100Args) -> Remus100St
 
     Args:
         t: () time [s] (unused; the plant is autonomous).
-        x: :class:`Remus100State`.
+        x: [`Remus100State`][vcjax.vehicles.remus100.Remus100State].
         u_cmd: (3,) commands ``[delta_r_cmd rad, delta_s_cmd rad, n_cmd rpm]``.
-        args: :class:`Remus100Args`.
+        args: [`Remus100Args`][vcjax.vehicles.remus100.Remus100Args].
 
     Returns:
-        :class:`Remus100State` of time derivatives.
+        [`Remus100State`][vcjax.vehicles.remus100.Remus100State] of time derivatives.
     """
     p = args.vehicle
     act_s = saturate(x.act, p.act_max)
@@ -679,7 +693,8 @@ def remus100_plant(t, x: Remus100State, u_cmd, args: Remus100Args) -> Remus100St
 
 
 def remus100_plant_smooth(t, x: Remus100State, u_cmd, args: Remus100Args) -> Remus100State:
-    """As :func:`remus100_plant`, lagging ``limit * tanh(u_cmd / limit)`` (for gradients).
+    """As [`remus100_plant`][vcjax.vehicles.remus100.remus100_plant], lagging ``limit * tanh(u_cmd /
+    limit)`` (for gradients).
 
     The actuator state stays inside the limits on its own, so the forces use it unclipped.
     A command equal to the limit settles at ``tanh(1) = 0.76`` x the limit.
@@ -701,11 +716,13 @@ def pvs_step(x: Remus100State, u_cmd, args: Remus100Args, dt) -> Remus100State:
         eta[k+1] = eta[k] + dt * J(eta[k]) nu[k+1]    (the *new* velocity, the old angles)
 
     Args:
-        x: :class:`Remus100State` at step k; u_cmd: (3,) commands held over the step;
-        args: :class:`Remus100Args`; dt: () step [s] (PVS ``sampleTime``, e.g. 0.02).
+        x: [`Remus100State`][vcjax.vehicles.remus100.Remus100State] at step k; u_cmd: (3,) commands
+            held over the step;
+        args: [`Remus100Args`][vcjax.vehicles.remus100.Remus100Args]; dt: () step [s] (PVS
+            ``sampleTime``, e.g. 0.02).
 
     Returns:
-        :class:`Remus100State` at step k + 1.
+        [`Remus100State`][vcjax.vehicles.remus100.Remus100State] at step k + 1.
     """
     p = args.vehicle
     act_s = saturate(x.act, p.act_max)
@@ -716,10 +733,11 @@ def pvs_step(x: Remus100State, u_cmd, args: Remus100Args, dt) -> Remus100State:
 
 
 class PVSReplay(NamedTuple):
-    """Result of :func:`pvs_rollout`.
+    """Result of [`pvs_rollout`][vcjax.vehicles.remus100.pvs_rollout].
 
     Attributes:
-        x: :class:`Remus100State` with leaves stacked to (N + 1, ...), starting with ``x0``.
+        x: [`Remus100State`][vcjax.vehicles.remus100.Remus100State] with leaves stacked to (N + 1,
+            ...), starting with ``x0``.
         ok: (N,) bool, step k was valid: its command finite, ``dt`` finite and > 0, and the
             state it produced finite (False from the first bad step on, as a NaN never heals).
     """
@@ -729,13 +747,15 @@ class PVSReplay(NamedTuple):
 
 
 def pvs_rollout(x0: Remus100State, u_cmds, args: Remus100Args, dt) -> PVSReplay:
-    """Replay commands ``u_cmds`` (N, 3) through :func:`pvs_step` as one ``lax.scan``.
+    """Replay commands ``u_cmds`` (N, 3) through [`pvs_step`][vcjax.vehicles.remus100.pvs_step] as
+    one ``lax.scan``.
 
     ``dt`` and ``u_cmds`` are checked eagerly when concrete (``ValueError`` naming them); inside
-    ``jit`` a bad command or step is reported as data in :attr:`PVSReplay.ok`.
+    ``jit`` a bad command or step is reported as data in ``PVSReplay.ok``.
 
     Returns:
-        :class:`PVSReplay`. Not jitted: jit at your entry point (``jax.jit(pvs_rollout)``).
+        [`PVSReplay`][vcjax.vehicles.remus100.PVSReplay]. Not jitted: jit at your entry point
+        (``jax.jit(pvs_rollout)``).
     """
     if is_concrete(dt):
         a = np.asarray(dt)

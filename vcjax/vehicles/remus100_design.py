@@ -3,7 +3,7 @@
 Design model
 ------------
 The VCM law needs ``M(q) q̈ + n(q, q̇) = τ`` (1). For REMUS 100 it is the PVS plant of
-:mod:`vcjax.vehicles.remus100` with roll removed and the unknowns dropped:
+[`vcjax.vehicles.remus100`][vcjax.vehicles.remus100] with roll removed and the unknowns dropped:
 
 * DOF: ``q = [x, y, z, theta, psi]`` (NED [m], pitch and yaw [rad]), body velocity
   ``nu5 = [u, v, w, q, r]``; roll is held at ``phi = p = 0`` (REMUS is metacentrically stable in
@@ -15,7 +15,8 @@ The VCM law needs ``M(q) q̈ + n(q, q̇) = τ`` (1). For REMUS 100 it is the PVS
   ``exp(-3 U)`` fade of ``D11, D22`` evaluated at the **design speed** ``U_design``; hull lift
   and drag; restoring forces.
 * Dropped: the ocean current (the controller measures velocity over ground only: the integral
-  action and the integral-LOS angles of :mod:`vcjax.control.vcm3d` take it up), the roll DOF,
+  action and the integral-LOS angles of [`vcjax.control.vcm3d`][vcjax.control.vcm3d] take it up),
+  the roll DOF,
   the fins' induced drag (the actuator map compensates it), and the actuator lags.
 
 So on the plant, at ``phi = p = 0`` and zero current, ``M[IDX5, :] nu_dot + n5 = tau[IDX5]``
@@ -32,7 +33,7 @@ controller does not know the current):
   ``U^2 = max(u^2 + v^2, U_min^2)`` (resp. ``u^2 + w^2``): the floor keeps the division finite
   at rest. Each fin's force comes with its moment, ``Y = N / x_r`` and ``Z = -M / x_s``: these
   are the two *tied* force directions the underactuated law must respect
-  (:func:`unactuated_rows`).
+  ([`unactuated_rows`][vcjax.vehicles.remus100_design.unactuated_rows]).
 * propeller from the surge force after the fins' induced drag: ``X_prop = (X + k_r delta_r^2
   + k_s delta_s^2) / (1 - t)``, inverting ``X_prop = a n|n| + b |n|`` on its forward branch
   (``n = (-b + sqrt(b^2 + 4 a X_prop)) / (2 a)``, where ``b < 0`` at speed: the linearised
@@ -78,7 +79,7 @@ class Remus100Design(NamedTuple):
     """Traced parameters of the design model and the actuator map.
 
     Attributes:
-        vehicle: :class:`~vcjax.vehicles.remus100.Remus100Params` (PVS numbers).
+        vehicle: [`Remus100Params`][vcjax.vehicles.remus100.Remus100Params] (PVS numbers).
         U_design: () speed at which the damping fade ``exp(-3 U)`` is evaluated [m/s].
         U_min: () floor of the fin speed in the actuator map [m/s].
     """
@@ -89,7 +90,8 @@ class Remus100Design(NamedTuple):
 
 
 def design_model(p: r100.Remus100Params, U_design=1.5, U_min=0.5) -> Remus100Design:
-    """Validated :class:`Remus100Design` (``U_design``, ``U_min`` > 0, in m/s)."""
+    """Validated [`Remus100Design`][vcjax.vehicles.remus100_design.Remus100Design] (``U_design``,
+    ``U_min`` > 0, in m/s)."""
     if not isinstance(p, r100.Remus100Params):
         raise ValueError(f"vehicle: expected Remus100Params, got {type(p).__name__}")
     check_positive("U_design", U_design, ())
@@ -110,7 +112,7 @@ def kinematics5(q5, args=None):
     """(5, 5) ``J5(q)``: ``q̇ = J5 nu5`` (``phi = 0``); ``args`` unused (engine signature).
 
     ``blkdiag(R(0, theta, psi), diag(1, 1/cos theta))``: the rows and columns ``IDX5`` of
-    :func:`vcjax.vehicles.sixdof.kinematics` at zero roll, entry for entry the same numbers,
+    [`kinematics`][vcjax.vehicles.sixdof.kinematics] at zero roll, entry for entry the same numbers,
     written out (the law differentiates it: no sines and cosines of a zero roll to carry)."""
     theta, psi = q5[3], q5[4]
     cth, sth = jnp.cos(theta), jnp.sin(theta)
@@ -162,8 +164,10 @@ def body_bias5(dm: Remus100Design, q5, nu5):
 
 
 def design_system() -> MechanicalSystem:
-    """The design model as a :class:`~vcjax.mechanics.MechanicalSystem` in ``q = [x, y, z,
-    theta, psi]`` (generalised forces ``tau = J5^-T tau_b``); ``args`` is :class:`Remus100Design`.
+    """The design model as a [`MechanicalSystem`][vcjax.mechanics.MechanicalSystem] in ``q =
+    [x, y, z,
+    theta, psi]`` (generalised forces ``tau = J5^-T tau_b``); ``args`` is
+    [`Remus100Design`][vcjax.vehicles.remus100_design.Remus100Design].
     """
     return from_body_frame(
         lambda q, dm: mass_matrix5(dm),
@@ -194,7 +198,7 @@ def fin_gains(dm: Remus100Design, nu):
 
 
 class ActuatorCommand(NamedTuple):
-    """Output of :func:`actuator_map`.
+    """Output of [`actuator_map`][vcjax.vehicles.remus100_design.actuator_map].
 
     Attributes:
         cmd: (3,) ``[delta_r rad, delta_s rad, n rpm]`` clipped to the limits.
@@ -234,12 +238,13 @@ def horizontal_design(dm: Remus100Design):
     at straight motion ``nu = [U_design, 0, 0]``: ``m11, m22, m23, m33`` from ``M``; ``d11`` the
     secant ``X(U) / U`` (the steady drag is fed forward exactly); ``d22, d23, d32, d33`` such that
     ``C_b(nu) nu + D_b nu`` of (20) has the 5-DOF model's slopes in ``(v, r)`` there (as
-    :func:`vcjax.vehicles.infante.design_model` with ``match_coriolis``). Jit-safe.
+    [`design_model`][vcjax.vehicles.infante.design_model] with ``match_coriolis``). Jit-safe.
 
     Only the slopes match: (20)'s ``C_b`` carries the Munk yaw moment ``(m22 - m11) u v`` that
     this model lacks (PVS zeroes it), and ``d32`` cancels it at ``u = U_design`` only. The
     ``remus100`` loop's ``decoupled`` law therefore takes ``M_b`` from here and the bias from
-    :func:`body_bias5` (see :mod:`vcjax.control.baselines3d`).
+    [`body_bias5`][vcjax.vehicles.remus100_design.body_bias5] (see
+    [`vcjax.control.baselines3d`][vcjax.control.baselines3d]).
     """
     M = mass_matrix5(dm)
     U = dm.U_design

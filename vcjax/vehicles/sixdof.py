@@ -258,10 +258,10 @@ class SixDofState(NamedTuple):
 
 
 class SixDofArgs(NamedTuple):
-    """Traced arguments of :func:`sixdof_plant`.
+    """Traced arguments of [`sixdof_plant`][vcjax.vehicles.sixdof.sixdof_plant].
 
     Attributes:
-        vehicle: :class:`SixDofParams`.
+        vehicle: [`SixDofParams`][vcjax.vehicles.sixdof.SixDofParams].
         v_c: (3,) ocean current in NED [m/s]; v_c_dot: (3,) its time derivative [m/s^2].
     """
 
@@ -281,7 +281,7 @@ def _check_symmetric(name, a, rtol=1e-8):
 
 
 def sixdof_params(M_RB, M_A=None, D=None, W=0.0, B=None, r_bg=None, r_bb=None, dtype=None):
-    """Build validated :class:`SixDofParams`.
+    """Build validated [`SixDofParams`][vcjax.vehicles.sixdof.SixDofParams].
 
     Args:
         M_RB: (6, 6) rigid-body mass matrix about the CO (symmetric positive definite).
@@ -329,7 +329,8 @@ def sixdof_params(M_RB, M_A=None, D=None, W=0.0, B=None, r_bg=None, r_bb=None, d
 
 
 def validate(params: SixDofParams, name: str = "vehicle") -> SixDofParams:
-    """Eagerly check :class:`SixDofParams` however they were built (also after ``_replace``):
+    """Eagerly check [`SixDofParams`][vcjax.vehicles.sixdof.SixDofParams] however they were built
+    (also after ``_replace``):
     every field finite, ``W, B >= 0``, ``M_RB + M_A`` symmetric positive definite.
 
     Returns ``params``. Raises ``ValueError`` naming ``name.field``. Skipped under ``jit``.
@@ -345,7 +346,8 @@ def validate(params: SixDofParams, name: str = "vehicle") -> SixDofParams:
 
 
 def sixdof_state(eta=None, nu=None, dtype=None) -> SixDofState:
-    """Validated :class:`SixDofState`; ``eta``, ``nu`` (6,) default to zeros.
+    """Validated [`SixDofState`][vcjax.vehicles.sixdof.SixDofState]; ``eta``, ``nu`` (6,) default to
+    zeros.
 
     Raises:
         ValueError: naming the field for a wrong shape or a NaN/inf entry.
@@ -357,7 +359,8 @@ def sixdof_state(eta=None, nu=None, dtype=None) -> SixDofState:
 
 
 def sixdof_args(vehicle: SixDofParams, v_c=None, v_c_dot=None) -> SixDofArgs:
-    """Validated :class:`SixDofArgs`; ``v_c``, ``v_c_dot`` (3,) NED default to zero.
+    """Validated [`SixDofArgs`][vcjax.vehicles.sixdof.SixDofArgs]; ``v_c``, ``v_c_dot`` (3,) NED
+    default to zero.
 
     The arrays take the dtype of ``vehicle.M_RB``.
     """
@@ -422,11 +425,14 @@ def vector_field(p: SixDofParams, eta, nu, tau, v_c=None, v_c_dot=None):
 
 
 def sixdof_plant(t, x: SixDofState, tau, args: SixDofArgs) -> SixDofState:
-    """Plant vector field ``x_dot = f(t, x, tau, args)`` (the :mod:`vcjax.rollout` signature).
+    """Plant vector field ``x_dot = f(t, x, tau, args)`` (the [`vcjax.rollout`][vcjax.rollout]
+    signature).
 
     Args:
-        t: () time [s] (unused); x: :class:`SixDofState`; tau: (6,) body force [N, N m];
-        args: :class:`SixDofArgs` (vehicle, current ``v_c`` and ``v_c_dot`` in NED).
+        t: () time [s] (unused); x: [`SixDofState`][vcjax.vehicles.sixdof.SixDofState]; tau: (6,)
+            body force [N, N m];
+        args: [`SixDofArgs`][vcjax.vehicles.sixdof.SixDofArgs] (vehicle, current ``v_c`` and
+            ``v_c_dot`` in NED).
     """
     eta_dot, nu_dot = vector_field(args.vehicle, x.eta, x.nu, tau, args.v_c, args.v_c_dot)
     return SixDofState(eta=eta_dot, nu=nu_dot)
