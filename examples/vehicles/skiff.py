@@ -58,7 +58,7 @@ class SkiffLoop(loops.EngineLoop):
 
     @classmethod
     def default_path(cls):
-        return paths.line(origin=(0.0, 10.0, 0.0), direction=(1.0, 0.0, 0.0))  # due north
+        return paths.line(origin=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0))  # due north
 
     def default_params(self, dtype=None):
         f = lambda x: jnp.asarray(x, dtype)
@@ -103,10 +103,11 @@ class SkiffLoop(loops.EngineLoop):
         Ts = jnp.vectorize(rotation, signature="()->(3,3)")(traj.x[0][:n, 2])
         u_body = jnp.einsum("kji,kj->ki", Ts, traj.u)  # T^T u at every step
         tau_max = sc.plant.tau_max
-        return super().signals(traj, sc)._replace(
+        s = super().signals(traj, sc)
+        return s._replace(
             cmd_ratio=u_body / tau_max,
             sat=jnp.any(jnp.abs(u_body) > tau_max, axis=1),
-            act={"thrust": jnp.max(jnp.abs(u_body[:, :2]), axis=1)},
+            act={"thrust": jnp.max(jnp.abs(u_body[:, :2]), axis=1)},  # [N]
         )
 
     def initial_from(self, v):  # [initial] keys -> (q0, qd0); heading already in radians
