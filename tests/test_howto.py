@@ -104,6 +104,10 @@ def test_own_vehicle_swept_in_currents(tmp_path, monkeypatch):
     # every run reaches the line from up to 10 m off and stays within a few decimetres of it
     # in currents up to 0.5 m/s (the law has no integral action: a small offset remains)
     assert m["n_diverged"] == 0 and m["metrics"]["ss_abs_e"]["p95"] < 0.5
+    # the numbers the guide quotes
+    np.testing.assert_allclose(
+        [m["metrics"]["ss_abs_e"][k] for k in ("p50", "p95")], [0.05, 0.12], atol=0.005
+    )
 
 
 def test_own_vehicle_tuned_from_its_config(tmp_path, monkeypatch):
@@ -115,6 +119,13 @@ def test_own_vehicle_tuned_from_its_config(tmp_path, monkeypatch):
     assert set(gains) == {"P_G", "P_Phi", "sigma"}
     s = json.loads((out / "summary.json").read_text())
     assert np.isfinite(s["heldout_loss_after"]) and s["heldout_loss_after"] > 0
+    # the numbers the guide quotes: loss, and the terms for commands beyond the limits, effort
+    # and path error, before and after
+    b, a = s["heldout_terms_before"], s["heldout_terms_after"]
+    got = [s["heldout_loss_before"], s["heldout_loss_after"], b["sat_excess"], a["sat_excess"]]
+    got += [b["effort"], a["effort"], b["eps"], a["eps"]]
+    page = [2.08, 0.525, 1.22, 0.001, 2.03, 0.17, 0.27, 0.43]
+    np.testing.assert_allclose(got, page, rtol=0.02, atol=5e-4)
 
 
 def test_own_vehicle_in_python(monkeypatch):
