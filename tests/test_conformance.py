@@ -19,9 +19,10 @@ from vcjax.rollout import RolloutConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 import_module_file(ROOT / "examples" / "loops" / "puck.py")  # a user's loop, registered
+import_module_file(ROOT / "examples" / "vehicles" / "skiff.py")  # a user's marine vehicle
 
 BUILTIN = ("infante", "odin", "remus100", "arm")
-CASES = [(v, c) for v in (*BUILTIN, "puck") for c in loops.controllers(v)]
+CASES = [(v, c) for v in (*BUILTIN, "puck", "skiff") for c in loops.controllers(v)]
 STEPS = 3
 DT = 0.05
 
