@@ -304,7 +304,7 @@ def test_shell_blocks_name_real_commands_and_flags():
 # --------------------------------------------------------------------------- shown configs
 
 #: the command that reads each folder of example configs
-CONFIG_COMMANDS = {"sweeps": "sweep", "tuning": "tune", "fit": "fit"}
+CONFIG_COMMANDS = {"sweeps": "sweep", "tuning": "tune", "fit": "fit", "falsify": "falsify"}
 EXAMPLE_CONFIGS = sorted((ROOT / "examples").rglob("*.toml"))
 
 
@@ -313,6 +313,10 @@ def _check_config(command: str, path: Path) -> None:
     or fitted (a ``ConfigError`` naming the key if the command would refuse it)."""
     if command == "sweep":
         from vcjax.sweep.config import load_config
+
+        load_config(path)
+    elif command == "falsify":
+        from vcjax.search.config import load_config
 
         load_config(path)
     elif command == "tune":

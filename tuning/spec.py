@@ -180,7 +180,7 @@ PlantError = ModelError
 
 
 #: the sections of [`TuneConfig`][tuning.spec.TuneConfig] read from a table of their own name (and
-# their keys)
+#: their keys)
 _SECTIONS = {
     "problem": Problem,
     "weights": Weights,
@@ -258,7 +258,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {name: cls().to_dict() for name, cls in _S
 
 #: (section, key) -> (unit, description) of the tune-only keys, read from the sections'
 #: declarations (the shared sections are described in [`vcjax.config.schema`][vcjax.config.schema]);
-# the
+#: the
 #: configuration reference is generated from it
 KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     (name, f.name): (f.metadata["unit"], f.metadata["doc"])

@@ -67,7 +67,7 @@ __all__ = [
 ]
 
 #: Default divergence bound of [`rollout`][vcjax.rollout.rollout]: any state entry beyond it flags
-# divergence.
+#: divergence.
 DEFAULT_BOUND = 1e9
 
 

@@ -234,7 +234,7 @@ class Waves:
 
 
 #: TOML section name -> section class (``[scenario]``:
-# [`vcjax.config.scenario`][vcjax.config.scenario])
+#: [`vcjax.config.scenario`][vcjax.config.scenario])
 SECTIONS: dict[str, type] = {
     "simulation": Simulation,
     "current": Current,
@@ -324,7 +324,7 @@ CROSS_CHECKS = {Current: _current_applies, Waves: _waves_apply, ModelError: _mod
 
 
 #: the sections added by [`register_section`][vcjax.config.schema.register_section] (e.g. an
-# environment component's), beyond
+#: environment component's), beyond
 #: the built-in ones
 REGISTERED: dict[str, type] = {}
 

@@ -37,7 +37,7 @@ __all__ = [
 ]
 
 #: the largest seed of a study: the scenario sampler
-# ([`vcjax.sweep.sample_scenarios`][vcjax.sweep.spec.sample_scenarios])
+#: ([`vcjax.sweep.sample_scenarios`][vcjax.sweep.spec.sample_scenarios])
 #: builds its JAX PRNG key from ``jnp.uint32(seed)``, in float64 and float32 mode alike, so
 #: every seed of a config or of the Python API lies in ``0 .. SEED_MAX`` (checked by
 #: [`as_seed`][vcjax.config.values.as_seed], here and in the sampler: one bound)

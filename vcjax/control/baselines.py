@@ -111,7 +111,7 @@ def baseline_gains(
 
 #: The baselines' traced parameters ([`LawParams`][vcjax.control.params.LawParams] with
 #: [`BaselineGains`][vcjax.control.baselines.BaselineGains]);
-# [`baseline_params`][vcjax.control.params.law_params] validates them.
+#: [`baseline_params`][vcjax.control.params.law_params] validates them.
 BaselineParams = LawParams
 baseline_params = law_params
 

@@ -120,7 +120,7 @@ def pm_gains(
 
 #: The VCM law's traced parameters ([`LawParams`][vcjax.control.params.LawParams] with
 #: [`PMGains`][vcjax.control.vcm.PMGains]); [`vcm_params`][vcjax.control.params.law_params]
-# validates them.
+#: validates them.
 VCMParams = LawParams
 vcm_params = law_params
 

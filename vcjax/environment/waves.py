@@ -163,7 +163,7 @@ __all__ = [
 GRAVITY = 9.81
 
 #: Frequency band of [`sea_state`][vcjax.environment.waves.sea_state] as multiples of the peak
-# frequency ``omega_p``.
+#: frequency ``omega_p``.
 BAND = (0.6, 4.0)
 
 #: Spectrum names accepted by [`sea_state`][vcjax.environment.waves.sea_state].

@@ -54,7 +54,7 @@ __all__ = [
 ]
 
 #: The one jitted runner of every experiment:
-# [`vcjax.loops.simulate`][vcjax.loops.disturbances.simulate] with the loop and the
+#: [`vcjax.loops.simulate`][vcjax.loops.disturbances.simulate] with the loop and the
 #: rollout configuration static (one compilation per loop and number of steps; gains, scenario
 #: and ``dt`` traced).
 rollout = jax.jit(loops.simulate, static_argnames=("loop", "config"))

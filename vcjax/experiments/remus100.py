@@ -75,9 +75,9 @@ LABELS = {
 U_D = 1.5
 
 #: ``metrics.json`` per variant: its name -> the name in
-# [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]'s
+#: [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]'s
 #: result (the mission's extras, [`mission_extras`][vcjax.experiments.remus100.mission_extras], and
-# the generic ``sat_fraction``)
+#: the generic ``sat_fraction``)
 REPORTED = {
     "rms_dist_3d": "rms_geo_dist_3d",
     "max_dist_3d": "max_geo_dist_3d",

@@ -51,7 +51,7 @@ VARIANTS = ("vcm", "vcm_integral", "ilos", "los_pid", "vcm_ilos", "alos")
 #: The four controllers of the paper's comparison (Simulation 1).
 PAPER_VARIANTS = VARIANTS[:4]
 #: What ``metrics.json`` reports per variant (see [`vcjax.metrics`][vcjax.metrics]), plus
-# ``healthy`` and
+#: ``healthy`` and
 #: ``unhealthy_step``.
 METRIC_KEYS = (
     "ss_abs_e",

@@ -76,7 +76,7 @@ class Sim2Options(PathBound, WaveOptions):
 
 #: ``metrics.json`` per actuation mode: its name -> the name in
 #: [`vcjax.metrics.run_metrics`][vcjax.metrics.run_metrics]'s result (generic metrics and
-# [`sim2_extras`][vcjax.experiments.sim2.sim2_extras])
+#: [`sim2_extras`][vcjax.experiments.sim2.sim2_extras])
 REPORTED = {
     "rms_dist_3d": "rms_dist_3d",
     "max_dist_3d": "max_dist_3d",

@@ -94,7 +94,7 @@ MAX_CONDITION = 1e10
 #: read as degrees.
 ACTUATOR_MARGIN = 1.05
 #: Estimates of an actuator's coefficient
-# ([`FitModel.actuator_coeffs`][vcjax.identify.FitModel.actuator_coeffs]) more than this
+#: ([`FitModel.actuator_coeffs`][vcjax.identify.FitModel.actuator_coeffs]) more than this
 #: factor from the nominal value are not trusted: an actuator logged in degrees scales it by
 #: pi/180 = 1/57.3 (or, through saturating commands, by less).
 ACTUATOR_PLAUSIBLE_FACTOR = 10.0

@@ -58,13 +58,13 @@ class Loop:
     #: desired speed of the nominal scenario [m/s]
     default_speed: ClassVar[float] = 1.0
     #: what the plant feels of the environment, by kind
-    # ([`vcjax.environment.KINDS`][vcjax.environment.KINDS]):
+    #: ([`vcjax.environment.KINDS`][vcjax.environment.KINDS]):
     #: ``True``, or the one-line reason it cannot; a kind not named is refused with a generic
     #: reason ([`vcjax.loops.check_environment`][vcjax.loops.scenario.check_environment]).
-    # ``"current"``: ``plant_args`` uses
+    #: ``"current"``: ``plant_args`` uses
     #: its current; ``"varying_current"``: ``with_current``; ``"waves"`` (water that varies
     #: in space): ``plant_in_sea``; ``"force"``:
-    # [`Scenario.disturbance`][vcjax.loops.loop.Scenario.disturbance]. Sensor noise
+    #: [`Scenario.disturbance`][vcjax.loops.loop.Scenario.disturbance]. Sensor noise
     #: (``"noise"``) is felt by a loop with ``noise_channels`` (and ``measure``).
     feels: ClassVar[Mapping[str, bool | str]] = {}
 
@@ -259,7 +259,7 @@ class Loop:
 
 
 #: the methods a [`Loop`][vcjax.loops.loop.Loop] subclass must define
-# (``default_gains``/``gain_specs`` too when
+#: (``default_gains``/``gain_specs`` too when
 #: it has no [`Loop.laws`][vcjax.loops.loop.Loop.laws])
 REQUIRED = tuple(
     n for n in dir(Loop) if getattr(getattr(Loop, n, None), "__vcjax_required__", False)

@@ -250,7 +250,7 @@ class RemusAutopilotLaw(_RemusLaw):
 
 
 #: the REMUS 100 controllers, in the order of
-# [`Remus100Loop.laws`][vcjax.loops.remus100.Remus100Loop.laws]
+#: [`Remus100Loop.laws`][vcjax.loops.remus100.Remus100Loop.laws]
 REMUS_LAWS = {
     "vcm3d_ilos": RemusVCM3DLaw("ilos"),
     "vcm3d": RemusVCM3DLaw("los"),

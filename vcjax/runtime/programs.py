@@ -77,7 +77,7 @@ SUFFIX = ".jaxexport"
 STORE_ENV = "VCJAX_PROGRAM_STORE"
 _OFF = ("off", "none", "0", "false", "no")
 #: the environment variable that caps [`build_all`][vcjax.runtime.programs.build_all]'s threads (1:
-# serial)
+#: serial)
 WORKERS_ENV = "VCJAX_COMPILE_WORKERS"
 _FORMAT = 1  # bump when the key's material or the file layout changes
 
@@ -267,8 +267,6 @@ def environment() -> tuple:
     """What outside the program changes its lowering or compilation in this process."""
     import jaxlib
 
-    import vcjax
-
     cfg = tuple(
         (k, repr(v))
         for k, v in sorted(jax.config.values.items())
@@ -277,7 +275,7 @@ def environment() -> tuple:
     devs = jax.devices()
     return (
         ("format", _FORMAT),
-        ("vcjax", vcjax.__version__, source_hash()),
+        ("vcjax", source_hash()),  # vcjax/__init__.py, its version included
         ("user_code", user_sources()),
         ("jax", jax.__version__, jaxlib.__version__),
         ("xla_flags", os.environ.get("XLA_FLAGS", "")),

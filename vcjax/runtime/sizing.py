@@ -91,7 +91,7 @@ METRIC_FLOATS = 48
 #: Sampled values kept per scenario (initial state, current, model factors, ...).
 SCENARIO_FLOATS = 32
 #: ``(N,)`` arrays of a sea per scenario: the
-# [`vcjax.environment.waves.Sea`][vcjax.environment.waves.Sea] itself.
+#: [`vcjax.environment.waves.Sea`][vcjax.environment.waves.Sea] itself.
 WAVE_SEA_ARRAYS = 5
 #: ``(N,)`` work arrays per scenario while a sea's kinematics are evaluated (phase, attenuation,
 #: cos, sin, c, s, the convective terms q and A, the acceleration's sums, the sampler's draws).

@@ -146,7 +146,7 @@ class Envelope:
         default = {"current_speed": 0.0, "current_direction_deg": 0.0, "u_d": loop.default_speed}
         default |= {f"initial.{k}": float(v) for k, v in loop.initial_keys.items()}
         default |= {f"model.{f}": 1.0 for f in fields}
-        if loop.takes_disturbance:
+        if loop.can_feel("force"):
             default |= {f"disturbance.{i}": 0.0 for i in range(n_nu)}
         valid_model = set(loop.param_names())
         has_waves = any(k in ranges for k in _WAVE)
@@ -177,7 +177,7 @@ class Envelope:
             _check_valid(k, lo, hi, dt)
             box[k] = (lo, hi)
         cur = box["current_speed"]
-        if cur[1] > 0 and not loop.takes_current:
+        if cur[1] > 0 and not loop.can_feel("current"):
             raise ValueError(f"envelope: current_speed: the {loop.vehicle} loop takes no current")
         names = tuple(default) + tuple(k for k in _WAVE if k in box and k not in default)
         return cls(names, tuple(box[k][0] for k in names), tuple(box[k][1] for k in names))
@@ -239,7 +239,7 @@ def scenario_from(x, index, env: Envelope, setting: Setting) -> MCScenario:
     }
     eta0, nu0 = loop.initial_from(init)
     n_nu = nu0.shape[0]
-    if loop.takes_disturbance:
+    if loop.can_feel("force"):
         dist = jnp.stack([v[f"disturbance.{i}"] for i in range(n_nu)])
     else:
         dist = jnp.zeros((n_nu,), dtype)

@@ -355,7 +355,7 @@ def run_sweep_config(
 
 #: (section, key) -> (unit, description) of the sweep-only keys (the shared sections are
 #: described in [`vcjax.config.schema`][vcjax.config.schema]); the configuration reference is
-# generated from it
+#: generated from it
 KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     ("sweep", "num_scenarios"): ("", "number of sampled scenarios (required; int >= 1)"),
     ("sweep", "seed"): ("", "seed of the scenario draws (scenario i uses fold_in(seed, i))"),

@@ -80,7 +80,7 @@ def _arm_bias(q, qd, p: ArmParams):
 
 
 #: The arm as a [`MechanicalSystem`][vcjax.mechanics.MechanicalSystem]; ``args`` is an
-# [`ArmParams`][vcjax.vehicles.arm.ArmParams].
+#: [`ArmParams`][vcjax.vehicles.arm.ArmParams].
 TWO_LINK_ARM = MechanicalSystem(mass_matrix=_arm_mass, bias_force=_arm_bias)
 
 

@@ -188,7 +188,7 @@ def _J(q, p):
 
 #: The design model in generalised coordinates ``q = eta`` for the generic engine
 #: ([`vcjax.mechanics`][vcjax.mechanics]); its ``args`` must be a
-# [`Design3DOF`][vcjax.vehicles.design3dof.Design3DOF]. Forces on it are
+#: [`Design3DOF`][vcjax.vehicles.design3dof.Design3DOF]. Forces on it are
 #: generalised (inertial-frame) forces ``tau = J^{-T} tau_b``. A module constant, so that jitted
 #: functions taking it as a static argument compile once.
 DESIGN3DOF_SYSTEM: MechanicalSystem = from_body_frame(_mb, _nb, _J)

@@ -168,7 +168,7 @@ NPS_PRIME: dict[str, float] = {
 
 
 #: Fields of [`InfanteParams`][vcjax.vehicles.infante.InfanteParams] holding damping, lift,
-# cross-flow and rudder coefficients.
+#: cross-flow and rudder coefficients.
 HYDRODYNAMIC_FIELDS = (
     "X_uu",
     "X_vv",
