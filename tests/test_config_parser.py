@@ -150,7 +150,7 @@ def test_closest_suggests_only_near_names():
 
 @dataclasses.dataclass(frozen=True)
 class Tidal:
-    """``[tidal]``: a current that turns with the tide (a test's own section)."""
+    """``[tideline]``: a current that turns with the tide (a test's own section)."""
 
     from vcjax.config.schema import key as _key
 
@@ -169,12 +169,12 @@ def _tidal_check(obj, table, name):
 def tidal():
     from vcjax.config.schema import CROSS_CHECKS, REGISTERED, SECTIONS, register_section
 
-    register_section("tidal", Tidal, _tidal_check)
+    register_section("tideline", Tidal, _tidal_check)
     try:
         yield
     finally:
         for table in (SECTIONS, REGISTERED):
-            table.pop("tidal")
+            table.pop("tideline")
         CROSS_CHECKS.pop(Tidal)
 
 
@@ -184,29 +184,29 @@ def test_registered_section_is_parsed_by_sweep_and_tune_and_listed(tidal, tmp_pa
     from vcjax.sweep import load_config
 
     f = tmp_path / "s.toml"
-    f.write_text("[sweep]\nnum_scenarios = 2\n[tidal]\namplitude = 0.3\nphase_deg = [0, 90]\n")
-    tide = load_config(f)[1]["sections"]["tidal"]
+    f.write_text("[sweep]\nnum_scenarios = 2\n[tideline]\namplitude = 0.3\nphase_deg = [0, 90]\n")
+    tide = load_config(f)[1]["sections"]["tideline"]
     assert tide == Tidal(amplitude=0.3, phase_deg=(0.0, 90.0))
     for text, message in (
-        ("[tidal]\namplitud = 0.3\n", r"unknown key \[tidal\] 'amplitud' \(did you mean"),
-        ("[tidal]\nperiod = 0\n", r"\[tidal\] period: expected a value > 0"),
-        ("[tidal]\nphase_deg = 10\n", r"\[tidal\] phase_deg: no tide"),
+        ("[tideline]\namplitud = 0.3\n", r"unknown key \[tideline\] 'amplitud' \(did you mean"),
+        ("[tideline]\nperiod = 0\n", r"\[tideline\] period: expected a value > 0"),
+        ("[tideline]\nphase_deg = 10\n", r"\[tideline\] phase_deg: no tide"),
     ):
         f.write_text("[sweep]\nnum_scenarios = 2\n" + text)
         with pytest.raises(ConfigError, match=message):
             load_config(f)
-    validate_config({"tidal": {"amplitude": 0.1}})
-    with pytest.raises(ConfigError, match=r"\[tidal\] amplitude: expected a value >= 0"):
-        validate_config({"tidal": {"amplitude": -0.1}})
-    assert config.schema()["tidal"]["keys"]["period"]["unit"] == "s"
-    assert "### [tidal]" in config.reference_markdown()
+    validate_config({"tideline": {"amplitude": 0.1}})
+    with pytest.raises(ConfigError, match=r"\[tideline\] amplitude: expected a value >= 0"):
+        validate_config({"tideline": {"amplitude": -0.1}})
+    assert config.schema()["tideline"]["keys"]["period"]["unit"] == "s"
+    assert "### [tideline]" in config.reference_markdown()
 
 
 def test_register_section_refusals(tidal):
     from vcjax.config import register_section
 
-    with pytest.raises(ValueError, match=r"\[tidal\] is taken"):
-        register_section("tidal", Tidal)
+    with pytest.raises(ValueError, match=r"\[tideline\] is taken"):
+        register_section("tideline", Tidal)
     with pytest.raises(ValueError, match=r"\[current\] is taken"):
         register_section("current", Tidal)
     with pytest.raises(ValueError, match="expected a section name"):

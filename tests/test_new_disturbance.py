@@ -1,7 +1,7 @@
 """A new disturbance is one class plus one registration line: a tidal current that turns
 sinusoidally in time, defined entirely in this file, registered with
 :func:`vcjax.environment.register`, then simulated (against the analytic response of a drag-only
-body), differentiated, swept through ``vcjax sweep`` with its own ``[tidal]`` section in a TOML
+body), differentiated, swept through ``vcjax sweep`` with its own ``[tide]`` section in a TOML
 file, and tuned through the public API."""
 
 import dataclasses
@@ -43,7 +43,7 @@ class Tidal(environment.Component):
     """A uniform horizontal current of constant speed whose direction turns at ``2 pi /
     period``: ``v = speed [cos(phi), sin(phi), 0]``, ``phi = phase + omega t``."""
 
-    section = "tidal"
+    section = "tide"
     kind = "varying_current"
     schema = {
         "speed": Key(0.3, "speed [m/s]", lo=0.0),
@@ -74,22 +74,22 @@ SECTION = {"speed": 0.4, "period": 20.0, "direction_deg": 30.0}
 
 
 def _tidal_env(section=SECTION, loop=None, seed=0):
-    return environment.sample(jax.random.PRNGKey(seed), {"tidal": section}, loop)
+    return environment.sample(jax.random.PRNGKey(seed), {"tide": section}, loop)
 
 
 def test_the_new_disturbance_is_listed_and_its_section_checked():
-    assert "tidal" in environment.components()
-    assert environment.lookup("tidal") == Tidal()
-    with pytest.raises(ValueError, match=r"\[tidal\] sped: unknown key \(did you mean 'speed'\?\)"):
-        environment.freeze("tidal", {"sped": 1.0})
-    with pytest.raises(ValueError, match=r"\[tidal\] period: 0.0 is outside \(0.0, inf\]"):
-        environment.freeze("tidal", {"period": 0.0})
+    assert "tide" in environment.components()
+    assert environment.lookup("tide") == Tidal()
+    with pytest.raises(ValueError, match=r"\[tide\] sped: unknown key \(did you mean 'speed'\?\)"):
+        environment.freeze("tide", {"sped": 1.0})
+    with pytest.raises(ValueError, match=r"\[tide\] period: 0.0 is outside \(0.0, inf\]"):
+        environment.freeze("tide", {"period": 0.0})
 
     @dataclasses.dataclass(frozen=True)
     class Other(Tidal):
         pass
 
-    with pytest.raises(ValueError, match=r"section \[tidal\] is taken"):
+    with pytest.raises(ValueError, match=r"section \[tide\] is taken"):
         environment.register(Other())
 
 
@@ -97,7 +97,7 @@ def test_a_loop_that_cannot_feel_it_refuses_it_by_name_before_any_work():
     env = _tidal_env()
     for vehicle, why in (("arm", "an arm in air feels no water"), ("odin", "no door for it")):
         loop = loops.make_loop(vehicle, loops.loop_class(vehicle).default_controller)
-        with pytest.raises(ValueError, match=rf"^tidal: the {vehicle} loop cannot take a time-"):
+        with pytest.raises(ValueError, match=rf"^tide: the {vehicle} loop cannot take a time-"):
             loops.make_scenario(loop, environment=env)
         with pytest.raises(ValueError, match=why):
             loops.check_environment(loop, env)
@@ -167,7 +167,7 @@ dt = 0.05
 [current]
 speed = 0.0
 
-[tidal]
+[tide]
 {tidal}
 [output]
 record_points = 5
@@ -180,12 +180,12 @@ figures = false
 def test_the_new_disturbance_is_swept_with_its_own_section(tmp_path):
     f = _toml(tmp_path, "speed = [0.0, 0.6]\nperiod = 30.0\n")
     spec, _ = load_config(f)
-    assert [s for s, _ in spec.scenario.environment] == ["tidal"]
+    assert [s for s, _ in spec.scenario.environment] == ["tide"]
     res = run_sweep(spec, progress=False)
     iae = res.metrics["vcm"]["iae_e"]
     # the two scenarios differ only in the tidal speed drawn from [0, 0.6]: the loop felt it
     assert np.all(np.isfinite(iae)) and abs(iae[0] - iae[1]) > 1e-6
-    # the CLI: the same file, its [tidal] section, results on disk; a typo: one line, exit 2
+    # the CLI: the same file, its [tide] section, results on disk; a typo: one line, exit 2
     out = tmp_path / "out"
     assert main(["sweep", str(f), "--out", str(out)]) in (0, 1)
     summary = json.loads((out / "summary.json").read_text())
@@ -201,7 +201,7 @@ def test_the_new_disturbance_is_tuned():
     data = problem_data(problem, dt=0.05)
     train = tuning_batch(0, 2, loop=loop, position_offset=0.1, current_max=0.0)
     keys = jax.random.split(jax.random.PRNGKey(1), 2)
-    env = jax.vmap(lambda k: environment.sample(k, {"tidal": SECTION}, loop))(keys)
+    env = jax.vmap(lambda k: environment.sample(k, {"tide": SECTION}, loop))(keys)
     felt = train._replace(environment=env)
     loss = lambda th, d, s: objective(th, d, s, problem)[0]
     r = run_gradient_tuner(

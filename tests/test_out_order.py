@@ -158,9 +158,9 @@ def test_overwrite_keeps_the_gains_a_tune_refines_in_its_own_out(tmp_path, monke
     _earlier_run(out, "run.json", "summary.json", "history.json", "gains.json")
     _gains_json(out / "gains.json")
     text = (EXAMPLES / "tuning" / "quick.toml").read_text()
-    text = text.replace(
-        'variant = "vcm_integral"', 'variant = "vcm"\ninitial_gains = "out/gains.json"'
-    )
+    text = text.replace('controller = "vcm_integral"', 'controller = "vcm"')
+    text += '\n[problem]\ninitial_gains = "out/gains.json"\n'
+    assert 'controller = "vcm"' in text
     cfg = _config(tmp_path, text)
     seen: dict = {}
     _stub(monkeypatch, "tuning", "run_tune_config", seen)
@@ -548,7 +548,8 @@ def test_a_broken_gains_file_named_by_the_config_is_refused_before_overwrite(
         text = '[sweep]\nnum_scenarios = 2\nvariants = ["vcm"]\n[simulation]\ngains = "g.json"\n'
     else:
         text = (EXAMPLES / "tuning" / "quick.toml").read_text()
-        text = text.replace('variant = "vcm_integral"', 'variant = "vcm"\ninitial_gains = "g.json"')
+        text = text.replace('controller = "vcm_integral"', 'controller = "vcm"')
+        text += '\n[problem]\ninitial_gains = "g.json"\n'
     cfg = _config(tmp_path, text)
     out = tmp_path / "out"
     before = _earlier_run(out, "run.json", "summary.json", "fig.png")

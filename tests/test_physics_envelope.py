@@ -122,9 +122,9 @@ def test_a_sea_steeper_than_breaking_is_warned_before_the_sweep(tmp_path, capsys
 
 
 def test_simulate_warns_a_sea_beyond_linear_theory(tmp_path, capsys, monkeypatch):
-    import vcjax.experiments.remus100 as mod
+    from vcjax.experiments import REMUS100
 
-    monkeypatch.setattr(mod, "run_experiment", _no_run)
+    monkeypatch.setattr(type(REMUS100), "run", lambda self, *a, **k: _no_run())
     with pytest.raises(_Stop):
         cli.main(["simulate", "remus100", "--waves", "15", "5", "90", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err

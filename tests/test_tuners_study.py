@@ -10,15 +10,20 @@ import pytest
 
 from tuning.blackbox import run_cmaes, run_random_search
 from tuning.params import GainSpace
-from vcjax.experiments import sim1
+from vcjax import loops
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.studies.tuners import summarise  # noqa: E402
 
 
+def _sim1_gains():
+    """Simulation 1's default gains (the loop ``vcjax tune`` tunes by default)."""
+    return loops.make_loop("infante", "vcm_integral").default_gains()
+
+
 def test_start_is_the_encoded_gains_plus_the_symmetry_break():
     space = GainSpace()
-    full = sim1.default_gains()
+    full = _sim1_gains()
     want = np.asarray(space.encode(full)) + space.symmetry_break(full)
     np.testing.assert_allclose(np.asarray(space.start(full)), want, rtol=0, atol=0)
     # P_G[1] = P_Phi[3] = 0.5 in Simulation 1's gains: split by exp(+-0.1) around log(0.5)
@@ -32,7 +37,7 @@ def test_part_of_the_gains_is_refused_with_the_expected_type():
     """The study's old bug: Simulation 1's ``gains.vcm`` (PMGains) passed where the loop's whole
     gains are expected ended in an AttributeError deep in the field lookup."""
     space = GainSpace()
-    part = sim1.default_gains().vcm
+    part = _sim1_gains().vcm
     for fn in (space.symmetry_break, space.encode, space.start):
         with pytest.raises(ValueError, match="expected the whole gains of .*got PMGains"):
             fn(part)
@@ -124,7 +129,7 @@ def test_bad_arguments_exit_2_with_one_line_before_any_work(tmp_path, capsys):
         ([str(cfg), "--tuners", "lbfgs,nope"], "tuners: unknown ['nope']"),
         ([str(tmp_path / "none.toml")], "config: no such file"),
         ([str(cfg), "--seconds", "0"], "--seconds: expected > 0"),
-        ([str(cfg), "--quick"], "problem.horizon"),
+        ([str(cfg), "--quick"], "[problem] horizon"),
     ):
         assert main([*argv, "--out", str(out)]) == 2
         err = capsys.readouterr().err.strip().splitlines()
