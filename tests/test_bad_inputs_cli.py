@@ -491,6 +491,7 @@ def test_tune_heldout_seed_outside_the_sampler_range(seed, tmp_path, capsys):
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 
+@pytest.mark.slow  # 13 s; the range's refusals stay default
 def test_largest_seed_runs_a_sweep_in_both_precisions(tmp_path, capsys):
     """SEED_MAX itself is a seed the sampler takes: the CLI runs a tiny sweep with it, in
     float64 mode and with --no-x64 (where the older check refused everything above 2**31 - 1),

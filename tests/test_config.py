@@ -120,7 +120,7 @@ def test_reference_markdown_has_one_row_per_key():
         assert len([r for r in rows if r.startswith("| ") and not r.startswith("| key")]) == len(
             sec["keys"]
         )
-    assert "| horizon | float | None | s |" in md and "[problem] horizon" in md
+    assert "| horizon | float | `(none)` | s |" in md and "[problem] horizon" in md
 
 
 def test_tune_simulation_u_d_reaches_the_scenarios():

@@ -108,6 +108,7 @@ def test_two_process_sweep_equals_one_process(tmp_path, child_env, capsys):
     np.testing.assert_allclose(two.traces["ilos"]["e"], one.traces["ilos"]["e"], rtol=1e-12)
 
 
+@pytest.mark.slow  # 17 s; two-process sweep stays default
 def test_two_process_tuning_loss_and_gradient_equal_one_process(tmp_path, child_env):
     cfg = tmp_path / "tune.toml"
     cfg.write_text(TUNE_TOML)

@@ -252,6 +252,7 @@ def test_a_gauss_markov_component_gives_the_disturbances_run_bit_for_bit():
     assert not np.allclose(np.asarray(old[0]), np.asarray(calm[0]))
 
 
+@pytest.mark.slow  # 9 s; the calm-sea suite stays default
 def test_a_waves_component_gives_the_scenario_sea_run_bit_for_bit():
     loop = loops.make_loop("remus100", "vcm3d")
     sea = waves.sea_state(jax.random.PRNGKey(4), 1.5, 7.0, 0.3, components=16)

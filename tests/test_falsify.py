@@ -96,6 +96,7 @@ def test_projection_onto_the_envelope():
     assert fixed and np.all(z[fixed] == 0)
 
 
+@pytest.mark.slow  # 11 s; the CLI test replays
 def test_search_stays_in_the_envelope_beats_nothing_it_did_not_run_and_replays():
     loop, env, setting = _infante()
     gains = loop.default_gains()

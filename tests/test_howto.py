@@ -31,6 +31,7 @@ def test_own_law_swept_beside_a_builtin_law(tmp_path, monkeypatch):
         assert s["variants"][v]["metrics"]["ss_abs_e"]["p95"] < 5.0
 
 
+@pytest.mark.slow  # 9 s; test_new_law tunes the same law
 def test_own_law_tuned_from_its_config(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "tune"
@@ -110,6 +111,7 @@ def test_own_vehicle_swept_in_currents(tmp_path, monkeypatch):
     )
 
 
+@pytest.mark.slow  # 18 s; the sweep test runs the vehicle through the CLI
 def test_own_vehicle_tuned_from_its_config(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "tune"

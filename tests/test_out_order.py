@@ -516,13 +516,13 @@ def test_register_traces_every_law_of_a_new_vehicle():
 
     @dataclasses.dataclass(frozen=True)
     class Drift(base):
-        vehicle = "unit_drift"
+        vehicle = "unit_drift_order"
         laws = {"vcm": base.laws["vcm"], "bad": _Wrap("zdot")}
         controllers = ("vcm", "bad")
 
-    with pytest.raises(ValueError, match=r"register: unit_drift law 'bad' \(_Wrap\): z_dot"):
+    with pytest.raises(ValueError, match=r"register: unit_drift_order law 'bad' \(_Wrap\): z_dot"):
         loops.register(Drift)
-    assert "unit_twin" not in loops.vehicles() and "unit_drift" not in loops.vehicles()
+    assert "unit_twin" not in loops.vehicles() and "unit_drift_order" not in loops.vehicles()
 
 
 @pytest.mark.parametrize("flags", [["--max-memory-gb", "1e-7"], []])

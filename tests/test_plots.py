@@ -171,6 +171,7 @@ record_points = 5
 """
 
 
+@pytest.mark.slow  # 16 s; the sweep tests draw the figures too
 def test_sweep_figures(tmp_path, drawn):
     from vcjax.plots.sweep import sweep_figures
 
