@@ -117,6 +117,7 @@ def test_search_stays_in_the_envelope_beats_nothing_it_did_not_run_and_replays()
     np.testing.assert_allclose(m["max_abs_e"], vals, rtol=1e-12)
 
 
+@pytest.mark.slow  # 7 s; the CLI test's --bound stays default
 def test_bound_stops_the_search_as_soon_as_it_is_exceeded():
     loop, env, setting = _infante()  # the shapes of the test above: its programs are reused
     res = falsify(loop, loop.default_gains(), env, "max_abs_e", setting, starts=3, steps=5, bound=0)

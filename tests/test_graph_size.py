@@ -69,7 +69,18 @@ def _builtin_controllers(vehicle: str) -> set[str]:
     }
 
 
-@pytest.mark.parametrize("name", sorted(BUDGETS))
+#: the default run checks these (the largest programs of each vehicle and every INFANTE law);
+#: the rest are slow (time)
+SLOW_BUDGETS = {"remus100/vcm3d_ilos", "remus100/decoupled", "remus100/pvs_pid"}
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(n, marks=pytest.mark.slow(reason="time")) if n in SLOW_BUDGETS else n
+        for n in sorted(BUDGETS)
+    ],
+)
 def test_forward_and_gradient_within_budget(name):
     vehicle, controller = name.split("/")
     forward, gradient = _lines(vehicle, controller)

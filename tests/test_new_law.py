@@ -46,6 +46,7 @@ def test_the_new_law_is_listed_and_simulated_with_its_own_gains():
     assert np.all(np.isfinite(np.asarray(sig.psi_err)))
 
 
+@pytest.mark.slow  # 7 s; test_howto sweeps this law through the CLI
 def test_the_new_law_is_swept_and_tuned():
     choice = ScenarioChoice(vehicle="infante", controller="los_pd")
     spec = SweepSpec(

@@ -97,6 +97,7 @@ def test_sim2_figures(tmp_path, drawn):
     )
 
 
+@pytest.mark.slow  # 7 s; the REMUS 100 experiment's tests draw them
 def test_remus100_figures(tmp_path, drawn):
     from vcjax.experiments.remus100 import LABELS
     from vcjax.plots.remus100 import remus100_figures

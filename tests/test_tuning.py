@@ -129,6 +129,7 @@ def test_alos_gains_are_tunable_with_exact_gradients():
     assert grad[space.labels().index("gamma")] != 0.0  # the adaptation is in the loop
 
 
+@pytest.mark.slow  # 6 s
 def test_checkpointed_loss_gradient_is_the_same(tiny):
     """Segment checkpointing (7 does not divide 40) changes memory, not the gradient."""
     data, scen = tiny

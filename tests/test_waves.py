@@ -263,6 +263,7 @@ def test_orbital_velocity_variance_at_depth():
     assert abs(float(np.mean(var_seas)) - ref) < 4 * sig_bins / math.sqrt(SEAS)
 
 
+@pytest.mark.slow  # 7 s
 def test_spreading_draws_cos2s_directions_and_draws_are_the_same_in_and_out_of_vmap():
     """The spread directions follow cos^2s (65 536 draws), and every draw of a batch is the draw
     of its key alone (``vmap`` inside ``jit`` against the unbatched jitted draw)."""
