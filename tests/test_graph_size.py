@@ -36,6 +36,15 @@ BUDGETS = {
     "remus100/pvs_pid": (3400, 9900),  # 3042 / 8940
 }
 STEPS = 2
+#: the JAX release the budgets were measured with (a JAX release changes the lowering: jax
+#: 0.5.1 writes 1.3-1.6x the lines of 0.10.2 for the same loops)
+BUDGET_JAX = (0, 10)
+
+
+def _jax_version() -> tuple[int, ...]:
+    import jax
+
+    return tuple(int(p) for p in jax.__version__.split(".")[:2])
 
 
 def _lines(vehicle, controller, steps=STEPS, kinds=("forward", "gradient")):
@@ -82,6 +91,8 @@ SLOW_BUDGETS = {"remus100/vcm3d_ilos", "remus100/decoupled", "remus100/pvs_pid"}
     ],
 )
 def test_forward_and_gradient_within_budget(name):
+    if _jax_version() < BUDGET_JAX:
+        pytest.skip(f"budgets measured with jax {BUDGET_JAX}: older JAX lowers more lines")
     vehicle, controller = name.split("/")
     forward, gradient = _lines(vehicle, controller)
     budget_f, budget_g = BUDGETS[name]

@@ -91,6 +91,13 @@ class Unstable(Exception):
     """A static input whose description would not be the same in another process."""
 
 
+def _export():
+    """``jax.export`` (a submodule older JAX releases do not import with ``jax``)."""
+    from jax import export
+
+    return export
+
+
 def set_store(path) -> Path | None:
     """Use ``path`` (a folder, created on demand) for the store; None turns it off. Called by
     [`enable_compilation_cache`][vcjax.runtime.cache.enable_compilation_cache] with
@@ -345,9 +352,9 @@ def build(name: str, fn, static, args: tuple):
                 jitted = jax.jit(flat)
             else:
                 jitted = jax.jit(flat, in_shardings=shardings)
-            blob = jax.export.export(jitted)(*leaves).serialize()
+            blob = _export().export(jitted)(*leaves).serialize()
             _save(folder, key, bytes(blob))
-            exp = jax.export.deserialize(blob)
+            exp = _export().deserialize(blob)
         compiled = jax.jit(exp.call).lower(*leaves).compile()
 
         def call(*a):
@@ -393,7 +400,7 @@ def _load(folder: Path, key: str):
     except OSError:
         return None
     try:
-        exp = jax.export.deserialize(bytearray(blob))
+        exp = _export().deserialize(bytearray(blob))
     except Exception:  # a truncated or foreign file: rebuild (and overwrite it)
         return None
     try:
