@@ -76,7 +76,6 @@ def _cli(*argv, env_extra=None):
     )
 
 
-@pytest.mark.slow  # 7 s; test_sweep's four-device case stays default
 def test_sweep_sharded_over_two_cpu_devices_equals_one_device(tmp_path):
     cfg = tmp_path / "tiny.toml"
     cfg.write_text(TOML)

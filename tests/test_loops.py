@@ -233,6 +233,7 @@ def test_metrics_against_hand_computation():
 # ------------------------------------------------------------------ our loop: sweep and tune
 
 
+@pytest.mark.slow  # 9 s; the how-to and new-disturbance tests sweep and tune loops of their own
 def test_a_loop_defined_here_is_swept_and_tuned_through_the_public_api(tmp_path):
     """The point mass above, never mentioned in the library, on a circle: a Monte-Carlo sweep
     (random starts, model error, disturbance forces) and a gradient tuning run of its engine

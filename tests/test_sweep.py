@@ -448,6 +448,7 @@ print("SHARDED_OK")
 """
 
 
+@pytest.mark.slow  # 11 s; test_devices' two-device case stays default
 def test_sharded_over_four_cpu_devices_equals_single_device():
     env = dict(os.environ)
     env["XLA_FLAGS"] = (

@@ -85,6 +85,7 @@ def _same(a, b):
 # ------------------------------------------------------------------------------------ the seam
 
 
+@pytest.mark.slow  # 10 s; the REMUS 100 calm-sea cases stay default
 def test_the_odin_loop_in_a_sea_is_the_plant_fed_the_water_and_a_calm_sea_changes_no_bit():
     """The rollout of ``loops.simulate`` with a sea against a rollout written here from the
     plant and :mod:`vcjax.environment.waves` directly: the water (current + orbital motion) evaluated at the
