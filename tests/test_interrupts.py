@@ -190,6 +190,7 @@ def test_interrupted_tune_writes_best_gains_history_and_summary(tmp_path):
     assert (out / "loss_curve.png").exists() and (out / "run.json").exists()
 
 
+@pytest.mark.slow  # 6 s; the interrupted sweep and tune stay default
 def test_interrupted_fit_writes_estimates_not_converged(tmp_path):
     """The REMUS 100 reference log, four coefficients from 30 % off: 16 iterations to converge;
     SIGINT once the first is printed."""

@@ -78,6 +78,7 @@ def test_sim1_figures(tmp_path, drawn):
     )
 
 
+@pytest.mark.slow  # 4 s; test_sim2 draws them
 def test_sim2_figures(tmp_path, drawn):
     from vcjax.plots.sim2 import sim2_figures
 

@@ -105,6 +105,7 @@ def test_scenario_and_setup_validation():
         SIM1.simulate("vcm", SIM1.setup(horizon=-1.0))
 
 
+@pytest.mark.slow  # 7 s; test_sim2 runs the experiment, test_out_order its refusals
 def test_cli_sim2_and_argument_errors(tmp_path, capsys):
     out = tmp_path / "sim2"
     assert cli.main(["simulate", "sim2", "--out", str(out), "--horizon", "4", "--dt", "0.1"]) == 0
