@@ -151,7 +151,7 @@ def describe(x, _depth: int = 0):
     if isinstance(x, enum.Enum):
         return ("enum", _qualname(type(x)), x.name)
     if isinstance(x, type):
-        return ("type", _qualname(x), _user_source(x.__module__))
+        return ("type", _qualname(x))
     if isinstance(x, (np.ndarray, np.generic, jax.Array)):
         a = np.asarray(x)
         return ("array", str(a.dtype), a.shape, hashlib.sha256(a.tobytes()).hexdigest())
@@ -161,14 +161,12 @@ def describe(x, _depth: int = 0):
         return (
             "dataclass",
             _qualname(type(x)),
-            _user_source(type(x).__module__),
             tuple((f.name, describe(getattr(x, f.name), d)) for f in dataclasses.fields(x)),
         )
     if isinstance(x, tuple) and hasattr(x, "_fields"):  # NamedTuple
         return (
             "namedtuple",
             _qualname(type(x)),
-            _user_source(type(x).__module__),
             tuple(describe(v, d) for v in x),
         )
     if isinstance(x, (tuple, list)):
@@ -185,7 +183,6 @@ def describe(x, _depth: int = 0):
         return (
             "function",
             x.__module__,
-            _user_source(x.__module__),
             x.__qualname__,
             hashlib.sha256(code.co_code + repr(code.co_consts).encode()).hexdigest(),
             cells,
@@ -197,34 +194,13 @@ def describe(x, _depth: int = 0):
     r = repr(x)
     if " at 0x" in r or "object at" in r:
         raise Unstable(f"cannot describe {type(x).__qualname__}")
-    return ("repr", _qualname(type(x)), _user_source(type(x).__module__), r)
+    return ("repr", _qualname(type(x)), r)
 
 
 def _qualname(t: type) -> str:
     return f"{t.__module__}.{t.__qualname__}"
 
 
-def _user_source(module: str | None) -> str | None:
-    """SHA-256 of the source file of ``module`` when it is code of the user's (a law, a loop or
-    a component in a file a config imports: its methods and the module's helpers are traced
-    into the program, and only a hash of the whole file notices an edit anywhere in it); None
-    for vcjax and tuning ([`source_hash`][vcjax.runtime.programs.source_hash]) and for installed
-    packages (their versions)."""
-    if not module or module.split(".")[0] in ("vcjax", "tuning", "builtins"):
-        return None
-    f = getattr(sys.modules.get(module), "__file__", None)
-    if not f:
-        return None
-    path = Path(f)
-    if any(part in ("site-packages", "dist-packages") for part in path.parts):
-        return None
-    try:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
-    except OSError:
-        return None
-
-
-@functools.cache
 def source_hash() -> str:
     """SHA-256 over every ``.py`` file of the ``vcjax`` and ``tuning`` packages (path and bytes)."""
     h = hashlib.sha256()
