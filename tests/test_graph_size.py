@@ -74,7 +74,7 @@ def _builtin_controllers(vehicle: str) -> set[str]:
     return {
         c
         for c in loops.controllers(vehicle)
-        if type(cls.laws.get(c)).__module__.startswith(("vcjax.", "builtins")) or c not in cls.laws
+        if c not in cls.laws or type(cls.laws[c]).__module__.startswith("vcjax.")
     }
 
 
