@@ -320,11 +320,7 @@ def command_sections() -> dict[str, dict[str, dict]]:
     from vcjax.sweep.config import SCHEMA as SWEEP
 
     spec = SweepSpec.__dataclass_fields__
-    sweep = {
-        s: {k: _spec_default(spec, k) for k in keys}
-        for s, keys in SWEEP.items()
-        if keys
-    }
+    sweep = {s: {k: _spec_default(spec, k) for k in keys} for s, keys in SWEEP.items() if keys}
     sweep["sweep"]["num_scenarios"] = ...
     from vcjax.search.config import FALSIFY_KEYS
 

@@ -115,7 +115,7 @@ def environment_sections(raw: dict, schema, where: str) -> tuple[dict, tuple]:
         try:
             env.append(environment.freeze(sec, raw[sec]))
         except ValueError as err:
-            raise ConfigError(f"{where}: {err}") from None
+            raise ConfigError(f"{where}: {err}" if where else str(err)) from None
     return {k: v for k, v in raw.items() if k not in known}, tuple(env)
 
 

@@ -120,7 +120,9 @@ def _flat_sections(given: dict, flat: dict) -> dict:
                 tables[sec]["spectrum"] = old.spectrum
         if key == "values":
             tables[sec] = dict(v)
-        elif key != "spectrum" and _same(v, _flat_default(sec, key)):  # a default means the key was not given
+        elif key != "spectrum" and _same(
+            v, _flat_default(sec, key)
+        ):  # a default means the key was not given
             tables[sec].pop(key, None)
         else:
             tables[sec][key] = v
