@@ -246,11 +246,6 @@ def _controller(sec: dict, choice):
 def _vehicle_keys(raw: dict, sec: dict, loop, current: Current, waves, env) -> dict:
     """The keys whose valid names are the vehicle's (gain groups, parameter names, initial
     keys) and the disturbances it can feel; returns the ``[initial]`` ranges."""
-    try:  # a current, a sea or a component the loop cannot take is refused, never ignored
-        loops.check_disturbances(loop, max(current.speed) > 0, False, waves=waves is not None)
-        loops.check_environment(loop, [lookup(s) for s, _ in env])
-    except ValueError as err:
-        raise ConfigError(refusal(err)) from None
     names = [g.name for g in loop.gain_specs()]
     bad = [t for t in sec["problem"].tune if t not in names]
     if bad:
@@ -271,6 +266,11 @@ def _vehicle_keys(raw: dict, sec: dict, loop, current: Current, waves, env) -> d
                 f"{closest(k, loop.initial_keys)}; expected one of {list(loop.initial_keys)}"
             )
         init[k] = as_range(f"[initial] {k}", v)
+    try:  # a current, a sea or a component the loop cannot take is refused, never ignored
+        loops.check_disturbances(loop, max(current.speed) > 0, False, waves=waves is not None)
+        loops.check_environment(loop, [lookup(s) for s, _ in env])
+    except ValueError as err:
+        raise ConfigError(refusal(err)) from None
     return init
 
 
