@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import sys
 import time
 from pathlib import Path
@@ -42,10 +41,16 @@ from tuning.report import (
     plot_loss_curve,
     plot_loss_terms,
 )
-from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
+from tuning.scenarios import (
+    SCENARIO_AXES,
+    Nominal,
+    config_spec,
+    sample_scenarios,
+    shard_scenarios,
+)
 from tuning.spec import TuneConfig
 from vcjax import loops, paths
-from vcjax.config import ConfigError, Current
+from vcjax.config import ConfigError
 from vcjax.runtime import distributed
 from vcjax.runtime.interrupts import stop_requested_everywhere
 from vcjax.runtime.outputs import write_json_atomic
@@ -62,7 +67,7 @@ def _config(cfg) -> TuneConfig:
 def build(cfg: TuneConfig):
     """Objects of a validated config: ``(problem, eval_problem, data, train, heldout)``."""
     cfg = _config(cfg)
-    p, sc, choice = cfg.problem, cfg.scenarios, cfg.scenario
+    p, choice = cfg.problem, cfg.scenario
     loop = choice.loop(p.variant)
     if p.initial_gains:
         try:
@@ -93,44 +98,11 @@ def build(cfg: TuneConfig):
     if cfg.train.seed == cfg.heldout.seed:
         raise ConfigError("[heldout] seed: must differ from [train] seed (held-out scenarios)")
     plant, design = choice.nominal(loop, dtype)
-    extra = {"initial": cfg.initial}
-    if cfg.disturbance.force:
-        extra["disturbance"] = cfg.disturbance.force
-    if cfg.simulation.u_d is not None:
-        extra["u_d"] = cfg.simulation.u_d
-    cur = dict(cfg.current)
-    for key, field in (("speed", "current_speed"), ("direction_deg", "current_direction_deg")):
-        if key in cur:
-            extra[field] = tuple(cur[key])
-        elif cur:  # [current] replaces current_max: a key not given takes the section default
-            extra[field] = getattr(Current(), key)
-    speed = extra.get("current_speed", (0.0, sc.current_max))
-    try:  # a current the loop cannot take is refused, never silently ignored
-        loops.check_disturbances(loop, max(speed) > 0, False)
-    except ValueError as err:
-        raise ConfigError("[current] " + str(err).removeprefix("current: ")) from None
-    wav = cfg["waves"]
-    if wav is not None:  # a random sea per scenario, as in sweeps (checked by validate_config)
-        extra["wave_spectrum"] = wav["spectrum"]
-        for k in ("hs", "tp", "direction_deg", "origin_depth", "gamma", "spreading", "components"):
-            extra[f"wave_{k}"] = tuple(wav[k]) if isinstance(wav[k], list) else wav[k]
-    me = cfg.model_error
-    if me.relative > 0:
-        extra["model_error"] = me.relative
-        extra["model_fields"] = me.fields or None
-    kw = dict(
-        loop=loop,
-        current_max=sc.current_max,
-        position_offset=sc.position_offset,
-        heading_offset=math.radians(sc.heading_offset_deg),
-        extra=extra,
-        plant=plant,
-        design=design,
-        coeffs=choice.coeffs(),
-    )
+    spec = config_spec(cfg, loop)  # the parsed sections, as they are
+    kw = dict(loop=loop, nominal=Nominal(plant, design, choice.coeffs()))
     try:
-        train = sample_scenarios(cfg.train.seed, cfg.train.size, **kw)
-        heldout = sample_scenarios(cfg.heldout.seed, cfg.heldout.size, **kw)
+        train = sample_scenarios(cfg.train.seed, cfg.train.size, spec, **kw)
+        heldout = sample_scenarios(cfg.heldout.seed, cfg.heldout.size, spec, **kw)
     except ValueError as err:
         raise ConfigError(f"scenarios: {err}") from None
     return problem, eval_problem, data, train, heldout

@@ -25,6 +25,8 @@ sampled parameters (a pytree:
 from vcjax.environment import current, waves
 from vcjax.environment.component import (
     KINDS,
+    REGISTRY,
+    add_section,
     Component,
     Environment,
     Key,
@@ -35,6 +37,7 @@ from vcjax.environment.component import (
     lookup,
     register,
     sample,
+    unregister,
 )
 from vcjax.environment.flow import ConstantCurrent, CurrentParams, GaussMarkov, GaussMarkovParams
 from vcjax.environment.force import ConstantForce, ForceParams
@@ -49,6 +52,9 @@ register(ConstantForce())
 
 __all__ = [
     "KINDS",
+    "REGISTRY",
+    "add_section",
+    "unregister",
     "Component",
     "ConstantCurrent",
     "ConstantForce",

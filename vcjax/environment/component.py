@@ -57,6 +57,9 @@ __all__ = [
     "draw",
     "freeze",
     "register",
+    "unregister",
+    "REGISTRY",
+    "add_section",
     "sample",
 ]
 
@@ -203,11 +206,30 @@ class Component:
         raise NotImplementedError(f"{type(self).__name__}.noise")
 
 
-_REGISTRY: dict[str, Component] = {}
+#: THE table of sections beyond the built-in ones of [`vcjax.config.schema`][vcjax.config.schema],
+#: by TOML section name: a [`Component`][vcjax.environment.component.Component] (``register``) or a
+#: section dataclass ([`vcjax.config.register_section`][vcjax.config.schema.register_section]);
+#: sweep and tune configs accept, check and sample from what it holds
+REGISTRY: dict[str, Any] = {}
+
+
+def add_section(name: str, decl, replace: bool = False) -> None:
+    """Put ``decl`` (a component, or a section dataclass) into ``REGISTRY`` as ``[name]``; a
+    name taken by another declaration is refused unless ``replace``."""
+    old = REGISTRY.get(name)
+    if old is not None and not replace and old != decl:
+        raise ValueError(f"section [{name}] is taken (replace=True to replace it)")
+    REGISTRY[name] = decl
+
+
+def unregister(name: str) -> None:
+    """Forget the section ``[name]`` (a component or a registered section), if known."""
+    REGISTRY.pop(name, None)
 
 
 def register(comp: Component, *, replace: bool = False) -> Component:
-    """Make ``comp`` known by its section name (one line per new disturbance)."""
+    """Make ``comp`` known by its section name (one line per new disturbance): its section
+    joins ``REGISTRY``, the one table of added sections."""
     if not isinstance(comp, Component):
         raise ValueError(f"register: expected a Component, got {type(comp).__name__}")
     if not comp.section or comp.kind not in KINDS:
@@ -216,23 +238,28 @@ def register(comp: Component, *, replace: bool = False) -> Component:
         )
     if type(comp).sample is Component.sample:
         raise ValueError(f"register: {type(comp).__name__} defines no sample()")
-    if comp.section in _REGISTRY and not replace and _REGISTRY[comp.section] != comp:
-        raise ValueError(f"register: section [{comp.section}] is taken")
-    _REGISTRY[comp.section] = comp
+    try:
+        add_section(comp.section, comp, replace)
+    except ValueError as err:
+        raise ValueError(f"register: {err}") from None
     return comp
+
+
+def _components() -> dict[str, Component]:
+    return {k: v for k, v in REGISTRY.items() if isinstance(v, Component)}
 
 
 def lookup(section: str) -> Component:
     """The registered component of ``section`` (``ValueError`` listing the known ones)."""
-    try:
-        return _REGISTRY[section]
-    except KeyError:
-        raise ValueError(f"[{section}]: no such component; known: {sorted(_REGISTRY)}") from None
+    comps = _components()
+    if section not in comps:
+        raise ValueError(f"[{section}]: no such component; known: {sorted(comps)}")
+    return comps[section]
 
 
 def components() -> tuple[str, ...]:
-    """The registered section names."""
-    return tuple(sorted(_REGISTRY))
+    """The registered component section names."""
+    return tuple(sorted(_components()))
 
 
 @jax.tree_util.register_pytree_node_class
