@@ -332,8 +332,8 @@ class _Wrap(loops.Law):
     def gain_specs(self, loop):
         return self._base.gain_specs(loop)
 
-    def params(self, loop, gains, sc, model, k_rudder):
-        return self._base.params(loop, gains, sc, model, k_rudder)
+    def params(self, loop, gains, sc, design):
+        return self._base.params(loop, gains, sc, design)
 
     def initial_state(self, loop, sc):
         return self._base.initial_state(loop, sc)

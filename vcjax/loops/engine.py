@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import warnings
 from typing import Any, ClassVar, NamedTuple
 
 import jax
@@ -58,6 +59,7 @@ import jax.numpy as jnp
 
 from vcjax import paths
 from vcjax._checks import check_positive
+from vcjax.environment import WaterMotion
 from vcjax.linalg import rot2, saturate, smooth_saturate, spd_solve_small
 from vcjax.loops.law import Law
 from vcjax.loops.loop import Loop
@@ -115,11 +117,27 @@ class _Args(NamedTuple):
 
 
 class EngineArgs(NamedTuple):
-    """The plant's traced arguments: parameters, constant disturbance (n,), current (3,) NED."""
+    """The plant's traced arguments: parameters, constant disturbance (n,), and the water
+    ([`WaterMotion`][vcjax.environment.component.WaterMotion]: velocity and material
+    acceleration, (3,) NED each; the engine's plant uses the velocity,
+    [`EngineLoop.water_velocity`][vcjax.loops.engine.EngineLoop.water_velocity])."""
 
     params: Any
     disturbance: Any
-    current: Any
+    water: WaterMotion
+
+    @property
+    def current(self):
+        """Deprecated: the water's velocity (3,) NED, ``water.velocity`` (the name of the
+        door before every plant took the water through one
+        [`WaterMotion`][vcjax.environment.component.WaterMotion])."""
+        warnings.warn(
+            "EngineArgs.current is deprecated: use args.water.velocity (every plant takes the "
+            "water through one door, vcjax.environment.WaterMotion)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.water.velocity
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,7 +146,8 @@ class EngineLaw(Law):
     docstring) on the loop's design mechanics; gains
     [`EngineGains`][vcjax.loops.engine.EngineGains].
 
-    ``params(loop, gains, sc)``; ``step(loop, params, t, (q, qd), z) -> (tau, z_dot, aux)``.
+    ``params(loop, gains, sc, design)`` (``design``: ``sc.design``, the design parameters);
+    ``step(loop, params, t, (q, qd), z) -> (tau, z_dot, aux)``.
     """
 
     def default_gains(self, loop) -> EngineGains:
@@ -143,8 +162,8 @@ class EngineLaw(Law):
     def validate_gains(self, gains):
         return engine_gains(gains.P_G, gains.P_Phi, gains.sigma)
 
-    def params(self, loop, gains, sc):
-        return gains, _Args(sc.design, sc.path, sc.u_d, gains.sigma)
+    def params(self, loop, gains, sc, design):
+        return gains, _Args(design, sc.path, sc.u_d, gains.sigma)
 
     def initial_state(self, loop, sc):
         return jnp.atleast_1d(sc.varpi0)
@@ -242,7 +261,8 @@ class EngineLoop(Loop):
         q, qd = x
         sat = smooth_saturate if self.smooth else saturate
         tau = sat(u, p.tau_max) + args.disturbance
-        qd_r = qd - self.water_velocity(q, args.current, p) if self.can_feel("current") else qd
+        felt = self.can_feel("current")
+        qd_r = qd - self.water_velocity(q, args.water.velocity, p) if felt else qd
         qdd = spd_solve_small(self.mass_matrix(q, p), tau - self.bias_force(q, qd_r, p))
         return qd, qdd
 
@@ -250,13 +270,13 @@ class EngineLoop(Loop):
         return self.law.step(self, ctrl, t, x, z)
 
     def plant_args(self, sc: Scenario, current, current_dot):
-        return EngineArgs(sc.plant, sc.disturbance, current)
+        return EngineArgs(sc.plant, sc.disturbance, WaterMotion(current, current_dot))
 
     def with_current(self, args, current, current_dot):
-        return args._replace(current=current)
+        return args._replace(water=WaterMotion(current, current_dot))
 
     def ctrl_params(self, gains, sc: Scenario):
-        return self.law.params(self, gains, sc)
+        return self.law.params(self, gains, sc, self.law_design(sc))
 
     def initial_state(self, sc: Scenario):
         return (sc.eta0, sc.nu0), self.law.initial_state(self, sc)

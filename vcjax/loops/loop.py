@@ -164,8 +164,15 @@ class Loop:
 
     @required
     def ctrl_params(self, gains, sc: Scenario):
-        """The controller's traced parameters (design model from ``sc.design``)."""
+        """The controller's traced parameters (design model from ``sc.design``; a loop with laws
+        calls ``law.params(self, gains, sc, self.law_design(sc))``)."""
         raise NotImplementedError
+
+    def law_design(self, sc: Scenario):
+        """What the loop derives from the design vehicle ``sc.design`` for its laws, the last
+        argument of [`Law.params`][vcjax.loops.law.Law.params] (traced; the vehicle's
+        convention, written in its loop's docstring). Default: ``sc.design`` itself."""
+        return sc.design
 
     @required
     def initial_state(self, sc: Scenario):
