@@ -127,8 +127,8 @@ def test_simulate_sim1_and_fit_reuse_exactly_rebuild_on_a_static_change_and_off(
     changed = [n for n, k in _keys(implied).items() if k != _keys(first)[n]]
     assert changed and all(not b["reused"] for b in implied["built"] if b["name"] in changed)
     # the horizon or dt: another number of steps, another program
-    for flags in (["--horizon", "2.1"], ["--dt", "0.04"]):
-        other = _run([*sim[:2], *flags], tmp_path / "s4")
+    for i, flags in enumerate((["--horizon", "2.1"], ["--dt", "0.04"])):
+        other = _run([*sim[:2], *flags], tmp_path / f"s4{i}")
         assert not any(b["reused"] for b in other["built"]), flags
     stored = sorted(p.name for p in own_cache.iterdir())
 
