@@ -62,6 +62,7 @@ __all__ = [
     "argument_spec",
     "build_all",
     "describe",
+    "for_arguments_like",
     "evict",
     "off_reason",
     "program_key",
@@ -350,8 +351,10 @@ def _export_and_store(folder: Path, key: str, fn, treedef, leaves):
         out_tree.append(tree)
         return out
 
-    shardings = tuple(getattr(x, "sharding", None) for x in leaves)
-    if any(s is None for s in shardings):
+    # a committed array's placement is part of the program; an uncommitted one (a new array on
+    # the default device) goes where the others are, as with jax.jit
+    shardings = tuple(x.sharding if getattr(x, "committed", False) else None for x in leaves)
+    if all(s is None for s in shardings):
         jitted = jax.jit(flat)
     else:
         jitted = jax.jit(flat, in_shardings=shardings)
@@ -381,6 +384,19 @@ def _unpack(blob: bytes):
     start = len(_MAGIC) + 8
     tree = pickle.loads(blob[start : start + n])
     return _export().deserialize(bytearray(blob[start + n :])), tree
+
+
+def for_arguments_like(call, args, fallback):
+    """``call`` (a built program, e.g. from [`build_all`][vcjax.runtime.programs.build_all]) for
+    arguments of the spec of ``args`` ([`argument_spec`][vcjax.runtime.programs.argument_spec]:
+    structure, shapes, dtypes, shardings), ``fallback`` (e.g. the jitted function) for any
+    other: a program built ahead of time for one batch, still right for another."""
+    spec = argument_spec(args)
+
+    def run(*a):
+        return call(*a) if argument_spec(a) == spec else fallback(*a)
+
+    return run
 
 
 def build_all(jobs, workers: int | None = None) -> list:
