@@ -51,7 +51,7 @@ from tuning.scenarios import (
 from tuning.spec import TuneConfig
 from vcjax import loops, paths
 from vcjax.config import ConfigError
-from vcjax.runtime import distributed
+from vcjax.runtime import distributed, programs
 from vcjax.runtime.interrupts import stop_requested_everywhere
 from vcjax.runtime.outputs import write_json_atomic
 
@@ -155,10 +155,9 @@ def _evaluate(eval_fn, theta, data, batch) -> dict:
     }
 
 
-def _trajectories(problem, gains_list, batch, dt, n):
-    """Times, and for each gains of ``gains_list`` the positions (S, N, 2) [north, east] and
-    cross-track errors (S, N) of the first ``n`` scenarios of ``batch``: one program (the gains
-    are its argument), compiled once for all of them."""
+def _trajectory_program(problem, batch, n):
+    """``(fn, sub)``: the first ``n`` scenarios of ``batch`` (``sub``) and the program
+    ``fn(gains, sub, dt)`` of [`_trajectories`][tuning.run._trajectories]."""
     sub = jax.tree_util.tree_map(
         lambda ax, a: a if ax is None else jax.tree_util.tree_map(lambda x: x[:n], a),
         SCENARIO_AXES,
@@ -173,7 +172,15 @@ def _trajectories(problem, gains_list, batch, dt, n):
         sig = loop.signals(tr, s)
         return tr.t, sig.pos[:, :2], sig.eps, sig.u_err, sig.psi_err, sig.cmd_ratio
 
-    run = jax.jit(jax.vmap(one, in_axes=(None, SCENARIO_AXES, None)))
+    return jax.vmap(one, in_axes=(None, SCENARIO_AXES, None)), sub
+
+
+def _trajectories(problem, gains_list, batch, dt, n, run=None):
+    """Times, and for each gains of ``gains_list`` the positions (S, N, 2) [north, east] and
+    cross-track errors (S, N) of the first ``n`` scenarios of ``batch``: one program (the gains
+    are its argument; ``run``: that program built already), compiled once for all of them."""
+    fn, sub = _trajectory_program(problem, batch, n)
+    run = jax.jit(fn) if run is None else run
     out = []
     for gains in gains_list:
         t, xy, eps, u_err, psi_err, ratio = jax.device_get(run(gains, sub, dt))
@@ -233,6 +240,7 @@ class _Tune:
     data_d: Any = None
     start: Any = None
     eval_fn: Any = None
+    trajectories: Any = None  # the figures' program, built with the held-out evaluation
     n_dev: int = 1
     sharded: bool = False
 
@@ -261,6 +269,27 @@ def _prepare(cfg: TuneConfig, say) -> _Tune:
         # gains copied per scenario: their gradient reduces across devices once, not per step
         t.problem = dataclasses.replace(problem, tile_gains=True)
     return t
+
+
+def _prebuild(t: _Tune, theta0) -> None:
+    """Build the held-out evaluation and the figures' trajectories now, concurrently
+    ([`programs.build_all`][vcjax.runtime.programs.build_all], while the training step builds in
+    its thread; a warm run loads them from the program store instead of tracing them):
+    ``t.eval_fn`` and ``t.trajectories`` then run them (their jitted forms for arguments of
+    other shapes or placements). One process only (``vcjax launch``: as before)."""
+    if jax.process_count() > 1:
+        return
+    static = ("vcjax tune", t.cfg.to_dict())
+    evaluate = lambda th, d, s: objective(th, d, s, t.eval_problem)  # noqa: E731
+    jobs = [("tune:heldout", evaluate, static, (theta0, t.data, t.heldout))]
+    n_plot = min(t.cfg.report.plot_scenarios, t.cfg.heldout.size)
+    if n_plot:
+        fn, sub = _trajectory_program(t.eval_problem, t.heldout, n_plot)
+        jobs.append(("tune:trajectories", fn, (*static, n_plot), (t.data.base, sub, t.data.dt)))
+    built = programs.build_all(jobs)
+    t.eval_fn = programs.for_arguments_like(built[0][0], jobs[0][3], t.eval_fn)
+    if n_plot:
+        t.trajectories = programs.for_arguments_like(built[1][0], jobs[1][3], jax.jit(fn))
 
 
 def _say_timing(res, say) -> None:
@@ -295,6 +324,7 @@ def _train(t: _Tune, progress, say):
     # the training step's largest program builds in a thread while the held-out evaluation
     # compiles and runs (XLA compiles outside Python's lock)
     step, building = _training_step(loss_fn, opts, cfg, problem, t.start, (t.data_d, t.train_d))
+    _prebuild(t, theta0)  # with the figures' program, while the training step builds
     before = _evaluate(t.eval_fn, theta0, data, t.heldout)
     say(
         f"held-out loss before: {before['loss']:.6g} ({time.perf_counter() - t0:.1f} s incl. "
@@ -347,7 +377,7 @@ def _plots(t: _Tune, res, tuned, before, after, out: Path) -> list:
     if not n_plot:
         return files
     tr_time, (tr_before, tr_after) = _trajectories(
-        t.eval_problem, (data.base, tuned), heldout, data.dt, n_plot
+        t.eval_problem, (data.base, tuned), heldout, data.dt, n_plot, t.trajectories
     )
     currents = np.asarray(heldout.current)[:n_plot]
     path_xy = _path_polyline(space.loop, heldout, tr_before["xy"], tr_after["xy"])

@@ -28,11 +28,11 @@ from vcjax.environment import current, waves
 from vcjax.environment.component import (
     KINDS,
     REGISTRY,
-    add_section,
     Component,
     Environment,
     Key,
     WaterMotion,
+    add_section,
     check_section,
     components,
     draw,
