@@ -247,7 +247,7 @@ steps = 2
 
 
 def test_the_new_disturbance_is_tuned_from_its_own_section(tmp_path):
-    from tuning.cli import build
+    from tuning.run import build
     from tuning.config import load_config as load_tune
     from vcjax.config import ConfigError
 
