@@ -145,7 +145,10 @@ def test_waves_keys_that_apply_are_accepted(tmp_path):
     "kw, message",
     [
         ({"wave_hs": (1.0, 2.0)}, "wave_hs: given without wave_spectrum"),
-        ({"wave_spectrum": "pm", "wave_gamma": 2.0}, r"\[waves\] gamma: the peak enhancement of the JONSWAP"),
+        (
+            {"wave_spectrum": "pm", "wave_gamma": 2.0},
+            r"\[waves\] gamma: the peak enhancement of the JONSWAP",
+        ),
         ({"wave_spectrum": "jonswap", "wave_spreading": 1e-12}, r"\[waves\] spreading: 0 is long"),
         ({"current_sigma": 0.2}, r"\[current\] sigma: applies to model = 'gauss_markov'"),
     ],
