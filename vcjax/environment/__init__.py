@@ -26,10 +26,10 @@ from vcjax.environment import current, waves
 from vcjax.environment.component import (
     KINDS,
     REGISTRY,
-    add_section,
     Component,
     Environment,
     Key,
+    add_section,
     check_section,
     components,
     draw,
