@@ -190,6 +190,10 @@ def test_the_new_disturbance_is_swept_with_its_own_section(tmp_path):
     assert main(["sweep", str(f), "--out", str(out)]) in (0, 1)
     summary = json.loads((out / "summary.json").read_text())
     assert summary
+    ran = json.loads((out / "run.json").read_text())["config"]["spec"]  # what ran, as summary's
+    assert ran["scenario"]["environment"] == [
+        ["tide", [["direction_deg", 0.0], ["period", 30.0], ["speed", [0.0, 0.6]]]]
+    ]
     bad = _toml(tmp_path, "sped = 0.4\n")
     assert main(["sweep", str(bad), "--out", str(tmp_path / "bad")]) == 2
     assert not (tmp_path / "bad" / "summary.json").exists()

@@ -19,7 +19,7 @@ from tuning.loss import TuningProblem, aggregate, objective, problem_data
 from tuning.optim import forward_mode, run_gradient_tuner
 from tuning.params import FRAC_MAX, GainSpace, rh_bound
 from tuning.run import run_tune_config
-from tuning.scenarios import sample_scenarios
+from tuning.scenarios import Nominal, sample_scenarios
 from vcjax import cli, loops
 from vcjax.control.vcm import pm_gains
 
@@ -487,7 +487,7 @@ def test_engine_loop_loss_gradient_matches_central_differences():
     problem = TuningProblem(space=GainSpace(loop=loop), num_steps=60, timing="sampled")
     data = problem_data(problem, dt=0.01)
     small = loops.arm_loop_params(tau_max=(20.0, 5.0))
-    batch = sample_scenarios(0, 2, loop=loop, current_max=0.0, plant=small, design=small)
+    batch = sample_scenarios(0, 2, loop=loop, current_max=0.0, nominal=Nominal(small, small))
     f = jax.jit(lambda th: objective(th, data, batch, problem)[0])
     g = np.asarray(
         jax.jit(jax.grad(lambda th: objective(th, data, batch, problem)[0]))(data.theta_ref)

@@ -155,8 +155,6 @@ def _sections(raw: dict) -> dict:
     ``[disturbance]``, ``[model_error]``), parsed by the one validator
     ([`vcjax.config.parse_section`][vcjax.config.schema.parse_section]); unknown sections suggest
     the closest."""
-    if not isinstance(raw, dict):
-        raise ConfigError("config: expected a table of sections")
     added = registered()
     known = sorted([*_SECTIONS, *_SPECIAL, *added])
     for name, table in raw.items():
@@ -288,14 +286,15 @@ def validate_config(raw: dict, config_path=None) -> TuneConfig:
             one suggested), a wrong type, a value out of range, a controller or gain the
             vehicle does not have, two spellings of one setting that disagree.
     """
-    older, env = {}, ()
-    if isinstance(raw, dict):
-        raw, older = take_moved(raw)  # loop options in their older spellings
-        raw, env = environment_sections(raw, _NOT_COMPONENTS, "")
+    if not isinstance(raw, dict):
+        raise ConfigError("config: expected a table of sections")
+    raw, older = take_moved(raw)  # loop options in their older spellings
+    where = config_path or Path("config")
+    choice = parse_scenario(raw.get("scenario"), "scenario", where, older)  # may register
+    raw, env = environment_sections(raw, _NOT_COMPONENTS, "")
     sec = _sections(raw)
     u_d = _simulation(raw, sec)
     current, waves = _current_and_waves(raw, sec)
-    choice = parse_scenario(raw.get("scenario"), "scenario", config_path or Path("config"), older)
     choice = _controller(sec, choice)
     loop = choice.loop(sec["problem"].variant)
     init = _vehicle_keys(raw, sec, loop, current, waves, env)

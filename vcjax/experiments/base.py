@@ -20,7 +20,7 @@ The pieces, usable on their own (tests, notebooks, benchmarks)::
 
     from vcjax import experiments
     sim1 = experiments.get("sim1")
-    setup = sim1.setup(horizon=20.0, current=(0.0, 0.3), edd="implied")  # validated
+    setup = sim1.setup(horizon=20.0, current=(0.0, 0.3), timing="sampled")  # validated
     sc = sim1.scenario("vcm", setup)            # a loops.Scenario
     traj = sim1.simulate("vcm", setup, scenario=sc)   # jitted; gains: the loop's defaults
     m = sim1.metrics(sim1.outcome("vcm", setup, traj, scenario=sc), setup)

@@ -5,7 +5,7 @@ A *loop* assembles a vehicle's plant, the controller's design model, a law and t
 [`vcjax.rollout.rollout`][vcjax.rollout.rollout] runs. Three kinds of data, kept apart:
 
 * the [`Loop`][vcjax.loops.loop.Loop] itself — static and hashable (vehicle, controller, path
-  kind, static law options such as ``edd``, ``smooth``): one compilation per loop;
+  kind, static law options such as ``smooth``): one compilation per loop;
 * the [`Scenario`][vcjax.loops.types.Scenario] — traced, the same container for every loop: initial
   state ``eta0``/``nu0``, ``current`` (the water's NED velocity (3,) [m/s], built from a speed
   and a direction with [`current_ned`][vcjax.environment.current.current_ned]), ``u_d``, ``varpi0``,

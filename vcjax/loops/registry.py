@@ -323,7 +323,7 @@ def default_path(vehicle: str):
 
 def make_loop(vehicle: str, controller: str, path: paths.Path | None = None, **options) -> Loop:
     """The loop of ``vehicle`` x ``controller`` on ``path`` (default: the vehicle's default path
-    kind); ``options``: the loop's static fields (e.g. ``edd``, ``smooth``)."""
+    kind); ``options``: the loop's static fields (e.g. ``smooth``, ``integral``)."""
     cls = loop_class(vehicle)
     if controller not in cls.controllers:
         raise ValueError(
