@@ -80,7 +80,8 @@ any
    ``ctrl_params(gains, sc)`` (``law.params(self, gains, sc, self.law_design(sc))``;
    ``law_design(sc)``, default ``sc.design``, is what the laws are designed on),
    ``initial_state(sc) -> (x0, z0)``, ``initial_from(values) -> (eta0, nu0)``,
-   ``position(eta, params) -> (3,)`` (where the path must be: craft position, end effector); ``signals(traj, sc) -> Signals`` (true errors, commands over limits, actuator
+   ``position(eta, params) -> (3,)`` (where the path must be: craft position, end effector);
+   ``signals(traj, sc) -> Signals`` (true errors, commands over limits, actuator
    magnitudes); optionally ``measure(x, noise)``, ``with_current(args, current, rate)`` and
    ``plant_in_sea(t, x, u, args, water)`` ([`Water`][vcjax.loops.types.Water]).
    Gains (``default_gains``, ``gain_specs``, ``symmetric_pairs``, ``gains_from_json``) come
