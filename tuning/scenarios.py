@@ -133,9 +133,9 @@ def sample_scenarios(
     design = loop.default_params(dtype) if design is None else design
     plant = design if plant is None else plant
     coeffs = type(loop).default_path()[1] if coeffs is None else coeffs
-    dt = jax.numpy.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
-    coeffs = jax.tree_util.tree_map(lambda a: jax.numpy.asarray(a, dt), coeffs)
-    mc = sweep.sample_scenarios(spec, int(seed), np.arange(n), dtype=dt, loop=loop)
+    ftype = jax.numpy.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
+    coeffs = jax.tree_util.tree_map(lambda a: jax.numpy.asarray(a, ftype), coeffs)
+    mc = sweep.sample_scenarios(spec, int(seed), np.arange(n), dtype=ftype, loop=loop)
     cfg = sweep.MCConfig(num_steps=1, model_fields=spec.fields_for(loop))
     if spec.model_error == 0:
         cfg = dataclasses.replace(cfg, model_fields=())
