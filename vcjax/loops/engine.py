@@ -34,8 +34,11 @@ mass, and [`vcjax.loops.arm`][vcjax.loops.arm] for the two-link arm.
 ([`EngineLoop.water_velocity`][vcjax.loops.engine.EngineLoop.water_velocity]) is the generalised
 velocity at which the point would move with the water: by default the solution of
 ``J(q) qd_c = V_c`` with ``J = dp/dq`` (the point's Jacobian; least squares when not square)
-and ``V_c`` the current's first 2 or 3 NED components — right for a body whose drag is written on
-its velocity over ground (a puck, a craft in its own coordinates). The current's acceleration
+and ``V_c`` the first 2 or 3 NED components of the water's velocity (``args.water.velocity``:
+[`EngineArgs`][vcjax.loops.engine.EngineArgs] holds the water in the one door of every plant,
+[`WaterMotion`][vcjax.environment.component.WaterMotion]; a point that moves in a plane cannot
+feel the vertical component) — right for a body whose drag is written on its velocity over
+ground (a puck, a craft in its own coordinates). The current's acceleration
 (added-mass force) is not modelled; a time-varying (Gauss–Markov) current is taken the same way.
 A system without water ([`vcjax.loops.arm`][vcjax.loops.arm]) leaves ``"current"`` and
 ``"varying_current"`` out of ``feels``: configs asking for a current are

@@ -57,10 +57,10 @@ def nominal(spec: SweepSpec, dtype=None):
     coefficients (as arrays of the parameters' dtype)."""
     loop = spec.loop(spec.variants[0])
     plant, design = spec.choice.nominal(loop, dtype)
-    dt = jnp.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
+    ftype = jnp.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
+    floating = lambda a: jnp.issubdtype(jnp.asarray(a).dtype, jnp.floating)
     coeffs = jax.tree_util.tree_map(
-        lambda a: jnp.asarray(a, dt) if jnp.issubdtype(jnp.asarray(a).dtype, jnp.floating) else a,
-        spec.choice.coeffs(),
+        lambda a: jnp.asarray(a, ftype) if floating(a) else a, spec.choice.coeffs()
     )
     return plant, design, coeffs
 
