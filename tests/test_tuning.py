@@ -234,6 +234,31 @@ def test_lbfgs_on_a_quadratic():
     assert res.evals >= len(res.history)
 
 
+def test_tuner_options_object_or_keywords():
+    """run_gradient_tuner takes its settings as a TunerOptions (and callbacks as TunerHooks) or,
+    as before, by name: the same run; a name that is neither is refused."""
+    from tuning.optim import TunerHooks, TunerOptions
+
+    loss = lambda th: jnp.sum((th - jnp.asarray([1.0, -2.0])) ** 2)
+    seen = []
+    a = run_gradient_tuner(loss, jnp.zeros(2), optimizer="adam", steps=4, learning_rate=0.3)
+    b = run_gradient_tuner(
+        loss,
+        jnp.zeros(2),
+        (),
+        TunerOptions(optimizer="adam", steps=4, learning_rate=0.3),
+        hooks=TunerHooks(progress=lambda k, n, rec: seen.append((k, n))),
+    )
+    np.testing.assert_array_equal(a.theta, b.theta)
+    assert a.history[-1]["loss"] == b.history[-1]["loss"] and seen[-1] == (4, 4)
+    with pytest.raises(TypeError, match="learning_rat"):
+        run_gradient_tuner(loss, jnp.zeros(2), learning_rat=0.3)
+    with pytest.raises(ValueError, match="steps"):
+        run_gradient_tuner(loss, jnp.zeros(2), options=TunerOptions(steps=0))
+    with pytest.raises(TypeError, match="options"):
+        run_gradient_tuner(loss, jnp.zeros(2), TunerOptions(steps=2))  # in args' place
+
+
 def test_nan_guard_skips_reports_and_aborts():
     # NaN beyond theta = 0.5: Adam steps into it, the guard rejects and backtracks
     def loss(th):
