@@ -130,7 +130,6 @@ def test_simulate_sim1_and_fit_reuse_exactly_rebuild_on_a_static_change_and_off(
     for i, flags in enumerate((["--horizon", "2.1"], ["--dt", "0.04"])):
         other = _run([*sim[:2], *flags], tmp_path / f"s4{i}")
         assert not any(b["reused"] for b in other["built"]), flags
-    stored = sorted(p.name for p in own_cache.iterdir())
 
     from tests.test_bad_inputs_cli import _fit_case
 
@@ -145,10 +144,46 @@ def test_simulate_sim1_and_fit_reuse_exactly_rebuild_on_a_static_change_and_off(
     assert np.isfinite(a["estimates"]["CD_0"])
 
     # VCJAX_CACHE_DIR=off: no store, nothing built through it, nothing written to the old one
+    stored = sorted(p.name for p in own_cache.iterdir())
     monkeypatch.setenv("VCJAX_CACHE_DIR", "off")
     off = _run(sim, tmp_path / "s5")
     assert off["store"] is None and off["built"] == []
-    assert stored == sorted(p.name for p in own_cache.iterdir())[: len(stored)]
+    assert stored == sorted(p.name for p in own_cache.iterdir())
     assert (tmp_path / "s5" / "metrics.json").read_text() == (
         tmp_path / "s1" / "metrics.json"
     ).read_text()
+
+
+TINY_TUNE = """
+[scenario]
+controller = "vcm_integral"
+[simulation]
+horizon = 2.0
+dt = 0.1
+[train]
+size = 2
+seed = 0
+[heldout]
+size = 2
+seed = 1001
+[optimizer]
+name = "lbfgs"
+steps = 2
+[report]
+plot_scenarios = 1
+"""
+
+
+@pytest.mark.slow  # a tune's three programs compiled cold (~1 min on 2 cores)
+def test_a_second_identical_tune_loads_its_three_programs(own_cache, tmp_path, capsys):
+    """The held-out evaluation, the figures' trajectories (built concurrently) and the training
+    step's value-and-gradient: stored by the first tune, loaded by the second, same results."""
+    cfg = tmp_path / "tiny.toml"
+    cfg.write_text(TINY_TUNE)
+    runs = [_run(["tune", str(cfg)], tmp_path / f"t{i}") for i in (1, 2)]
+    names = ["tune:heldout", "tune:trajectories", "tune:value_and_grad"]
+    assert [(b["name"], b["reused"]) for b in runs[0]["built"]] == [(n, False) for n in names]
+    assert [(b["name"], b["reused"]) for b in runs[1]["built"]] == [(n, True) for n in names]
+    a, b = (json.loads((tmp_path / f"t{i}" / "history.json").read_text()) for i in (1, 2))
+    assert [h["loss"] for h in a["iterations"]] == [h["loss"] for h in b["iterations"]]
+    assert [h["gains"] for h in a["iterations"]] == [h["gains"] for h in b["iterations"]]

@@ -313,6 +313,8 @@ class Experiment:
 
         if programs.store_dir() is None or not scenarios:
             return {}
+        if type(self).simulate is not Experiment.simulate:  # a runner of its own: used as is
+            return {}
         if not (setup.horizon > 0 and setup.dt > 0 and setup.horizon / setup.dt >= 1):
             return {}  # simulate says what is wrong
         config = self.rollout_config(setup)

@@ -18,6 +18,13 @@ by a SHA-256 of everything that can change it:
   versions, ``XLA_FLAGS``, JAX's configuration (x64, dtype promotion, matmul precision, ...),
   the backend and its devices.
 
+Used by ``vcjax sweep`` (each controller's batch program), ``vcjax tune`` (held-out evaluation,
+figures' trajectories, the training step's value-and-gradient), ``vcjax simulate NAME`` (each
+variant's rollout) and ``vcjax fit`` (residuals, Jacobians, free runs). A file holds the
+program's output tree (pickled: ``jax.export`` serialises only the pytree nodes it knows, so the
+exported function returns the flattened outputs) and the serialised export; an output tree
+``pickle`` cannot name (a class defined inside a function) is built as before, not stored.
+
 Multi-process runs (``vcjax launch``) build their programs as before, one after another. A
 static input that cannot be described stably (an object whose ``repr`` holds a memory address,
 a function closing over something else) is not stored: the program is built as before.
