@@ -100,6 +100,19 @@ def checkout_changes(before: dict, after: dict) -> list[str]:
 def pytest_sessionstart(session):
     if os.environ.get("PYTEST_XDIST_WORKER") is None:  # the controller, or a run without workers
         session.config._vcjax_checkout = _repo_files()
+        _check_entry_points()
+
+
+def _check_entry_points():
+    """``vcjax tune`` is found through the package metadata (vcjax.plugins): one clear line,
+    instead of every tune test failing, when it was never installed from this checkout."""
+    from importlib.metadata import entry_points
+
+    if not any(ep.name == "tune" for ep in entry_points(group="vcjax.commands")):
+        raise pytest.UsageError(
+            "the 'vcjax.commands' entry points (`vcjax tune`) are not installed: run "
+            "`pip install -e .` in the checkout (pyproject.toml declares them)"
+        )
 
 
 def pytest_sessionfinish(session):

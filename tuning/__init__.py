@@ -12,11 +12,14 @@ random search, as baselines), [`tuning.config`][tuning.config] (TOML), [`tuning.
 of the tuner).
 """
 
-from tuning.loss import TuningProblem, loss_weights, objective, problem_data
-from tuning.optim import TunerHooks, TunerOptions, run_gradient_tuner
-from tuning.params import GainSpace
-from tuning.run import run_tune_config
-from tuning.scenarios import sample_scenarios
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the names below, imported on first use (``__getattr__``)
+    from tuning.loss import TuningProblem, loss_weights, objective, problem_data
+    from tuning.optim import TunerHooks, TunerOptions, run_gradient_tuner
+    from tuning.params import GainSpace
+    from tuning.run import run_tune_config
+    from tuning.scenarios import sample_scenarios
 
 __all__ = [
     "GainSpace",
@@ -30,3 +33,28 @@ __all__ = [
     "run_tune_config",
     "sample_scenarios",
 ]
+
+#: where each exported name lives: ``import tuning`` (and ``vcjax``'s CLI finding the ``tune``
+#: command, [`tuning.command`][tuning.command]) imports none of them, so nothing is built before
+#: ``vcjax tune`` has chosen the precision (the loops build constants at import)
+_HOME = {
+    "TuningProblem": "tuning.loss",
+    "loss_weights": "tuning.loss",
+    "objective": "tuning.loss",
+    "problem_data": "tuning.loss",
+    "TunerHooks": "tuning.optim",
+    "TunerOptions": "tuning.optim",
+    "run_gradient_tuner": "tuning.optim",
+    "GainSpace": "tuning.params",
+    "run_tune_config": "tuning.run",
+    "sample_scenarios": "tuning.scenarios",
+}
+
+
+def __getattr__(name):
+    """The names of ``__all__``, imported from their modules on first use."""
+    if name in _HOME:
+        import importlib
+
+        return getattr(importlib.import_module(_HOME[name]), name)
+    raise AttributeError(f"module 'tuning' has no attribute {name!r}")

@@ -11,23 +11,15 @@ import time
 
 from vcjax import commands
 from vcjax.commands import CLIError, fail, interruptible
+from vcjax.plugins import (
+    add_cpu_devices,
+    add_overwrite,
+    add_size_limits,
+    missing_command,
+    plugin_commands,
+)
 
 __all__ = ["main", "build_parser"]
-
-
-def _add_size_limits(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--max-steps",
-        type=int,
-        metavar="N",
-        help="allow up to N steps per rollout (default 10,000,000)",
-    )
-    p.add_argument(
-        "--max-memory-gb",
-        type=float,
-        metavar="G",
-        help="allow an estimated peak memory up to G GB (default: 80%% of the physical memory)",
-    )
 
 
 def _cmd_launch(args) -> int:
@@ -38,7 +30,7 @@ def _cmd_launch(args) -> int:
     rest = list(args.rest)
     if rest[:1] == ["--"]:
         rest = rest[1:]
-    commands = list(_DISTRIBUTED)
+    commands = _distributed()
     if not rest or rest[0] not in commands:
         got = rest[0] if rest else "nothing"
         return fail(
@@ -81,25 +73,6 @@ def _cmd_launch(args) -> int:
     return 0
 
 
-def _add_cpu_devices(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--cpu-devices",
-        metavar="N",
-        default=None,
-        help="split the host CPU into N JAX devices and shard the scenarios over them "
-        "(default: $VCJAX_CPU_DEVICES, else one per core; 1: no sharding)",
-    )
-
-
-def _add_overwrite(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="--out may hold an earlier vcjax run: its files are removed first (files vcjax "
-        "did not write are kept)",
-    )
-
-
 def _add_experiment_flags(p: argparse.ArgumentParser, exp, out: str) -> None:
     """The flags of one experiment ([`vcjax.experiments`][vcjax.experiments]): the common ones,
     ``--gains`` and
@@ -130,7 +103,7 @@ def _add_experiment_flags(p: argparse.ArgumentParser, exp, out: str) -> None:
     p.add_argument(
         "--max-steps", type=int, metavar="N", help="allow up to N steps (default 10,000,000)"
     )
-    _add_overwrite(p)
+    add_overwrite(p)
     p.set_defaults(experiment=exp.name, func=commands.simulate)
 
 
@@ -179,21 +152,15 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help='also write results.nc (labelled xarray dataset; pip install "vcjax[xarray]")',
     )
-    _add_cpu_devices(w)
-    _add_overwrite(w)
-    _add_size_limits(w)
+    add_cpu_devices(w)
+    add_overwrite(w)
+    add_size_limits(w)
     w.set_defaults(func=commands.sweep)
 
-    t = sub.add_parser(
-        "tune", help="tune a loop's gains by gradient descent through the closed loop (TOML)"
-    )
-    t.add_argument("config", help="TOML config (see examples/tuning/)")
-    t.add_argument("--out", default="out/tune", help="output directory (default: out/tune)")
-    t.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
-    _add_cpu_devices(t)
-    _add_overwrite(t)
-    _add_size_limits(t)
-    t.set_defaults(func=commands.tune)
+    for c in plugin_commands():  # other packages' commands (vcjax.plugins): `vcjax tune`
+        t = sub.add_parser(c.name, help=c.help, description=c.description)
+        c.add_arguments(t)
+        t.set_defaults(func=c.run)
 
     x = sub.add_parser(
         "falsify",
@@ -211,7 +178,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="run the scenarios of a worst.json again (writes replay.json) instead of searching",
     )
     x.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
-    _add_overwrite(x)
+    add_overwrite(x)
     x.set_defaults(func=commands.falsify)
 
     f = sub.add_parser(
@@ -228,7 +195,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="G",
         help="allow an estimated peak memory up to G GB (default: 80%% of the physical memory)",
     )
-    _add_overwrite(f)
+    add_overwrite(f)
     f.set_defaults(func=commands.fit)
 
     _add_demo(sub)
@@ -259,12 +226,23 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-#: The subcommands that split their work across the processes of ``vcjax launch``.
-_DISTRIBUTED = ("sweep", "tune")
+def _distributed() -> list[str]:
+    """The subcommands that split their work across the processes of ``vcjax launch``."""
+    return ["sweep", *(c.name for c in plugin_commands() if c.distributed)]
+
+
+def _subcommand_names(parser: argparse.ArgumentParser) -> set[str]:
+    return {
+        n for a in parser._actions if isinstance(a, argparse._SubParsersAction) for n in a.choices
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    word = next((a for a in (sys.argv[1:] if argv is None else argv) if a[:1] != "-"), None)
+    names = _subcommand_names(parser)
+    if word is not None and word not in names and not plugin_commands():
+        return fail(missing_command(word))
     args, extra = parser.parse_known_args(argv)
     if extra and getattr(args, "experiment", None) is not None:  # simulate NAME, demo
         return fail(commands.flags_refused(args, extra))

@@ -1,6 +1,7 @@
 """The bodies of ``vcjax``'s commands ([`vcjax.cli`][vcjax.cli] parses the command line once and
 dispatches here): ``simulate`` (and ``demo``, its ``arm`` experiment) through the experiments
-registry, ``sweep``, ``tune``, ``fit``; and what they share -- preparing and locking ``--out``,
+registry, ``sweep``, ``falsify``, ``fit`` (``tune`` is the tuner's, ``tuning.command``, found
+through the command seam ``vcjax.plugins``); and what they share -- preparing and locking ``--out``,
 recording ``run.json``, one line and exit status 2 for a bad input
 ([`CLIError`][vcjax.commands.CLIError]),
 interruptible long loops."""
@@ -21,7 +22,6 @@ __all__ = [
     "simulate",
     "sweep",
     "falsify",
-    "tune",
     "fit",
     "fail",
     "release_outputs",
@@ -446,51 +446,6 @@ def _size_check(args, command: str, spec=None, cfg=None) -> None:
         if wav := cfg.get("waves"):
             notes = waves.envelope_warnings(wav["hs"], wav["tp"], wav.get("origin_depth"))
     sizing.check_estimate(est, f"{args.config}", args.max_steps, args.max_memory_gb, notes)
-
-
-def tune(args) -> int:
-    if (rc := _use_cores(args, "tune")) is not None:
-        return rc
-    _enable_x64(args.x64)  # before importing tuning: sim1 builds its path constants at import
-    from tuning import run_tune_config
-    from tuning.config import load_config
-
-    try:
-        cfg = load_config(args.config)  # parsed once, recorded in run.json
-        _size_check(args, "tune", cfg=cfg)
-        if cfg.problem.initial_gains:
-            loop = cfg.scenario.loop(cfg.problem.variant)
-            where = f"problem.initial_gains: cannot use {cfg.problem.initial_gains}"
-            _check_gains_file(loop, cfg.problem.initial_gains, where)
-    except (OSError, ValueError) as err:
-        return fail(f"tune: {err}")
-    _prepare(args, args.out, "tune")  # every input checked: only now is --out touched
-    try:
-        with _early_end(), interruptible():
-            result = run_tune_config(args.config, args.out, cfg=cfg)
-    except (OSError, ValueError) as err:
-        return fail(f"tune: {err}")
-    for f in result["files"]:
-        print(f"wrote {f}")
-    seeds = {"train": cfg.train.seed, "heldout": cfg.heldout.seed}
-    _record(args.out, "tune", args, config={"file": args.config, **cfg.to_dict()}, seeds=seeds)
-    summary = result["summary"]
-    if summary is None:  # processes other than 0 of a multi-process run
-        return 0
-    before, after = summary.get("heldout_loss_before"), summary.get("heldout_loss_after")
-    if before is not None and after is not None:
-        from tuning.report import change_text
-
-        print(f"held-out loss: {before:.4g} -> {after:.4g} ({change_text(before, after)})")
-    if summary.get("aborted"):
-        return fail(f"tune: aborted: {summary.get('reason', 'non-finite steps')}")
-    if summary.get("interrupted"):
-        return _interrupted(
-            "tune",
-            f"after {summary['iterations']} of {summary['steps_planned']} steps; wrote the best "
-            f"gains so far, the history and summary.json (interrupted) to {args.out}",
-        )
-    return 0
 
 
 def fit(args) -> int:
