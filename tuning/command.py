@@ -47,9 +47,9 @@ def tune(args: argparse.Namespace) -> int:
     if (rc := use_cores(args, "tune")) is not None:
         return rc
     enable_x64(args.x64)  # before importing the tuner: the loops build their constants at import
+    from tuning import run_tune_config
     from tuning.config import load_config
     from tuning.report import change_text
-    from tuning.run import run_tune_config
 
     try:
         cfg = load_config(args.config)  # parsed once, recorded in run.json
