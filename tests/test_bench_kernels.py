@@ -1,18 +1,13 @@
-"""The kernel counter of ``benchmarks/perf/cost_analysis.py`` (kernels per step of a compiled
-``while`` body), checked on programs whose kernels are known: an elementwise scan body fuses
+"""The kernel counter of ``tests/reference/hlo.py`` (kernels per step of a compiled ``while``
+body; ``benchmarks/perf/cost_analysis.py`` reports it), checked on programs whose kernels are known: an elementwise scan body fuses
 into one kernel with no library call; a ``vmap``-ed 6x6 ``jnp.linalg.solve`` in the body puts
 LAPACK custom calls there; ``linalg.solve_small``, the unrolled replacement, puts none."""
-
-import sys
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 
+from tests.reference.hlo import while_body_kernels
 from vcjax import linalg
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks.perf.cost_analysis import while_body_kernels  # noqa: E402
 
 
 def _scan_text(body, x0):

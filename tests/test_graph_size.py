@@ -2,8 +2,8 @@
 StableHLO line budget (issue 30).
 
 The line count of the lowered program (``jax.jit(f).lower(...).as_text()``) is deterministic,
-unlike compile seconds (those live in ``benchmarks/perf/compile_times.py``, whose helpers build
-the very programs counted here), and XLA's compile time follows it. Lowering only, nothing is
+unlike compile seconds (those live in ``benchmarks/perf/compile_times.py``, which builds the very
+programs counted here with the same helpers, ``tests/reference/programs.py``), and XLA's compile time follows it. Lowering only, nothing is
 compiled. The horizon is 2 steps: a rollout is one ``lax.scan`` whose body does not depend on its
 length (checked: 5 and 250 steps give the same counts for every loop, and
 ``test_the_count_does_not_depend_on_the_horizon`` keeps checking it on one loop).
@@ -15,7 +15,7 @@ grows a program past its budget has to say why here; one that shrinks it should 
 
 import pytest
 
-from benchmarks.perf.compile_times import build_times, loop_programs
+from tests.reference.programs import build_times, loop_programs
 
 #: "vehicle/controller": (forward, gradient) budgets in StableHLO lines; measured counts in
 #: the comments (float64, jax 0.10.2, ``python -m benchmarks.perf.compile_times --no-compile``)

@@ -572,7 +572,7 @@ import dataclasses, json
 import jax
 jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp, numpy as np
-from benchmarks.perf.sharded_gradient import loop_allreduces
+from tests.reference.hlo import loop_allreduces
 from tuning.run import distribute
 from tuning.loss import TuningProblem, objective, problem_data
 from tuning.scenarios import sample_scenarios

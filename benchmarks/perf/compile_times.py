@@ -49,10 +49,10 @@ import platform
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 from benchmarks import _common as C
+from tests.reference.programs import build_times, loop_programs
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_JSON = ROOT / "benchmarks" / "results" / "compile_times.json"
@@ -137,35 +137,6 @@ def _jaxlib_version():
         return None
 
 
-def build_times(fn, *args, compile: bool = True) -> dict:
-    """``trace_s``, ``lower_s``, ``compile_s`` and ``hlo_lines`` of ``jax.jit(fn)`` at ``args``.
-
-    Older JAX without ``jit(f).trace`` lowers directly (trace time then counts in ``lower_s``
-    and ``trace_s`` is 0).
-    """
-    import jax
-
-    jitted = fn if hasattr(fn, "lower") else jax.jit(fn)
-    t0 = time.perf_counter()
-    if hasattr(jitted, "trace"):
-        traced = jitted.trace(*args)
-        t1 = time.perf_counter()
-        lowered = traced.lower()
-    else:
-        t1 = t0
-        lowered = jitted.lower(*args)
-    t2 = time.perf_counter()
-    if compile:
-        lowered.compile()
-    t3 = time.perf_counter()
-    return {
-        "trace_s": t1 - t0,
-        "lower_s": t2 - t1,
-        "compile_s": t3 - t2 if compile else None,
-        "hlo_lines": len(lowered.as_text().splitlines()),
-    }
-
-
 def select(names: str | None) -> list[tuple[str, str]]:
     from vcjax import loops
 
@@ -192,27 +163,6 @@ def select(names: str | None) -> list[tuple[str, str]]:
                 )
             out.extend(hits)
     return list(dict.fromkeys(out))
-
-
-def loop_programs(vehicle: str, controller: str, steps: int, timing: str):
-    """``(forward, gradient, gains, sc)``: the two functions of one loop and their inputs."""
-    import jax
-    import jax.numpy as jnp
-
-    from vcjax import loops
-    from vcjax.rollout import RolloutConfig
-
-    loop = loops.make_loop(vehicle, controller)
-    sc = loops.make_scenario(loop, loops.default_path(vehicle)[1])
-    gains = loop.default_gains()
-    cfg = RolloutConfig(num_steps=steps, integrator="rk4", timing=timing)
-
-    def forward(gains, sc):
-        tr = loops.simulate(loop, gains, sc, cfg, C.DT)
-        eps = loop.signals(tr, sc).eps
-        return jnp.mean(eps * eps)
-
-    return forward, jax.value_and_grad(forward), gains, sc
 
 
 def tune_program(config: Path):
@@ -285,7 +235,7 @@ def _main(args) -> dict:
     rows = []
     for vehicle, controller in select(args.loops):
         name = f"{vehicle}/{controller}"
-        fwd, grad, gains, sc = loop_programs(vehicle, controller, args.steps, args.timing)
+        fwd, grad, gains, sc = loop_programs(vehicle, controller, args.steps, args.timing, C.DT)
         entry = {}
         for kind in args.kinds:
             r = build_times(
@@ -331,8 +281,13 @@ def _extract(rev: str, dest: Path) -> str:
     full = subprocess.run(
         ["git", "rev-parse", rev], cwd=ROOT, check=True, capture_output=True, text=True
     ).stdout.strip()
+    paths = ["vcjax", "tuning", "benchmarks", "examples"]
+    has_reference = subprocess.run(  # the shared helpers (build_times, ...) of later revisions
+        ["git", "cat-file", "-e", f"{full}:tests/reference"], cwd=ROOT, capture_output=True
+    )
+    paths += ["tests/reference"] if has_reference.returncode == 0 else []
     arch = subprocess.run(
-        ["git", "archive", full, "vcjax", "tuning", "benchmarks", "examples"],
+        ["git", "archive", full, *paths],
         cwd=ROOT,
         check=True,
         capture_output=True,

@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 
 from benchmarks import _common as C
-from benchmarks.perf.cost_analysis import while_bodies
+from tests.reference.hlo import loop_allreduces
 
 COLUMNS = ["gains", "devices", "batch", "steps", "dtype", "run_s", "compile_s", "loop_allreduce"]
 
@@ -32,11 +32,6 @@ def parse_args(argv=None):
     if args.quick:
         args.batch, args.steps, args.repeats = 8, 100, 2
     return args
-
-
-def loop_allreduces(hlo_text: str) -> int:
-    """``all-reduce`` instructions inside the ``while`` bodies of an HLO module's text."""
-    return sum(body.count("all-reduce(") for body in while_bodies(hlo_text))
 
 
 def main(argv=None):
