@@ -1,7 +1,11 @@
 """The tuner comparison (benchmarks/studies/tuners.py, issue 34): the start point every tuner
 shares, the Bayesian-optimisation baseline (optuna TPE), the early stop of the black-box tuners,
-and the time-to-target arithmetic, each against an independent value."""
+and the time-to-target arithmetic (``tuning.report.time_to_target``), each against an
+independent value; the study's bad arguments, run as a user runs it
+(``python -m benchmarks tuners ...``)."""
 
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -10,10 +14,10 @@ import pytest
 
 from tuning.blackbox import run_cmaes, run_random_search
 from tuning.params import GainSpace
+from tuning.report import time_to_target
 from vcjax import loops
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks.studies.tuners import summarise  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _sim1_gains():
@@ -109,7 +113,7 @@ def test_time_to_target_is_the_first_time_within_each_tolerance_of_the_best_of_a
         },
         "warm": {"lbfgs": _run([(0, 0, 10.0), (0.5, 8, 1.04), (1.0, 16, 1.005)])},
     }
-    s = summarise(runs)
+    s = time_to_target(runs)
     assert s["target"] == 1.0
     lb, cm = s["table"]["cold"]["lbfgs"], s["table"]["cold"]["cmaes"]
     assert (lb["wall_s_to_1%"], lb["rollouts_to_1%"]) == (3.0, 16)
@@ -119,19 +123,30 @@ def test_time_to_target_is_the_first_time_within_each_tolerance_of_the_best_of_a
     assert s["ratios_wall_s_to_1%"]["cold: lbfgs/cmaes at 1%"] is None
 
 
-def test_bad_arguments_exit_2_with_one_line_before_any_work(tmp_path, capsys):
-    from benchmarks.studies.tuners import main
-
+def test_bad_arguments_exit_2_with_one_line_before_any_work(tmp_path):
     cfg = tmp_path / "bad.toml"
     cfg.write_text("[problem]\nhorizon = -1\n")
     out = tmp_path / "out"
-    for argv, msg in (
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "VCJAX_CACHE_DIR": "off"}
+    cases = (
         ([str(cfg), "--tuners", "lbfgs,nope"], "tuners: unknown ['nope']"),
         ([str(tmp_path / "none.toml")], "config: no such file"),
         ([str(cfg), "--seconds", "0"], "--seconds: expected > 0"),
         ([str(cfg), "--quick"], "[problem] horizon"),
-    ):
-        assert main([*argv, "--out", str(out)]) == 2
-        err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and msg in err[0]
+    )
+    procs = [  # side by side: each is a fresh process
+        subprocess.Popen(
+            [sys.executable, "-m", "benchmarks", "tuners", *argv, "--out", str(out)],
+            cwd=ROOT,
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for argv, _ in cases
+    ]
+    for p, (_, msg) in zip(procs, cases, strict=True):
+        err = p.communicate()[1].strip().splitlines()
+        assert p.returncode == 2
+        assert len(err) == 1 and msg in err[0], err
     assert not out.exists()

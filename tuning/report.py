@@ -16,6 +16,7 @@ __all__ = [
     "plot_loss_curve",
     "plot_before_after",
     "plot_loss_terms",
+    "time_to_target",
 ]
 
 
@@ -205,3 +206,52 @@ def plot_loss_terms(t, before, after, terms, weights, actuators, path) -> Path:
     savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     return path
+
+
+def _reach(curve, level, key):
+    for rec in curve:
+        if rec["heldout_best"] <= level:
+            return rec[key]
+    return None
+
+
+def time_to_target(
+    runs: dict,
+    reach_pct=(1.0, 5.0),
+    gradient=("lbfgs", "adam", "gradient"),
+    blackbox=("cmaes", "bayes", "random"),
+) -> dict:
+    """How fast tuners reach the best loss any of them found (the tuner comparison,
+    ``benchmarks/studies/tuners.py``).
+
+    Args:
+        runs: ``{cache: {tuner: run}}``, each run with ``best_heldout``, ``first_step_s`` and
+            its ``curve``: records of ``wall_s``, ``rollouts`` and ``heldout_best`` (the best
+            held-out loss so far).
+        reach_pct: the tolerances, percent above the target.
+        gradient, blackbox: the tuners whose times are compared, gradient over black-box.
+
+    Returns:
+        ``target`` (the lowest held-out loss of any run), ``table`` (per cache and tuner: the
+        wall-clock seconds and rollouts to within each tolerance of it, ``None``: not reached)
+        and ``ratios_wall_s_to_1%`` (gradient over black-box tuner times at 1 %).
+    """
+    target = min(r["best_heldout"] for c in runs.values() for r in c.values())
+    table: dict = {}
+    for c, by_tuner in runs.items():
+        table[c] = {}
+        for name, r in by_tuner.items():
+            row = {"best_heldout": r["best_heldout"], "first_step_s": r["first_step_s"]}
+            for p in reach_pct:
+                level = target * (1 + p / 100)
+                row[f"wall_s_to_{p:g}%"] = _reach(r["curve"], level, "wall_s")
+                row[f"rollouts_to_{p:g}%"] = _reach(r["curve"], level, "rollouts")
+            table[c][name] = row
+    ratios: dict = {}
+    for c, rows in table.items():
+        for g in gradient:
+            for b in blackbox:
+                if g in rows and b in rows:
+                    tg, tb = rows[g]["wall_s_to_1%"], rows[b]["wall_s_to_1%"]
+                    ratios[f"{c}: {g}/{b} at 1%"] = tg / tb if tg is not None and tb else None
+    return {"target": target, "table": table, "ratios_wall_s_to_1%": ratios}

@@ -217,36 +217,13 @@ def run_study(args, say=lambda m: None) -> dict:
     return runs
 
 
-def _reach(curve, level, key):
-    for rec in curve:
-        if rec["heldout_best"] <= level:
-            return rec[key]
-    return None
-
-
 def summarise(runs: dict) -> dict:
     """Target (lowest held-out loss of any run), and per cache and tuner the wall-clock seconds
-    and rollouts to within each :data:`REACH_PCT` of it (``None``: not reached), and the ratios
-    of the gradient tuners' times to the black-box tuners' at 1 %."""
-    target = min(r["best_heldout"] for c in runs.values() for r in c.values())
-    table: dict = {}
-    for c, by_tuner in runs.items():
-        table[c] = {}
-        for name, r in by_tuner.items():
-            row = {"best_heldout": r["best_heldout"], "first_step_s": r["first_step_s"]}
-            for p in REACH_PCT:
-                level = target * (1 + p / 100)
-                row[f"wall_s_to_{p:g}%"] = _reach(r["curve"], level, "wall_s")
-                row[f"rollouts_to_{p:g}%"] = _reach(r["curve"], level, "rollouts")
-            table[c][name] = row
-    ratios: dict = {}
-    for c, rows in table.items():
-        for g in GRADIENT:
-            for b in ("cmaes", "bayes", "random"):
-                if g in rows and b in rows:
-                    tg, tb = rows[g]["wall_s_to_1%"], rows[b]["wall_s_to_1%"]
-                    ratios[f"{c}: {g}/{b} at 1%"] = tg / tb if tg is not None and tb else None
-    return {"target": target, "table": table, "ratios_wall_s_to_1%": ratios}
+    and rollouts to within each :data:`REACH_PCT` of it, and the ratios of the gradient
+    tuners' times to the black-box tuners' at 1 % (``tuning.report.time_to_target``)."""
+    from tuning.report import time_to_target  # (JAX is set up by main first)
+
+    return time_to_target(runs, REACH_PCT, GRADIENT)
 
 
 def _fmt(x, spec):
