@@ -3,6 +3,7 @@
     python -m benchmarks                         # list them, by question
     python -m benchmarks NAME [ARGS ...]         # run one (ARGS go to it; NAME --help)
     python -m benchmarks --all [--python PY]     # every measurement of benchmarks/README.md
+    python -m benchmarks --all --dry-run         # ... only listed, not run
 
 Every benchmark is a module of ``benchmarks/perf`` (how fast), ``benchmarks/compare`` (git A/B:
 an older revision against this checkout) or ``benchmarks/studies`` (questions answered by
@@ -175,13 +176,17 @@ def command(name: str, args: list[str], python: str = sys.executable) -> list[st
     return [python, "-m", target, *args]
 
 
-def run_all(python: str = sys.executable) -> int:
-    """Every measurement of ``benchmarks/README.md``, one after the other (stop at a failure)."""
+def run_all(python: str = sys.executable, dry_run: bool = False) -> int:
+    """Every measurement of ``benchmarks/README.md``, one after the other (stop at a failure);
+    ``dry_run``: only print them (with ``> FILE``, where the console output goes)."""
     env = {**os.environ, "PYTHONPATH": os.environ.get("PYTHONPATH") or str(ROOT)}
     for i, (name, args, stdout, extra) in enumerate(ALL):
         with tempfile.TemporaryDirectory() as tmp:
             cmd = command(name, [a.replace("{tmp}", tmp) for a in args], python)
             print(f"[{i + 1}/{len(ALL)}] {' '.join(cmd[1:])}", flush=True)
+            if dry_run:
+                print(f"  > {stdout}" if stdout else "  > -", flush=True)
+                continue
             sink = open(ROOT / stdout, "w") if stdout else None  # noqa: SIM115
             try:
                 rc = subprocess.run(cmd, cwd=ROOT, env={**env, **extra}, stdout=sink).returncode
@@ -202,8 +207,10 @@ def main(argv: list[str] | None = None) -> int:
         print(__doc__.strip() + "\n\n" + listing())
         return 0
     if argv[0] == "--all":
+        dry_run = "--dry-run" in argv
+        argv = [a for a in argv if a != "--dry-run"]
         python = argv[2] if argv[1:2] == ["--python"] and len(argv) > 2 else sys.executable
-        return run_all(python)
+        return run_all(python, dry_run)
     try:
         cmd = command(argv[0], argv[1:])
     except ValueError as err:

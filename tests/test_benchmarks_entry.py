@@ -1,10 +1,11 @@
-"""The benchmarks' one entry point (``python -m benchmarks``): it finds every benchmark of the
-three folders, refuses an unknown name, every step of ``--all`` names one that exists, and every
-benchmark runs (:data:`SMOKE`: its quickest mode at tiny sizes, outputs into a temporary folder;
+"""The benchmarks' one entry point (``python -m benchmarks``, run as a user runs it, in a fresh
+process): it finds every benchmark of the three folders, refuses an unknown name, every step of
+``--all`` names one that exists, and every benchmark runs (:data:`SMOKE`: its quickest mode at tiny sizes, outputs into a temporary folder;
 nothing timed or compared), so a refactor cannot silently break one."""
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -12,28 +13,55 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from benchmarks import __main__ as entry  # noqa: E402
+GROUPS = ("perf", "compare", "studies")
 
 
-def test_every_benchmark_is_listed_under_its_question():
-    found = {
-        p.stem: p.parent.name for g in entry.GROUPS for p in (ROOT / "benchmarks" / g).glob("*.py")
-    }
+def _entry(*args: str) -> subprocess.CompletedProcess:
+    """``python -m benchmarks ARGS`` from the repository root, as a user runs it."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "VCJAX_CACHE_DIR": "off"}
+    return subprocess.run(
+        [sys.executable, "-m", "benchmarks", *args],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+
+
+@pytest.fixture(scope="module")
+def listed() -> dict[str, tuple[str, str]]:
+    """``{name: (group, its line)}`` of ``python -m benchmarks --list``."""
+    r = _entry("--list")
+    assert r.returncode == 0, r.stderr
+    out, group = {}, None
+    for line in r.stdout.splitlines():
+        if m := re.match(r"(\w+)/  \(", line):
+            group = m.group(1)
+        elif group and (m := re.match(r"  (\w+) +(.*)$", line)):
+            out[m.group(1)] = (group, m.group(2))
+    return out
+
+
+def test_every_benchmark_is_listed_under_its_question(listed):
+    found = {p.stem: p.parent.name for g in GROUPS for p in (ROOT / "benchmarks" / g).glob("*.py")}
     found = {k: v for k, v in found.items() if not k.startswith("_")}
-    listed = entry.benchmarks()
     assert {k: g for k, (g, _) in listed.items()} == found
     assert all(doc for _, doc in listed.values()), "a benchmark without a docstring"
     assert not list((ROOT / "benchmarks").glob("[!_]*.py")), "a benchmark outside the folders"
-    assert entry.module("tuners") == "benchmarks.studies.tuners"
-    with pytest.raises(ValueError, match="unknown benchmark 'nope'"):
-        entry.module("nope")
 
 
-def test_every_step_of_all_names_a_benchmark_and_writes_into_results():
-    for name, args, stdout, _ in entry.ALL:
-        assert name == "vcjax" or entry.module(name)
-        assert stdout is None or stdout.startswith("benchmarks/results/")
+def test_every_step_of_all_names_a_benchmark_and_writes_into_results(listed):
+    r = _entry("--all", "--dry-run")
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    steps = [(a, b) for a, b in zip(lines[::2], lines[1::2], strict=True)]
+    assert steps and all(re.match(r"\[\d+/\d+\] -m ", a) for a, _ in steps)
+    for line, sink in steps:
+        args = line.split()[2:]
+        name = args[0].rsplit(".", 1)[-1]
+        assert args[0] == "vcjax.cli" or args[0] == f"benchmarks.{listed[name][0]}.{name}"
+        stdout = sink.removeprefix("  > ")
+        assert stdout == "-" or stdout.startswith("benchmarks/results/")
         if "--json" in args:
             assert args[args.index("--json") + 1].startswith("benchmarks/results/")
 
@@ -125,8 +153,8 @@ def smoke_args(name: str, tmp) -> list[str]:
     return [a.replace("{tmp}", str(tmp)).replace("{tune}", str(tune)) for a in SMOKE[name][0]]
 
 
-def test_every_benchmark_has_a_smoke_run():
-    assert set(SMOKE) == set(entry.benchmarks())
+def test_every_benchmark_has_a_smoke_run(listed):
+    assert set(SMOKE) == set(listed)
 
 
 @pytest.mark.parametrize(

@@ -2,6 +2,7 @@
 flow. Checked statically from the source (no imports executed)."""
 
 import ast
+import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1] / "vcjax"
@@ -242,3 +243,44 @@ def test_no_package_level_cycle():
     packages = {p: deps - {p} for p, deps in packages.items()}
     assert packages == {"vcjax": set(), "tuning": {"vcjax"}}, packages
     assert find_cycle(packages) is None
+
+
+# ------------------------------------------------------------------ tests and benchmarks
+
+
+def _imported_names(path: Path) -> list[str]:
+    """The modules a file imports: import statements, string names handed to
+    ``import_module``/``__import__``, and the imports of code held in strings (a snippet run in
+    a subprocess)."""
+    tree = ast.parse(path.read_text())
+    names = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            names.append(node.module)
+        elif isinstance(node, ast.Import):
+            names += [a.name for a in node.names]
+        elif isinstance(node, ast.Call) and node.args:
+            f = node.func
+            fname = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", "")
+            arg = node.args[0]
+            if fname in ("import_module", "__import__") and isinstance(arg, ast.Constant):
+                names.append(str(arg.value))
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            names += re.findall(r"^\s*(?:from|import) +([\w.]+)", node.value, re.M)
+    return names
+
+
+def test_tests_and_benchmarks_import_one_way():
+    """Benchmarks may import the tests' shared oracles and helpers (``tests.reference``); the
+    tests never import ``benchmarks`` (they run it as users do: ``python -m benchmarks``)."""
+    repo = ROOT.parent
+    bad = []
+    for path in sorted((repo / "tests").rglob("*.py")):
+        for name in _imported_names(path):
+            if name == "benchmarks" or name.startswith("benchmarks."):
+                bad.append(f"{path.relative_to(repo)} imports {name}")
+    for path in sorted((repo / "benchmarks").rglob("*.py")):
+        for name in _imported_names(path):
+            if name.split(".")[0] == "tests" and not name.startswith("tests.reference"):
+                bad.append(f"{path.relative_to(repo)} imports {name} (only tests.reference)")
+    assert not bad, bad
