@@ -251,8 +251,8 @@ steps = 2
 
 
 def test_the_new_disturbance_is_tuned_from_its_own_section(tmp_path):
-    from tuning.cli import build
     from tuning.config import load_config as load_tune
+    from tuning.run import build
     from vcjax.config import ConfigError
 
     cfg = load_tune(_tune_toml(tmp_path, "speed = [0.0, 0.6]\nperiod = 20.0\n"))

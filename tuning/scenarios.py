@@ -172,9 +172,9 @@ def sample_scenarios(
     design = loop.default_params(dtype) if nominal.design is None else nominal.design
     plant = design if nominal.plant is None else nominal.plant
     coeffs = type(loop).default_path()[1] if nominal.coeffs is None else nominal.coeffs
-    dt = jax.numpy.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
-    coeffs = jax.tree_util.tree_map(lambda a: jax.numpy.asarray(a, dt), coeffs)
-    mc = sweep.sample_scenarios(spec, int(seed), np.arange(n), dtype=dt, loop=loop)
+    ftype = jax.numpy.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
+    coeffs = jax.tree_util.tree_map(lambda a: jax.numpy.asarray(a, ftype), coeffs)
+    mc = sweep.sample_scenarios(spec, int(seed), np.arange(n), dtype=ftype, loop=loop)
     cfg = sweep.MCConfig(
         num_steps=1, model_fields=spec.fields_for(loop), environment=spec.environment
     )

@@ -46,11 +46,14 @@ from typing import Any, ClassVar, NamedTuple
 import jax
 import jax.numpy as jnp
 
+from vcjax._checks import as_float_array, float_dtype
+
 __all__ = [
     "KINDS",
     "Component",
     "Environment",
     "Key",
+    "WaterMotion",
     "check_section",
     "components",
     "lookup",
@@ -61,6 +64,7 @@ __all__ = [
     "REGISTRY",
     "add_section",
     "sample",
+    "water_motion",
 ]
 
 #: what a component asks of a loop (see the module docstring)
@@ -74,6 +78,46 @@ KIND_WORDS = {
     "force": "a disturbance force",
     "noise": "sensor noise",
 }
+
+
+class WaterMotion(NamedTuple):
+    """The water at a vehicle: the one door through which every plant takes it.
+
+    A plant's arguments hold one ``water: WaterMotion``; what the plant does with it is the
+    plant's model (a horizontal-plane craft uses the first two components and cannot feel the
+    vertical one; a 6-DOF body takes all three), written in its module. The loops build it from
+    the environment ([`Loop.plant_args`][vcjax.loops.loop.Loop.plant_args],
+    [`Loop.with_current`][vcjax.loops.loop.Loop.with_current],
+    [`Water.at`][vcjax.loops.types.Water.at] in a sea).
+
+    Attributes:
+        velocity: (3,) the water's velocity in NED at the vehicle [m/s] (uniform current plus
+            what varies in space, e.g. a wave's orbital motion).
+        acceleration: (3,) its material acceleration ``Dv/Dt`` in NED [m/s^2] (zeros for a
+            constant uniform current), or ``None``: zero, and the plant leaves its terms out
+            (the same numbers as zeros).
+    """
+
+    velocity: Any
+    acceleration: Any
+
+
+def water_motion(velocity=None, acceleration=None, dtype=None) -> WaterMotion:
+    """Validated [`WaterMotion`][vcjax.environment.component.WaterMotion]: ``velocity`` and
+    ``acceleration`` (3,) NED (default zeros: still water), as float arrays of ``dtype``
+    (default: the velocity's own float dtype, or JAX's default float). ``ValueError`` naming
+    the field for a wrong shape or a NaN/inf entry."""
+    if velocity is None:
+        v = jnp.zeros(3, float_dtype(dtype))
+    else:
+        v = as_float_array("velocity", velocity, (3,), dtype)
+    dtype = v.dtype
+    a = (
+        jnp.zeros(3, dtype)
+        if acceleration is None
+        else as_float_array("acceleration", acceleration, (3,), dtype)
+    )
+    return WaterMotion(v, a)
 
 
 class Key(NamedTuple):

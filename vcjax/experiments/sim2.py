@@ -164,7 +164,7 @@ class Sim2(Experiment):
             self.loop("underactuated"),
             eta0=eta0,
             nu0=np.zeros(6),
-            current=args.v_c,
+            current=args.water.velocity,
             u_d=U_D,
             plant=vehicle,
             disturbance=args.tau_dist,

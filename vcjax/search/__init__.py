@@ -16,10 +16,18 @@ replay;
 rollouts.
 """
 
-from vcjax.search.core import ALIASES, FalsifyResult, evaluate, falsify, metric_name
+from vcjax.search.core import (
+    ALIASES,
+    FalsifyOptions,
+    FalsifyResult,
+    evaluate,
+    falsify,
+    metric_name,
+)
 from vcjax.search.envelope import (
     Envelope,
     Setting,
+    SettingOptions,
     envelope_from_spec,
     make_setting,
     scenario_from,
@@ -29,8 +37,10 @@ from vcjax.search.envelope import (
 __all__ = [
     "ALIASES",
     "Envelope",
+    "FalsifyOptions",
     "FalsifyResult",
     "Setting",
+    "SettingOptions",
     "envelope_from_spec",
     "evaluate",
     "falsify",
