@@ -443,6 +443,29 @@ def test_the_tuners_value_and_grad_is_stored_and_reused(store):
         assert [h["loss"] for h in res.history] == [h["loss"] for h in plain.history]
 
 
+def test_the_black_box_tuners_batch_loss_is_stored_and_reused(store):
+    """The black-box tuners' batch loss (CMA-ES, TPE, random search) keyed like the gradient
+    tuner's step: a second objective with the same description loads the program, values
+    unchanged; without a description nothing is stored."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    from tuning.blackbox import batch_objective
+    from vcjax.runtime import programs
+
+    def loss(theta, target):
+        return jnp.sum((theta - target) ** 2)
+
+    args = (jnp.asarray([1.0, -2.0]),)
+    X = np.array([[0.0, 0.0], [1.0, -2.0], [np.inf, 0.0]])
+    vals = [batch_objective(loss, args, static=("quadratic", 2))(X) for _ in range(2)]
+    assert [r["reused"] for r in programs.report()] == [False, True]
+    np.testing.assert_array_equal(vals[0], [5.0, 0.0, np.inf])
+    np.testing.assert_array_equal(vals[1], vals[0])
+    batch_objective(loss, args)(X)
+    assert len(programs.report()) == 2
+
+
 def test_an_edit_to_a_users_module_changes_the_program_key(tmp_path):
     """A law, loop or component in a user's file (``[scenario] module``) is traced into the
     program: an edit anywhere in that file must never reuse the program stored before it (a

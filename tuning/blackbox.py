@@ -37,15 +37,29 @@ __all__ = [
 _WORST = 1e300
 
 
-def batch_objective(loss_fn: Callable, args: tuple = ()) -> Callable:
+def batch_objective(loss_fn: Callable, args: tuple = (), static=None) -> Callable:
     """``f(X (lambda, n)) -> (lambda,)`` NumPy values of ``loss_fn(theta, *args)``, jitted+vmapped.
 
-    Non-finite values come back as ``inf``.
+    Non-finite values come back as ``inf``. ``static``: a plain description of everything that
+    fixes ``loss_fn`` (e.g. the tuning config); with it, and the program store on
+    ([`vcjax.runtime.programs`][vcjax.runtime.programs]), the batch program is keyed in the
+    store, so a warm run loads it instead of tracing (as the gradient tuner's step does).
     """
-    g = jax.jit(jax.vmap(loss_fn, in_axes=(0,) + (None,) * len(args)))
+    from vcjax.runtime import programs
+
+    vf = jax.vmap(loss_fn, in_axes=(0,) + (None,) * len(args))
+    g = jax.jit(vf)
+    built: dict = {}
 
     def f(X):
-        v = np.asarray(jax.device_get(g(jnp.asarray(X), *args)), dtype=float)
+        X = jnp.asarray(X)
+        if static is not None and programs.store_dir() is not None:
+            if X.shape not in built:
+                built[X.shape], _ = programs.build("tune:batch_loss", vf, static, (X, *args))
+            v = built[X.shape](X, *args)
+        else:
+            v = g(X, *args)
+        v = np.asarray(jax.device_get(v), dtype=float)
         return np.where(np.isfinite(v), v, np.inf)
 
     return f

@@ -440,7 +440,7 @@ def _size_check(args, command: str, spec=None, cfg=None) -> None:
         est = sizing.sweep_estimate(spec)
         sc = spec.scenario
         if sc.waves:
-            notes = waves.envelope_warnings(sc.wave_hs, sc.wave_tp, sc.wave_origin_depth)
+            notes = waves.envelope_warnings(sc.waves.hs, sc.waves.tp, sc.waves.origin_depth)
     else:
         est = sizing.tune_estimate(cfg)
         if wav := cfg.get("waves"):

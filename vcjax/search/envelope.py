@@ -303,8 +303,8 @@ def envelope_from_spec(spec: SweepSpec) -> Envelope:
     sc: ScenarioSpec = spec.scenario
     loop = spec.loop(spec.variants[0])
     r = {
-        "current_speed": sc.current_speed,
-        "current_direction_deg": sc.current_direction_deg,
+        "current_speed": sc.current.speed,
+        "current_direction_deg": sc.current.direction_deg,
         "u_d": sc.u_d or (loop.default_speed,) * 2,
     }
     r |= {f"initial.{k}": v for k, v in sc.initial.values}
@@ -314,11 +314,11 @@ def envelope_from_spec(spec: SweepSpec) -> Envelope:
     r |= {f"disturbance.{i}": v for i, v in enumerate(sc.disturbance.force)}
     if sc.waves:
         r |= {
-            "wave_hs": sc.wave_hs,
-            "wave_tp": sc.wave_tp,
-            "wave_direction_deg": sc.wave_direction_deg,
-            "wave_spreading": sc.wave_spreading,
-            "wave_origin_depth": sc.wave_origin_depth,
+            "wave_hs": sc.waves.hs,
+            "wave_tp": sc.waves.tp,
+            "wave_direction_deg": sc.waves.direction_deg,
+            "wave_spreading": sc.waves.spreading,
+            "wave_origin_depth": sc.waves.origin_depth,
         }
     return Envelope.build(loop, r, dt=spec.dt)
 
@@ -334,7 +334,8 @@ def setting_from_spec(spec: SweepSpec, env: Envelope, variant: str | None = None
     config = dataclasses.replace(
         spec.mc_config(), model_fields=env.model_fields, record_stride=0, checkpoint=True
     )
-    sea = (sc.wave_spectrum, sc.wave_components, sc.wave_gamma) if sc.waves else None
+    w = sc.waves
+    sea = None if w is None else (w.spectrum, w.components, w.gamma)
     return Setting(
         loop=loop,
         config=config,
@@ -342,7 +343,7 @@ def setting_from_spec(spec: SweepSpec, env: Envelope, variant: str | None = None
         nominal=nominal(spec),
         diverge_e=spec.diverge_e,
         sea=sea,
-        current_gm=(sc.current_sigma, sc.current_tau, sc.current_max_speed),
+        current_gm=(sc.current.sigma, sc.current.tau, sc.current.max_speed),
         noise_std=tuple(float(a) for a in np.asarray(sc.noise_std(loop)).ravel()),
         seed=spec.seed,
     )
