@@ -9,7 +9,8 @@ Modules: [`tuning.params`][tuning.params] (unconstrained parametrisation of a lo
 pycma, and
 random search, as baselines), [`tuning.config`][tuning.config] (TOML), [`tuning.run`][tuning.run]
 ([`run_tune_config`][tuning.run.run_tune_config], what ``vcjax tune`` runs: the one command line
-of the tuner).
+of the tuner), [`tuning.command`][tuning.command] (``vcjax tune`` itself, plugged into ``vcjax``'s
+command line by an entry point: ``vcjax`` never imports ``tuning``).
 """
 
 from typing import TYPE_CHECKING
