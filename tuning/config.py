@@ -106,7 +106,15 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from tuning.spec import _SECTIONS, DEFAULTS, KEY_DOCS, Problem, TuneConfig, TuneSimulation
+from tuning.spec import (
+    _OPTIONAL,
+    _SECTIONS,
+    DEFAULTS,
+    KEY_DOCS,
+    Problem,
+    TuneConfig,
+    TuneSimulation,
+)
 from vcjax import loops
 from vcjax.config import (
     ConfigError,
@@ -150,7 +158,7 @@ def _sections(raw: dict) -> dict:
     the closest."""
     if not isinstance(raw, dict):
         raise ConfigError("config: expected a table of sections")
-    known = sorted([*_SECTIONS, *_SPECIAL, *REGISTERED])
+    known = sorted([*_SECTIONS, *_SPECIAL, *REGISTERED, *_OPTIONAL])
     for name, table in raw.items():
         if name not in known:
             raise ConfigError(
@@ -160,7 +168,10 @@ def _sections(raw: dict) -> dict:
             raise ConfigError(f"[{name}]: expected a table, got {type(table).__name__} {table!r}")
     for name, cls in REGISTERED.items():  # sections added by vcjax.config.register_section
         parse_section(cls, raw.get(name), name)
-    return {name: parse_section(cls, raw.get(name), name) for name, cls in _SECTIONS.items()}
+    sec = {name: parse_section(cls, raw.get(name), name) for name, cls in _SECTIONS.items()}
+    for name, cls in _OPTIONAL.items():  # [robust]: None where not given
+        sec[name] = parse_section(cls, raw[name], name) if name in raw else None
+    return sec
 
 
 def _simulation(raw: dict, sec: dict):
@@ -303,6 +314,10 @@ def validate_config(raw: dict, config_path=None) -> TuneConfig:
     choice = parse_scenario(raw.get("scenario"), "scenario", config_path or Path("config"))
     choice = _controller(raw, sec, choice)
     init = _vehicle_keys(raw, sec, choice.loop(sec["problem"].variant), waves)
+    if sec["robust"] is not None:
+        from tuning.robust import check_section
+
+        check_section(sec["robust"], choice.loop(sec["problem"].variant))
     return TuneConfig(
         **sec,
         simulation=TuneSimulation(u_d=u_d),

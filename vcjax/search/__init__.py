@@ -16,10 +16,18 @@ replay;
 rollouts.
 """
 
-from vcjax.search.core import ALIASES, FalsifyResult, evaluate, falsify, metric_name
+from vcjax.search.core import (
+    ALIASES,
+    FalsifyResult,
+    SegmentMetric,
+    evaluate,
+    falsify,
+    metric_name,
+)
 from vcjax.search.envelope import (
     Envelope,
     Setting,
+    envelope_from_scenario,
     envelope_from_spec,
     make_setting,
     scenario_from,
@@ -30,7 +38,9 @@ __all__ = [
     "ALIASES",
     "Envelope",
     "FalsifyResult",
+    "SegmentMetric",
     "Setting",
+    "envelope_from_scenario",
     "envelope_from_spec",
     "evaluate",
     "falsify",

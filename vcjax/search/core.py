@@ -11,7 +11,7 @@ import dataclasses
 import functools
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 import jax
 import jax.numpy as jnp
@@ -23,7 +23,15 @@ from vcjax.runtime.interrupts import stop_requested
 from vcjax.search.envelope import Envelope, Setting, make_setting, scenario_from
 from vcjax.sweep.run import _act_names, simulate_scenario
 
-__all__ = ["ALIASES", "FalsifyResult", "falsify", "evaluate", "metric_name", "soft_metric"]
+__all__ = [
+    "ALIASES",
+    "FalsifyResult",
+    "SegmentMetric",
+    "falsify",
+    "evaluate",
+    "metric_name",
+    "soft_metric",
+]
 
 #: other spellings of the sweep metrics
 ALIASES = {
@@ -38,9 +46,39 @@ SHARPNESS = 16.0
 _FLOOR = -1.0e6  # log-domain stand-in for an empty or masked sample (finite: no NaN gradients)
 
 
-def metric_name(loop, gains, setting: Setting, name: str) -> str:
+class SegmentMetric(Protocol):
+    """A metric of one rollout that is not a sweep metric (e.g. the tuning loss:
+    ``tuning.robust.TuningLossMetric``), folded segment by segment like the sweep metrics.
+
+    A hashable, frozen object (it is a static argument of the compiled search): ``name`` (the
+    key it is reported under), ``init(dtype)`` (an accumulator pytree), ``update(acc, seg,
+    sig, ks)`` (fold the segment's [`Trajectory`][vcjax.rollout.Trajectory] ``seg``, its
+    [`Signals`][vcjax.loops.types.Signals] ``sig`` and its (L,) step indices ``ks``),
+    ``value(acc, n)`` (the () metric after ``n`` steps). A smooth metric: its gradient is
+    ascended as is.
+    """
+
+    name: str
+
+    def init(self, dtype) -> Any: ...
+
+    def update(self, acc, seg, sig, ks) -> Any: ...
+
+    def value(self, acc, n: int) -> Any: ...
+
+
+def _name(metric) -> str:
+    return metric if isinstance(metric, str) else metric.name
+
+
+def metric_name(loop, gains, setting: Setting, name):
     """The sweep metric ``name`` (or an alias of ``ALIASES``) of ``loop``'s metrics
-    (``ValueError`` listing them)."""
+    (``ValueError`` listing them); a [`SegmentMetric`][vcjax.search.core.SegmentMetric] is
+    returned as it is."""
+    if not isinstance(name, str):
+        if not all(hasattr(name, a) for a in ("name", "init", "update", "value")):
+            raise ValueError(f"metric: expected a metric name or a SegmentMetric, got {name!r}")
+        return name
     env = Envelope.build(loop, {})
     sc = scenario_from(jnp.asarray(env.lo), 0, env, dataclasses.replace(setting, sea=None))
     from vcjax.sweep.run import to_scenario
@@ -60,9 +98,12 @@ def soft_metric(name: str) -> bool:
     return name.startswith("max_")
 
 
-def _metrics(x, index, gains, env: Envelope, setting: Setting, metric: str, sharpness: float):
+def _metrics(x, index, gains, env: Envelope, setting: Setting, metric, sharpness: float):
     """``(surrogate, metrics)`` of one scenario: the metrics of a streamed rollout and, for a
-    max metric, its power mean over the same samples (else the metric itself)."""
+    max metric, its power mean over the same samples (else the metric itself); a
+    [`SegmentMetric`][vcjax.search.core.SegmentMetric] is added to the metrics under its
+    name."""
+    custom = not isinstance(metric, str)
     loop, config = setting.loop, setting.config
     sc = scenario_from(x, index, env, setting)
     n = config.num_steps
@@ -74,10 +115,12 @@ def _metrics(x, index, gains, env: Envelope, setting: Setting, metric: str, shar
         names = _act_names(loop, gains, s)
 
         def update(acc, seg, ks):
-            macc, soft, healthy = acc
+            macc, soft, healthy, cacc = acc
             sig = loop.signals(seg, s)
             macc = metrics_update(macc, sig, seg.finite, ks, k0)
-            if soft_metric(metric):
+            if custom:
+                cacc = metric.update(cacc, seg, sig, ks)
+            elif soft_metric(metric):
                 if metric == "max_abs_e":
                     a, mask = jnp.abs(sig.eps[:, 1]), jnp.ones(ks.shape, bool)
                 elif metric == "max_dist_3d":
@@ -86,17 +129,20 @@ def _metrics(x, index, gains, env: Envelope, setting: Setting, metric: str, shar
                     a, mask = sig.act[metric.removeprefix("max_abs_")], jnp.ones(ks.shape, bool)
                 la = jnp.where(mask, p * jnp.log(jnp.abs(a) + 1e-30), _FLOOR)
                 soft = jnp.logaddexp(soft, jax.scipy.special.logsumexp(la))
-            return (macc, soft, healthy & seg.healthy), None
+            return (macc, soft, healthy & seg.healthy, cacc), None
 
-        init = (metrics_init(names, dtype), jnp.asarray(_FLOOR, dtype), jnp.array(True))
+        cacc = metric.init(dtype) if custom else ()
+        init = (metrics_init(names, dtype), jnp.asarray(_FLOOR, dtype), jnp.array(True), cacc)
         L = min(100, n)
         return Reduction(init, update, L)
 
     (acc, _), _ = simulate_scenario(loop, gains, setting.nominal, sc, config, setting.dt, reduction)
-    macc, soft, healthy = acc
+    macc, soft, healthy, cacc = acc
     m = metrics_finalize(macc, n, k0, jnp.asarray(setting.dt, dtype), setting.diverge_e)
     m["diverged"] = m["diverged"] | ~healthy
-    if soft_metric(metric):
+    if custom:
+        m[metric.name] = surrogate = metric.value(cacc, n)
+    elif soft_metric(metric):
         count = n - k0 if metric == "max_dist_3d" else n
         surrogate = jnp.exp((soft - jnp.log(count)) / p)
     else:
@@ -130,7 +176,7 @@ def _key(setting: Setting):
     return dataclasses.replace(setting, nominal=None)
 
 
-def evaluate(loop, gains, env: Envelope, setting: Setting, metric: str, x, index) -> dict:
+def evaluate(loop, gains, env: Envelope, setting: Setting, metric, x, index) -> dict:
     """The metrics (name -> (B,) numpy) of parameter vectors ``x`` (B, P) in config units with
     the random draws of scenarios ``index`` (B,): e.g. a replay of ``worst.json``."""
     x = jnp.asarray(np.asarray(x, dtype=float), _dtype(setting))
@@ -231,7 +277,7 @@ def falsify(
     loop,
     gains,
     envelope,
-    metric: str,
+    metric,
     setting: Setting | None = None,
     *,
     starts: int = 8,
@@ -260,7 +306,8 @@ def falsify(
             [`Envelope`][vcjax.search.envelope.Envelope], or a
             mapping name -> ``(lo, hi)`` or number
             ([`Envelope.build`][vcjax.search.envelope.Envelope.build]);
-        metric: a sweep metric of the loop (or an alias, ``ALIASES``).
+        metric: a sweep metric of the loop (or an alias, ``ALIASES``), or a
+            [`SegmentMetric`][vcjax.search.core.SegmentMetric] (e.g. the tuning loss).
         setting: [`Setting`][vcjax.search.envelope.Setting] (horizon, dt, nominal parameters, sea,
             seed); default:
             [`make_setting`][vcjax.search.envelope.make_setting] of ``setting_options``.
@@ -277,6 +324,7 @@ def falsify(
     if starts < 1 or steps < 1:
         raise ValueError(f"starts, steps: expected >= 1, got {starts}, {steps}")
     metric = metric_name(loop, gains, setting, metric)
+    name = _name(metric)
     setting = dataclasses.replace(setting, loop=loop)
     stop = stop_requested if stop is None else stop
     say = progress or (lambda line: None)
@@ -307,7 +355,7 @@ def falsify(
             interrupted = True
             break
         m, g = compiled(z, index, gains, setting.nominal)
-        v = np.asarray(m[metric])
+        v = np.asarray(m[name])
         first_s = time.perf_counter() - t0 if first_s is None else first_s
         r = _rank(v)
         better = r > best_v
@@ -318,7 +366,7 @@ def falsify(
         done += starts
         worst = float(np.max(best_v))
         curve.append((done, worst))
-        say(f"gradient step {k + 1}/{steps}: {done} rollouts, worst {metric} {worst:.4g}")
+        say(f"gradient step {k + 1}/{steps}: {done} rollouts, worst {name} {worst:.4g}")
         if bound is not None and worst > bound:
             falsified = True
             break
@@ -353,20 +401,20 @@ def falsify(
         nb = min(batch, n_rand - j)
         rx.append(xb[:nb])
         ri.append(ib[:nb])
-        rv.append(np.asarray(m[metric])[:nb])
+        rv.append(np.asarray(m[name])[:nb])
         rd.append(np.asarray(m["diverged"])[:nb])
         for k, r in enumerate(_rank(rv[-1])):  # one point per rollout
             rworst = max(rworst, float(r))
             rcurve.append((j + k + 1, rworst))
         j += nb
-        say(f"random: {j}/{n_rand} rollouts, worst {metric} {rworst:.4g}")
+        say(f"random: {j}/{n_rand} rollouts, worst {name} {rworst:.4g}")
         if bound is not None and rworst > bound:
             rfals = True
             break
     random_wall_s = time.perf_counter() - t1
     cat = lambda parts, shape: np.concatenate(parts) if parts else np.zeros(shape)
     return FalsifyResult(
-        metric=metric,
+        metric=name,
         envelope=envelope,
         x=np.asarray(envelope.from_unit(jnp.asarray(best_z, dtype))),
         index=np.asarray(index),

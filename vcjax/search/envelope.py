@@ -41,7 +41,14 @@ from vcjax.environment import waves
 from vcjax.environment.current import current_ned
 from vcjax.sweep.spec import MCConfig, MCScenario, ScenarioSpec, SweepSpec, check_wave_step
 
-__all__ = ["Envelope", "Setting", "scenario_from", "setting_from_spec", "envelope_from_spec"]
+__all__ = [
+    "Envelope",
+    "Setting",
+    "scenario_from",
+    "setting_from_spec",
+    "envelope_from_spec",
+    "envelope_from_scenario",
+]
 
 _WAVE = ("wave_hs", "wave_tp", "wave_direction_deg", "wave_spreading", "wave_origin_depth")
 _PLAIN = ("current_speed", "current_direction_deg", "u_d")
@@ -292,8 +299,13 @@ def scenario_from(x, index, env: Envelope, setting: Setting) -> MCScenario:
 def envelope_from_spec(spec: SweepSpec) -> Envelope:
     """The envelope of a sweep spec's scenario ranges (every ``[lo, hi]`` searched, every
     number fixed; ``[model_error] relative = r``: each field's factor in ``[1 - r, 1 + r]``)."""
-    sc: ScenarioSpec = spec.scenario
-    loop = spec.loop(spec.variants[0])
+    return envelope_from_scenario(spec.scenario, spec.loop(spec.variants[0]), spec.dt)
+
+
+def envelope_from_scenario(sc: ScenarioSpec, loop, dt: float | None = None) -> Envelope:
+    """The envelope of a [`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec]'s ranges for ``loop``
+    (as [`envelope_from_spec`][vcjax.search.envelope.envelope_from_spec]; e.g. the scenario
+    distribution of a tune, ``tuning.robust``)."""
     r = {
         "current_speed": sc.current_speed,
         "current_direction_deg": sc.current_direction_deg,
@@ -312,7 +324,7 @@ def envelope_from_spec(spec: SweepSpec) -> Envelope:
             "wave_spreading": sc.wave_spreading,
             "wave_origin_depth": sc.wave_origin_depth,
         }
-    return Envelope.build(loop, r, dt=spec.dt)
+    return Envelope.build(loop, r, dt=dt)
 
 
 def setting_from_spec(spec: SweepSpec, env: Envelope, variant: str | None = None) -> Setting:
