@@ -67,7 +67,7 @@ def test_tune_simulation_section_equals_problem_spelling():
 
 
 def test_tune_current_section_samples_the_current_max_scenarios():
-    from tuning.cli import build
+    from tuning.run import build
 
     base = {"problem": {"horizon": 1.0, "dt": 0.5}, "train": {"size": 4}, "heldout": {"size": 3}}
     old = build(validate_config({**base, "scenarios": {"current_max": 0.7}}))
@@ -124,7 +124,7 @@ def test_reference_markdown_has_one_row_per_key():
 
 
 def test_tune_simulation_u_d_reaches_the_scenarios():
-    from tuning.cli import build
+    from tuning.run import build
 
     base = {"problem": {"horizon": 1.0, "dt": 0.5}, "train": {"size": 3}, "heldout": {"size": 2}}
     train = build(validate_config({**base, "simulation": {"u_d": 1.25}}))[3]

@@ -62,8 +62,8 @@ def _tune_base():
 def test_tune_current_model_written_as_its_default_changes_nothing():
     """[current] model = "constant" (the default) used to switch the current from U(0, 1) m/s in
     any direction to 0.5 m/s towards 90 deg, run.json still recording current_max."""
-    from tuning.cli import build
     from tuning.config import validate_config
+    from tuning.run import build
 
     omitted = validate_config(_tune_base())
     written = validate_config({**_tune_base(), "current": {"model": "constant"}})

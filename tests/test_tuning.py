@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from tuning.blackbox import batch_objective, cmaes_popsize, run_cmaes, run_random_search
-from tuning.cli import run_tune_config
 from tuning.config import ConfigError, validate_config
 from tuning.loss import TuningProblem, aggregate, objective, problem_data
 from tuning.optim import forward_mode, run_gradient_tuner
 from tuning.params import FRAC_MAX, GainSpace, rh_bound
+from tuning.run import run_tune_config
 from tuning.scenarios import sample_scenarios
 from vcjax import cli, loops
 from vcjax.control.vcm import pm_gains
@@ -548,7 +548,7 @@ import jax
 jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp, numpy as np
 from benchmarks.perf.sharded_gradient import loop_allreduces
-from tuning.cli import distribute
+from tuning.run import distribute
 from tuning.loss import TuningProblem, objective, problem_data
 from tuning.scenarios import sample_scenarios
 assert jax.device_count() == 2

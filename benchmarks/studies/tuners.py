@@ -91,10 +91,10 @@ def run_tuner(
     import numpy as np
 
     from tuning.blackbox import batch_objective, cmaes_popsize, run_cmaes, run_random_search
-    from tuning.cli import build
     from tuning.config import load_config
     from tuning.loss import objective
     from tuning.optim import run_gradient_tuner, tuner_options
+    from tuning.run import build
 
     if tuner not in TUNERS:
         raise ValueError(f"tuner: unknown {tuner!r}; expected one of {list(TUNERS)}")

@@ -1,8 +1,7 @@
 """``vcjax tune CONFIG.toml --out DIR``: tune the gains of any registered loop from a TOML file.
 
-[`run_tune_config`][tuning.cli.run_tune_config] is the entry point (the ``vcjax`` CLI calls it;
-``python -m tuning.cli``
-works too). It writes into ``out_dir``:
+[`run_tune_config`][tuning.run.run_tune_config] is the entry point (``vcjax tune`` calls it; it
+is the one command line of the tuner). It writes into ``out_dir``:
 
 * ``gains.json``: the tuned gains, in the loop's gains-JSON format (``loop.gains_to_json``;
   ``vcjax simulate sim1 --gains DIR/gains.json`` / ``sim2 --gains`` load it);
@@ -19,13 +18,13 @@ works too). It writes into ``out_dir``:
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import math
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -34,7 +33,7 @@ import numpy as np
 from tuning.config import load_config
 from tuning.loss import TERMS, TuningProblem, objective, problem_data
 from tuning.loss import loss_weights as make_weights
-from tuning.optim import run_gradient_tuner, tuner_options
+from tuning.optim import TunerHooks, TunerOptions, run_gradient_tuner
 from tuning.params import GainSpace
 from tuning.report import (
     ProgressBar,
@@ -51,7 +50,7 @@ from vcjax.runtime import distributed
 from vcjax.runtime.interrupts import stop_requested_everywhere
 from vcjax.runtime.outputs import write_json_atomic
 
-__all__ = ["build", "run_tune_config", "main"]
+__all__ = ["build", "distribute", "run_tune_config"]
 
 
 def _config(cfg) -> TuneConfig:
@@ -143,7 +142,7 @@ def _realised_hs(batch) -> list[float]:
     return [round(float(h), 3) for h in 4.0 * np.sqrt(0.5 * np.sum(a * a, axis=-1))]
 
 
-def _training_step(loss_fn, o, cfg, problem, start, args):
+def _training_step(loss_fn, opts: TunerOptions, cfg, problem, start, args):
     """``(step, future)``: the training step of
     [`run_gradient_tuner`][tuning.optim.run_gradient_tuner], its batch
     ``value_and_grad`` keyed in the program store by what fixes the loss (the config, the
@@ -151,14 +150,11 @@ def _training_step(loss_fn, o, cfg, problem, start, args):
     building in a thread (``future``; None: built at the first step)."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from tuning.optim import init_state, make_optimizer, make_step, replicate_like
+    from tuning.optim import init_state, make_step, replicate_like
 
-    opts = tuner_options(o)
-    opt = make_optimizer(
-        opts["optimizer"], opts["learning_rate"], opts["memory_size"], opts["max_linesearch_steps"]
-    )
+    opt = opts.optimizer_fn()
     static = ("vcjax tune", cfg.to_dict(), bool(problem.tile_gains))
-    step = make_step(loss_fn, opt, opts["optimizer"], opts["grad_mode"], static)
+    step = make_step(loss_fn, opt, opts.optimizer, opts.grad_mode, static)
     if not hasattr(step, "prebuild") or jax.process_count() > 1:
         return step, None
     theta = jnp.asarray(start)
@@ -249,6 +245,199 @@ def distribute(train, data, theta0):
     return distributed.shard_batch(train, mesh, SCENARIO_AXES), data, theta0
 
 
+@dataclasses.dataclass
+class _Tune:
+    """What a tune run holds between its stages: the config, the problems (training, held-out),
+    the data, the batches (``train``; ``train_d``, ``data_d``, ``start`` as distributed), the
+    held-out evaluation and the device count of the training batch."""
+
+    cfg: TuneConfig
+    problem: Any
+    eval_problem: Any
+    data: Any
+    train: Any
+    heldout: Any
+    train_d: Any = None
+    data_d: Any = None
+    start: Any = None
+    eval_fn: Any = None
+    n_dev: int = 1
+    sharded: bool = False
+
+
+def _prepare(cfg: TuneConfig, say) -> _Tune:
+    """The problem and batches of ``cfg``, the training batch distributed over the devices of the
+    run ([`distribute`][tuning.run.distribute]); announces the run."""
+    problem, eval_problem, data, train, heldout = build(cfg)
+    # the held-out batch is evaluated by every process on its own devices; the training batch is
+    # sharded over every device of the run below ([`distribute`][tuning.run.distribute])
+    heldout, _ = shard_scenarios(heldout)
+    n_dev = jax.device_count() if int(train.eta0.shape[0]) % jax.device_count() == 0 else 1
+    space, o = problem.space, cfg.optimizer
+    say(
+        f"tuning {space.loop.describe()}: {space.size} parameters ({', '.join(space.tune)}), "
+        f"{cfg.train.size} training / {cfg.heldout.size} held-out scenarios, "
+        f"horizon {cfg.problem.horizon:g} s, {o.name} x {o.steps} steps "
+        f"({o['grad_mode']} mode); training batch on {n_dev} device(s)"
+    )
+    t = _Tune(cfg, problem, eval_problem, data, train, heldout, n_dev=n_dev)
+    t.eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
+    start = data.theta_ref + space.symmetry_break(data.base)
+    t.train_d, t.data_d, t.start = distribute(train, data, start)
+    t.sharded = t.train_d is not train
+    if t.sharded:
+        # gains copied per scenario: their gradient reduces across devices once, not per step
+        t.problem = dataclasses.replace(problem, tile_gains=True)
+    return t
+
+
+def _say_timing(res, say) -> None:
+    """The training step's compile and per-step times, and any rejected steps."""
+    walls = [h["wall_s"] for h in res.history]
+    if walls:
+        later = np.diff(walls)
+        per = float(np.median(later)) if later.size else float("nan")
+        say(
+            f"training step compiled and run once in {walls[0]:.1f} s "
+            f"(compiling ~{max(walls[0] - per, 0.0) if later.size else walls[0]:.1f} s); "
+            + (f"then {per:.3g} s per step" if later.size else "one step only")
+        )
+    if res.n_bad:
+        say(f"warning: {res.n_bad} step(s) rejected for non-finite loss/gradient/update")
+
+
+def _train(t: _Tune, progress, say):
+    """``(result, before)``: the gradient tuning of the training batch
+    ([`run_gradient_tuner`][tuning.optim.run_gradient_tuner]) and the held-out evaluation of the
+    default gains (run while the training step's largest program builds)."""
+    cfg, problem, data = t.cfg, t.problem, t.data
+    o, B, N = cfg.optimizer, cfg.train.size, problem.num_steps
+    theta0 = data.theta_ref  # the default gains: what 'before' means
+    say(
+        f"compiling the held-out evaluation ({cfg.heldout.size} rollouts x {N} steps) "
+        "and evaluating the initial gains ..."
+    )
+    t0 = time.perf_counter()
+    loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
+    opts = TunerOptions.from_section(o)
+    # the training step's largest program builds in a thread while the held-out evaluation
+    # compiles and runs (XLA compiles outside Python's lock)
+    step, building = _training_step(loss_fn, opts, cfg, problem, t.start, (t.data_d, t.train_d))
+    before = _evaluate(t.eval_fn, theta0, data, t.heldout)
+    say(
+        f"held-out loss before: {before['loss']:.6g} ({time.perf_counter() - t0:.1f} s incl. "
+        f"compiling); compiling the training step ({o['name']}: loss and {o['grad_mode']}-mode "
+        f"gradient through {B} rollouts x {N} steps) - the first step includes it ..."
+    )
+    if building is not None:
+        building.result()
+    bar = ProgressBar(o["steps"], label="tune ", stream=progress, warmup=1) if progress else None
+    if t.sharded:
+        say(f"training batch sharded over {jax.device_count()} devices")
+    space = problem.space
+    hooks = TunerHooks(
+        on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
+        progress=bar,
+        should_stop=stop_requested_everywhere,  # all processes stop at the same step
+    )
+    res = run_gradient_tuner(
+        loss_fn, t.start, (t.data_d, t.train_d), opts, hooks=hooks, step_fn=step
+    )
+    if bar is not None and len(res.history) < o["steps"]:
+        bar.close()
+    _say_timing(res, say)
+    return res, before
+
+
+def _history(t: _Tune, res) -> dict:
+    """``history.json``: the config, the gains' labels and initial values, the iterations."""
+    space = t.problem.space
+    return {
+        "config": t.cfg.to_dict(),
+        "labels": space.labels(),
+        "initial_gains": space.loop.gains_to_json(t.data.base),
+        "iterations": res.history,
+        "n_bad": res.n_bad,
+        "aborted": res.aborted,
+        "reason": res.reason,
+        "evals": res.evals,
+        "rollouts": res.evals * t.cfg.train.size,
+    }
+
+
+def _plots(t: _Tune, res, tuned, before, after, out: Path) -> list:
+    """The loss curve and (unless interrupted) the before/after figures of the first
+    ``[report] plot_scenarios`` held-out scenarios; their paths."""
+    o, data, heldout, space = t.cfg.optimizer, t.data, t.heldout, t.problem.space
+    files = [plot_loss_curve(res.history, out / "loss_curve.png", f"{o['name']} tuning")]
+    n_plot = min(t.cfg.report.plot_scenarios, t.cfg.heldout.size)
+    n_plot = 0 if res.reason == "interrupted" else n_plot  # no new compiles once stopped
+    if not n_plot:
+        return files
+    tr_time, (tr_before, tr_after) = _trajectories(
+        t.eval_problem, (data.base, tuned), heldout, data.dt, n_plot
+    )
+    currents = np.asarray(heldout.current)[:n_plot]
+    path_xy = _path_polyline(space.loop, heldout, tr_before["xy"], tr_after["xy"])
+    files += plot_before_after(tr_time, tr_before, tr_after, currents, out, path_xy)
+    weights = {k: float(getattr(data.weights, k)) for k in TERMS}
+    files.append(
+        plot_loss_terms(
+            tr_time,
+            tr_before,
+            tr_after,
+            (before["terms"], after["terms"]),
+            weights,
+            getattr(space.loop, "actuator_names", None),
+            out / "before_after_loss_terms.png",
+        )
+    )
+    return files
+
+
+def _scenario_loss(ev: dict) -> dict:
+    return {"median": ev["scenario_loss_median"], "max": ev["scenario_loss_max"]}
+
+
+def _summary(t: _Tune, res, before, after, t_start: float) -> dict:
+    """``summary.json`` (``t_start``: ``time.perf_counter()`` when the run began)."""
+    space, data, cfg = t.problem.space, t.data, t.cfg
+    lb, la = before["loss"], after["loss"]
+    summary = {
+        "heldout_loss_before": lb,
+        "heldout_loss_after": la,
+        "heldout_reduction_pct": 100.0 * (lb - la) / lb if lb > 0 else None,
+        "heldout_terms_before": before["terms"],
+        "heldout_terms_after": after["terms"],
+        "heldout_scenario_loss_before": _scenario_loss(before),
+        "heldout_scenario_loss_after": _scenario_loss(after),
+        "heldout_smooth_saturation": t.eval_problem.smooth,
+        "train_loss_before": res.history[0]["loss"] if res.history else None,
+        "train_loss_after": res.loss,
+        "loop": space.loop.describe(),
+        "tuned_gains": space.describe(res.theta, data.base),
+        "initial_gains": space.values(data.base),
+        "iterations": len(res.history),
+        "n_bad": res.n_bad,
+        "aborted": res.aborted,
+        "reason": res.reason,
+        "evals": res.evals,
+        "rollouts": res.evals * cfg.train.size,
+        "rollout_convention": "one batch value_and_grad = train.size rollouts (forward+backward)",
+        "devices": t.n_dev,
+        "tuning_wall_s": res.history[-1]["wall_s"] if res.history else 0.0,
+        "total_wall_s": time.perf_counter() - t_start,
+    }
+    if cfg.get("waves") is not None:  # the seas trained on and held out (different keys)
+        summary["waves"] = {
+            "train_hs": _realised_hs(t.train),
+            "heldout_hs": _realised_hs(t.heldout),
+            "note": "realised significant height 4 sqrt(m0) of each scenario's sea [m]; the "
+            "held-out seas are drawn from other keys than the training seas",
+        }
+    return summary
+
+
 def run_tune_config(
     config_path, out_dir, progress=sys.stderr, cfg: TuneConfig | None = None
 ) -> dict:
@@ -273,7 +462,7 @@ def run_tune_config(
     A run that stops after repeated non-finite steps still writes its outputs, with
     ``summary["aborted"] = True``. In a multi-process run (``vcjax launch -n N -- tune ...``)
     every process runs the same steps on its shard of the training batch
-    ([`distribute`][tuning.cli.distribute])
+    ([`distribute`][tuning.run.distribute])
     and process 0 writes the outputs (the others return no files).
     """
     writer = jax.process_index() == 0
@@ -283,193 +472,30 @@ def run_tune_config(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    problem, eval_problem, data, train, heldout = build(cfg)
-    # the held-out batch is evaluated by every process on its own devices; the training batch is
-    # sharded over every device of the run below ([`distribute`][tuning.cli.distribute])
-    heldout, _ = shard_scenarios(heldout)
-    n_dev = jax.device_count() if int(train.eta0.shape[0]) % jax.device_count() == 0 else 1
-    space = problem.space
-    o = cfg.optimizer
-    B = cfg.train.size
-    say(
-        f"tuning {space.loop.describe()}: {space.size} parameters ({', '.join(space.tune)}), "
-        f"{B} training / {cfg.heldout.size} held-out scenarios, "
-        f"horizon {cfg.problem.horizon:g} s, {o.name} x {o.steps} steps "
-        f"({o['grad_mode']} mode); training batch on {n_dev} device(s)"
-    )
-    eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
-    theta0 = data.theta_ref  # the default gains: what 'before' means
-    N = problem.num_steps
-    say(
-        f"compiling the held-out evaluation ({cfg.heldout.size} rollouts x {N} steps) "
-        "and evaluating the initial gains ..."
-    )
-    t0 = time.perf_counter()
-    start = theta0 + space.symmetry_break(data.base)
-    train_d, data_d, start = distribute(train, data, start)
-    sharded = train_d is not train
-    if sharded:
-        # gains copied per scenario: their gradient reduces across devices once, not per step
-        problem = dataclasses.replace(problem, tile_gains=True)
-    loss_fn = lambda th, d, s: objective(th, d, s, problem)[0]
-    # the training step's largest program builds in a thread while the held-out evaluation
-    # compiles and runs (XLA compiles outside Python's lock)
-    step, building = _training_step(loss_fn, o, cfg, problem, start, (data_d, train_d))
-    before = _evaluate(eval_fn, theta0, data, heldout)
-    say(
-        f"held-out loss before: {before['loss']:.6g} ({time.perf_counter() - t0:.1f} s incl. "
-        f"compiling); compiling the training step ({o['name']}: loss and {o['grad_mode']}-mode "
-        f"gradient through {B} rollouts x {N} steps) - the first step includes it ..."
-    )
-    if building is not None:
-        building.result()
-
-    bar = ProgressBar(o["steps"], label="tune ", stream=progress, warmup=1) if progress else None
-    if sharded:
-        say(f"training batch sharded over {jax.device_count()} devices")
-    res = run_gradient_tuner(
-        loss_fn,
-        start,
-        (data_d, train_d),
-        step_fn=step,
-        **tuner_options(o),
-        on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
-        progress=bar,
-        should_stop=stop_requested_everywhere,  # all processes stop at the same step
-    )
-    interrupted = res.reason == "interrupted"
-    if bar is not None and len(res.history) < o["steps"]:
-        bar.close()
-    walls = [h["wall_s"] for h in res.history]
-    if walls:
-        later = np.diff(walls)
-        per = float(np.median(later)) if later.size else float("nan")
-        say(
-            f"training step compiled and run once in {walls[0]:.1f} s "
-            f"(compiling ~{max(walls[0] - per, 0.0) if later.size else walls[0]:.1f} s); "
-            + (f"then {per:.3g} s per step" if later.size else "one step only")
-        )
-    if res.n_bad:
-        say(f"warning: {res.n_bad} step(s) rejected for non-finite loss/gradient/update")
+    t = _prepare(cfg, say)
+    res, before = _train(t, progress, say)
     say(f"stopped: {res.reason}; evaluating the tuned gains on the held-out batch ...")
     theta = jnp.asarray(np.asarray(res.theta))  # a local copy (replicated in multi-process runs)
-    after = _evaluate(eval_fn, theta, data, heldout)
-    tuned = space.decode(theta, data.base)
+    after = _evaluate(t.eval_fn, theta, t.data, t.heldout)
+    space = t.problem.space
+    tuned = space.decode(theta, t.data.base)
     gains_json = space.loop.gains_to_json(tuned)
     space.loop.gains_from_json(gains_json)  # what `vcjax simulate --gains` will do: validate
-
-    files = []
     if not writer:
-        return {"summary": None, "files": files}
-    f = out / "gains.json"
-    write_json_atomic(f, gains_json)
-    files.append(f)
-    f = out / "history.json"
-    hist = {
-        "config": cfg.to_dict(),
-        "labels": space.labels(),
-        "initial_gains": space.loop.gains_to_json(data.base),
-        "iterations": res.history,
-        "n_bad": res.n_bad,
-        "aborted": res.aborted,
-        "reason": res.reason,
-        "evals": res.evals,
-        "rollouts": res.evals * B,
-    }
-    write_json_atomic(f, hist, indent=1)
-    files.append(f)
-    files.append(plot_loss_curve(res.history, out / "loss_curve.png", f"{o['name']} tuning"))
-    n_plot = min(cfg.report.plot_scenarios, cfg.heldout.size)
-    n_plot = 0 if interrupted else n_plot  # no new compiles once stopped
-    if n_plot:
-        t, (tr_before, tr_after) = _trajectories(
-            eval_problem, (data.base, tuned), heldout, data.dt, n_plot
-        )
-        currents = np.asarray(heldout.current)[:n_plot]
-        path_xy = _path_polyline(space.loop, heldout, tr_before["xy"], tr_after["xy"])
-        files += plot_before_after(t, tr_before, tr_after, currents, out, path_xy)
-        weights = {k: float(getattr(data.weights, k)) for k in TERMS}
-        files.append(
-            plot_loss_terms(
-                t,
-                tr_before,
-                tr_after,
-                (before["terms"], after["terms"]),
-                weights,
-                getattr(space.loop, "actuator_names", None),
-                out / "before_after_loss_terms.png",
-            )
-        )
-
-    lb, la = before["loss"], after["loss"]
-    summary = {
-        "heldout_loss_before": lb,
-        "heldout_loss_after": la,
-        "heldout_reduction_pct": 100.0 * (lb - la) / lb if lb > 0 else None,
-        "heldout_terms_before": before["terms"],
-        "heldout_terms_after": after["terms"],
-        "heldout_scenario_loss_before": {
-            "median": before["scenario_loss_median"],
-            "max": before["scenario_loss_max"],
-        },
-        "heldout_scenario_loss_after": {
-            "median": after["scenario_loss_median"],
-            "max": after["scenario_loss_max"],
-        },
-        "heldout_smooth_saturation": eval_problem.smooth,
-        "train_loss_before": res.history[0]["loss"] if res.history else None,
-        "train_loss_after": res.loss,
-        "loop": space.loop.describe(),
-        "tuned_gains": space.describe(res.theta, data.base),
-        "initial_gains": space.values(data.base),
-        "iterations": len(res.history),
-        "n_bad": res.n_bad,
-        "aborted": res.aborted,
-        "reason": res.reason,
-        "evals": res.evals,
-        "rollouts": res.evals * B,
-        "rollout_convention": "one batch value_and_grad = train.size rollouts (forward+backward)",
-        "devices": n_dev,
-        "tuning_wall_s": res.history[-1]["wall_s"] if res.history else 0.0,
-        "total_wall_s": time.perf_counter() - t_start,
-    }
-    if cfg.get("waves") is not None:  # the seas trained on and held out (different keys)
-        summary["waves"] = {
-            "train_hs": _realised_hs(train),
-            "heldout_hs": _realised_hs(heldout),
-            "note": "realised significant height 4 sqrt(m0) of each scenario's sea [m]; the "
-            "held-out seas are drawn from other keys than the training seas",
-        }
-    if interrupted:  # SIGINT / SIGTERM: the best gains so far, of o["steps"] planned steps
+        return {"summary": None, "files": []}
+    write_json_atomic(out / "gains.json", gains_json)
+    write_json_atomic(out / "history.json", _history(t, res), indent=1)
+    files = [out / "gains.json", out / "history.json"]
+    files += _plots(t, res, tuned, before, after, out)
+    summary = _summary(t, res, before, after, t_start)
+    if res.reason == "interrupted":  # SIGINT / SIGTERM: the best gains so far, of planned steps
         summary["interrupted"] = True
-        summary["steps_planned"] = o["steps"]
-    f = out / "summary.json"
-    write_json_atomic(f, summary)
-    files.append(f)
+        summary["steps_planned"] = cfg.optimizer["steps"]
+    write_json_atomic(out / "summary.json", summary)
+    files.append(out / "summary.json")
+    lb, la = before["loss"], after["loss"]
     say(
         f"held-out loss {lb:.6g} -> {la:.6g} "
         f"({change_text(lb, la)}); wrote {len(files)} files to {out}"
     )
     return {"summary": summary, "files": files}
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m tuning.cli CONFIG.toml --out DIR`` (float64 unless ``--no-x64``)."""
-    ap = argparse.ArgumentParser(prog="python -m tuning.cli", description=__doc__.split("\n")[0])
-    ap.add_argument("config", help="TOML configuration")
-    ap.add_argument("--out", default="out/tune", help="output folder (default: out/tune)")
-    ap.add_argument("--no-x64", dest="x64", action="store_false", help="run in float32")
-    args = ap.parse_args(argv)
-    jax.config.update("jax_enable_x64", bool(args.x64))
-    try:
-        result = run_tune_config(args.config, args.out)
-    except ValueError as err:
-        print(f"tune: {err}", file=sys.stderr)
-        return 2
-    for f in result["files"]:
-        print(f"wrote {f}")
-    return 1 if result["summary"]["aborted"] else 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
