@@ -24,6 +24,7 @@ case found against the tuned gains: ``summary.json``'s ``robust`` block
 from __future__ import annotations
 
 import dataclasses
+import json
 from typing import Any
 
 import jax
@@ -77,6 +78,15 @@ class TuningLossMetric:
         loss_weights(**w)  # refuses a bad weight, naming it
         return cls(tuple(sorted(w.items())))
 
+    @classmethod
+    def of_table(cls, table: dict) -> TuningLossMetric:
+        """From a TOML ``[weights]`` table (the tune's keys and defaults; checked by the one
+        validator: ``[weights] key: message``)."""
+        from tuning.spec import Weights
+        from vcjax.config import parse_section
+
+        return cls.of(parse_section(Weights, table, "weights"))
+
     def _weights(self, dtype):
         return loss_weights(**dict(self.weights), dtype=dtype)
 
@@ -96,11 +106,22 @@ class TuningLossMetric:
 
 def check_section(rob, loop) -> None:
     """Cross-checks of ``[robust]`` (the one validator checked each key): ``starts >=
-    adversarial_count`` (the metric is checked against the loop's when the search is built)."""
+    adversarial_count``; the metric one of the tuning loss's names or a sweep metric's (an
+    actuator's ``max_abs_<name>`` is checked against the loop's when the search is built)."""
     if rob.starts < rob.adversarial_count:
         raise ConfigError(
             f"[robust] starts: must be >= adversarial_count ({rob.adversarial_count}), "
             f"got {rob.starts}"
+        )
+    from vcjax.config import closest
+    from vcjax.metrics import METRICS
+    from vcjax.search import ALIASES
+
+    known = [*LOSS_NAMES, *METRICS, *ALIASES]
+    if rob.metric not in known and not rob.metric.startswith("max_abs_"):
+        raise ConfigError(
+            f"[robust] metric: unknown metric {rob.metric!r}{closest(rob.metric, known)}; "
+            f"expected one of {known} (or max_abs_<actuator>)"
         )
 
 
@@ -327,3 +348,89 @@ def report(rs: RobustSearch, robust: dict, nominal: dict | None) -> dict:
             "heldout_mean <= +0.10",
         }
     return out
+
+
+# ---------------------------------------------------------------------- the hooks of vcjax tune
+
+
+def attach(t, start, say):
+    """``(search, batch)``: the [`RobustSearch`][tuning.robust.RobustSearch] of a tune being
+    prepared (``t``: [`tuning.run`][tuning.run]'s run state, ``start``: the first iterate) and
+    its training batch with the adversarial slot, filled by a first search against the
+    starting gains."""
+    from tuning.run import sampling
+    from tuning.scenarios import scenario_spec
+
+    cfg, problem = t.cfg, t.problem
+    loop = problem.space.loop
+    dtype = jnp.asarray(jax.tree_util.tree_leaves(t.data.base)[0]).dtype
+    kw = sampling(cfg, loop, dtype)
+    plant, design, coeffs = kw.pop("plant"), kw.pop("design"), kw.pop("coeffs")
+    design = loop.default_params(dtype) if design is None else design
+    plant = design if plant is None else plant
+    coeffs = type(loop).default_path()[1] if coeffs is None else coeffs
+    coeffs = jax.tree_util.tree_map(lambda a: jnp.asarray(a, dtype), coeffs)
+    kw.pop("loop")
+    spec = scenario_spec(loop, **kw)
+    rs = RobustSearch.build(
+        cfg.robust,
+        spec,
+        problem,
+        t.eval_problem,
+        (plant, design, coeffs),
+        cfg.weights,
+        cfg.problem.dt,
+    )
+    r = cfg.robust
+    say(
+        f"robust: every {r.adversarial_every} steps, a search ({r.starts} starts x {r.budget} "
+        f"steps of {rs.metric if isinstance(rs.metric, str) else rs.metric.name} over "
+        f"{', '.join(rs.envelope.searched)}) puts its {r.adversarial_count} worst scenarios in "
+        "the training batch; the first one now ..."
+    )
+    slot = rs.slot(problem.space.decode(jnp.asarray(np.asarray(start)), t.data.base), 0)
+    say(f"robust: worst found {rs.rounds[-1]['worst']:.6g}")
+    return rs, concat_batches(t.train, slot)
+
+
+def hook(t, say):
+    """The ``refresh`` hook of [`TunerHooks`][tuning.optim.TunerHooks] for a tune with
+    ``[robust]`` (``t.robust`` the search; None without)."""
+    if t.robust is None:
+        return None
+    from tuning.run import distribute
+
+    space, base = t.problem.space, t.data.base
+    decode = lambda th: space.decode(jnp.asarray(np.asarray(th)), base)  # noqa: E731
+    place = lambda b: distribute(b, t.data, t.start)[0]  # noqa: E731
+    inner = t.robust.refresh(t.train, decode, place)
+
+    def refresh(k, theta, args):
+        new = inner(k, theta, args)
+        if new is not None:
+            say(f"robust: step {k}: worst found {t.robust.rounds[-1]['worst']:.6g}")
+        return new
+
+    return refresh
+
+
+def summarize(t, tuned, after: dict, out, progress, say) -> dict:
+    """The ``robust`` block of ``summary.json`` ([`report`][tuning.robust.report]): the
+    independent search against the tuned gains; with ``compare``, the same config without
+    ``[robust]`` tuned into ``out/nominal`` and searched the same way."""
+    rs = t.robust
+    say("robust: independent worst-case search against the tuned gains ...")
+    mine = {"heldout_mean": after["loss"], **rs.check(tuned)}
+    nominal = None
+    if rs.section.compare:
+        from tuning.run import run_tune_config
+
+        say("robust: compare = true: the same config without [robust] (nominal/) ...")
+        cfg = dataclasses.replace(t.cfg, robust=None)
+        res = run_tune_config(None, out / "nominal", progress=progress, cfg=cfg)
+        gains = t.problem.space.loop.gains_from_json(
+            json.loads((out / "nominal" / "gains.json").read_text())
+        )
+        say("robust: independent worst-case search against the nominal gains ...")
+        nominal = {"heldout_mean": res["summary"]["heldout_loss_after"], **rs.check(gains)}
+    return report(rs, mine, nominal)

@@ -42,6 +42,7 @@ from tuning.report import (
     plot_loss_curve,
     plot_loss_terms,
 )
+from tuning.robust import hook as robust_hook
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from tuning.spec import TuneConfig
 from vcjax import loops, paths
@@ -59,39 +60,11 @@ def _config(cfg) -> TuneConfig:
     return cfg if isinstance(cfg, TuneConfig) else TuneConfig.from_dict(cfg)
 
 
-def build(cfg: TuneConfig):
-    """Objects of a validated config: ``(problem, eval_problem, data, train, heldout)``."""
-    cfg = _config(cfg)
-    p, sc, choice = cfg.problem, cfg.scenarios, cfg.scenario
-    loop = choice.loop(p.variant)
-    if p.initial_gains:
-        try:
-            base = loop.gains_from_json(json.loads(Path(p.initial_gains).read_text()))
-        except (OSError, json.JSONDecodeError, ValueError) as err:
-            raise ConfigError(
-                f"problem.initial_gains: cannot use {p.initial_gains}: {err}"
-            ) from None
-    else:
-        base = loop.default_gains()
-    space = GainSpace(loop=loop, tune=p.tune or None)
-    num_steps = int(round(p.horizon / p.dt))
-    problem = TuningProblem(
-        space=space,
-        num_steps=num_steps,
-        integrator=p.integrator,
-        timing=p.timing,
-        checkpoint=p.checkpoint,
-        checkpoint_every=p.checkpoint_every,
-        smooth=p.smooth,
-        risk=p.risk,
-        alpha=p.alpha,
-    )
-    eval_problem = dataclasses.replace(problem, smooth=cfg.heldout.smooth, checkpoint=False)
-    dtype = jnp.asarray(jax.tree_util.tree_leaves(base)[0]).dtype
-    weights = make_weights(**cfg.weights, dtype=dtype)
-    data = problem_data(problem, base, weights, p.dt, p.log_box, p.box_weight)
-    if cfg.train.seed == cfg.heldout.seed:
-        raise ConfigError("[heldout] seed: must differ from [train] seed (held-out scenarios)")
+def sampling(cfg: TuneConfig, loop, dtype) -> dict:
+    """The keyword arguments of [`sample_scenarios`][tuning.scenarios.sample_scenarios] (and,
+    less ``plant``, ``design``, ``coeffs``, of [`scenario_spec`][tuning.scenarios.scenario_spec])
+    of a config's scenario distribution."""
+    sc, choice = cfg.scenarios, cfg.scenario
     plant, design = choice.nominal(loop, dtype)
     extra = {"initial": cfg.initial}
     if cfg.disturbance.force:
@@ -128,6 +101,43 @@ def build(cfg: TuneConfig):
         design=design,
         coeffs=choice.coeffs(),
     )
+    return kw
+
+
+def build(cfg: TuneConfig):
+    """Objects of a validated config: ``(problem, eval_problem, data, train, heldout)``."""
+    cfg = _config(cfg)
+    p, choice = cfg.problem, cfg.scenario
+    loop = choice.loop(p.variant)
+    if p.initial_gains:
+        try:
+            base = loop.gains_from_json(json.loads(Path(p.initial_gains).read_text()))
+        except (OSError, json.JSONDecodeError, ValueError) as err:
+            raise ConfigError(
+                f"problem.initial_gains: cannot use {p.initial_gains}: {err}"
+            ) from None
+    else:
+        base = loop.default_gains()
+    space = GainSpace(loop=loop, tune=p.tune or None)
+    num_steps = int(round(p.horizon / p.dt))
+    problem = TuningProblem(
+        space=space,
+        num_steps=num_steps,
+        integrator=p.integrator,
+        timing=p.timing,
+        checkpoint=p.checkpoint,
+        checkpoint_every=p.checkpoint_every,
+        smooth=p.smooth,
+        risk=p.risk,
+        alpha=p.alpha,
+    )
+    eval_problem = dataclasses.replace(problem, smooth=cfg.heldout.smooth, checkpoint=False)
+    dtype = jnp.asarray(jax.tree_util.tree_leaves(base)[0]).dtype
+    weights = make_weights(**cfg.weights, dtype=dtype)
+    data = problem_data(problem, base, weights, p.dt, p.log_box, p.box_weight)
+    if cfg.train.seed == cfg.heldout.seed:
+        raise ConfigError("[heldout] seed: must differ from [train] seed (held-out scenarios)")
+    kw = sampling(cfg, loop, dtype)
     try:
         train = sample_scenarios(cfg.train.seed, cfg.train.size, **kw)
         heldout = sample_scenarios(cfg.heldout.seed, cfg.heldout.size, **kw)
@@ -263,6 +273,7 @@ class _Tune:
     eval_fn: Any = None
     n_dev: int = 1
     sharded: bool = False
+    robust: Any = None  # [robust]: the tuning.robust.RobustSearch
 
 
 def _prepare(cfg: TuneConfig, say) -> _Tune:
@@ -283,6 +294,11 @@ def _prepare(cfg: TuneConfig, say) -> _Tune:
     t = _Tune(cfg, problem, eval_problem, data, train, heldout, n_dev=n_dev)
     t.eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
     start = data.theta_ref + space.symmetry_break(data.base)
+    if cfg.robust is not None:  # [robust]: a first search fills the batch's adversarial slot
+        from tuning.robust import attach
+
+        t.robust, train = attach(t, start, say)
+        t.n_dev = jax.device_count() if int(train.eta0.shape[0]) % jax.device_count() == 0 else 1
     t.train_d, t.data_d, t.start = distribute(train, data, start)
     t.sharded = t.train_d is not train
     if t.sharded:
@@ -339,6 +355,7 @@ def _train(t: _Tune, progress, say):
         on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
         progress=bar,
         should_stop=stop_requested_everywhere,  # all processes stop at the same step
+        refresh=robust_hook(t, say),  # [robust]: new adversarial scenarios every K steps
     )
     res = run_gradient_tuner(
         loss_fn, t.start, (t.data_d, t.train_d), opts, hooks=hooks, step_fn=step
@@ -488,6 +505,10 @@ def run_tune_config(
     files = [out / "gains.json", out / "history.json"]
     files += _plots(t, res, tuned, before, after, out)
     summary = _summary(t, res, before, after, t_start)
+    if t.robust is not None:
+        from tuning.robust import summarize
+
+        summary["robust"] = summarize(t, tuned, after, out, progress, say)
     if res.reason == "interrupted":  # SIGINT / SIGTERM: the best gains so far, of planned steps
         summary["interrupted"] = True
         summary["steps_planned"] = cfg.optimizer["steps"]
