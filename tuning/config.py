@@ -99,6 +99,19 @@ command) naming the file and the offending ``section.key``::
 
     [report]
     plot_scenarios = 4              # held-out scenarios drawn in the before/after figures
+
+    [robust]                        # optional: robust tuning (tuning/robust.py); its presence
+    adversarial_every = 5           # switches it on: every K steps a search for the worst
+    adversarial_count = 4           # scenarios against the current gains fills the batch's
+    budget = 10                     # adversarial slot (ascent steps of each search)
+    starts = 8
+    step_size = 0.1
+    metric = "tuning_loss"          # or a sweep metric
+    seed = 7
+    compare = false                 # also tune without [robust] (summary: robust.nominal)
+    check_starts = 16               # the independent worst-case search at the end
+    check_budget = 20
+    check_seed = 1007
 """
 
 from __future__ import annotations
