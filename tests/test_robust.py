@@ -94,6 +94,32 @@ def _tune(text):
     return _prepare(validate_config(_raw(text)), lambda m: None)
 
 
+def test_refresh_hook_swaps_the_arguments_and_restarts_lbfgs():
+    """``TunerHooks.refresh``: new arguments from step K on (the loss follows them), L-BFGS's
+    memory restarted there, the best parameters those of the latest arguments."""
+    from tuning.optim import TunerHooks, run_gradient_tuner
+
+    loss = lambda th, c: jnp.sum((th - c) ** 2)  # noqa: E731
+    seen = []
+
+    def refresh(k, theta, args):
+        seen.append(k)
+        return (jnp.asarray([3.0, -1.0]),) if k == 2 else None
+
+    res = run_gradient_tuner(
+        loss,
+        jnp.zeros(2),
+        (jnp.asarray([1.0, 1.0]),),
+        optimizer="lbfgs",
+        steps=6,
+        hooks=TunerHooks(refresh=refresh),
+    )
+    assert seen[:3] == [0, 1, 2]
+    np.testing.assert_allclose(np.asarray(res.theta), [3.0, -1.0], atol=1e-6)
+    assert res.history[2]["loss"] > res.history[1]["loss"]  # the new objective from step 2
+
+
+@pytest.mark.slow  # compiles the search's reverse-mode program with the tuning loss (~30 s loaded)
 def test_tuning_loss_metric_is_the_tunes_scenario_loss_and_the_slot_refreshes():
     """The search's tuning loss of the adversarial scenarios (streamed, segment by segment) is
     the tune's own scenario loss of the slot it fills (whole rollouts); the batch keeps its
@@ -133,6 +159,7 @@ def test_robust_tune_reports_nominal_and_robust(tmp_path):
     assert "change" in r
 
 
+@pytest.mark.slow  # compiles the search's reverse-mode program with the tuning loss (~45 s loaded)
 def test_falsify_metric_loss_and_sweep_scenario_replay(tmp_path, capsys):
     """``vcjax falsify --metric loss`` searches the tuning loss ([weights] of the file); ``vcjax
     sweep CONFIG --scenario worst.json`` runs those scenarios again: the same loss (1e-9),
