@@ -395,9 +395,7 @@ def attach(t, start, say):
 
 def hook(t, say):
     """The ``refresh`` hook of [`TunerHooks`][tuning.optim.TunerHooks] for a tune with
-    ``[robust]`` (``t.robust`` the search; None without)."""
-    if t.robust is None:
-        return None
+    ``[robust]`` (``t.robust``: its [`RobustSearch`][tuning.robust.RobustSearch])."""
     from tuning.run import distribute
 
     space, base = t.problem.space, t.data.base

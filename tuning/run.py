@@ -42,7 +42,6 @@ from tuning.report import (
     plot_loss_curve,
     plot_loss_terms,
 )
-from tuning.robust import hook as robust_hook
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
 from tuning.spec import TuneConfig
 from vcjax import loops, paths
@@ -351,11 +350,16 @@ def _train(t: _Tune, progress, say):
     if t.sharded:
         say(f"training batch sharded over {jax.device_count()} devices")
     space = problem.space
+    refresh = None
+    if t.robust is not None:  # [robust]: new adversarial scenarios every K steps
+        from tuning.robust import hook
+
+        refresh = hook(t, say)
     hooks = TunerHooks(
         on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
         progress=bar,
         should_stop=stop_requested_everywhere,  # all processes stop at the same step
-        refresh=robust_hook(t, say),  # [robust]: new adversarial scenarios every K steps
+        refresh=refresh,
     )
     res = run_gradient_tuner(
         loss_fn, t.start, (t.data_d, t.train_d), opts, hooks=hooks, step_fn=step
