@@ -593,20 +593,34 @@ def test_tile_gains_must_be_a_bool():
         TuningProblem(tile_gains="yes")
 
 
-def test_host_driven_lbfgs_takes_optax_steps():
-    """The L-BFGS step drives optax's zoom line search from the host around one compiled
-    value_and_grad; its iterates, losses and evaluation counts are those of ``optax.lbfgs``
-    run in one jitted step (the line search in its while_loop), on a function whose line
-    searches both extend and zoom (Rosenbrock's, from its classic start)."""
+def _rosenbrock(th, a):
+    return jnp.sum(a * (th[1:] - th[:-1] ** 2) ** 2 + (1.0 - th[:-1]) ** 2)
+
+
+def _barrier(th, a):  # NaN for th <= 0: the line search must stay inside
+    return jnp.sum((th - 3.0) ** 2) - a[0] * jnp.sum(jnp.log(th))
+
+
+@pytest.mark.parametrize(
+    "loss, th0, a, max_ls",
+    [
+        (_rosenbrock, [-1.2, 1.0, -0.5, 0.8], [100.0, 80.0, 120.0], 12),
+        (_barrier, [0.01, 0.02, 0.5], [1.0], 2),
+    ],
+    ids=["rosenbrock", "barrier-budget-2"],
+)
+def test_host_driven_lbfgs_takes_optax_steps(loss, th0, a, max_ls):
+    """The L-BFGS step drives the zoom line search (``tuning.linesearch``) from the host around
+    one compiled value_and_grad; its iterates, losses and evaluation counts are those of
+    ``optax.lbfgs`` run in one jitted step (the line search in its while_loop): on a function
+    whose line searches both extend and zoom (Rosenbrock's, from its classic start), and with a
+    budget of 2 evaluations, on a barrier whose search runs out and takes its safe step."""
     import optax
 
     from tuning.optim import LBFGSStep, init_state, make_optimizer, make_step
 
-    def loss(th, a):
-        return jnp.sum(a * (th[1:] - th[:-1] ** 2) ** 2 + (1.0 - th[:-1]) ** 2)
-
-    a = jnp.asarray([100.0, 80.0, 120.0])
-    opt = make_optimizer("lbfgs", memory_size=5, max_linesearch_steps=12)
+    a, th0 = jnp.asarray(a), jnp.asarray(th0)
+    opt = make_optimizer("lbfgs", memory_size=5, max_linesearch_steps=max_ls)
     step = make_step(loss, opt, "lbfgs")
     assert isinstance(step, LBFGSStep)
 
@@ -618,20 +632,22 @@ def test_host_driven_lbfgs_takes_optax_steps():
             upd, new = opt.update(grad, state, theta, value=value, grad=grad, value_fn=f)
         return theta + upd, new, value
 
-    th0 = jnp.asarray([-1.2, 1.0, -0.5, 0.8])
     th_a, st_a = th0, init_state(opt, th0)
     th_b, st_b = th0, init_state(opt, th0)
-    counts = []
+    counts, ran_out = [], 0
     for _ in range(12):
         th_a, st_a, info = step(th_a, st_a, jnp.asarray(1.0), (a,))
         th_b, st_b, value_b = optax_step(th_b, st_b)
         assert bool(info.ok)
         assert float(info.loss) == pytest.approx(float(value_b), rel=1e-13, abs=1e-300)
         np.testing.assert_allclose(th_a, th_b, rtol=1e-12, atol=1e-14)
-        counts.append(int(optax.tree.get(st_b, "info").num_linesearch_steps))
+        ls = optax.tree.get(st_b, "info")
+        counts.append(int(ls.num_linesearch_steps))
+        ran_out += counts[-1] == max_ls and float(ls.curvature_error) > 0
         assert int(info.evals) == counts[-1] + (len(counts) == 1)
     assert max(counts) > 1  # some line searches took more than one evaluation
-    assert float(loss(th_a, a)) < 0.05 * float(loss(th0, a))
+    assert float(loss(th_a, a)) < float(loss(th0, a)) - 0.9 * abs(float(loss(th0, a)))
+    assert (ran_out > 0) == (max_ls == 2)  # the budget of 2 ran out: the safe step was taken
     assert step._cache_size() == 1  # the one value_and_grad compiled once
 
 

@@ -7,8 +7,9 @@ runs it, inside one jitted step, the gradient is traced and compiled three times
 search and in both branches of its loop body), the largest program of the tuner by far. Here
 the search is driven from the host instead ([`LBFGSStep`][tuning.optim.LBFGSStep]): one compiled
 ``value_and_grad`` program, called at every point the search asks for, and small jitted
-programs for optax's own L-BFGS direction and zoom line-search steps (the same arithmetic, so
-the same iterates). Every step reports its loss, gradient norm, whether it was accepted, and how
+programs for optax's L-BFGS direction and the zoom line search's rounds
+([`tuning.linesearch`][tuning.linesearch]: optax's arithmetic written out, so the same
+iterates). Every step reports its loss, gradient norm, whether it was accepted, and how
 many batch ``value_and_grad`` evaluations it used.
 
 Guard: a step whose loss, gradient or update is not finite is *rejected*: the parameters and the
@@ -36,6 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from tuning.linesearch import Zoom
 from vcjax.runtime import distributed, programs
 
 __all__ = [
@@ -235,27 +237,6 @@ def _accept(theta, state, value, grad, updates, new_state, ok, evals):
     return new_theta, new_state, StepInfo(value, gnorm, ok, evals, unorm)
 
 
-def _zoom(max_linesearch_steps: int):
-    """optax's zoom line search as ``(init, step, cond)`` with the settings of
-    ``optax.scale_by_zoom_linesearch(max_linesearch_steps, initial_guess_strategy="one")``
-    (its defaults). optax runs ``step`` in a ``while_loop``; [`LBFGSStep`][tuning.optim.LBFGSStep]
-    runs it from
-    the host. (``zoom_linesearch`` is optax's own building block of that transformation.)"""
-    from optax._src.linesearch import zoom_linesearch
-
-    return zoom_linesearch(
-        max_linesearch_steps=max_linesearch_steps,
-        max_stepsize=None,
-        tol=0.0,
-        increase_factor=2.0,
-        slope_rtol=1e-4,
-        curv_rtol=0.9,
-        approx_dec_rtol=1e-6,
-        interval_threshold=1e-5,
-        verbose=False,
-    )
-
-
 class LBFGSStep:
     """One L-BFGS step ([`make_step`][tuning.optim.make_step]), the line search driven from the
     host.
@@ -266,11 +247,11 @@ class LBFGSStep:
     search evaluates the loss and gradient once, at a step size its state decides. optax runs
     the rounds in a ``while_loop`` in the jitted step, whose two branches (search an interval,
     zoom into it) each hold the whole batch ``value_and_grad``, besides the one before the
-    search: three copies of the largest program. Here the rounds run on the host: a jitted
-    *probe* (the round with a stand-in evaluation that ends the search, so the state records
-    the step size the round asks for) gives the point, the one compiled ``value_and_grad``
-    evaluates it, and the jitted round proper consumes that evaluation. optax's own ``init``
-    and ``step`` functions do the arithmetic, so the iterates are optax's (tested against
+    search: three copies of the largest program. Here the rounds run on the host
+    ([`tuning.linesearch.Zoom`][tuning.linesearch.Zoom]): a jitted program gives the point the
+    round asks for, the one compiled ``value_and_grad`` evaluates it, and the jitted round proper
+    consumes that evaluation. The direction is optax's ``scale_by_lbfgs`` and the search is
+    optax's arithmetic step for step, so the iterates are optax's (tested against
     ``optax.lbfgs`` run in one ``jax.jit``).
 
     Call it as the jitted Adam step: ``step(theta, state, scale, args)``; ``state`` is
@@ -287,41 +268,24 @@ class LBFGSStep:
         # value_and_grad in vcjax.runtime.programs' store (None: traced every run)
         self._program_static = program_static
         self._stored: tuple | None = None  # (argument spec, compiled call) from the store
-        init_ls, step_ls, cond_ls = _zoom(max_linesearch_steps)
+        zoom = Zoom(max_linesearch_steps=max_linesearch_steps)
         direction = optax.chain(
             optax.scale_by_lbfgs(memory_size=memory_size, scale_init_precond=True),
             optax.scale(-1.0),
         )
 
         def start(theta, state, value, grad):
-            """The direction, and the line search's first probe."""
+            """The direction, and the line search's first point."""
             with jax.numpy_dtype_promotion("standard"):
                 d, dir_state = direction.update(grad, state[:2], theta)
-                ls = init_ls(
-                    d,
-                    theta,
-                    value=value,
-                    grad=grad,
-                    prev_stepsize=state[2].learning_rate,
-                    initial_guess_strategy="one",
-                )
-                return d, dir_state, ls, probe(ls), cond_ls(ls)
-
-        def probe(ls):
-            # a stand-in evaluation (value -inf, zero gradient) meets both Wolfe conditions,
-            # so the round ends without replacing its step size: the point it evaluates
-            fake = lambda p: (
-                jnp.asarray(-jnp.inf, ls.value.dtype),
-                jax.tree.map(jnp.zeros_like, p),
-            )
-            stepsize = step_ls(ls, value_and_grad_fn=fake, fn_kwargs={}).stepsize
-            return optax.tree.add_scale(ls.params, stepsize, ls.updates)
+                ls = zoom.init(d, theta, value, grad)
+                return d, dir_state, ls, zoom.point(ls), zoom.running(ls)
 
         def advance(ls, value, grad):
-            """The round that evaluated ``(value, grad)`` at the probed point; the next probe."""
+            """The round that evaluated ``(value, grad)`` at the last point; the next point."""
             with jax.numpy_dtype_promotion("standard"):
-                ls = step_ls(ls, value_and_grad_fn=lambda p: (value, grad), fn_kwargs={})
-                return ls, probe(ls), cond_ls(ls)
+                ls = zoom.advance(ls, value, grad)
+                return ls, zoom.point(ls), zoom.running(ls)
 
         def finish(theta, state, value, grad, d, dir_state, ls, evals):
             """``scale_by_zoom_linesearch``'s update from the search's final state; the guard."""

@@ -18,6 +18,7 @@ rollouts.
 
 from vcjax.search.core import (
     ALIASES,
+    FalsifyOptions,
     FalsifyResult,
     SegmentMetric,
     evaluate,
@@ -27,6 +28,7 @@ from vcjax.search.core import (
 from vcjax.search.envelope import (
     Envelope,
     Setting,
+    SettingOptions,
     envelope_from_scenario,
     envelope_from_spec,
     make_setting,
@@ -37,9 +39,11 @@ from vcjax.search.envelope import (
 __all__ = [
     "ALIASES",
     "Envelope",
+    "FalsifyOptions",
     "FalsifyResult",
     "SegmentMetric",
     "Setting",
+    "SettingOptions",
     "envelope_from_scenario",
     "envelope_from_spec",
     "evaluate",

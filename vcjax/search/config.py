@@ -36,7 +36,7 @@ import jax
 import numpy as np
 
 from vcjax.config import ConfigError, as_int, as_number, read_toml
-from vcjax.search.core import evaluate, falsify, metric_name
+from vcjax.search.core import FalsifyOptions, evaluate, falsify, metric_name
 from vcjax.search.envelope import Envelope, envelope_from_spec, setting_from_spec
 
 __all__ = ["FALSIFY_KEYS", "KEY_DOCS", "load_config", "run_falsify_config", "replay_worst"]
@@ -69,31 +69,9 @@ KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
 }
 
 
-#: spellings of the tuning loss as a metric
-LOSS_METRICS = ("loss", "tuning_loss")
-
-
-def load_config(
-    path, metric: str | None = None, bound: float | None = None, loss_metric=None
-) -> dict:
-    """Read and check a falsify config (everything, before any work or output).
-
-    ``loss_metric(weights_table) -> SegmentMetric``: how ``metric = "loss"`` is built from the
-    file's ``[weights]`` table (the CLI passes ``tuning.robust.TuningLossMetric.of_table``;
-    vcjax itself never imports the tuner).
-
-    Returns ``{"spec", "gains_path", "figures", "loop", "gains", "envelope", "setting",
-    "metric", "bound", "opts"}``. Raises [`ConfigError`][vcjax.config.values.ConfigError] naming the
-    file,
-    section and key.
-    """
-    from vcjax.sweep.config import load_config as load_sweep
-
-    path = Path(path)
-    where = str(path)
-    raw = read_toml(path)
-    fal = raw.pop("falsify", {})
-    weights = raw.pop("weights", None)
+def _falsify_section(fal, where: str, metric: str | None, bound: float | None) -> dict:
+    """The ``[falsify]`` table checked, with its defaults and the command line's ``--metric``,
+    ``--bound``."""
     if not isinstance(fal, dict):
         raise ConfigError(f"{where}: [falsify]: expected a table")
     unknown = sorted(set(fal) - set(FALSIFY_KEYS))
@@ -123,6 +101,34 @@ def load_config(
             raise ConfigError(f"[falsify] metric: expected a string, got {opts['metric']!r}")
     except ConfigError as err:
         raise ConfigError(f"{where}: {err}") from None
+    return opts
+
+
+#: spellings of the tuning loss as a metric
+LOSS_METRICS = ("loss", "tuning_loss")
+
+
+def load_config(
+    path, metric: str | None = None, bound: float | None = None, loss_metric=None
+) -> dict:
+    """Read and check a falsify config (everything, before any work or output).
+
+    ``loss_metric(weights_table) -> SegmentMetric``: how ``metric = "loss"`` is built from the
+    file's ``[weights]`` table (the CLI passes ``tuning.robust.TuningLossMetric.of_table``;
+    vcjax itself never imports the tuner).
+
+    Returns ``{"spec", "gains_path", "figures", "loop", "gains", "envelope", "setting",
+    "metric", "bound", "opts"}``. Raises [`ConfigError`][vcjax.config.values.ConfigError] naming the
+    file,
+    section and key.
+    """
+    from vcjax.sweep.config import load_config as load_sweep
+
+    path = Path(path)
+    where = str(path)
+    raw = read_toml(path)
+    opts = _falsify_section(raw.pop("falsify", {}), where, metric, bound)
+    weights = raw.pop("weights", None)
     sweep = dict(raw.get("sweep", {}))
     sweep.setdefault("num_scenarios", 1)
     sweep["seed"] = opts["seed"]
@@ -189,12 +195,7 @@ def run_falsify_config(cfg: dict, out_dir, progress=None) -> dict:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     o = cfg["opts"]
-    res = falsify(
-        cfg["loop"],
-        cfg["gains"],
-        cfg["envelope"],
-        cfg["metric"],
-        cfg["setting"],
+    search = FalsifyOptions(
         starts=o["starts"],
         steps=o["steps"],
         step_size=o["step_size"],
@@ -202,6 +203,7 @@ def run_falsify_config(cfg: dict, out_dir, progress=None) -> dict:
         bound=cfg["bound"],
         progress=progress,
     )
+    res = falsify(cfg["loop"], cfg["gains"], cfg["envelope"], cfg["metric"], cfg["setting"], search)
     files = [write_worst(res, cfg, out / "worst.json", o["keep"])]
     summary = {
         "metric": res.metric,

@@ -11,7 +11,7 @@ import dataclasses
 import functools
 import time
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import jax
 import jax.numpy as jnp
@@ -25,6 +25,7 @@ from vcjax.sweep.run import _act_names, simulate_scenario
 
 __all__ = [
     "ALIASES",
+    "FalsifyOptions",
     "FalsifyResult",
     "SegmentMetric",
     "falsify",
@@ -273,23 +274,158 @@ class FalsifyResult:
         ]
 
 
+@dataclasses.dataclass(frozen=True)
+class FalsifyOptions:
+    """How [`falsify`][vcjax.search.core.falsify] searches.
+
+    Attributes:
+        starts: gradient ascents run together (under ``vmap``).
+        steps: ascent steps of each.
+        step_size: Adam's step in the envelope's unit box.
+        random_rollouts: rollouts of the random baseline (default: as many as the ascent ran).
+        random_batch: rollouts per batch of the baseline (at least ``starts``).
+        bound: stop (each search) as soon as a scenario's metric exceeds it.
+        sharpness: power of the power-mean surrogate of a ``max_*`` metric.
+        progress: receives a line per step / batch.
+        stop: polled between steps (default: ``stop_requested``); the result keeps what was
+            found.
+    """
+
+    starts: int = 8
+    steps: int = 20
+    step_size: float = 0.05
+    random_rollouts: int | None = None
+    random_batch: int = 256
+    bound: float | None = None
+    sharpness: float = SHARPNESS
+    progress: Callable[[str], Any] | None = None
+    stop: Callable[[], bool] | None = None
+
+
+_OPTION_FIELDS = frozenset(f.name for f in dataclasses.fields(FalsifyOptions))
+
+
+class _Search(NamedTuple):
+    """What both searches of [`falsify`][vcjax.search.core.falsify] share."""
+
+    envelope: Envelope
+    setting: Setting
+    key: Setting  # the static part (``_key``)
+    metric: str
+    gains: Any
+    dtype: Any
+    width: Any  # (P,) 1 where the envelope has a range, 0 where it is a point
+    o: FalsifyOptions
+    say: Callable[[str], Any]
+    stop: Callable[[], bool]
+
+
+def _ascent(c: _Search) -> dict:
+    """Multi-start projected gradient ascent (Adam in the unit box): each start's worst point,
+    its metric and divergence flag, the curve, and how the ascent ended."""
+    o, metric, starts = c.o, c.metric, c.o.starts
+    name = _name(metric)
+    rng = np.random.default_rng([c.setting.seed, 1])
+    z = jnp.asarray(rng.random((starts, len(c.envelope.names))), c.dtype) * c.width
+    index = jnp.arange(starts, dtype=jnp.int32)
+    m1, m2 = jnp.zeros_like(z), jnp.zeros_like(z)
+    best_v, best_val = np.full(starts, -np.inf), np.full(starts, np.nan)
+    best_z, best_div = np.asarray(z), np.zeros(starts, bool)
+    out = {"curve": [], "falsified": False, "interrupted": False, "first_s": None, "done": 0}
+    t0 = time.perf_counter()
+    compiled = functools.partial(
+        _value_and_grad, env=c.envelope, setting=c.key, metric=metric, sharpness=float(o.sharpness)
+    )
+    b1, b2 = 0.9, 0.999
+    for k in range(o.steps):
+        if k and c.stop():
+            out["interrupted"] = True
+            break
+        m, g = compiled(z, index, c.gains, c.setting.nominal)
+        v = np.asarray(m[name])
+        out["first_s"] = time.perf_counter() - t0 if out["first_s"] is None else out["first_s"]
+        r = _rank(v)
+        better = r > best_v
+        best_v = np.where(better, r, best_v)
+        best_val = np.where(better, v, best_val)
+        best_z = np.where(better[:, None], np.asarray(z), best_z)
+        best_div = np.where(better, np.asarray(m["diverged"]), best_div)
+        out["done"] += starts
+        worst = float(np.max(best_v))
+        out["curve"].append((out["done"], worst))
+        c.say(f"gradient step {k + 1}/{o.steps}: {out['done']} rollouts, worst {name} {worst:.4g}")
+        if o.bound is not None and worst > o.bound:
+            out["falsified"] = True
+            break
+        g = jnp.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0) * c.width
+        m1 = b1 * m1 + (1 - b1) * g
+        m2 = b2 * m2 + (1 - b2) * g * g
+        mh = m1 / (1 - b1 ** (k + 1))
+        vh = m2 / (1 - b2 ** (k + 1))
+        z = jnp.clip(z + o.step_size * mh / (jnp.sqrt(vh) + 1e-8), 0.0, 1.0) * c.width
+    out["wall_s"] = time.perf_counter() - t0
+    x = np.asarray(c.envelope.from_unit(jnp.asarray(best_z, c.dtype)))
+    out.update(x=x, index=np.asarray(index), value=best_val, diverged=best_div.astype(bool))
+    return out
+
+
+def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
+    """Plain random sampling of the same envelope, new scenario numbers, in equal batches of at
+    most ``random_batch`` (at least ``starts``: no padded work in the timing)."""
+    o, metric, starts, P = c.o, c.metric, c.o.starts, len(c.envelope.names)
+    name = _name(metric)
+    t1 = time.perf_counter()
+    rng = np.random.default_rng([c.setting.seed, 2])
+    rx, ri, rv, rd, rcurve = [], [], [], [], []
+    rworst, rfals = -np.inf, False
+    fwd = None
+    batch = max(starts, -(-n_rand // max(1, -(-n_rand // o.random_batch)))) if n_rand else starts
+    j = 0
+    while j < n_rand and not interrupted:
+        if j and c.stop():
+            interrupted = True
+            break
+        zb = rng.random((batch, P)) * np.asarray(c.width)
+        xb = np.asarray(c.envelope.from_unit(jnp.asarray(zb, c.dtype)))
+        ib = np.arange(starts + j, starts + j + batch, dtype=np.int32)
+        if fwd is None:
+            fwd = functools.partial(_forward, env=c.envelope, setting=c.key, metric=metric)
+        m = jax.device_get(fwd(jnp.asarray(xb, c.dtype), ib, c.gains, c.setting.nominal))
+        nb = min(batch, n_rand - j)
+        rx.append(xb[:nb])
+        ri.append(ib[:nb])
+        rv.append(np.asarray(m[name])[:nb])
+        rd.append(np.asarray(m["diverged"])[:nb])
+        for k, r in enumerate(_rank(rv[-1])):  # one point per rollout
+            rworst = max(rworst, float(r))
+            rcurve.append((j + k + 1, rworst))
+        j += nb
+        c.say(f"random: {j}/{n_rand} rollouts, worst {name} {rworst:.4g}")
+        if o.bound is not None and rworst > o.bound:
+            rfals = True
+            break
+    cat = lambda parts, shape: np.concatenate(parts) if parts else np.zeros(shape)
+    return {
+        "random_x": cat(rx, (0, P)),
+        "random_index": cat(ri, (0,)).astype(np.int64),
+        "random_value": cat(rv, (0,)),
+        "random_diverged": cat(rd, (0,)).astype(bool),
+        "random_curve": rcurve,
+        "random_rollouts": j,
+        "random_wall_s": time.perf_counter() - t1,
+        "random_falsified": rfals,
+        "interrupted": interrupted,
+    }
+
+
 def falsify(
     loop,
     gains,
     envelope,
     metric,
     setting: Setting | None = None,
-    *,
-    starts: int = 8,
-    steps: int = 20,
-    step_size: float = 0.05,
-    random_rollouts: int | None = None,
-    random_batch: int = 256,
-    bound: float | None = None,
-    sharpness: float = SHARPNESS,
-    progress: Callable[[str], Any] | None = None,
-    stop: Callable[[], bool] | None = None,
-    **setting_options,
+    options: FalsifyOptions | None = None,
+    **kwargs,
 ) -> FalsifyResult:
     """Search the envelope for the scenarios that make ``metric`` largest.
 
@@ -310,129 +446,47 @@ def falsify(
             [`SegmentMetric`][vcjax.search.core.SegmentMetric] (e.g. the tuning loss).
         setting: [`Setting`][vcjax.search.envelope.Setting] (horizon, dt, nominal parameters, sea,
             seed); default:
-            [`make_setting`][vcjax.search.envelope.make_setting] of ``setting_options``.
-        bound: stop (each search) as soon as a scenario's metric exceeds it.
-        progress: receives a line per step / batch; stop: polled between steps (default:
-            ``stop_requested``); the result keeps what was found.
+            [`make_setting`][vcjax.search.envelope.make_setting] of the keyword arguments that
+            are not search options (``horizon=60.0``, ``dt=0.05``, ...).
+        options: [`FalsifyOptions`][vcjax.search.core.FalsifyOptions] (starts, steps, step size,
+            baseline, ``bound``, sharpness, ``progress``, ``stop``); its fields are also
+            accepted by name (``starts=8``, ``bound=2.0``, ...).
     """
+    from vcjax._checks import with_options
+
+    opts = {k: v for k, v in kwargs.items() if k in _OPTION_FIELDS}
+    setting_options = {k: v for k, v in kwargs.items() if k not in _OPTION_FIELDS}
+    o = with_options(FalsifyOptions, options, opts, "falsify")
     if not isinstance(envelope, Envelope):
         envelope = Envelope.build(loop, envelope, dt=setting_options.get("dt", 0.05))
     if setting is None:
         setting = make_setting(loop, envelope, **setting_options)
     elif setting_options:
         raise ValueError(f"give a setting or its options, not both: {sorted(setting_options)}")
-    if starts < 1 or steps < 1:
-        raise ValueError(f"starts, steps: expected >= 1, got {starts}, {steps}")
+    if o.starts < 1 or o.steps < 1:
+        raise ValueError(f"starts, steps: expected >= 1, got {o.starts}, {o.steps}")
     metric = metric_name(loop, gains, setting, metric)
-    name = _name(metric)
     setting = dataclasses.replace(setting, loop=loop)
-    stop = stop_requested if stop is None else stop
-    say = progress or (lambda line: None)
     dtype = _dtype(setting)
-    key = _key(setting)
-    P = len(envelope.names)
-    rng = np.random.default_rng([setting.seed, 1])
-    z = jnp.asarray(rng.random((starts, P)), dtype)
-    index = jnp.arange(starts, dtype=jnp.int32)
     width = jnp.asarray(np.asarray(envelope.hi) > np.asarray(envelope.lo), dtype)
-    z = z * width
-    m1 = jnp.zeros_like(z)
-    m2 = jnp.zeros_like(z)
-    best_v = np.full(starts, -np.inf)
-    best_val = np.full(starts, np.nan)
-    best_z = np.asarray(z)
-    best_div = np.zeros(starts, bool)
-    curve, falsified, interrupted = [], False, False
-    t0 = time.perf_counter()
-    compiled = functools.partial(
-        _value_and_grad, env=envelope, setting=key, metric=metric, sharpness=float(sharpness)
-    )
-    first_s = None
-    done = 0
-    b1, b2 = 0.9, 0.999
-    for k in range(steps):
-        if k and stop():
-            interrupted = True
-            break
-        m, g = compiled(z, index, gains, setting.nominal)
-        v = np.asarray(m[name])
-        first_s = time.perf_counter() - t0 if first_s is None else first_s
-        r = _rank(v)
-        better = r > best_v
-        best_v = np.where(better, r, best_v)
-        best_val = np.where(better, v, best_val)
-        best_z = np.where(better[:, None], np.asarray(z), best_z)
-        best_div = np.where(better, np.asarray(m["diverged"]), best_div)
-        done += starts
-        worst = float(np.max(best_v))
-        curve.append((done, worst))
-        say(f"gradient step {k + 1}/{steps}: {done} rollouts, worst {name} {worst:.4g}")
-        if bound is not None and worst > bound:
-            falsified = True
-            break
-        g = jnp.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0) * width
-        m1 = b1 * m1 + (1 - b1) * g
-        m2 = b2 * m2 + (1 - b2) * g * g
-        mh = m1 / (1 - b1 ** (k + 1))
-        vh = m2 / (1 - b2 ** (k + 1))
-        z = jnp.clip(z + step_size * mh / (jnp.sqrt(vh) + 1e-8), 0.0, 1.0) * width
-    wall_s = time.perf_counter() - t0
-
-    # the baseline: plain random sampling of the same envelope, new scenario numbers
-    n_rand = done if random_rollouts is None else int(random_rollouts)
-    t1 = time.perf_counter()
-    rng = np.random.default_rng([setting.seed, 2])
-    rx, ri, rv, rd, rcurve = [], [], [], [], []
-    rworst, rfals = -np.inf, False
-    fwd = None
-    # equal batches of at most random_batch (at least starts): no padded work in the timing
-    batch = max(starts, -(-n_rand // max(1, -(-n_rand // random_batch)))) if n_rand else starts
-    j = 0
-    while j < n_rand and not interrupted:
-        if j and stop():
-            interrupted = True
-            break
-        zb = rng.random((batch, P)) * np.asarray(width)
-        xb = np.asarray(envelope.from_unit(jnp.asarray(zb, dtype)))
-        ib = np.arange(starts + j, starts + j + batch, dtype=np.int32)
-        if fwd is None:
-            fwd = functools.partial(_forward, env=envelope, setting=key, metric=metric)
-        m = jax.device_get(fwd(jnp.asarray(xb, dtype), ib, gains, setting.nominal))
-        nb = min(batch, n_rand - j)
-        rx.append(xb[:nb])
-        ri.append(ib[:nb])
-        rv.append(np.asarray(m[name])[:nb])
-        rd.append(np.asarray(m["diverged"])[:nb])
-        for k, r in enumerate(_rank(rv[-1])):  # one point per rollout
-            rworst = max(rworst, float(r))
-            rcurve.append((j + k + 1, rworst))
-        j += nb
-        say(f"random: {j}/{n_rand} rollouts, worst {name} {rworst:.4g}")
-        if bound is not None and rworst > bound:
-            rfals = True
-            break
-    random_wall_s = time.perf_counter() - t1
-    cat = lambda parts, shape: np.concatenate(parts) if parts else np.zeros(shape)
+    stop = stop_requested if o.stop is None else o.stop
+    say = o.progress or (lambda line: None)
+    c = _Search(envelope, setting, _key(setting), metric, gains, dtype, width, o, say, stop)
+    a = _ascent(c)
+    n_rand = a["done"] if o.random_rollouts is None else int(o.random_rollouts)
+    b = _baseline(c, n_rand, a["interrupted"])
     return FalsifyResult(
-        metric=name,
+        metric=_name(metric),
         envelope=envelope,
-        x=np.asarray(envelope.from_unit(jnp.asarray(best_z, dtype))),
-        index=np.asarray(index),
-        value=best_val,
-        diverged=best_div.astype(bool),
-        curve=curve,
-        random_x=cat(rx, (0, P)),
-        random_index=cat(ri, (0,)).astype(np.int64),
-        random_value=cat(rv, (0,)),
-        random_diverged=cat(rd, (0,)).astype(bool),
-        random_curve=rcurve,
-        rollouts=done,
-        random_rollouts=j,
-        wall_s=wall_s,
-        random_wall_s=random_wall_s,
-        first_step_s=first_s,
-        bound=bound,
-        falsified=falsified,
-        random_falsified=rfals,
-        interrupted=interrupted,
+        x=a["x"],
+        index=a["index"],
+        value=a["value"],
+        diverged=a["diverged"],
+        curve=a["curve"],
+        rollouts=a["done"],
+        wall_s=a["wall_s"],
+        first_step_s=a["first_s"],
+        bound=o.bound,
+        falsified=a["falsified"],
+        **b,
     )

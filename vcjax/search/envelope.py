@@ -44,6 +44,8 @@ from vcjax.sweep.spec import MCConfig, MCScenario, ScenarioSpec, SweepSpec, chec
 __all__ = [
     "Envelope",
     "Setting",
+    "SettingOptions",
+    "make_setting",
     "scenario_from",
     "setting_from_spec",
     "envelope_from_spec",
@@ -352,31 +354,51 @@ def setting_from_spec(spec: SweepSpec, env: Envelope, variant: str | None = None
     )
 
 
-def make_setting(
-    loop,
-    env: Envelope,
-    *,
-    horizon: float = 60.0,
-    dt: float = 0.05,
-    integrator: str = "rk4",
-    tail: float = 0.2,
-    diverge_e: float = 50.0,
-    seed: int = 0,
-    spectrum: str = "jonswap",
-    components: int = 64,
-    gamma: float = 3.3,
-    nominal=None,
-    dtype=None,
-) -> Setting:
+@dataclasses.dataclass(frozen=True)
+class SettingOptions:
+    """What [`make_setting`][vcjax.search.envelope.make_setting] builds a
+    [`Setting`][vcjax.search.envelope.Setting] from.
+
+    Attributes:
+        horizon, dt: simulated time and step [s].
+        integrator: the rollout's integrator; tail: fraction of the horizon of the tail
+            metrics; diverge_e: cross-track error [m] counted as diverged.
+        seed: the random draws' seed.
+        spectrum, components, gamma: the sea, when the envelope has one.
+        nominal: ``(plant, design, coeffs)`` (default: the loop's default plant as design model,
+            and its vehicle's default path coefficients).
+        dtype: floating-point type of the default plant.
+    """
+
+    horizon: float = 60.0
+    dt: float = 0.05
+    integrator: str = "rk4"
+    tail: float = 0.2
+    diverge_e: float = 50.0
+    seed: int = 0
+    spectrum: str = "jonswap"
+    components: int = 64
+    gamma: float = 3.3
+    nominal: Any = None
+    dtype: Any = None
+
+
+def make_setting(loop, env: Envelope, options: SettingOptions | None = None, **kwargs) -> Setting:
     """A [`Setting`][vcjax.search.envelope.Setting] for ``loop`` by hand: its default plant, design
     model and path
     coefficients unless ``nominal = (plant, design, coeffs)`` is given; a sea (``spectrum``,
-    ``components``, ``gamma``) when the envelope has one; gradient checkpointed per segment."""
+    ``components``, ``gamma``) when the envelope has one; gradient checkpointed per segment.
+    ``options``: [`SettingOptions`][vcjax.search.envelope.SettingOptions]; its fields are also
+    accepted by name (``horizon=2.0``, ``dt=0.05``, ...)."""
+    from vcjax._checks import with_options
+
+    o = with_options(SettingOptions, options, kwargs, "make_setting")
+    nominal, horizon, dt = o.nominal, o.horizon, o.dt
     if nominal is None:
         path, coeffs = type(loop).default_path()
         if path != loop.path:
             raise ValueError("nominal: the loop's path is not its vehicle's default; give coeffs")
-        plant = loop.default_params(dtype)
+        plant = loop.default_params(o.dtype)
         dt_ = jnp.asarray(jax.tree_util.tree_leaves(plant)[0]).dtype
         coeffs = jax.tree_util.tree_map(
             lambda a: (
@@ -389,15 +411,15 @@ def make_setting(
         raise ValueError(f"horizon, dt: expected 0 < dt <= horizon, got {horizon!r}, {dt!r}")
     config = MCConfig(
         num_steps=max(1, int(round(horizon / dt))),
-        integrator=integrator,
-        tail=tail,
+        integrator=o.integrator,
+        tail=o.tail,
         model_fields=env.model_fields,
         checkpoint=True,
     )
     if env.has_waves:
         check_wave_step(env.lo[env.names.index("wave_tp")], dt, "envelope: wave_tp")
-    sea = (spectrum, int(components), float(gamma)) if env.has_waves else None
+    sea = (o.spectrum, int(o.components), float(o.gamma)) if env.has_waves else None
     noise = tuple(float(a) for a in np.asarray(loop.noise_std({})).ravel())  # none (zeros)
     return Setting(
-        loop, config, float(dt), nominal, float(diverge_e), sea, noise_std=noise, seed=int(seed)
+        loop, config, float(dt), nominal, float(o.diverge_e), sea, noise_std=noise, seed=int(o.seed)
     )
