@@ -11,8 +11,8 @@ disturbance: [`envelope_from_scenario`][vcjax.search.envelope.envelope_from_scen
 ``adversarial_count`` worst scenarios found replace the *adversarial slot*: the last
 ``adversarial_count`` scenarios of a training batch of ``train.size + adversarial_count``. The
 batch keeps its shape, so the training step compiles once; the batch loss is the tune's usual
-mean (or CVaR) over all of it. Round ``r`` searches with seed ``seed + r`` (its starts and the
-sea phases of its scenarios).
+mean (or CVaR) over all of it. Round ``r`` searches with seed ``seed`` from scenario number
+``r * starts`` on (new starting points and sea phases; the search compiles once).
 
 After training, an independent search (``check_starts`` x ``check_budget``, seed
 ``check_seed``, the held-out plant: hard-clipped unless ``[heldout] smooth``) reports the worst
@@ -148,7 +148,7 @@ class RobustSearch:
             training rollout ([`Setting`][vcjax.search.envelope.Setting], nominal arrays
             included); check_setting: the held-out one (the independent search's);
             metric: a sweep metric name or a [`TuningLossMetric`][tuning.robust.TuningLossMetric];
-        rounds: the searches run so far, ``{"step", "seed", "worst", "values"}`` each.
+        rounds: the searches run so far, ``{"step", "first_index", "worst", "values"}`` each.
     """
 
     section: Any
@@ -211,14 +211,15 @@ class RobustSearch:
         """One training search against ``gains``: ``(x (A, P), index (A,))`` of the
         ``adversarial_count`` worst scenarios found (config units), recorded in ``rounds``."""
         r = self.section
-        seed = r.seed + len(self.rounds)
-        setting = dataclasses.replace(self.setting, seed=seed)
+        first = len(self.rounds) * r.starts  # new draws each round; the same compiled search
+        setting = self.setting
         res = falsify(
             setting.loop,
             gains,
             self.envelope,
             self.metric,
             setting,
+            first_index=first,
             starts=r.starts,
             steps=r.budget,
             step_size=r.step_size,
@@ -231,19 +232,19 @@ class RobustSearch:
         self.rounds.append(
             {
                 "step": int(step),
-                "seed": int(seed),
+                "first_index": int(first),
                 "worst": float(res.value[top[0]]),
                 "values": [float(v) for v in res.value[top]],
                 "rollouts": int(res.rollouts),
             }
         )
-        return res.x[top], res.index[top], seed
+        return res.x[top], res.index[top]
 
-    def scenarios(self, x, index, seed: int):
+    def scenarios(self, x, index):
         """The tuning [`Scenario`][vcjax.loops.types.Scenario] batch (axes ``SCENARIO_AXES``)
-        of parameter vectors ``x`` (A, P) with the random draws of ``index`` (A,) under
-        ``seed``: exactly what the search rolled out."""
-        s = dataclasses.replace(self.setting, seed=int(seed))
+        of parameter vectors ``x`` (A, P) with the random draws of scenarios ``index`` (A,)
+        (the search's seed): exactly what the search rolled out."""
+        s = self.setting
         loop = s.loop
         plant, design, coeffs = s.nominal
         dtype = jnp.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
@@ -258,8 +259,8 @@ class RobustSearch:
 
     def slot(self, gains, step: int, progress=None):
         """A search against ``gains`` and the adversarial slot it fills."""
-        x, index, seed = self.search(gains, step, progress)
-        return self.scenarios(x, index, seed)
+        x, index = self.search(gains, step, progress)
+        return self.scenarios(x, index)
 
     def refresh(self, train, decode, place, progress=None):
         """The hook of [`run_gradient_tuner`][tuning.optim.run_gradient_tuner]: ``refresh(k,

@@ -188,7 +188,7 @@ class Robust(FrozenSection):
         "",
         "what is maximised: tuning_loss (the [weights] loss) or a sweep metric",
     )
-    seed: int = key(7, "seed", "", "seed of the searches (round r uses seed + r)")
+    seed: int = key(7, "seed", "", "seed of the searches (round r: scenarios r x starts on)")
     compare: bool = key(
         False, "bool", "", "also tune without [robust] in the same run (summary: robust.nominal)"
     )

@@ -289,6 +289,10 @@ class FalsifyOptions:
         progress: receives a line per step / batch.
         stop: polled between steps (default: ``stop_requested``); the result keeps what was
             found.
+        first_index: the scenario number of the first start (the starts are ``first_index``,
+            ``first_index + 1``, ...: their random draws; the baseline's follow them): another
+            set of draws under the same seed without compiling again (the seed is static), as
+            robust tuning's rounds do; its starting points are drawn from it too.
     """
 
     starts: int = 8
@@ -300,6 +304,7 @@ class FalsifyOptions:
     sharpness: float = SHARPNESS
     progress: Callable[[str], Any] | None = None
     stop: Callable[[], bool] | None = None
+    first_index: int = 0
 
 
 _OPTION_FIELDS = frozenset(f.name for f in dataclasses.fields(FalsifyOptions))
@@ -325,9 +330,10 @@ def _ascent(c: _Search) -> dict:
     its metric and divergence flag, the curve, and how the ascent ended."""
     o, metric, starts = c.o, c.metric, c.o.starts
     name = _name(metric)
-    rng = np.random.default_rng([c.setting.seed, 1])
+    i0 = int(o.first_index)
+    rng = np.random.default_rng([c.setting.seed, 1] + ([i0] if i0 else []))
     z = jnp.asarray(rng.random((starts, len(c.envelope.names))), c.dtype) * c.width
-    index = jnp.arange(starts, dtype=jnp.int32)
+    index = jnp.arange(i0, i0 + starts, dtype=jnp.int32)
     m1, m2 = jnp.zeros_like(z), jnp.zeros_like(z)
     best_v, best_val = np.full(starts, -np.inf), np.full(starts, np.nan)
     best_z, best_div = np.asarray(z), np.zeros(starts, bool)
@@ -375,7 +381,8 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
     o, metric, starts, P = c.o, c.metric, c.o.starts, len(c.envelope.names)
     name = _name(metric)
     t1 = time.perf_counter()
-    rng = np.random.default_rng([c.setting.seed, 2])
+    i0 = int(o.first_index)
+    rng = np.random.default_rng([c.setting.seed, 2] + ([i0] if i0 else []))
     rx, ri, rv, rd, rcurve = [], [], [], [], []
     rworst, rfals = -np.inf, False
     fwd = None
@@ -387,7 +394,7 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
             break
         zb = rng.random((batch, P)) * np.asarray(c.width)
         xb = np.asarray(c.envelope.from_unit(jnp.asarray(zb, c.dtype)))
-        ib = np.arange(starts + j, starts + j + batch, dtype=np.int32)
+        ib = np.arange(i0 + starts + j, i0 + starts + j + batch, dtype=np.int32)
         if fwd is None:
             fwd = functools.partial(_forward, env=c.envelope, setting=c.key, metric=metric)
         m = jax.device_get(fwd(jnp.asarray(xb, c.dtype), ib, c.gains, c.setting.nominal))
