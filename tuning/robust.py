@@ -33,6 +33,7 @@ import numpy as np
 
 from tuning.loss import TERMS, loss_weights, rollout_terms, weighted_loss
 from tuning.scenarios import SCENARIO_AXES
+from tuning.spec import LOSS_NAMES
 from vcjax import sweep
 from vcjax.config import ConfigError
 from vcjax.search import (
@@ -47,13 +48,9 @@ from vcjax.search import (
 __all__ = [
     "TuningLossMetric",
     "RobustSearch",
-    "check_section",
     "concat_batches",
     "report",
 ]
-
-#: spellings of the tuning loss as a metric (``vcjax falsify --metric loss``)
-LOSS_NAMES = ("tuning_loss", "loss")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,27 +99,6 @@ class TuningLossMetric:
     def value(self, acc, n: int):
         w = self._weights(acc["eps"].dtype)
         return weighted_loss({k: acc[k] / n for k in TERMS}, w)
-
-
-def check_section(rob, loop) -> None:
-    """Cross-checks of ``[robust]`` (the one validator checked each key): ``starts >=
-    adversarial_count``; the metric one of the tuning loss's names or a sweep metric's (an
-    actuator's ``max_abs_<name>`` is checked against the loop's when the search is built)."""
-    if rob.starts < rob.adversarial_count:
-        raise ConfigError(
-            f"[robust] starts: must be >= adversarial_count ({rob.adversarial_count}), "
-            f"got {rob.starts}"
-        )
-    from vcjax.config import closest
-    from vcjax.metrics import METRICS
-    from vcjax.search import ALIASES
-
-    known = [*LOSS_NAMES, *METRICS, *ALIASES]
-    if rob.metric not in known and not rob.metric.startswith("max_abs_"):
-        raise ConfigError(
-            f"[robust] metric: unknown metric {rob.metric!r}{closest(rob.metric, known)}; "
-            f"expected one of {known} (or max_abs_<actuator>)"
-        )
 
 
 def concat_batches(a, b):
@@ -354,12 +330,11 @@ def report(rs: RobustSearch, robust: dict, nominal: dict | None) -> dict:
 # ---------------------------------------------------------------------- the hooks of vcjax tune
 
 
-def attach(t, start, say):
+def attach(t, start, say, sampling):
     """``(search, batch)``: the [`RobustSearch`][tuning.robust.RobustSearch] of a tune being
-    prepared (``t``: [`tuning.run`][tuning.run]'s run state, ``start``: the first iterate) and
-    its training batch with the adversarial slot, filled by a first search against the
-    starting gains."""
-    from tuning.run import sampling
+    prepared (``t``: [`tuning.run`][tuning.run]'s run state, ``start``: the first iterate,
+    ``sampling``: [`tuning.run.sampling`][tuning.run.sampling]) and its training batch with the
+    adversarial slot, filled by a first search against the starting gains."""
     from tuning.scenarios import scenario_spec
 
     cfg, problem = t.cfg, t.problem
@@ -394,10 +369,10 @@ def attach(t, start, say):
     return rs, concat_batches(t.train, slot)
 
 
-def hook(t, say):
+def hook(t, say, distribute):
     """The ``refresh`` hook of [`TunerHooks`][tuning.optim.TunerHooks] for a tune with
-    ``[robust]`` (``t.robust``: its [`RobustSearch`][tuning.robust.RobustSearch])."""
-    from tuning.run import distribute
+    ``[robust]`` (``t.robust``: its [`RobustSearch`][tuning.robust.RobustSearch];
+    ``distribute``: [`tuning.run.distribute`][tuning.run.distribute], how a batch is placed)."""
 
     space, base = t.problem.space, t.data.base
     decode = lambda th: space.decode(jnp.asarray(np.asarray(th)), base)  # noqa: E731
@@ -413,17 +388,15 @@ def hook(t, say):
     return refresh
 
 
-def summarize(t, tuned, after: dict, out, progress, say) -> dict:
+def summarize(t, tuned, after: dict, out, progress, say, run_tune_config) -> dict:
     """The ``robust`` block of ``summary.json`` ([`report`][tuning.robust.report]): the
     independent search against the tuned gains; with ``compare``, the same config without
-    ``[robust]`` tuned into ``out/nominal`` and searched the same way."""
+    ``[robust]`` tuned (``run_tune_config``) into ``out/nominal`` and searched the same way."""
     rs = t.robust
     say("robust: independent worst-case search against the tuned gains ...")
     mine = {"heldout_mean": after["loss"], **rs.check(tuned)}
     nominal = None
     if rs.section.compare:
-        from tuning.run import run_tune_config
-
         say("robust: compare = true: the same config without [robust] (nominal/) ...")
         cfg = dataclasses.replace(t.cfg, robust=None)
         res = run_tune_config(None, out / "nominal", progress=progress, cfg=cfg)

@@ -296,7 +296,7 @@ def _prepare(cfg: TuneConfig, say) -> _Tune:
     if cfg.robust is not None:  # [robust]: a first search fills the batch's adversarial slot
         from tuning.robust import attach
 
-        t.robust, train = attach(t, start, say)
+        t.robust, train = attach(t, start, say, sampling)
         t.n_dev = jax.device_count() if int(train.eta0.shape[0]) % jax.device_count() == 0 else 1
     t.train_d, t.data_d, t.start = distribute(train, data, start)
     t.sharded = t.train_d is not train
@@ -354,7 +354,7 @@ def _train(t: _Tune, progress, say):
     if t.robust is not None:  # [robust]: new adversarial scenarios every K steps
         from tuning.robust import hook
 
-        refresh = hook(t, say)
+        refresh = hook(t, say, distribute)
     hooks = TunerHooks(
         on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
         progress=bar,
@@ -512,7 +512,7 @@ def run_tune_config(
     if t.robust is not None:
         from tuning.robust import summarize
 
-        summary["robust"] = summarize(t, tuned, after, out, progress, say)
+        summary["robust"] = summarize(t, tuned, after, out, progress, say, run_tune_config)
     if res.reason == "interrupted":  # SIGINT / SIGTERM: the best gains so far, of planned steps
         summary["interrupted"] = True
         summary["steps_planned"] = cfg.optimizer["steps"]

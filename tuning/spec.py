@@ -168,6 +168,10 @@ class Report(FrozenSection):
     )
 
 
+#: spellings of the tuning loss as a metric (``[robust] metric``, ``vcjax falsify --metric loss``)
+LOSS_NAMES = ("tuning_loss", "loss")
+
+
 @dataclasses.dataclass(frozen=True)
 class Robust(FrozenSection):
     """``[robust]`` (optional; its presence switches robust tuning on,
