@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 
@@ -318,6 +319,50 @@ def test_a_stored_program_is_reused_and_gives_the_same_numbers(store):
     _, info3 = programs.build("f", f, ("f", 2), (x, p))
     assert not info3["reused"] and info3["key"] != info1["key"]
     assert [r["reused"] for r in programs.report()] == [False, True, False]
+
+
+class _Pair(NamedTuple):
+    """An output pytree jax.export cannot serialise by itself (a NamedTuple)."""
+
+    a: object
+    b: object
+
+
+def test_any_output_pytree_is_stored_and_an_unpicklable_one_is_built_unstored(store):
+    import jax.numpy as jnp
+
+    from vcjax.runtime import programs
+
+    f = lambda x: _Pair(x * 2.0, {"s": jnp.sum(x)})  # noqa: E731
+    x = jnp.arange(3.0)
+    outs = [programs.build("pair", f, "pair", (x,)) for _ in range(2)]
+    assert [info["reused"] for _, info in outs] == [False, True]
+    for call, _ in outs:
+        got = call(x + 1.0)
+        assert isinstance(got, _Pair) and jnp.array_equal(got.a, (x + 1.0) * 2.0)
+        assert float(got.b["s"]) == 6.0
+
+    class Local(NamedTuple):  # pickle cannot name it: compiled as before, nothing stored
+        y: object
+
+    call, info = programs.build("local", lambda x: Local(x + 1.0), "local", (x,))
+    assert info["key"] is None and not info["reused"]
+    assert jnp.array_equal(call(x).y, x + 1.0)
+    assert len(list(store.glob("*" + programs.SUFFIX))) == 1
+
+
+def test_a_program_built_ahead_falls_back_for_other_arguments(store):
+    import jax
+    import jax.numpy as jnp
+
+    from vcjax.runtime import programs
+
+    f = lambda x: jnp.cumsum(x)  # noqa: E731
+    x = jnp.ones(3)
+    ((call, _),) = programs.build_all([("c", f, "c", (x,))])
+    run = programs.for_arguments_like(call, (x,), jax.jit(f))
+    assert jnp.array_equal(run(x), jnp.arange(1.0, 4.0))
+    assert jnp.array_equal(run(jnp.ones(5)), jnp.arange(1.0, 6.0))  # another shape: the fallback
 
 
 def test_a_damaged_file_is_rebuilt(store):

@@ -19,7 +19,7 @@ from tuning.loss import TuningProblem, aggregate, objective, problem_data
 from tuning.optim import forward_mode, run_gradient_tuner
 from tuning.params import FRAC_MAX, GainSpace, rh_bound
 from tuning.run import run_tune_config
-from tuning.scenarios import sample_scenarios
+from tuning.scenarios import Nominal, sample_scenarios
 from vcjax import cli, loops
 from vcjax.control.vcm import pm_gains
 
@@ -232,6 +232,31 @@ def test_lbfgs_on_a_quadratic():
     res = run_gradient_tuner(loss, jnp.zeros(3), optimizer="lbfgs", steps=30)
     np.testing.assert_allclose(res.theta, 1.0 / jnp.diag(A), rtol=1e-6)
     assert res.evals >= len(res.history)
+
+
+def test_tuner_options_object_or_keywords():
+    """run_gradient_tuner takes its settings as a TunerOptions (and callbacks as TunerHooks) or,
+    as before, by name: the same run; a name that is neither is refused."""
+    from tuning.optim import TunerHooks, TunerOptions
+
+    loss = lambda th: jnp.sum((th - jnp.asarray([1.0, -2.0])) ** 2)
+    seen = []
+    a = run_gradient_tuner(loss, jnp.zeros(2), optimizer="adam", steps=4, learning_rate=0.3)
+    b = run_gradient_tuner(
+        loss,
+        jnp.zeros(2),
+        (),
+        TunerOptions(optimizer="adam", steps=4, learning_rate=0.3),
+        hooks=TunerHooks(progress=lambda k, n, rec: seen.append((k, n))),
+    )
+    np.testing.assert_array_equal(a.theta, b.theta)
+    assert a.history[-1]["loss"] == b.history[-1]["loss"] and seen[-1] == (4, 4)
+    with pytest.raises(TypeError, match="learning_rat"):
+        run_gradient_tuner(loss, jnp.zeros(2), learning_rat=0.3)
+    with pytest.raises(ValueError, match="steps"):
+        run_gradient_tuner(loss, jnp.zeros(2), options=TunerOptions(steps=0))
+    with pytest.raises(TypeError, match="options"):
+        run_gradient_tuner(loss, jnp.zeros(2), TunerOptions(steps=2))  # in args' place
 
 
 def test_nan_guard_skips_reports_and_aborts():
@@ -462,7 +487,7 @@ def test_engine_loop_loss_gradient_matches_central_differences():
     problem = TuningProblem(space=GainSpace(loop=loop), num_steps=60, timing="sampled")
     data = problem_data(problem, dt=0.01)
     small = loops.arm_loop_params(tau_max=(20.0, 5.0))
-    batch = sample_scenarios(0, 2, loop=loop, current_max=0.0, plant=small, design=small)
+    batch = sample_scenarios(0, 2, loop=loop, current_max=0.0, nominal=Nominal(small, small))
     f = jax.jit(lambda th: objective(th, data, batch, problem)[0])
     g = np.asarray(
         jax.jit(jax.grad(lambda th: objective(th, data, batch, problem)[0]))(data.theta_ref)

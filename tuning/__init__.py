@@ -13,13 +13,15 @@ of the tuner).
 """
 
 from tuning.loss import TuningProblem, loss_weights, objective, problem_data
-from tuning.optim import run_gradient_tuner
+from tuning.optim import TunerHooks, TunerOptions, run_gradient_tuner
 from tuning.params import GainSpace
 from tuning.run import run_tune_config
 from tuning.scenarios import sample_scenarios
 
 __all__ = [
     "GainSpace",
+    "TunerHooks",
+    "TunerOptions",
     "TuningProblem",
     "loss_weights",
     "objective",

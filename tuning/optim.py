@@ -589,6 +589,8 @@ def run_gradient_tuner(
         **kwargs: any field of ``TunerOptions`` or ``TunerHooks`` by name (``optimizer="adam"``,
             ``steps=30``, ``on_step=...``), over ``options`` and ``hooks``.
     """
+    if isinstance(args, TunerOptions) or not isinstance(options, TunerOptions | None):
+        raise TypeError("run_gradient_tuner(): give the settings as options=TunerOptions(...)")
     options, hooks = _settings(options, hooks, kwargs)
     opt = options.optimizer_fn()
     step = step_fn or make_step(

@@ -330,24 +330,22 @@ def report(rs: RobustSearch, robust: dict, nominal: dict | None) -> dict:
 # ---------------------------------------------------------------------- the hooks of vcjax tune
 
 
-def attach(t, start, say, sampling):
+def attach(t, start, say, config_spec):
     """``(search, batch)``: the [`RobustSearch`][tuning.robust.RobustSearch] of a tune being
     prepared (``t``: [`tuning.run`][tuning.run]'s run state, ``start``: the first iterate,
-    ``sampling``: [`tuning.run.sampling`][tuning.run.sampling]) and its training batch with the
-    adversarial slot, filled by a first search against the starting gains."""
-    from tuning.scenarios import scenario_spec
-
+    ``config_spec``: [`tuning.scenarios.config_spec`][tuning.scenarios.config_spec], the tune's
+    distribution) and its training batch with the adversarial slot, filled by a first search
+    against the starting gains."""
     cfg, problem = t.cfg, t.problem
     loop = problem.space.loop
     dtype = jnp.asarray(jax.tree_util.tree_leaves(t.data.base)[0]).dtype
-    kw = sampling(cfg, loop, dtype)
-    plant, design, coeffs = kw.pop("plant"), kw.pop("design"), kw.pop("coeffs")
+    spec = config_spec(cfg, loop)
+    plant, design = cfg.scenario.nominal(loop, dtype)
+    coeffs = cfg.scenario.coeffs()
     design = loop.default_params(dtype) if design is None else design
     plant = design if plant is None else plant
     coeffs = type(loop).default_path()[1] if coeffs is None else coeffs
     coeffs = jax.tree_util.tree_map(lambda a: jnp.asarray(a, dtype), coeffs)
-    kw.pop("loop")
-    spec = scenario_spec(loop, **kw)
     rs = RobustSearch.build(
         cfg.robust,
         spec,

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import sys
 import time
 from pathlib import Path
@@ -42,11 +41,17 @@ from tuning.report import (
     plot_loss_curve,
     plot_loss_terms,
 )
-from tuning.scenarios import SCENARIO_AXES, sample_scenarios, shard_scenarios
+from tuning.scenarios import (
+    SCENARIO_AXES,
+    Nominal,
+    config_spec,
+    sample_scenarios,
+    shard_scenarios,
+)
 from tuning.spec import TuneConfig
 from vcjax import loops, paths
-from vcjax.config import ConfigError, Current
-from vcjax.runtime import distributed
+from vcjax.config import ConfigError
+from vcjax.runtime import distributed, programs
 from vcjax.runtime.interrupts import stop_requested_everywhere
 from vcjax.runtime.outputs import write_json_atomic
 
@@ -57,50 +62,6 @@ def _config(cfg) -> TuneConfig:
     """The frozen config (a plain dict of the older form, e.g. a ``run.json`` record, is read
     with [`TuneConfig.from_dict`][tuning.spec.TuneConfig.from_dict])."""
     return cfg if isinstance(cfg, TuneConfig) else TuneConfig.from_dict(cfg)
-
-
-def sampling(cfg: TuneConfig, loop, dtype) -> dict:
-    """The keyword arguments of [`sample_scenarios`][tuning.scenarios.sample_scenarios] (and,
-    less ``plant``, ``design``, ``coeffs``, of [`scenario_spec`][tuning.scenarios.scenario_spec])
-    of a config's scenario distribution."""
-    sc, choice = cfg.scenarios, cfg.scenario
-    plant, design = choice.nominal(loop, dtype)
-    extra = {"initial": cfg.initial}
-    if cfg.disturbance.force:
-        extra["disturbance"] = cfg.disturbance.force
-    if cfg.simulation.u_d is not None:
-        extra["u_d"] = cfg.simulation.u_d
-    cur = dict(cfg.current)
-    for key, field in (("speed", "current_speed"), ("direction_deg", "current_direction_deg")):
-        if key in cur:
-            extra[field] = tuple(cur[key])
-        elif cur:  # [current] replaces current_max: a key not given takes the section default
-            extra[field] = getattr(Current(), key)
-    speed = extra.get("current_speed", (0.0, sc.current_max))
-    try:  # a current the loop cannot take is refused, never silently ignored
-        loops.check_disturbances(loop, max(speed) > 0, False)
-    except ValueError as err:
-        raise ConfigError("[current] " + str(err).removeprefix("current: ")) from None
-    wav = cfg["waves"]
-    if wav is not None:  # a random sea per scenario, as in sweeps (checked by validate_config)
-        extra["wave_spectrum"] = wav["spectrum"]
-        for k in ("hs", "tp", "direction_deg", "origin_depth", "gamma", "spreading", "components"):
-            extra[f"wave_{k}"] = tuple(wav[k]) if isinstance(wav[k], list) else wav[k]
-    me = cfg.model_error
-    if me.relative > 0:
-        extra["model_error"] = me.relative
-        extra["model_fields"] = me.fields or None
-    kw = dict(
-        loop=loop,
-        current_max=sc.current_max,
-        position_offset=sc.position_offset,
-        heading_offset=math.radians(sc.heading_offset_deg),
-        extra=extra,
-        plant=plant,
-        design=design,
-        coeffs=choice.coeffs(),
-    )
-    return kw
 
 
 def build(cfg: TuneConfig):
@@ -136,10 +97,12 @@ def build(cfg: TuneConfig):
     data = problem_data(problem, base, weights, p.dt, p.log_box, p.box_weight)
     if cfg.train.seed == cfg.heldout.seed:
         raise ConfigError("[heldout] seed: must differ from [train] seed (held-out scenarios)")
-    kw = sampling(cfg, loop, dtype)
+    plant, design = choice.nominal(loop, dtype)
+    spec = config_spec(cfg, loop)  # the parsed sections, as they are
+    kw = dict(loop=loop, nominal=Nominal(plant, design, choice.coeffs()))
     try:
-        train = sample_scenarios(cfg.train.seed, cfg.train.size, **kw)
-        heldout = sample_scenarios(cfg.heldout.seed, cfg.heldout.size, **kw)
+        train = sample_scenarios(cfg.train.seed, cfg.train.size, spec, **kw)
+        heldout = sample_scenarios(cfg.heldout.seed, cfg.heldout.size, spec, **kw)
     except ValueError as err:
         raise ConfigError(f"scenarios: {err}") from None
     return problem, eval_problem, data, train, heldout
@@ -192,10 +155,9 @@ def _evaluate(eval_fn, theta, data, batch) -> dict:
     }
 
 
-def _trajectories(problem, gains_list, batch, dt, n):
-    """Times, and for each gains of ``gains_list`` the positions (S, N, 2) [north, east] and
-    cross-track errors (S, N) of the first ``n`` scenarios of ``batch``: one program (the gains
-    are its argument), compiled once for all of them."""
+def _trajectory_program(problem, batch, n):
+    """``(fn, sub)``: the first ``n`` scenarios of ``batch`` (``sub``) and the program
+    ``fn(gains, sub, dt)`` of [`_trajectories`][tuning.run._trajectories]."""
     sub = jax.tree_util.tree_map(
         lambda ax, a: a if ax is None else jax.tree_util.tree_map(lambda x: x[:n], a),
         SCENARIO_AXES,
@@ -210,7 +172,15 @@ def _trajectories(problem, gains_list, batch, dt, n):
         sig = loop.signals(tr, s)
         return tr.t, sig.pos[:, :2], sig.eps, sig.u_err, sig.psi_err, sig.cmd_ratio
 
-    run = jax.jit(jax.vmap(one, in_axes=(None, SCENARIO_AXES, None)))
+    return jax.vmap(one, in_axes=(None, SCENARIO_AXES, None)), sub
+
+
+def _trajectories(problem, gains_list, batch, dt, n, run=None):
+    """Times, and for each gains of ``gains_list`` the positions (S, N, 2) [north, east] and
+    cross-track errors (S, N) of the first ``n`` scenarios of ``batch``: one program (the gains
+    are its argument; ``run``: that program built already), compiled once for all of them."""
+    fn, sub = _trajectory_program(problem, batch, n)
+    run = jax.jit(fn) if run is None else run
     out = []
     for gains in gains_list:
         t, xy, eps, u_err, psi_err, ratio = jax.device_get(run(gains, sub, dt))
@@ -270,6 +240,7 @@ class _Tune:
     data_d: Any = None
     start: Any = None
     eval_fn: Any = None
+    trajectories: Any = None  # the figures' program, built with the held-out evaluation
     n_dev: int = 1
     sharded: bool = False
     robust: Any = None  # [robust]: the tuning.robust.RobustSearch
@@ -296,7 +267,7 @@ def _prepare(cfg: TuneConfig, say) -> _Tune:
     if cfg.robust is not None:  # [robust]: a first search fills the batch's adversarial slot
         from tuning.robust import attach
 
-        t.robust, train = attach(t, start, say, sampling)
+        t.robust, train = attach(t, start, say, config_spec)
         t.n_dev = jax.device_count() if int(train.eta0.shape[0]) % jax.device_count() == 0 else 1
     t.train_d, t.data_d, t.start = distribute(train, data, start)
     t.sharded = t.train_d is not train
@@ -304,6 +275,27 @@ def _prepare(cfg: TuneConfig, say) -> _Tune:
         # gains copied per scenario: their gradient reduces across devices once, not per step
         t.problem = dataclasses.replace(problem, tile_gains=True)
     return t
+
+
+def _prebuild(t: _Tune, theta0) -> None:
+    """Build the held-out evaluation and the figures' trajectories now, concurrently
+    ([`programs.build_all`][vcjax.runtime.programs.build_all], while the training step builds in
+    its thread; a warm run loads them from the program store instead of tracing them):
+    ``t.eval_fn`` and ``t.trajectories`` then run them (their jitted forms for arguments of
+    other shapes or placements). One process only (``vcjax launch``: as before)."""
+    if jax.process_count() > 1:
+        return
+    static = ("vcjax tune", t.cfg.to_dict())
+    evaluate = lambda th, d, s: objective(th, d, s, t.eval_problem)  # noqa: E731
+    jobs = [("tune:heldout", evaluate, static, (theta0, t.data, t.heldout))]
+    n_plot = min(t.cfg.report.plot_scenarios, t.cfg.heldout.size)
+    if n_plot:
+        fn, sub = _trajectory_program(t.eval_problem, t.heldout, n_plot)
+        jobs.append(("tune:trajectories", fn, (*static, n_plot), (t.data.base, sub, t.data.dt)))
+    built = programs.build_all(jobs)
+    t.eval_fn = programs.for_arguments_like(built[0][0], jobs[0][3], t.eval_fn)
+    if n_plot:
+        t.trajectories = programs.for_arguments_like(built[1][0], jobs[1][3], jax.jit(fn))
 
 
 def _say_timing(res, say) -> None:
@@ -338,6 +330,7 @@ def _train(t: _Tune, progress, say):
     # the training step's largest program builds in a thread while the held-out evaluation
     # compiles and runs (XLA compiles outside Python's lock)
     step, building = _training_step(loss_fn, opts, cfg, problem, t.start, (t.data_d, t.train_d))
+    _prebuild(t, theta0)  # with the figures' program, while the training step builds
     before = _evaluate(t.eval_fn, theta0, data, t.heldout)
     say(
         f"held-out loss before: {before['loss']:.6g} ({time.perf_counter() - t0:.1f} s incl. "
@@ -396,7 +389,7 @@ def _plots(t: _Tune, res, tuned, before, after, out: Path) -> list:
     if not n_plot:
         return files
     tr_time, (tr_before, tr_after) = _trajectories(
-        t.eval_problem, (data.base, tuned), heldout, data.dt, n_plot
+        t.eval_problem, (data.base, tuned), heldout, data.dt, n_plot, t.trajectories
     )
     currents = np.asarray(heldout.current)[:n_plot]
     path_xy = _path_polyline(space.loop, heldout, tr_before["xy"], tr_after["xy"])

@@ -12,7 +12,7 @@ from typing import Any
 
 from vcjax.config.frozen import FrozenSection, freeze, thaw
 from vcjax.config.scenario import ScenarioChoice
-from vcjax.config.schema import Disturbance, ModelError, key
+from vcjax.config.schema import Current, Disturbance, ModelError, Waves, key
 
 __all__ = [
     "DEFAULTS",
@@ -55,13 +55,6 @@ class Problem(FrozenSection):
         False, "bool", "", "jax.checkpoint segments of the rollout under reverse mode"
     )
     checkpoint_every: int = key(10, "int", "", "steps per checkpointed segment", lo=1)
-    edd: str = key(
-        "paper",
-        "str",
-        "",
-        "VCM e_ddot mode: paper or implied (older spelling of [scenario] edd)",
-        choices=("paper", "implied"),
-    )
     risk: str = key(
         "mean",
         "str",
@@ -233,12 +226,15 @@ class TuneConfig(FrozenSection):
     """A tuning config, parsed once (``load_config``), frozen and hashable.
 
     Attributes are the sections (``cfg.problem.horizon``; ``cfg["problem"]["horizon"]`` reads
-    the same); ``scenario`` is the parsed ``[scenario]``
-    ([`ScenarioChoice`][vcjax.config.scenario.ScenarioChoice]), ``initial`` the ``[initial]`` ranges
-    and
-    ``current`` the ``[current]`` keys given, as ``(key, value)`` pairs. Read as a mapping,
-    ``current``, ``initial`` and ``scenario`` are plain dicts (as the older dict result had
-    them); ``to_dict`` is what ``run.json`` records and ``from_dict`` reads it back.
+    the same); the shared ones as they are parsed: ``current``
+    ([`Current`][vcjax.config.schema.Current], the ``[scenarios] current_max`` shorthand written
+    out), ``waves`` ([`Waves`][vcjax.config.schema.Waves] or ``None``), ``disturbance``,
+    ``model_error``; ``initial`` the ``[initial]`` ranges as ``(key, range)`` pairs,
+    ``environment`` the sections of [`vcjax.environment`][vcjax.environment] components
+    (``((section, table), ...)``, as a sweep's) and ``scenario`` the parsed ``[scenario]``
+    ([`ScenarioChoice`][vcjax.config.scenario.ScenarioChoice]). Read as a mapping, ``current``,
+    ``waves``, ``initial``, ``environment`` and ``scenario`` are plain dicts; ``to_dict`` is what
+    ``run.json`` records and ``from_dict`` reads it back.
     """
 
     problem: Problem = Problem()
@@ -251,9 +247,10 @@ class TuneConfig(FrozenSection):
     disturbance: Disturbance = Disturbance()
     model_error: ModelError = ModelError()
     simulation: TuneSimulation = TuneSimulation()
-    current: tuple[tuple[str, Any], ...] = ()
-    waves: tuple[tuple[str, Any], ...] | None = None
+    current: Current = Current(speed=(0.0, 1.0), direction_deg=(0.0, 360.0))
+    waves: Waves | None = None
     initial: tuple[tuple[str, tuple[float, float]], ...] = ()
+    environment: tuple = ()
     scenario: ScenarioChoice = ScenarioChoice()
     robust: Robust | None = None  # [robust] given: robust tuning (tuning.robust)
 
@@ -264,9 +261,10 @@ class TuneConfig(FrozenSection):
 
     def to_dict(self) -> dict:
         out = {k: thaw(getattr(self, k)) for k in self._keys() if k not in _PLAIN}
-        out["current"] = {k: thaw(v) for k, v in self.current}
-        out["waves"] = None if self.waves is None else {k: thaw(v) for k, v in self.waves}
+        out["current"] = _plain(self.current)
+        out["waves"] = None if self.waves is None else _plain(self.waves)
         out["initial"] = {k: thaw(v) for k, v in self.initial}
+        out["environment"] = {s: {k: thaw(v) for k, v in t} for s, t in self.environment}
         out["scenario"] = self.scenario.to_dict()
         if self.robust is None:  # recorded only where given
             out.pop("robust")
@@ -278,17 +276,22 @@ class TuneConfig(FrozenSection):
         waves = d.pop("waves", None)
         robust = d.pop("robust", None)
         plain = {
-            "current": freeze(dict(d.pop("current", {}))),
-            "waves": None if waves is None else freeze(dict(waves)),
+            "current": Current(**{k: freeze(v) for k, v in d.pop("current", {}).items()}),
+            "waves": None if waves is None else Waves(**{k: freeze(v) for k, v in waves.items()}),
             "initial": freeze(dict(d.pop("initial", {}))),
+            "environment": freeze(dict(d.pop("environment", {}))),
             "scenario": ScenarioChoice.from_dict(d.pop("scenario", ScenarioChoice().to_dict())),
             "robust": None if robust is None else Robust.from_dict(robust),
         }
         return dataclasses.replace(super().from_dict(d), **plain)
 
 
+def _plain(section) -> dict:
+    return {f.name: thaw(getattr(section, f.name)) for f in dataclasses.fields(section)}
+
+
 #: the fields of [`TuneConfig`][tuning.spec.TuneConfig] that read as plain dicts
-_PLAIN = ("current", "waves", "initial", "scenario")
+_PLAIN = ("current", "waves", "initial", "environment", "scenario")
 
 #: section -> key -> default (lists where the frozen sections hold tuples); the configuration
 #: reference is generated from it

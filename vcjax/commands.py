@@ -356,7 +356,9 @@ def sweep(args) -> int:
                 )
     for f in result["files"]:
         print(f"wrote {f}")
-    config = {"file": args.config, "spec": spec, **extras}
+    from vcjax.sweep.spec import spec_to_dict
+
+    config = {"file": args.config, "spec": spec_to_dict(spec), **extras}  # as summary.json
     _record(args.out, "sweep", args, config=config, seeds={"sweep": spec.seed})
     if summary is not None and summary.get("interrupted"):
         return _interrupted(

@@ -309,6 +309,42 @@ def _uncertainty(prob: ShootingProblem, sh: _Shots, res):
     return sd, corr, info_n
 
 
+def _excitation(prob: ShootingProblem, sh: _Shots, z0):
+    """``(sensitivity, warning or None)``: is each parameter excited by the logs, and how well
+    conditioned the problem is, at the start (spread weights)."""
+    seg = sh.seg
+    _, Jz0, Js0 = prob.linearize(z0, seg.y[:, 0, :], seg, 1.0 / sh.spread)
+    info0 = schur_information(Jz0, Js0)
+    sensitivity = check_excitation(prob.all_names, info0, sh.m)
+    return sensitivity, conditioning_before_fit(prob.all_names, info0)
+
+
+def _trust(prob: ShootingProblem, sh: _Shots, res, actuator_coeffs):
+    """``(std, correlation, identifiability warnings, trust warnings)`` of the estimate."""
+    names = prob.all_names
+    sd, corr, info_n = _uncertainty(prob, sh, res)
+    finite = bool(np.all(np.isfinite(info_n)) and np.all(np.isfinite(corr)))
+    warns = _identifiability(names, corr, info_n) if finite else []
+    std = {n: float(v) for n, v in zip(names, sd, strict=True)}
+    estimates, nominal = prob.values(res.z), prob.values(np.zeros_like(res.z))
+    untrusted = trust_warnings(
+        names, estimates, nominal, std, info_n, actuator_coeffs=actuator_coeffs
+    )
+    return std, corr, warns, untrusted
+
+
+def _ending(res, stage_iters, o: FitSettings) -> list[str]:
+    """A warning when the fit was interrupted or did not converge."""
+    if res.reason == "interrupted":
+        return [
+            f"interrupted after {sum(stage_iters)} iterations: the estimates are the last "
+            "accepted iterate, not an optimum"
+        ]
+    if not res.converged:
+        return [f"did not converge in {o.max_iters} iterations ; raise max_iters"]
+    return []
+
+
 def fit_logs(
     model: FitModel,
     logs: Sequence[Log],
@@ -352,31 +388,13 @@ def fit_logs(
         return prob.residuals(z, s, seg, w).reshape(seg.y.shape) / w
 
     rms_before = _channel_rms(phys(z0, seg.y[:, 0, :], 1.0 / sh.spread), mask, cols)
-    _, Jz0, Js0 = prob.linearize(z0, seg.y[:, 0, :], seg, 1.0 / sh.spread)  # each excited?
-    info0 = schur_information(Jz0, Js0)
-    sensitivity = check_excitation(prob.all_names, info0, sh.m)
-    before = conditioning_before_fit(prob.all_names, info0)
+    sensitivity, before = _excitation(prob, sh, z0)
     res, w, history, stage_iters = _two_stages(prob, sh, z0, o.max_iters, callback)
     z, s = res.z, res.s
-    sd, corr, info_n = _uncertainty(prob, sh, res)
     names = prob.all_names
-    finite = bool(np.all(np.isfinite(info_n)) and np.all(np.isfinite(corr)))
-    warns = [before] if before else []
-    warns += _identifiability(names, corr, info_n) if finite else []
-    std = {n: float(v) for n, v in zip(names, sd, strict=True)}
+    std, corr, trust, untrusted = _trust(prob, sh, res, model.actuator_coeffs)
+    warns = ([before] if before else []) + trust + untrusted + _ending(res, stage_iters, o)
     estimates, nominal = prob.values(z), prob.values(np.zeros_like(z))
-    untrusted = trust_warnings(
-        names, estimates, nominal, std, info_n, actuator_coeffs=model.actuator_coeffs
-    )
-    warns += untrusted
-    if res.reason == "interrupted":
-        warns.append(
-            f"interrupted after {sum(stage_iters)} iterations: the estimates are the last "
-            "accepted iterate, not an optimum"
-        )
-    elif not res.converged:
-        warns.append(f"did not converge in {o.max_iters} iterations ; raise max_iters")
-
     return FitResult(
         names=names,
         estimates=estimates,

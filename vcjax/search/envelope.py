@@ -313,11 +313,11 @@ def envelope_from_scenario(sc: ScenarioSpec, loop, dt: float | None = None) -> E
         "current_direction_deg": sc.current_direction_deg,
         "u_d": sc.u_d or (loop.default_speed,) * 2,
     }
-    r |= {f"initial.{k}": v for k, v in sc.initial}
-    if sc.model_error > 0:
-        r |= {f"model.{f}": (1 - sc.model_error, 1 + sc.model_error) for f in sc.fields_for(loop)}
-    if sc.disturbance:
-        r |= {f"disturbance.{i}": v for i, v in enumerate(sc.disturbance)}
+    r |= {f"initial.{k}": v for k, v in sc.initial.values}
+    rel = sc.model_error.relative
+    if rel > 0:
+        r |= {f"model.{f}": (1 - rel, 1 + rel) for f in sc.fields_for(loop)}
+    r |= {f"disturbance.{i}": v for i, v in enumerate(sc.disturbance.force)}
     if sc.waves:
         r |= {
             "wave_hs": sc.wave_hs,

@@ -57,10 +57,10 @@ def nominal(spec: SweepSpec, dtype=None):
     coefficients (as arrays of the parameters' dtype)."""
     loop = spec.loop(spec.variants[0])
     plant, design = spec.choice.nominal(loop, dtype)
-    dt = jnp.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
+    ftype = jnp.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
+    floating = lambda a: jnp.issubdtype(jnp.asarray(a).dtype, jnp.floating)
     coeffs = jax.tree_util.tree_map(
-        lambda a: jnp.asarray(a, dt) if jnp.issubdtype(jnp.asarray(a).dtype, jnp.floating) else a,
-        spec.choice.coeffs(),
+        lambda a: jnp.asarray(a, ftype) if floating(a) else a, spec.choice.coeffs()
     )
     return plant, design, coeffs
 
@@ -97,6 +97,15 @@ def to_scenario(loop, sc: MCScenario, plant, design, coeffs, config: MCConfig) -
 _ENVIRONMENT_STREAM = 0x656E76
 
 
+def with_environment(loop, s: loops.Scenario, key, config: MCConfig) -> loops.Scenario:
+    """``s`` with the further environment components of ``config`` (``MCConfig.environment``),
+    drawn from the scenario's own ``key`` (a stream of its own: the other draws are unchanged)."""
+    if not config.environment:
+        return s
+    k_env = jax.random.fold_in(key, _ENVIRONMENT_STREAM)
+    return s._replace(environment=environment.sample(k_env, dict(config.environment), loop))
+
+
 def simulate_scenario(
     loop, gains, nominal_params, sc: MCScenario, config: MCConfig, dt, reduction=None
 ) -> tuple[Trajectory, loops.Scenario]:
@@ -131,9 +140,7 @@ def simulate_scenario(
         noise_std=sc.noise_std,
         key=sc.key,
     )
-    if config.environment:  # the further components, drawn from the scenario's own key
-        k_env = jax.random.fold_in(sc.key, _ENVIRONMENT_STREAM)
-        s = s._replace(environment=environment.sample(k_env, dict(config.environment), loop))
+    s = with_environment(loop, s, sc.key, config)
     red = None if reduction is None else reduction(s)
     return loops.simulate(loop, gains, s, rcfg, dt, dist, dp, reduction=red), s
 
