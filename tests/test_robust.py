@@ -126,6 +126,7 @@ def test_tuning_loss_metric_is_the_tunes_scenario_loss_and_the_slot_refreshes():
     shape; a refresh at step K puts new scenarios in the slot, not before."""
     from tuning.loss import scenario_losses
     from tuning.robust import concat_batches, hook
+    from tuning.run import distribute
     from tuning.scenarios import batch_size, scenario_at
 
     t = _tune(TINY + ROBUST)
@@ -134,7 +135,7 @@ def test_tuning_loss_metric_is_the_tunes_scenario_loss_and_the_slot_refreshes():
     slot = scenario_at(t.train_d, 2)
     losses, _ = scenario_losses(t.start, t.data, t.train_d, t.problem)
     assert float(losses[2]) == pytest.approx(rs.rounds[0]["worst"], rel=1e-9)
-    refresh = hook(t, lambda m: None)
+    refresh = hook(t, lambda m: None, distribute)
     args = (t.data_d, t.train_d)
     assert refresh(1, t.start, args) is None
     new = refresh(2, t.start + 0.3, args)
