@@ -108,9 +108,11 @@ def _check_entry_points():
     instead of every tune test failing, when it was never installed from this checkout."""
     from importlib.metadata import entry_points
 
-    if not any(ep.name == "tune" for ep in entry_points(group="vcjax.commands")):
+    want = {("vcjax.commands", "tune"), ("vcjax.metrics", "loss")}
+    if not all(any(ep.name == n for ep in entry_points(group=g)) for g, n in want):
         raise pytest.UsageError(
-            "the 'vcjax.commands' entry points (`vcjax tune`) are not installed: run "
+            "the 'vcjax.commands' / 'vcjax.metrics' entry points (`vcjax tune`, the tuner's "
+            "loss metric) are not installed: run "
             "`pip install -e .` in the checkout (pyproject.toml declares them)"
         )
 

@@ -132,6 +132,9 @@ def test_the_tune_command_is_an_entry_point_of_the_command_seam():
 
     project = tomllib.loads((ROOT.parent / "pyproject.toml").read_text())["project"]
     assert project["entry-points"][GROUP] == {"tune": "tuning.command:COMMAND"}
+    assert project["entry-points"]["vcjax.metrics"] == {
+        "loss": "tuning.robust:TuningLossMetric.of_table"
+    }
     from tuning.command import COMMAND
 
     assert isinstance(COMMAND, Command) and COMMAND.name == "tune" and COMMAND.distributed

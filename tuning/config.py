@@ -103,6 +103,19 @@ command) naming the file and the offending ``section.key``::
 
     [report]
     plot_scenarios = 4              # held-out scenarios drawn in the before/after figures
+
+    [robust]                        # optional: robust tuning (tuning/robust.py); its presence
+    adversarial_every = 5           # switches it on: every K steps a search for the worst
+    adversarial_count = 4           # scenarios against the current gains fills the batch's
+    budget = 10                     # adversarial slot (ascent steps of each search)
+    starts = 8
+    step_size = 0.1
+    metric = "tuning_loss"          # or a sweep metric
+    seed = 7
+    compare = false                 # also tune without [robust] (summary: robust.nominal)
+    check_starts = 16               # the independent worst-case search at the end
+    check_budget = 20
+    check_seed = 1007
 """
 
 from __future__ import annotations
@@ -110,7 +123,15 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from tuning.spec import _SECTIONS, DEFAULTS, KEY_DOCS, TuneConfig, TuneSimulation
+from tuning.spec import (
+    _OPTIONAL,
+    _SECTIONS,
+    DEFAULTS,
+    KEY_DOCS,
+    LOSS_NAMES,
+    TuneConfig,
+    TuneSimulation,
+)
 from vcjax import loops
 from vcjax.config import (
     SECTIONS,
@@ -156,7 +177,7 @@ def _sections(raw: dict) -> dict:
     ([`vcjax.config.parse_section`][vcjax.config.schema.parse_section]); unknown sections suggest
     the closest."""
     added = registered()
-    known = sorted([*_SECTIONS, *_SPECIAL, *added])
+    known = sorted([*_SECTIONS, *_SPECIAL, *added, *_OPTIONAL])
     for name, table in raw.items():
         if name not in known:
             raise ConfigError(
@@ -166,7 +187,10 @@ def _sections(raw: dict) -> dict:
             raise ConfigError(f"[{name}]: expected a table, got {type(table).__name__} {table!r}")
     for name, cls in added.items():  # sections added by vcjax.config.register_section
         parse_section(cls, raw.get(name), name)
-    return {name: parse_section(cls, raw.get(name), name) for name, cls in _SECTIONS.items()}
+    sec = {name: parse_section(cls, raw.get(name), name) for name, cls in _SECTIONS.items()}
+    for name, cls in _OPTIONAL.items():  # [robust]: None where not given
+        sec[name] = parse_section(cls, raw[name], name) if name in raw else None
+    return sec
 
 
 def _simulation(raw: dict, sec: dict):
@@ -272,6 +296,26 @@ def _vehicle_keys(raw: dict, sec: dict, loop, current: Current, waves, env) -> d
     return init
 
 
+def _check_robust(rob) -> None:
+    """Cross-checks of ``[robust]`` (the one validator checked each key): ``starts >=
+    adversarial_count``; the metric one of the tuning loss's names or a sweep metric's (an
+    actuator's ``max_abs_<name>`` is checked against the loop's when the search is built)."""
+    if rob.starts < rob.adversarial_count:
+        raise ConfigError(
+            f"[robust] starts: must be >= adversarial_count ({rob.adversarial_count}), "
+            f"got {rob.starts}"
+        )
+    from vcjax.metrics import METRICS
+    from vcjax.search import ALIASES
+
+    known = [*LOSS_NAMES, *METRICS, *ALIASES]
+    if rob.metric not in known and not rob.metric.startswith("max_abs_"):
+        raise ConfigError(
+            f"[robust] metric: unknown metric {rob.metric!r}{closest(rob.metric, known)}; "
+            f"expected one of {known} (or max_abs_<actuator>)"
+        )
+
+
 def validate_config(raw: dict, config_path=None) -> TuneConfig:
     """Defaults filled in, every value checked; returns the frozen
     [`TuneConfig`][tuning.spec.TuneConfig].
@@ -298,6 +342,8 @@ def validate_config(raw: dict, config_path=None) -> TuneConfig:
     choice = _controller(sec, choice)
     loop = choice.loop(sec["problem"].variant)
     init = _vehicle_keys(raw, sec, loop, current, waves, env)
+    if sec["robust"] is not None:
+        _check_robust(sec["robust"])
     return TuneConfig(
         **sec,
         simulation=TuneSimulation(u_d=u_d),

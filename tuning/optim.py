@@ -458,11 +458,17 @@ class TunerHooks(NamedTuple):
         progress: ``progress(k, steps, record)`` for a progress bar.
         should_stop: polled after each step; True ends the loop there (``reason``
             ``"interrupted"``; the best parameters so far are returned, no further evaluation).
+        refresh: ``refresh(k, theta, args) -> args | None`` called before step ``k``: new
+            ``args`` of the same shapes (e.g. robust tuning's new adversarial scenarios,
+            [`tuning.robust`][tuning.robust]) replace the old from that step on; the objective
+            changed, so L-BFGS restarts its memory and the best parameters are those of the
+            latest ``args``.
     """
 
     on_step: Callable | None = None
     progress: Callable | None = None
     should_stop: Callable[[], bool] | None = None
+    refresh: Callable | None = None
 
 
 _OPTION_FIELDS = tuple(f.name for f in dataclasses.fields(TunerOptions))
@@ -515,6 +521,14 @@ class _Loop:
             "update_norm": float(info.update_norm),
             "wall_s": self.wall,
         }
+
+    def restart(self, theta, state) -> None:
+        """A new objective (``TunerHooks.refresh``): the best and the last good input are
+        those of the new one from here on."""
+        self.theta, self.state = theta, state
+        self.good = (theta, state)
+        self.best_theta, self.best_loss = theta, np.inf
+        self.scale = 1.0
 
     def take(self, new_theta, new_state, loss: float, ok: bool) -> None:
         """The guard: move on after an accepted step; revert and halve the step after a
@@ -588,6 +602,10 @@ def run_gradient_tuner(
     run = _Loop(theta, state)
     reason = "steps"
     for k in range(options.steps):
+        if hooks.refresh is not None and (new := hooks.refresh(k, run.theta, args)) is not None:
+            args = new
+            state = init_state(opt, run.theta) if options.optimizer == "lbfgs" else run.state
+            run.restart(*replicate_like(args, run.theta, state))
         t0 = time.perf_counter()
         scale = jnp.asarray(run.scale, run.theta.dtype)
         new_theta, new_state, info = step(run.theta, run.state, scale, args)

@@ -243,6 +243,7 @@ class _Tune:
     trajectories: Any = None  # the figures' program, built with the held-out evaluation
     n_dev: int = 1
     sharded: bool = False
+    robust: Any = None  # [robust]: the tuning.robust.RobustSearch
 
 
 def _prepare(cfg: TuneConfig, say) -> _Tune:
@@ -263,6 +264,11 @@ def _prepare(cfg: TuneConfig, say) -> _Tune:
     t = _Tune(cfg, problem, eval_problem, data, train, heldout, n_dev=n_dev)
     t.eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
     start = data.theta_ref + space.symmetry_break(data.base)
+    if cfg.robust is not None:  # [robust]: a first search fills the batch's adversarial slot
+        from tuning.robust import attach
+
+        t.robust, train = attach(t, start, say, config_spec)
+        t.n_dev = jax.device_count() if int(train.eta0.shape[0]) % jax.device_count() == 0 else 1
     t.train_d, t.data_d, t.start = distribute(train, data, start)
     t.sharded = t.train_d is not train
     if t.sharded:
@@ -337,10 +343,16 @@ def _train(t: _Tune, progress, say):
     if t.sharded:
         say(f"training batch sharded over {jax.device_count()} devices")
     space = problem.space
+    refresh = None
+    if t.robust is not None:  # [robust]: new adversarial scenarios every K steps
+        from tuning.robust import hook
+
+        refresh = hook(t, say, distribute)
     hooks = TunerHooks(
         on_step=lambda k, th, rec: {"gains": space.describe(th, data.base)},
         progress=bar,
         should_stop=stop_requested_everywhere,  # all processes stop at the same step
+        refresh=refresh,
     )
     res = run_gradient_tuner(
         loss_fn, t.start, (t.data_d, t.train_d), opts, hooks=hooks, step_fn=step
@@ -490,6 +502,10 @@ def run_tune_config(
     files = [out / "gains.json", out / "history.json"]
     files += _plots(t, res, tuned, before, after, out)
     summary = _summary(t, res, before, after, t_start)
+    if t.robust is not None:
+        from tuning.robust import summarize
+
+        summary["robust"] = summarize(t, tuned, after, out, progress, say, run_tune_config)
     if res.reason == "interrupted":  # SIGINT / SIGTERM: the best gains so far, of planned steps
         summary["interrupted"] = True
         summary["steps_planned"] = cfg.optimizer["steps"]

@@ -25,6 +25,7 @@ __all__ = [
     "Heldout",
     "Optimizer",
     "Report",
+    "Robust",
     "ForceRanges",
     "PlantError",
     "TuneSimulation",
@@ -160,6 +161,39 @@ class Report(FrozenSection):
     )
 
 
+#: spellings of the tuning loss as a metric (``[robust] metric``, ``vcjax falsify --metric loss``)
+LOSS_NAMES = ("tuning_loss", "loss")
+
+
+@dataclasses.dataclass(frozen=True)
+class Robust(FrozenSection):
+    """``[robust]`` (optional; its presence switches robust tuning on,
+    [`tuning.robust`][tuning.robust]): every ``adversarial_every`` steps, a gradient search
+    of the tune's own scenario ranges for the worst scenarios against the current gains; the
+    ``adversarial_count`` worst replace the adversarial slot of the training batch."""
+
+    adversarial_every: int = key(5, "int", "", "optimiser steps between two searches (K)", lo=1)
+    adversarial_count: int = key(
+        4, "int", "", "worst scenarios put in the training batch by each search", lo=1
+    )
+    budget: int = key(10, "int", "", "ascent steps of each search (one rollout per start)", lo=1)
+    starts: int = key(8, "int", "", "starts of each search (>= adversarial_count)", lo=1)
+    step_size: float = key(0.1, "float", "", "Adam step of the search in the unit box", **_POS)
+    metric: str = key(
+        "tuning_loss",
+        "str",
+        "",
+        "what is maximised: tuning_loss (the [weights] loss) or a sweep metric",
+    )
+    seed: int = key(7, "seed", "", "seed of the searches (round r: scenarios r x starts on)")
+    compare: bool = key(
+        False, "bool", "", "also tune without [robust] in the same run (summary: robust.nominal)"
+    )
+    check_starts: int = key(16, "int", "", "starts of the independent worst-case search", lo=1)
+    check_budget: int = key(20, "int", "", "ascent steps of that search", lo=1)
+    check_seed: int = key(1007, "seed", "", "its seed (other than the training searches')")
+
+
 @dataclasses.dataclass(frozen=True)
 class TuneSimulation(FrozenSection):
     """What ``[simulation]`` adds to ``[problem]``: the desired-speed range [m/s]."""
@@ -218,6 +252,7 @@ class TuneConfig(FrozenSection):
     initial: tuple[tuple[str, tuple[float, float]], ...] = ()
     environment: tuple = ()
     scenario: ScenarioChoice = ScenarioChoice()
+    robust: Robust | None = None  # [robust] given: robust tuning (tuning.robust)
 
     def __getitem__(self, key: str) -> Any:
         if key in _PLAIN:
@@ -231,18 +266,22 @@ class TuneConfig(FrozenSection):
         out["initial"] = {k: thaw(v) for k, v in self.initial}
         out["environment"] = {s: {k: thaw(v) for k, v in t} for s, t in self.environment}
         out["scenario"] = self.scenario.to_dict()
+        if self.robust is None:  # recorded only where given
+            out.pop("robust")
         return out
 
     @classmethod
     def from_dict(cls, d) -> TuneConfig:
         d = dict(d)
         waves = d.pop("waves", None)
+        robust = d.pop("robust", None)
         plain = {
             "current": Current(**{k: freeze(v) for k, v in d.pop("current", {}).items()}),
             "waves": None if waves is None else Waves(**{k: freeze(v) for k, v in waves.items()}),
             "initial": freeze(dict(d.pop("initial", {}))),
             "environment": freeze(dict(d.pop("environment", {}))),
             "scenario": ScenarioChoice.from_dict(d.pop("scenario", ScenarioChoice().to_dict())),
+            "robust": None if robust is None else Robust.from_dict(robust),
         }
         return dataclasses.replace(super().from_dict(d), **plain)
 
@@ -257,6 +296,9 @@ _PLAIN = ("current", "waves", "initial", "environment", "scenario")
 #: section -> key -> default (lists where the frozen sections hold tuples); the configuration
 #: reference is generated from it
 DEFAULTS: dict[str, dict[str, Any]] = {name: cls().to_dict() for name, cls in _SECTIONS.items()}
+#: the optional sections (parsed only where given; their presence is a switch)
+_OPTIONAL = {"robust": Robust}
+DEFAULTS |= {name: cls().to_dict() for name, cls in _OPTIONAL.items()}
 
 
 #: (section, key) -> (unit, description) of the tune-only keys, read from the sections'
@@ -265,6 +307,6 @@ DEFAULTS: dict[str, dict[str, Any]] = {name: cls().to_dict() for name, cls in _S
 #: configuration reference is generated from it
 KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     (name, f.name): (f.metadata["unit"], f.metadata["doc"])
-    for name, cls in _SECTIONS.items()
+    for name, cls in {**_SECTIONS, **_OPTIONAL}.items()
     for f in dataclasses.fields(cls)
 }

@@ -42,7 +42,7 @@ from vcjax.control.baselines import (
     baseline_params,
     baseline_state,
 )
-from vcjax.control.vcm import VCMConfig, check_edd, pm_gains, vcm_law, vcm_params, vcm_state
+from vcjax.control.vcm import VCMLoopOptions, pm_gains, vcm_law, vcm_params, vcm_state
 from vcjax.environment import WaterMotion
 from vcjax.loops.geometry import path_errors, path_frames, path_poses
 from vcjax.loops.law import Law
@@ -152,12 +152,8 @@ class InfanteVCMLaw(_InfanteLaw):
         return vcm_state(varpi0=sc.varpi0)
 
     def step(self, loop, params, t, x, z):
-        cfg = VCMConfig(
-            path=loop.path,
-            actuation="underactuated",
-            edd=loop.edd,
-            integral=self.integral,
-            guidance=self.guidance,
+        cfg = loop.vcm_config(
+            actuation="underactuated", integral=self.integral, guidance=self.guidance
         )
         return vcm_law(cfg, params, t, x.eta, x.nu, z)
 
@@ -198,14 +194,12 @@ _SCALAR_FIELDS = tuple(f for f in infante.InfanteParams._fields if f != "cf_x")
 
 
 @dataclasses.dataclass(frozen=True)
-class InfanteLoop(Loop):
+class InfanteLoop(VCMLoopOptions, Loop):
     """INFANTE-class craft (3-DOF horizontal plant, thrust + rudder) under one controller.
 
-    Attributes (besides [`Loop`][vcjax.loops.loop.Loop]'s):
-        edd: which ``e_ddot`` enters the VCM heading row (``"paper"`` or ``"implied"``).
+    Attributes: [`Loop`][vcjax.loops.loop.Loop]'s and the VCM law's option
+    ([`VCMLoopOptions`][vcjax.control.vcm.VCMLoopOptions]).
     """
-
-    edd: Literal["paper", "implied"] = "paper"
 
     vehicle: ClassVar[str] = "infante"
     #: the columns of ``Signals.cmd_ratio``
@@ -239,10 +233,6 @@ class InfanteLoop(Loop):
         "waves": "its plant is a horizontal-plane (3-DOF) model with no depth, while a wave's "
         "orbital motion is as much vertical as horizontal and decays with depth",
     }
-
-    def __post_init__(self):
-        super().__post_init__()
-        check_edd(self.edd)
 
     # ---------------------------------------------------------------- parameters and gains
     @classmethod

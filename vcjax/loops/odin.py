@@ -33,9 +33,8 @@ from vcjax.control.attitude import roll_pitch_pd
 from vcjax.control.depth import depth_pid, depth_reference
 from vcjax.control.vcm import (
     VCMAux,
-    VCMConfig,
+    VCMLoopOptions,
     VCMState,
-    check_edd,
     pm_gains,
     vcm_law,
     vcm_params,
@@ -228,9 +227,7 @@ class OdinLaw(Law):
         return OdinCtrlState(vcm=vcm_state(varpi0=sc.varpi0), int_z=jnp.zeros_like(sc.u_d))
 
     def step(self, loop, params, t, meas, z):
-        cfg = VCMConfig(
-            path=loop.path, actuation=self.actuation, edd=loop.edd, integral=loop.integral
-        )
+        cfg = loop.vcm_config(actuation=self.actuation, integral=loop.integral)
         eta3, nu3 = meas
         return vcm_law(cfg, params.vcm, t, eta3, nu3, z.vcm)
 
@@ -245,19 +242,18 @@ _IDX = (0, 1, 5)  # [x, y, psi] of eta, [u, v, r] of nu
 
 
 @dataclasses.dataclass(frozen=True)
-class OdinLoop(Loop):
+class OdinLoop(VCMLoopOptions, Loop):
     """ODIN-class sphere (6-DOF plant, 8 thrusters) under the horizontal VCM law + depth and
     attitude loops + allocation (module docstring).
 
-    Attributes (besides [`Loop`][vcjax.loops.loop.Loop]'s):
+    Attributes (besides [`Loop`][vcjax.loops.loop.Loop]'s and the VCM law's option,
+    [`VCMLoopOptions`][vcjax.control.vcm.VCMLoopOptions]):
         integral: integral action (41) in the VCM law (gains ``P_int``).
-        edd: ``"paper"`` or ``"implied"`` (see [`vcjax.control.vcm`][vcjax.control.vcm]).
         polish: projected-gradient steps of the allocation (see
         [`vcjax.allocation`][vcjax.allocation]).
     """
 
     integral: bool = True
-    edd: Literal["paper", "implied"] = "paper"
     polish: int = 50
 
     vehicle: ClassVar[str] = "odin"
@@ -278,10 +274,6 @@ class OdinLoop(Loop):
     }
     default_speed: ClassVar[float] = 0.5
     feels: ClassVar[dict[str, bool | str]] = {"force": True, "current": True, "waves": True}
-
-    def __post_init__(self):
-        super().__post_init__()
-        check_edd(self.edd)
 
     @property
     def actuation(self) -> str:

@@ -39,7 +39,7 @@ from vcjax.control.baselines3d import (
     decoupled_law,
     decoupled_state,
 )
-from vcjax.control.vcm import VCMConfig, check_edd, pm_gains, vcm_params, vcm_state
+from vcjax.control.vcm import VCMLoopOptions, pm_gains, vcm_params, vcm_state
 from vcjax.control.vcm3d import (
     VCM3DConfig,
     pose_errors,
@@ -217,7 +217,7 @@ class RemusDecoupledLaw(_RemusLaw):
         return decoupled_state(vcm_state(varpi0=sc.varpi0))
 
     def step(self, loop, params, t, m, z):
-        hcfg = VCMConfig(path=loop.path, actuation="underactuated", edd=loop.edd, integral=True)
+        hcfg = loop.vcm_config(actuation="underactuated", integral=True)
         dcfg = DecoupledConfig(dataclasses.replace(hcfg, guidance="ilos"), rd.body_bias5)
         return decoupled_law(dcfg, params, t, m.q, m.qd, m.nu, z)
 
@@ -263,15 +263,13 @@ REMUS_CONTROLLERS = tuple(REMUS_LAWS)
 
 
 @dataclasses.dataclass(frozen=True)
-class Remus100Loop(Loop):
+class Remus100Loop(VCMLoopOptions, Loop):
     """The PVS REMUS 100 (6-DOF, fins + propeller) under one 3-D path-following controller.
 
-    Attributes (besides [`Loop`][vcjax.loops.loop.Loop]'s):
-        edd: which ``e_ddot`` enters the heading row of ``decoupled``'s 2-D VCM law
-            (``"paper"`` or ``"implied"``, [`VCMConfig`][vcjax.control.vcm.VCMConfig]).
+    Attributes: [`Loop`][vcjax.loops.loop.Loop]'s and the VCM law's option
+    ([`VCMLoopOptions`][vcjax.control.vcm.VCMLoopOptions]: it selects the heading row of
+    ``decoupled``'s 2-D VCM law).
     """
-
-    edd: Literal["paper", "implied"] = "paper"
 
     vehicle: ClassVar[str] = "remus100"
     laws: ClassVar[dict[str, Law]] = REMUS_LAWS
@@ -290,10 +288,6 @@ class Remus100Loop(Loop):
         "varying_current": True,
         "waves": True,
     }
-
-    def __post_init__(self):
-        super().__post_init__()
-        check_edd(self.edd)
 
     # ---------------------------------------------------------------- parameters and gains
     @classmethod

@@ -11,7 +11,7 @@ import dataclasses
 import functools
 import time
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Protocol
 
 import jax
 import jax.numpy as jnp
@@ -27,6 +27,7 @@ __all__ = [
     "ALIASES",
     "FalsifyOptions",
     "FalsifyResult",
+    "SegmentMetric",
     "falsify",
     "evaluate",
     "metric_name",
@@ -46,9 +47,39 @@ SHARPNESS = 16.0
 _FLOOR = -1.0e6  # log-domain stand-in for an empty or masked sample (finite: no NaN gradients)
 
 
-def metric_name(loop, gains, setting: Setting, name: str) -> str:
+class SegmentMetric(Protocol):
+    """A metric of one rollout that is not a sweep metric (e.g. the tuning loss:
+    ``tuning.robust.TuningLossMetric``), folded segment by segment like the sweep metrics.
+
+    A hashable, frozen object (it is a static argument of the compiled search): ``name`` (the
+    key it is reported under), ``init(dtype)`` (an accumulator pytree), ``update(acc, seg,
+    sig, ks)`` (fold the segment's [`Trajectory`][vcjax.rollout.Trajectory] ``seg``, its
+    [`Signals`][vcjax.loops.types.Signals] ``sig`` and its (L,) step indices ``ks``),
+    ``value(acc, n)`` (the () metric after ``n`` steps). A smooth metric: its gradient is
+    ascended as is.
+    """
+
+    name: str
+
+    def init(self, dtype) -> Any: ...
+
+    def update(self, acc, seg, sig, ks) -> Any: ...
+
+    def value(self, acc, n: int) -> Any: ...
+
+
+def _name(metric) -> str:
+    return metric if isinstance(metric, str) else metric.name
+
+
+def metric_name(loop, gains, setting: Setting, name):
     """The sweep metric ``name`` (or an alias of ``ALIASES``) of ``loop``'s metrics
-    (``ValueError`` listing them)."""
+    (``ValueError`` listing them); a [`SegmentMetric`][vcjax.search.core.SegmentMetric] is
+    returned as it is."""
+    if not isinstance(name, str):
+        if not all(hasattr(name, a) for a in ("name", "init", "update", "value")):
+            raise ValueError(f"metric: expected a metric name or a SegmentMetric, got {name!r}")
+        return name
     env = Envelope.build(loop, {})
     sc = scenario_from(jnp.asarray(env.lo), 0, env, dataclasses.replace(setting, sea=None))
     from vcjax.sweep.run import to_scenario
@@ -68,9 +99,12 @@ def soft_metric(name: str) -> bool:
     return name.startswith("max_")
 
 
-def _metrics(x, index, gains, env: Envelope, setting: Setting, metric: str, sharpness: float):
+def _metrics(x, index, gains, env: Envelope, setting: Setting, metric, sharpness: float):
     """``(surrogate, metrics)`` of one scenario: the metrics of a streamed rollout and, for a
-    max metric, its power mean over the same samples (else the metric itself)."""
+    max metric, its power mean over the same samples (else the metric itself); a
+    [`SegmentMetric`][vcjax.search.core.SegmentMetric] is added to the metrics under its
+    name."""
+    custom = not isinstance(metric, str)
     loop, config = setting.loop, setting.config
     sc = scenario_from(x, index, env, setting)
     n = config.num_steps
@@ -82,10 +116,12 @@ def _metrics(x, index, gains, env: Envelope, setting: Setting, metric: str, shar
         names = _act_names(loop, gains, s)
 
         def update(acc, seg, ks):
-            macc, soft, healthy = acc
+            macc, soft, healthy, cacc = acc
             sig = loop.signals(seg, s)
             macc = metrics_update(macc, sig, seg.finite, ks, k0)
-            if soft_metric(metric):
+            if custom:
+                cacc = metric.update(cacc, seg, sig, ks)
+            elif soft_metric(metric):
                 if metric == "max_abs_e":
                     a, mask = jnp.abs(sig.eps[:, 1]), jnp.ones(ks.shape, bool)
                 elif metric == "max_dist_3d":
@@ -94,17 +130,20 @@ def _metrics(x, index, gains, env: Envelope, setting: Setting, metric: str, shar
                     a, mask = sig.act[metric.removeprefix("max_abs_")], jnp.ones(ks.shape, bool)
                 la = jnp.where(mask, p * jnp.log(jnp.abs(a) + 1e-30), _FLOOR)
                 soft = jnp.logaddexp(soft, jax.scipy.special.logsumexp(la))
-            return (macc, soft, healthy & seg.healthy), None
+            return (macc, soft, healthy & seg.healthy, cacc), None
 
-        init = (metrics_init(names, dtype), jnp.asarray(_FLOOR, dtype), jnp.array(True))
+        cacc = metric.init(dtype) if custom else ()
+        init = (metrics_init(names, dtype), jnp.asarray(_FLOOR, dtype), jnp.array(True), cacc)
         L = min(100, n)
         return Reduction(init, update, L)
 
     (acc, _), _ = simulate_scenario(loop, gains, setting.nominal, sc, config, setting.dt, reduction)
-    macc, soft, healthy = acc
+    macc, soft, healthy, cacc = acc
     m = metrics_finalize(macc, n, k0, jnp.asarray(setting.dt, dtype), setting.diverge_e)
     m["diverged"] = m["diverged"] | ~healthy
-    if soft_metric(metric):
+    if custom:
+        m[metric.name] = surrogate = metric.value(cacc, n)
+    elif soft_metric(metric):
         count = n - k0 if metric == "max_dist_3d" else n
         surrogate = jnp.exp((soft - jnp.log(count)) / p)
     else:
@@ -138,7 +177,7 @@ def _key(setting: Setting):
     return dataclasses.replace(setting, nominal=None)
 
 
-def evaluate(loop, gains, env: Envelope, setting: Setting, metric: str, x, index) -> dict:
+def evaluate(loop, gains, env: Envelope, setting: Setting, metric, x, index) -> dict:
     """The metrics (name -> (B,) numpy) of parameter vectors ``x`` (B, P) in config units with
     the random draws of scenarios ``index`` (B,): e.g. a replay of ``worst.json``."""
     x = jnp.asarray(np.asarray(x, dtype=float), _dtype(setting))
@@ -250,6 +289,10 @@ class FalsifyOptions:
         progress: receives a line per step / batch.
         stop: polled between steps (default: ``stop_requested``); the result keeps what was
             found.
+        first_index: the scenario number of the first start (the starts are ``first_index``,
+            ``first_index + 1``, ...: their random draws; the baseline's follow them): another
+            set of draws under the same seed without compiling again (the seed is static), as
+            robust tuning's rounds do; its starting points are drawn from it too.
     """
 
     starts: int = 8
@@ -261,6 +304,7 @@ class FalsifyOptions:
     sharpness: float = SHARPNESS
     progress: Callable[[str], Any] | None = None
     stop: Callable[[], bool] | None = None
+    first_index: int = 0
 
 
 _OPTION_FIELDS = frozenset(f.name for f in dataclasses.fields(FalsifyOptions))
@@ -285,9 +329,11 @@ def _ascent(c: _Search) -> dict:
     """Multi-start projected gradient ascent (Adam in the unit box): each start's worst point,
     its metric and divergence flag, the curve, and how the ascent ended."""
     o, metric, starts = c.o, c.metric, c.o.starts
-    rng = np.random.default_rng([c.setting.seed, 1])
+    name = _name(metric)
+    i0 = int(o.first_index)
+    rng = np.random.default_rng([c.setting.seed, 1] + ([i0] if i0 else []))
     z = jnp.asarray(rng.random((starts, len(c.envelope.names))), c.dtype) * c.width
-    index = jnp.arange(starts, dtype=jnp.int32)
+    index = jnp.arange(i0, i0 + starts, dtype=jnp.int32)
     m1, m2 = jnp.zeros_like(z), jnp.zeros_like(z)
     best_v, best_val = np.full(starts, -np.inf), np.full(starts, np.nan)
     best_z, best_div = np.asarray(z), np.zeros(starts, bool)
@@ -302,7 +348,7 @@ def _ascent(c: _Search) -> dict:
             out["interrupted"] = True
             break
         m, g = compiled(z, index, c.gains, c.setting.nominal)
-        v = np.asarray(m[metric])
+        v = np.asarray(m[name])
         out["first_s"] = time.perf_counter() - t0 if out["first_s"] is None else out["first_s"]
         r = _rank(v)
         better = r > best_v
@@ -313,9 +359,7 @@ def _ascent(c: _Search) -> dict:
         out["done"] += starts
         worst = float(np.max(best_v))
         out["curve"].append((out["done"], worst))
-        c.say(
-            f"gradient step {k + 1}/{o.steps}: {out['done']} rollouts, worst {metric} {worst:.4g}"
-        )
+        c.say(f"gradient step {k + 1}/{o.steps}: {out['done']} rollouts, worst {name} {worst:.4g}")
         if o.bound is not None and worst > o.bound:
             out["falsified"] = True
             break
@@ -335,8 +379,10 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
     """Plain random sampling of the same envelope, new scenario numbers, in equal batches of at
     most ``random_batch`` (at least ``starts``: no padded work in the timing)."""
     o, metric, starts, P = c.o, c.metric, c.o.starts, len(c.envelope.names)
+    name = _name(metric)
     t1 = time.perf_counter()
-    rng = np.random.default_rng([c.setting.seed, 2])
+    i0 = int(o.first_index)
+    rng = np.random.default_rng([c.setting.seed, 2] + ([i0] if i0 else []))
     rx, ri, rv, rd, rcurve = [], [], [], [], []
     rworst, rfals = -np.inf, False
     fwd = None
@@ -348,20 +394,20 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
             break
         zb = rng.random((batch, P)) * np.asarray(c.width)
         xb = np.asarray(c.envelope.from_unit(jnp.asarray(zb, c.dtype)))
-        ib = np.arange(starts + j, starts + j + batch, dtype=np.int32)
+        ib = np.arange(i0 + starts + j, i0 + starts + j + batch, dtype=np.int32)
         if fwd is None:
             fwd = functools.partial(_forward, env=c.envelope, setting=c.key, metric=metric)
         m = jax.device_get(fwd(jnp.asarray(xb, c.dtype), ib, c.gains, c.setting.nominal))
         nb = min(batch, n_rand - j)
         rx.append(xb[:nb])
         ri.append(ib[:nb])
-        rv.append(np.asarray(m[metric])[:nb])
+        rv.append(np.asarray(m[name])[:nb])
         rd.append(np.asarray(m["diverged"])[:nb])
         for k, r in enumerate(_rank(rv[-1])):  # one point per rollout
             rworst = max(rworst, float(r))
             rcurve.append((j + k + 1, rworst))
         j += nb
-        c.say(f"random: {j}/{n_rand} rollouts, worst {metric} {rworst:.4g}")
+        c.say(f"random: {j}/{n_rand} rollouts, worst {name} {rworst:.4g}")
         if o.bound is not None and rworst > o.bound:
             rfals = True
             break
@@ -383,7 +429,7 @@ def falsify(
     loop,
     gains,
     envelope,
-    metric: str,
+    metric,
     setting: Setting | None = None,
     options: FalsifyOptions | None = None,
     **kwargs,
@@ -403,7 +449,8 @@ def falsify(
             [`Envelope`][vcjax.search.envelope.Envelope], or a
             mapping name -> ``(lo, hi)`` or number
             ([`Envelope.build`][vcjax.search.envelope.Envelope.build]);
-        metric: a sweep metric of the loop (or an alias, ``ALIASES``).
+        metric: a sweep metric of the loop (or an alias, ``ALIASES``), or a
+            [`SegmentMetric`][vcjax.search.core.SegmentMetric] (e.g. the tuning loss).
         setting: [`Setting`][vcjax.search.envelope.Setting] (horizon, dt, nominal parameters, sea,
             seed); default:
             [`make_setting`][vcjax.search.envelope.make_setting] of the keyword arguments that
@@ -436,7 +483,7 @@ def falsify(
     n_rand = a["done"] if o.random_rollouts is None else int(o.random_rollouts)
     b = _baseline(c, n_rand, a["interrupted"])
     return FalsifyResult(
-        metric=metric,
+        metric=_name(metric),
         envelope=envelope,
         x=a["x"],
         index=a["index"],

@@ -49,6 +49,7 @@ __all__ = [
     "scenario_from",
     "setting_from_spec",
     "envelope_from_spec",
+    "envelope_from_scenario",
 ]
 
 _WAVE = ("wave_hs", "wave_tp", "wave_direction_deg", "wave_spreading", "wave_origin_depth")
@@ -300,8 +301,13 @@ def scenario_from(x, index, env: Envelope, setting: Setting) -> MCScenario:
 def envelope_from_spec(spec: SweepSpec) -> Envelope:
     """The envelope of a sweep spec's scenario ranges (every ``[lo, hi]`` searched, every
     number fixed; ``[model_error] relative = r``: each field's factor in ``[1 - r, 1 + r]``)."""
-    sc: ScenarioSpec = spec.scenario
-    loop = spec.loop(spec.variants[0])
+    return envelope_from_scenario(spec.scenario, spec.loop(spec.variants[0]), spec.dt)
+
+
+def envelope_from_scenario(sc: ScenarioSpec, loop, dt: float | None = None) -> Envelope:
+    """The envelope of a [`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec]'s ranges for ``loop``
+    (as [`envelope_from_spec`][vcjax.search.envelope.envelope_from_spec]; e.g. the scenario
+    distribution of a tune, ``tuning.robust``)."""
     r = {
         "current_speed": sc.current.speed,
         "current_direction_deg": sc.current.direction_deg,
@@ -320,7 +326,7 @@ def envelope_from_spec(spec: SweepSpec) -> Envelope:
             "wave_spreading": sc.waves.spreading,
             "wave_origin_depth": sc.waves.origin_depth,
         }
-    return Envelope.build(loop, r, dt=spec.dt)
+    return Envelope.build(loop, r, dt=dt)
 
 
 def setting_from_spec(spec: SweepSpec, env: Envelope, variant: str | None = None) -> Setting:
