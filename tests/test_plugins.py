@@ -68,3 +68,15 @@ def test_the_installed_tune_command_keeps_its_help(argv, capsys):
     assert exc.value.code == 0
     out = capsys.readouterr().out
     assert "tune a loop's gains by gradient descent" in out or "--max-memory-gb G" in out
+
+
+def test_the_tuners_loss_metric_comes_from_its_entry_point(monkeypatch):
+    """``metric = "loss"`` (falsify, ``sweep --scenario``) is the tuner's, found through the
+    ``vcjax.metrics`` entry point; without it, one line naming the fix."""
+    from vcjax import commands
+
+    m = commands._loss_metric({})
+    assert type(m).__name__ == "TuningLossMetric" and type(m).__module__ == "tuning.robust"
+    monkeypatch.setattr(importlib.metadata, "entry_points", lambda group: [])
+    with pytest.raises(ValueError, match=r"metric loss: .*pip install -e \."):
+        commands._loss_metric({})
