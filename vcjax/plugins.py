@@ -15,6 +15,9 @@ The entry points are read from the installed package metadata; a source tree tha
 installed has none (``pip install -e .`` writes them), and ``vcjax`` says so in one line when
 such a command is asked for ([`missing_command`][vcjax.plugins.missing_command]).
 
+Search metrics come the same way, from the ``vcjax.metrics`` group (``loss``: the tuner's
+loss, ``tuning.robust``, for ``metric = "loss"``; read by ``vcjax.commands``).
+
 What a command's body shares with the built-in ones (``vcjax.commands``) is re-exported here,
 under public names: the kit of a plugin command.
 """
