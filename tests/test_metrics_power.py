@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from vcjax.loops import Signals
-from vcjax.metrics import first_excursion, path_bound, run_metrics
+from vcjax.metrics import (
+    first_excursion,
+    path_bound,
+    polyline_nearest,
+    run_metrics,
+    undefined_metrics,
+)
 
 
 def _signals(e, act=None):
@@ -59,3 +65,29 @@ def test_diverged_at_the_bound_and_when_nonfinite_beyond_it():
     assert bool(run_metrics(_signals(e), ok, 0.1, diverge_e=1.5)["diverged"])
     bad = run_metrics(_signals(e.at[3].set(np.nan)), ok.at[3].set(False), 0.1, diverge_e=1.5)
     assert bool(bad["nonfinite"]) and bool(bad["diverged"])  # both reasons at once
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"finite": jnp.ones(4, bool)}, "finite: expected shape"),  # one flag too many
+        ({"start": -0.5}, r"fraction in \[0, 1\)"),
+        ({"start": 1.5}, r"fraction in \[0, 1\)"),
+    ],
+)
+def test_run_inputs_refused_by_their_own_check(kwargs, match):
+    args = {"finite": jnp.ones(3, bool), "start": 0.5} | kwargs
+    with pytest.raises(ValueError, match=match):
+        run_metrics(_signals(jnp.ones(3)), args["finite"], 0.1, start=args["start"])
+
+
+def test_undefined_metrics_reads_past_a_flag():
+    got = undefined_metrics({"healthy": True, "x": float("nan"), "y": 1.0, "z": None})
+    assert set(got) == {"x", "z"}
+
+
+def test_polyline_nearest_parameter_of_a_path_not_starting_at_zero():
+    ws = np.array([10.0, 11.0, 12.0])  # p(w) along north, 1 m per unit of w from w = 10
+    pts = np.array([[0.0, 0, 0], [1.0, 0, 0], [2.0, 0, 0]])
+    _, w, _, _ = polyline_nearest(np.array([[1.5, 1.0, 0.0]]), pts, ws)
+    np.testing.assert_allclose(w, [11.5], rtol=1e-14)
