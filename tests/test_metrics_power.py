@@ -91,3 +91,24 @@ def test_polyline_nearest_parameter_of_a_path_not_starting_at_zero():
     pts = np.array([[0.0, 0, 0], [1.0, 0, 0], [2.0, 0, 0]])
     _, w, _, _ = polyline_nearest(np.array([[1.5, 1.0, 0.0]]), pts, ws)
     np.testing.assert_allclose(w, [11.5], rtol=1e-14)
+
+
+def test_polyline_nearest_on_segments_of_other_lengths_and_directions():
+    # w = 10, 12, ..., 18 (dw = 2) at the vertices of legs 3 m north, 4 m east, 3 m south,
+    # 5 m down, and a point before the start: the nearest point's parameter, distance and its leg's unit tangent
+    ws = np.arange(10.0, 19.0, 2.0)
+    pts = np.array([[0, 0, 0], [3, 0, 0], [3, 4, 0], [0, 4, 0], [0, 4, 5]], float)
+    pos = np.array([[1.5, -1, 0], [4, 2, 0], [1, 5, 0], [1, 4, 3], [-1, 0, 0]], float)
+    dist, w, _, tangent = polyline_nearest(pos, pts, ws)
+    np.testing.assert_allclose(dist, [1.0, 1.0, 1.0, 1.0, 1.0], rtol=1e-14)
+    np.testing.assert_allclose(w, [11.0, 13.0, 14.0 + 4.0 / 3.0, 17.2, 10.0], rtol=1e-14)
+    tangents = [[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, 0, 1], [1, 0, 0]]  # the first at the start
+    np.testing.assert_allclose(tangent, tangents, atol=1e-14)
+
+
+def test_polyline_nearest_with_a_repeated_vertex_stays_finite():
+    ws = np.array([0.0, 1.0, 2.0])  # the path stalls over the first step: a zero-length leg
+    pts = np.array([[0, 0, 0], [0, 0, 0], [1, 0, 0]], float)
+    out = polyline_nearest(np.array([[-1.0, 0, 0], [0.5, 1.0, 0]]), pts, ws)
+    assert all(np.isfinite(np.asarray(x)).all() for x in out)
+    np.testing.assert_allclose(out[1], [0.0, 1.5], atol=1e-14)
