@@ -452,6 +452,13 @@ def run_module(name, work: Path, python: str, a) -> dict:
         todo = sorted(todo[: a.sample], key=lambda mc: (mc[0]["file"], mc[0]["line"]))
     results = [done[m["id"]] for m, _ in todo if m["id"] in done and not a.rerun]
     server = Server(python, work, tree)
+    if times:  # the server itself: the fastest tests pass on the unmutated tree
+        fastest = sorted(times, key=times.get)[:3]
+        rc, output = server.run(fastest, a.timeout)
+        if rc != 0:
+            sys.exit(
+                f"mutation: unmutated, {fastest} did not pass in the server:\n{output[-3000:]}"
+            )
     with out.open("a") as log:
         for i, (m, code) in enumerate(todo, 1):
             if m["id"] in done and not a.rerun:
