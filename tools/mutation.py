@@ -230,23 +230,25 @@ def _spans(code: str):
 
 def select_tests(code: str, line: int, by_line: dict[int, set]) -> tuple[list[str], str]:
     """The tests that run a mutant's line: those credited with its statement; for a ``def``'s
-    header (defaults, decorators) those that run its body; for module-level code every test
-    that runs the file."""
+    header (defaults, decorators) those that run its body; for module-level code, or a line
+    run at import (a table built by a function when the module loads), every test that runs
+    the file."""
     spans = [s for s in _spans(code) if s[0] <= line <= s[1]]
     if not spans:
         return [], "uncovered"
     first, last, node, func, top = max(spans, key=lambda s: s[0])
     tests = set().union(*(by_line.get(n, set()) for n in range(first, last + 1)))
+    if "" in tests:  # run at import (context ""): a value every test of the file may use
+        return sorted(set().union(*by_line.values()) - {""}), "import"
     if tests:
         return sorted(tests), "line"
     if hasattr(node, "body") and not top or hasattr(node, "decorator_list"):
         end = node.end_lineno
-        tests = set().union(*(by_line.get(n, set()) for n in range(first, end + 1)))
+        tests = set().union(*(by_line.get(n, set()) for n in range(first, end + 1))) - {""}
         if tests:
             return sorted(tests), "body"
     if top:
-        tests = set().union(*by_line.values())
-        return sorted(tests), "module"
+        return sorted(set().union(*by_line.values()) - {""}), "module"
     return [], "uncovered"
 
 
@@ -308,7 +310,7 @@ def collect_coverage(name: str, work: Path, tree: Path, python: str) -> tuple[di
     for f in files:
         lines = cov.contexts_by_lineno(str((tree / f).resolve())) or {}
         by_file[f] = {
-            n: {_PHASE.sub("", c) for c in cs if _PHASE.sub("", c) in passed}
+            n: {_PHASE.sub("", c) for c in cs if _PHASE.sub("", c) in passed or c == ""}
             for n, cs in lines.items()
         }
     return by_file, passed
