@@ -34,3 +34,11 @@ def test_small_and_short_seas_are_checked_too():
     assert "steeper than breaking" in waves.envelope_warnings(0.9, 2.0)[0]
     (w,) = waves.envelope_warnings(1.0, 10.0, origin_depth=0.2)  # hs / 2 = 0.5 m > 0.2 m
     assert w.startswith("waves: origin_depth 0.2 m is less than hs / 2 = 0.5 m")
+
+
+def test_steep_share_only_for_ranges_that_are_ranges():
+    # a range of zero width is one sea state: no share; a width of 1 (m or s) is a range
+    (w,) = waves.envelope_warnings((3.0, 3.0), (4.0, 4.0))
+    assert "sea states" not in w and w.startswith("waves: hs 3 m with tp 4 s")
+    assert "of its sea states are past 1/14" in waves.envelope_warnings((2.0, 3.0), 4.0)[0]
+    assert "of its sea states are past 1/14" in waves.envelope_warnings(3.0, (4.0, 5.0))[0]
