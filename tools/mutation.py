@@ -384,6 +384,12 @@ class Server:
         self.env = _env(work, tree, PYTHONDONTWRITEBYTECODE="1")
         self.tree, self.log, self.proc = tree, work / "last.log", None
 
+    def close(self) -> None:
+        if self.proc is not None:
+            self.proc.stdin.close()  # the server ends at the end of its input
+            self.proc.wait()
+            self.proc = None
+
     def run(self, args: list[str], timeout: float) -> tuple[int | None, str]:
         if self.proc is None or self.proc.poll() is not None:
             self.proc = subprocess.Popen(
@@ -490,6 +496,9 @@ def run_module(name, work: Path, python: str, a) -> dict:
                     os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns))  # its .pyc again
                 outcome = {None: "timeout", 0: "survived", 1: "killed", 2: "incompetent"}
                 r["outcome"] = outcome.get(rc, "error")
+                broken = ("ERROR collecting", "ImportError while loading conftest")
+                if rc in (3, 4) and any(b in output for b in broken):
+                    r["outcome"] = "incompetent"  # the mutant breaks the import
                 if r["outcome"] == "error":
                     r["output"] = output[-2000:]
             r["seconds"] = round(time.time() - t0, 1)
@@ -502,6 +511,7 @@ def run_module(name, work: Path, python: str, a) -> dict:
                 f"({len(tests)} tests by {why}, {r['seconds']} s)",
                 flush=True,
             )
+    server.close()
     return summarise(name, results)
 
 
