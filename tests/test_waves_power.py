@@ -71,7 +71,7 @@ def _normalisation_by_quad(gamma):
         )
 
 
-@pytest.mark.parametrize("gamma", [3.3, 7.0])
+@pytest.mark.parametrize("gamma", [3.3, 7.0, 20.0])
 def test_jonswap_normalisation_to_quadrature_accuracy(gamma):
     # the panels' rule agrees with adaptive quadrature to ~2e-14: a moved panel edge near the
     # peak (1e-12 .. 1e-9) shows
