@@ -178,7 +178,7 @@ def batched_scenario(sc, batch: int, seed: int = 0):
     import jax.numpy as jnp
 
     rng = np.random.default_rng(seed)
-    dt = sc.eta0.dtype
+    dtype = sc.eta0.dtype
     d_eta = rng.normal(size=(batch, 3)) * np.array([5.0, 5.0, 0.5])
     ang = rng.uniform(-np.pi, np.pi, size=batch)
     mag = rng.uniform(0.0, 0.5, size=batch)
@@ -186,9 +186,9 @@ def batched_scenario(sc, batch: int, seed: int = 0):
     eta0 = np.asarray(sc.eta0)[None, :] + d_eta
     name = current_field(sc)
     cur = cur[:, : np.asarray(getattr(sc, name)).shape[-1]]
-    out = {"eta0": jnp.asarray(eta0, dtype=dt), name: jnp.asarray(cur, dtype=dt)}
+    out = {"eta0": jnp.asarray(eta0, dtype=dtype), name: jnp.asarray(cur, dtype=dtype)}
     if "varpi0" in sc._fields:
-        out["varpi0"] = jnp.asarray(eta0[:, 1], dtype=dt)
+        out["varpi0"] = jnp.asarray(eta0[:, 1], dtype=dtype)
     return sc._replace(**out)
 
 

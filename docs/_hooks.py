@@ -318,14 +318,9 @@ def command_sections() -> dict[str, dict[str, dict]]:
     from vcjax.identify.config import FIT_SCHEMA
     from vcjax.sweep import SweepSpec
     from vcjax.sweep.config import SCHEMA as SWEEP
-    from vcjax.sweep.config import SPEC_FIELDS
 
     spec = SweepSpec.__dataclass_fields__
-    sweep = {
-        s: {k: _spec_default(spec, SPEC_FIELDS.get((s, k))) for k in keys}
-        for s, keys in SWEEP.items()
-        if keys
-    }
+    sweep = {s: {k: _spec_default(spec, k) for k in keys} for s, keys in SWEEP.items() if keys}
     sweep["sweep"]["num_scenarios"] = ...
     from vcjax.search.config import FALSIFY_KEYS
 

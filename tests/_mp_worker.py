@@ -24,10 +24,10 @@ distributed.warm_up()
 
 import numpy as np  # noqa: E402
 
-from tuning.cli import build, distribute  # noqa: E402
 from tuning.config import load_config  # noqa: E402
 from tuning.loss import objective  # noqa: E402
 from tuning.optim import make_optimizer, make_step, run_gradient_tuner  # noqa: E402
+from tuning.run import build, distribute  # noqa: E402
 
 
 def main(config, out):

@@ -21,6 +21,7 @@ from vcjax.control.baselines import (
     baseline_params,
     baseline_state,
 )
+from vcjax.environment import WaterMotion
 from vcjax.rollout import RolloutConfig, rollout
 from vcjax.vehicles import design3dof as d3
 
@@ -33,7 +34,9 @@ def _loop(kind):
     cfg = BaselineConfig(path=PATH, kind=kind)
 
     def plant(t, x, tau, V_c):
-        return d3.vector_field(MODEL, x[0], x[1], tau, V_c)
+        return d3.vector_field(
+            MODEL, x[0], x[1], tau, WaterMotion(jnp.append(jnp.asarray(V_c), 0.0), None)
+        )
 
     def controller(t, x, z, params):
         return baseline_law(cfg, params, t, x[0], x[1], z)
@@ -101,7 +104,9 @@ def _crab_equilibrium(gains, u_d=2.0, V_c=(0.5, 0.0), pi_h=np.pi / 2):
         eta = jnp.stack([jnp.zeros(()), jnp.zeros(()), psi])
         nu = jnp.stack([u, v, jnp.zeros(())])
         tau = jnp.stack([tau_u, K_RUDDER * tau_r, tau_r])
-        eta_dot, nu_dot = d3.vector_field(MODEL, eta, nu, tau, V_c)
+        eta_dot, nu_dot = d3.vector_field(
+            MODEL, eta, nu, tau, WaterMotion(jnp.append(jnp.asarray(V_c), 0.0), None)
+        )
         cross_rate = -jnp.sin(pi_h) * eta_dot[0] + jnp.cos(pi_h) * eta_dot[1]
         surge_loop = tau_u - d3.body_bias(MODEL, nu)[0] + MODEL.m11 * gains.k_u * (u - u_d)
         return np.array([*np.asarray(nu_dot), float(cross_rate), float(surge_loop) / MODEL.m11])

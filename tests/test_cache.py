@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 
@@ -320,6 +321,50 @@ def test_a_stored_program_is_reused_and_gives_the_same_numbers(store):
     assert [r["reused"] for r in programs.report()] == [False, True, False]
 
 
+class _Pair(NamedTuple):
+    """An output pytree jax.export cannot serialise by itself (a NamedTuple)."""
+
+    a: object
+    b: object
+
+
+def test_any_output_pytree_is_stored_and_an_unpicklable_one_is_built_unstored(store):
+    import jax.numpy as jnp
+
+    from vcjax.runtime import programs
+
+    f = lambda x: _Pair(x * 2.0, {"s": jnp.sum(x)})  # noqa: E731
+    x = jnp.arange(3.0)
+    outs = [programs.build("pair", f, "pair", (x,)) for _ in range(2)]
+    assert [info["reused"] for _, info in outs] == [False, True]
+    for call, _ in outs:
+        got = call(x + 1.0)
+        assert isinstance(got, _Pair) and jnp.array_equal(got.a, (x + 1.0) * 2.0)
+        assert float(got.b["s"]) == 6.0
+
+    class Local(NamedTuple):  # pickle cannot name it: compiled as before, nothing stored
+        y: object
+
+    call, info = programs.build("local", lambda x: Local(x + 1.0), "local", (x,))
+    assert info["key"] is None and not info["reused"]
+    assert jnp.array_equal(call(x).y, x + 1.0)
+    assert len(list(store.glob("*" + programs.SUFFIX))) == 1
+
+
+def test_a_program_built_ahead_falls_back_for_other_arguments(store):
+    import jax
+    import jax.numpy as jnp
+
+    from vcjax.runtime import programs
+
+    f = lambda x: jnp.cumsum(x)  # noqa: E731
+    x = jnp.ones(3)
+    ((call, _),) = programs.build_all([("c", f, "c", (x,))])
+    run = programs.for_arguments_like(call, (x,), jax.jit(f))
+    assert jnp.array_equal(run(x), jnp.arange(1.0, 4.0))
+    assert jnp.array_equal(run(jnp.ones(5)), jnp.arange(1.0, 6.0))  # another shape: the fallback
+
+
 def test_a_damaged_file_is_rebuilt(store):
     import jax.numpy as jnp
 
@@ -396,6 +441,29 @@ def test_the_tuners_value_and_grad_is_stored_and_reused(store):
     for res in runs:
         assert jnp.array_equal(res.theta, plain.theta)
         assert [h["loss"] for h in res.history] == [h["loss"] for h in plain.history]
+
+
+def test_the_black_box_tuners_batch_loss_is_stored_and_reused(store):
+    """The black-box tuners' batch loss (CMA-ES, TPE, random search) keyed like the gradient
+    tuner's step: a second objective with the same description loads the program, values
+    unchanged; without a description nothing is stored."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    from tuning.blackbox import batch_objective
+    from vcjax.runtime import programs
+
+    def loss(theta, target):
+        return jnp.sum((theta - target) ** 2)
+
+    args = (jnp.asarray([1.0, -2.0]),)
+    X = np.array([[0.0, 0.0], [1.0, -2.0], [np.inf, 0.0]])
+    vals = [batch_objective(loss, args, static=("quadratic", 2))(X) for _ in range(2)]
+    assert [r["reused"] for r in programs.report()] == [False, True]
+    np.testing.assert_array_equal(vals[0], [5.0, 0.0, np.inf])
+    np.testing.assert_array_equal(vals[1], vals[0])
+    batch_objective(loss, args)(X)
+    assert len(programs.report()) == 2
 
 
 def test_an_edit_to_a_users_module_changes_the_program_key(tmp_path):

@@ -167,14 +167,14 @@ def _tidal_check(obj, table, name):
 
 @pytest.fixture
 def tidal():
-    from vcjax.config.schema import CROSS_CHECKS, REGISTERED, SECTIONS, register_section
+    from vcjax.config.schema import CROSS_CHECKS, register_section
+    from vcjax.environment import unregister
 
     register_section("tideline", Tidal, _tidal_check)
     try:
         yield
     finally:
-        for table in (SECTIONS, REGISTERED):
-            table.pop("tideline")
+        unregister("tideline")
         CROSS_CHECKS.pop(Tidal)
 
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from _craft import CRAFT as P
 
+from vcjax.environment import WaterMotion
 from vcjax.integrators import rk4
 from vcjax.vehicles import design3dof as d3
 
@@ -39,7 +40,9 @@ def test_drifting_with_current_stays_drifting():
     nu_c, _ = d3.current_in_body(jnp.array(psi0), jnp.array(0.0), V_c)
 
     def f(t, y, a):
-        return d3.vector_field(P, y[0], y[1], jnp.zeros(3), V_c), None
+        return d3.vector_field(
+            P, y[0], y[1], jnp.zeros(3), WaterMotion(jnp.append(jnp.asarray(V_c), 0.0), None)
+        ), None
 
     y = (jnp.array([0.0, 0.0, psi0]), nu_c)
     step = jax.jit(lambda y: rk4(f, 0.0, y, 0.05, None)[0])

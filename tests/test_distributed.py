@@ -20,9 +20,9 @@ import jax
 import numpy as np
 import pytest
 
-from tuning.cli import build
 from tuning.config import load_config as load_tune_config
 from tuning.loss import objective
+from tuning.run import build
 from vcjax import cli
 from vcjax.runtime import distributed
 from vcjax.sweep import load_config, load_results, run_sweep

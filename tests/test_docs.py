@@ -202,16 +202,16 @@ def test_python_blocks_run_and_their_claims_hold(page):
     # a page registers its example loop (or disturbance) as a reader's fresh session would:
     # take out what an earlier test registered under the same names (a taken name is refused)
     saved = dict(registry._REGISTRY)
-    saved_env = dict(env_registry._REGISTRY)
+    saved_env = dict(env_registry.REGISTRY)
     registry._REGISTRY.pop("puck", None)
-    env_registry._REGISTRY.pop("tidal", None)
+    env_registry.REGISTRY.pop("tidal", None)
     try:  # the claims too: they may look up what the page registered
         CLAIMS[_rel(page)](run_page(page))
     finally:
         registry._REGISTRY.clear()
         registry._REGISTRY.update(saved)
-        env_registry._REGISTRY.clear()
-        env_registry._REGISTRY.update(saved_env)
+        env_registry.REGISTRY.clear()
+        env_registry.REGISTRY.update(saved_env)
 
 
 def test_the_readme_example_is_the_getting_started_example():
@@ -343,7 +343,7 @@ def own_registry(monkeypatch):
     from vcjax.environment import component as env_registry
     from vcjax.loops import registry
 
-    monkeypatch.setattr(env_registry, "_REGISTRY", dict(env_registry._REGISTRY))
+    monkeypatch.setattr(env_registry, "REGISTRY", dict(env_registry.REGISTRY))
     monkeypatch.setattr(registry, "_REGISTRY", dict(registry._REGISTRY))
     for cls in set(registry._REGISTRY.values()):
         monkeypatch.setattr(cls, "laws", cls.laws)

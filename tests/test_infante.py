@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from vcjax.environment import WaterMotion
 from vcjax.integrators import rk4
 from vcjax.vehicles import design3dof as d3
 from vcjax.vehicles import infante as inf
@@ -35,6 +36,12 @@ def simulate(plant, x0, cmd, args, dt, n=N_STEPS):
 
     _, xs = jax.lax.scan(step, x0, None, length=n)
     return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), x0, xs)
+
+
+def _water(v_c, v_c_dot=None):
+    """The plant's water door for a horizontal current (2,) and its rate (2,)."""
+    pad = lambda a: None if a is None else jnp.append(jnp.asarray(a, float), 0.0)
+    return WaterMotion(pad(v_c), pad(v_c_dot))
 
 
 def cmd(thrust, rudder, dtype=jnp.float64):
@@ -130,7 +137,7 @@ def test_energy_conserved_without_hydrodynamics(x_g):
 def test_drifting_with_the_current_stays_drifting():
     V_c = jnp.array([0.3, -0.5])
     psi0 = 0.7
-    args = inf.plant_args(P, V_c)
+    args = inf.plant_args(P, _water(V_c))
     nu_c, _ = d3.current_in_body(jnp.array(psi0), jnp.array(0.0), V_c)
     x0 = inf.infante_state([1.0, 2.0, psi0], nu_c)
     traj = simulate(inf.infante_plant, x0, cmd(0.0, 0.0), args, 0.05)
@@ -150,7 +157,7 @@ def test_current_enters_through_relative_velocity():
     u = cmd(500.0, 0.1)
     x_cur = inf.infante_state([0.0, 0.0, psi], nu_r + nu_c, act)
     x_calm = inf.infante_state([0.0, 0.0, psi], nu_r, act)
-    a_cur = inf.infante_plant(0.0, x_cur, u, inf.plant_args(P, V_c)).nu
+    a_cur = inf.infante_plant(0.0, x_cur, u, inf.plant_args(P, _water(V_c))).nu
     a_calm = inf.infante_plant(0.0, x_calm, u, CALM).nu
     np.testing.assert_allclose(a_cur - nu_c_dot, a_calm, rtol=1e-12, atol=1e-14)
     assert float(jnp.max(jnp.abs(nu_c_dot))) > 1e-3
@@ -225,14 +232,14 @@ def test_validation_errors():
         inf.infante_state([0.0, 0.0, 0.0], [1.0, 0.0])
     with pytest.raises(ValueError, match="act"):
         inf.infante_state([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0])
-    with pytest.raises(ValueError, match="V_c"):
-        inf.plant_args(P, [0.0, 0.5, 0.0])
+    with pytest.raises(ValueError, match="velocity"):
+        inf.plant_args(P, WaterMotion([0.0, 0.5], None))
     with pytest.raises(ValueError, match="u_design"):
         inf.design_model(P, -1.0)
 
 
 def test_jit_matches_nojit_and_gradients_are_finite_at_rest():
-    args = inf.plant_args(P, [0.1, 0.5], [0.01, -0.02])
+    args = inf.plant_args(P, _water([0.1, 0.5], [0.01, -0.02]))
     x = inf.infante_state([1.0, -2.0, 0.3], [2.0, 0.3, -0.05], [300.0, 0.1])
     u = cmd(600.0, -0.2)
     a = inf.infante_plant(0.0, x, u, args)
@@ -260,7 +267,7 @@ def test_jit_matches_nojit_and_gradients_are_finite_at_rest():
 def test_float32_runs_and_tracks_float64():
     def run(dtype):
         p = inf.infante_params(dtype=dtype)
-        args = inf.plant_args(p, [0.0, 0.5])
+        args = inf.plant_args(p, _water([0.0, 0.5]))
         x0 = inf.infante_state([0.0, 0.0, math.pi / 2], [2.0, 0.0, 0.0], dtype=dtype)
         return simulate(inf.infante_plant, x0, cmd(700.0, 0.15, dtype), args, 0.025)
 

@@ -84,3 +84,17 @@ def test_iteration_count_of_every_exit():
     assert out.converged and out.reason == "cost at round-off level"
     assert out.iterations == len(out.cost_history) - 1
     assert out.cost_history[-1] <= 1e-20 * out.cost_history[0]
+
+
+def test_options_object_or_keywords():
+    """LMOptions or its fields by name: the same iterations; another name is refused."""
+    from vcjax.identify.lm import LMOptions
+
+    a, _ = _fit([2.0, 3.0], 0.0, lam0=0.1, max_iters=3)
+    lin, res = _problem([2.0, 3.0])
+    b = levenberg_marquardt(
+        lin, res, [0.0], np.zeros((1, 0)), LMOptions(lam0=0.1, max_iters=3), should_stop=lambda: 0
+    )
+    assert a.cost_history == b.cost_history and a.reason == b.reason
+    with pytest.raises(TypeError, match="max_iter"):
+        levenberg_marquardt(lin, res, [0.0], np.zeros((1, 0)), max_iter=3)

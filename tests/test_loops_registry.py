@@ -64,7 +64,7 @@ class HoldLaw(loops.Law):
     def gain_specs(self, loop):
         return (loops.gain_spec("sigma"),)
 
-    def params(self, loop, gains, sc):
+    def params(self, loop, gains, sc, design):
         return gains
 
     def initial_state(self, loop, sc):

@@ -2,7 +2,7 @@
 sinusoidally in time, defined entirely in this file, registered with
 :func:`vcjax.environment.register`, then simulated (against the analytic response of a drag-only
 body), differentiated, swept through ``vcjax sweep`` with its own ``[tide]`` section in a TOML
-file, and tuned through the public API."""
+file, and tuned, through the public API and from a TOML file with its own ``[tide]``."""
 
 import dataclasses
 import json
@@ -190,6 +190,10 @@ def test_the_new_disturbance_is_swept_with_its_own_section(tmp_path):
     assert main(["sweep", str(f), "--out", str(out)]) in (0, 1)
     summary = json.loads((out / "summary.json").read_text())
     assert summary
+    ran = json.loads((out / "run.json").read_text())["config"]["spec"]  # what ran, as summary's
+    assert ran["scenario"]["environment"] == [
+        ["tide", [["direction_deg", 0.0], ["period", 30.0], ["speed", [0.0, 0.6]]]]
+    ]
     bad = _toml(tmp_path, "sped = 0.4\n")
     assert main(["sweep", str(bad), "--out", str(tmp_path / "bad")]) == 2
     assert not (tmp_path / "bad" / "summary.json").exists()
@@ -210,3 +214,58 @@ def test_the_new_disturbance_is_tuned():
     assert r.n_bad == 0 and np.isfinite(r.loss)
     g0 = r.history[0]["grad_norm"]
     assert g0 is not None and np.isfinite(g0) and g0 > 0
+
+
+def _tune_toml(tmp_path, tidal: str) -> Path:
+    f = tmp_path / "tune_tidal.toml"
+    f.write_text(
+        f"""
+[scenario]
+vehicle = "puck"
+module = "{PUCK}"
+controller = "vcm"
+
+[simulation]
+horizon = 2.0
+dt = 0.05
+timing = "sampled"
+
+[scenarios]
+current_max = 0.0
+position_offset = 0.1
+
+[tide]
+{tidal}
+[train]
+size = 2
+
+[heldout]
+size = 2
+
+[optimizer]
+name = "adam"
+steps = 2
+"""
+    )
+    return f
+
+
+def test_the_new_disturbance_is_tuned_from_its_own_section(tmp_path):
+    from tuning.config import load_config as load_tune
+    from tuning.run import build
+    from vcjax.config import ConfigError
+
+    cfg = load_tune(_tune_toml(tmp_path, "speed = [0.0, 0.6]\nperiod = 20.0\n"))
+    assert [s for s, _ in cfg.environment] == ["tide"]
+    problem, _, data, train, heldout = build(cfg)
+    (comp,), (params,) = train.environment.components, train.environment.params
+    assert comp == Tidal() and heldout.environment.components == (Tidal(),)
+    speed = np.asarray(params.speed)  # one draw per scenario from [0, 0.6]
+    assert speed.shape == (2,) and np.all((speed >= 0) & (speed <= 0.6)) and speed[0] != speed[1]
+    loss = lambda th, d, s: objective(th, d, s, problem)[0]
+    r = run_gradient_tuner(
+        loss, data.theta_ref, (data, train), optimizer="adam", steps=2, learning_rate=0.05
+    )
+    assert r.n_bad == 0 and np.isfinite(r.loss) and r.history[0]["grad_norm"] > 0
+    with pytest.raises(ConfigError, match=r"\[tide\] sped: unknown key \(did you mean 'speed'"):
+        load_tune(_tune_toml(tmp_path, "sped = 0.4\n"))

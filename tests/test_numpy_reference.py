@@ -87,7 +87,9 @@ def test_numpy_remus100_step_reproduces_pvs_and_vcjax():
     ref = nrm.reference()
     p, args, x0, cmds = nrm.pvs_inputs()
     start = (nrm.columns(ref, k)[0] for k in (nrm.POSE, nrm.VEL, nrm.ACT))
-    eta, nu, act = nrm.replay(nrm.numpy_params(p), *start, np.asarray(cmds), np.asarray(args.v_c))
+    eta, nu, act = nrm.replay(
+        nrm.numpy_params(p), *start, np.asarray(cmds), np.asarray(args.water.velocity[:2])
+    )
     np.testing.assert_allclose(eta[:, :3], nrm.columns(ref, nrm.POSE)[:, :3], rtol=0, atol=1e-7)
     np.testing.assert_allclose(nu, nrm.columns(ref, nrm.VEL), rtol=0, atol=1e-8)
     np.testing.assert_allclose(act, nrm.columns(ref, nrm.ACT), rtol=0, atol=1e-6)

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from jax.test_util import check_grads
 
+from vcjax.environment import WaterMotion
 from vcjax.integrators import rk4
 from vcjax.vehicles import odin
 
@@ -146,7 +147,7 @@ def test_disturbance_and_current():
     )
     nu = np.concatenate([Rz.T @ v_c, np.zeros(3)])
     x = odin.odin_state([0.0, 0.0, -50.0, 0.0, 0.0, psi], nu)
-    xd = odin.odin_plant(0.0, x, jnp.zeros(8), odin.odin_args(P, v_c=v_c))
+    xd = odin.odin_plant(0.0, x, jnp.zeros(8), odin.odin_args(P, water=WaterMotion(v_c, None)))
     np.testing.assert_allclose(xd.nu, 0.0, atol=1e-13)
     np.testing.assert_allclose(xd.eta[:3], v_c, atol=1e-13)
 
@@ -177,8 +178,8 @@ def test_validation_errors_name_the_field():
         (lambda: odin.odin_state(np.zeros(6), thrust=np.zeros(6)), "thrust"),
         (lambda: odin.odin_state(np.zeros(6), nu=[0, 0, 0, 0, 0, np.inf]), "nu"),
         (lambda: odin.odin_args(P, tau_dist=[1.0, 2.0, 3.0, 4.0]), "tau_dist"),
-        (lambda: odin.odin_args(P, v_c=[0.0, float("nan"), 0.0]), "v_c"),
-        (lambda: odin.odin_args(P, v_c_dot=[0.0, 0.0]), "v_c_dot"),
+        (lambda: odin.odin_args(P, water=WaterMotion([0.0, float("nan"), 0.0], None)), "velocity"),
+        (lambda: odin.odin_args(P, water=WaterMotion(None, [0.0, 0.0])), "acceleration"),
         (lambda: odin.odin_args("odin"), "vehicle"),
         (lambda: odin.design_model(P, u_design=0.0), "u_design"),
     ]
@@ -222,7 +223,7 @@ def test_a_neutrally_buoyant_sphere_moves_with_a_uniformly_accelerating_current(
     zero6 = jnp.zeros(6)
 
     def args_at(t, v_c_dot=True):
-        return odin.OdinArgs(P, zero6, v0 + acc * t, acc if v_c_dot else None)
+        return odin.OdinArgs(P, zero6, WaterMotion(v0 + acc * t, acc if v_c_dot else None))
 
     # (a) the analytic motion solves the plant's equations at every instant ...
     for t in (0.0, 7.0, 30.0):
@@ -261,8 +262,8 @@ def test_a_zero_current_rate_changes_no_result():
     for _ in range(3):
         x = odin.OdinState(*(jnp.asarray(rng.normal(size=n)) for n in (6, 6, 8)))
         v_c, u = rng.normal(size=3), jnp.asarray(rng.normal(size=8) * 10)
-        a0 = odin.odin_args(P, [1.0, -2.0, 0.5], v_c)
-        a1 = odin.odin_args(P, [1.0, -2.0, 0.5], v_c, v_c_dot=np.zeros(3))
+        a0 = odin.odin_args(P, [1.0, -2.0, 0.5], WaterMotion(v_c, None))
+        a1 = odin.odin_args(P, [1.0, -2.0, 0.5], WaterMotion(v_c, np.zeros(3)))
         for plant in (odin.odin_plant, odin.odin_plant_smooth):
             for r0, r1 in zip(plant(0.0, x, u, a0), plant(0.0, x, u, a1), strict=True):
                 np.testing.assert_array_equal(r1, r0)

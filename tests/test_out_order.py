@@ -332,8 +332,8 @@ class _Wrap(loops.Law):
     def gain_specs(self, loop):
         return self._base.gain_specs(loop)
 
-    def params(self, loop, gains, sc, model, k_rudder):
-        return self._base.params(loop, gains, sc, model, k_rudder)
+    def params(self, loop, gains, sc, design):
+        return self._base.params(loop, gains, sc, design)
 
     def initial_state(self, loop, sc):
         return self._base.initial_state(loop, sc)
@@ -361,10 +361,20 @@ class _NoZ(_Wrap):
         return super().step(loop, params, t, x, None)
 
 
+@dataclasses.dataclass(frozen=True)
+class _OldParams(_Wrap):
+    def params(self, loop, gains, sc, model, k_rudder):  # the former INFANTE signature
+        return super().params(loop, gains, sc, loop.law_design(sc))
+
+
 @pytest.mark.parametrize(
     "law, message",
     [
         (_NoZ(), r"step\(loop, params, t, x\) must take \(loop, params, t, meas, z\)"),
+        (
+            _OldParams(),
+            r"params\(.*k_rudder\) must take \(loop, gains, sc, design\).*design\.model",
+        ),
         (_Wrap("gains_dict"), "default_gains returned a dict; expected a NamedTuple"),
         (_Wrap("tau2"), r"force tau of shape \(2,\); the infante loop's law 'vcm' returns \(3,\)"),
         (_Wrap("tau4"), r"force tau of shape \(4,\)"),

@@ -71,7 +71,9 @@ def test_a_survey_above_the_sea_is_refused_naming_the_key(tmp_path, capsys):
 
 
 def test_an_origin_above_the_sea_is_refused_by_the_api():
-    with pytest.raises(ConfigError, match="wave_origin_depth: -5 m puts the NED origin above"):
+    with pytest.raises(
+        ConfigError, match=r"\[waves\] origin_depth: -5 m puts the NED origin above"
+    ):
         ScenarioSpec(wave_spectrum="jonswap", wave_hs=(1.0, 1.0), wave_origin_depth=(-5.0, 2.0))
     with pytest.raises(ValueError, match="origin_depth: -0.5 m"):
         waves.check_origin_depth((-0.5, 3.0))
@@ -171,8 +173,7 @@ def test_the_sea_estimate_is_the_measured_bytes_per_component(tmp_path):
     spec, _ = load_config(_config(tmp_path, text))
     est = sizing.sweep_estimate(spec)
     assert est["parts"]["sea"] == 100 * 1000 * 20 * 8
-    no_sea = {f.name: f.default for f in dataclasses.fields(ScenarioSpec) if "wave_" in f.name}
-    calm = dataclasses.replace(spec, scenario=dataclasses.replace(spec.scenario, **no_sea))
+    calm = dataclasses.replace(spec, scenario=spec.scenario.without_waves())
     assert "sea" not in sizing.sweep_estimate(calm)["parts"]
     assert est["memory_bytes"] == sizing.sweep_estimate(calm)["memory_bytes"] + 100 * 1000 * 160
 

@@ -211,3 +211,19 @@ def test_sweep_figures(tmp_path, drawn):
             },
         },
     )
+
+
+def test_sweep_labels_carry_the_papers_equations_only_on_the_papers_vehicle():
+    """The engine's ``vcm`` variant is labelled "VCM (31)/(38)" on INFANTE, the paper's vehicle;
+    on any other vehicle (a user's skiff, ODIN) the paper's equation numbers would be wrong."""
+    from types import SimpleNamespace
+
+    from vcjax.plots.sweep import _style
+
+    def result(vehicle):
+        return SimpleNamespace(spec=SimpleNamespace(choice=SimpleNamespace(vehicle=vehicle)))
+
+    assert _style("vcm", result("infante"))["label"] == "VCM (31)/(38)"
+    assert _style("vcm", result("skiff"))["label"] == "vcm"
+    assert _style("vcm", result("skiff"))["color"] == _style("vcm", result("infante"))["color"]
+    assert _style("mine", result("skiff"))["label"] == "mine"

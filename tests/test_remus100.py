@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from vcjax.environment import WaterMotion, water_motion
 from vcjax.rollout import RolloutConfig, rollout
 from vcjax.vehicles import remus100 as rm
 
@@ -304,17 +305,18 @@ def test_current_conventions():
     p = rm.remus100_params()
     beta = math.radians(170.0)
     a1 = rm.remus100_args(p, V_c=0.5, beta_c=beta)
-    a2 = rm.remus100_args(p, v_c=[0.5 * math.cos(beta), 0.5 * math.sin(beta)])
-    np.testing.assert_allclose(a1.v_c, a2.v_c, atol=1e-16)
+    a2 = rm.remus100_args(p, water=water_motion([0.5 * math.cos(beta), 0.5 * math.sin(beta), 0]))
+    np.testing.assert_allclose(a1.water.velocity, a2.water.velocity, atol=1e-16)
+    w_c, w_c_dot = a1.water.velocity[:2], a1.water.acceleration[:2]
     psi, r = 0.7, 0.05
     eta = jnp.zeros(6).at[5].set(psi)
     nu = jnp.zeros(6).at[5].set(r)
-    nu_c, nu_c_dot = rm.current_in_body(eta, nu, a1.v_c, a1.v_c_dot)
+    nu_c, nu_c_dot = rm.current_in_body(eta, nu, w_c, w_c_dot)
     u_c, v_c = 0.5 * math.cos(beta - psi), 0.5 * math.sin(beta - psi)  # PVS's formula
     np.testing.assert_allclose(nu_c, [u_c, v_c, 0, 0, 0, 0], atol=1e-15)
     np.testing.assert_allclose(nu_c_dot, [r * v_c, -r * u_c, 0, 0, 0, 0], atol=1e-15)
     # PVS rotates by yaw only: roll and pitch do not change nu_c
-    nu_c2, _ = rm.current_in_body(eta.at[3].set(0.3).at[4].set(-0.2), nu, a1.v_c)
+    nu_c2, _ = rm.current_in_body(eta.at[3].set(0.3).at[4].set(-0.2), nu, w_c)
     np.testing.assert_allclose(nu_c2, nu_c, atol=1e-15)
 
 
@@ -355,8 +357,8 @@ def test_validation_names_the_field():
         rm.remus100_state(act=[0.0, 0.0])
     with pytest.raises(ValueError, match="eta"):
         rm.remus100_state(eta=[0.0] * 5 + [float("inf")])
-    with pytest.raises(ValueError, match="v_c"):
-        rm.remus100_args(rm.remus100_params(), v_c=[0.1, 0.2, 0.0])
+    with pytest.raises(ValueError, match="velocity"):
+        rm.remus100_args(rm.remus100_params(), water=WaterMotion([0.1, 0.2], None))
     with pytest.raises(ValueError, match="vehicle"):
         rm.remus100_args(None)
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from jax.test_util import check_grads
 
+from vcjax.environment import WaterMotion
 from vcjax.integrators import euler, rk4
 from vcjax.vehicles import sixdof as sd
 
@@ -204,7 +205,7 @@ def test_kinetic_energy_conserved_without_damping_restoring_thrust():
 
     # with a constant current the relative kinetic energy 0.5 nu_r^T M nu_r is conserved
     v_c = jnp.asarray([0.4, -0.3, 0.1])
-    args = sd.sixdof_args(p, v_c=v_c)
+    args = sd.sixdof_args(p, WaterMotion(v_c, None))
     xs = _simulate(sd.sixdof_plant, x0, tau, args, 0.005, 2000)
 
     def E_rel(eta, nu):
@@ -288,8 +289,8 @@ def test_validation_names_the_field():
         sd.sixdof_state(eta=np.zeros(3))
     with pytest.raises(ValueError, match="nu"):
         sd.sixdof_state(nu=[0.0, 0, 0, 0, 0, np.nan])
-    with pytest.raises(ValueError, match="v_c"):
-        sd.sixdof_args(sd.sixdof_params(M_RB), v_c=np.zeros(2))
+    with pytest.raises(ValueError, match="velocity"):
+        sd.sixdof_args(sd.sixdof_params(M_RB), WaterMotion(np.zeros(2), None))
     with pytest.raises(ValueError, match="vehicle"):
         sd.sixdof_args(M_RB)
 
@@ -306,7 +307,7 @@ def test_float32_runs_and_agrees_with_float64():
     out = {}
     for dt in (jnp.float32, jnp.float64):
         p = _vehicle(dtype=dt)
-        args = sd.sixdof_args(p, v_c=[0.2, 0.1, 0.0])
+        args = sd.sixdof_args(p, WaterMotion([0.2, 0.1, 0.0], None))
         x0 = sd.sixdof_state(eta, nu, dtype=dt)
         xs = _simulate(sd.sixdof_plant, x0, jnp.asarray(tau, dt), args, jnp.asarray(0.01, dt), 100)
         for leaf in jax.tree_util.tree_leaves(xs):
@@ -331,7 +332,7 @@ def test_gradients_match_finite_differences():
     # the vector field, in both modes, against finite differences
     @jax.jit
     def field(eta, nu, tau, v_c):
-        eta_dot, nu_dot = sd.vector_field(p, eta, nu, tau, v_c, jnp.zeros(3))
+        eta_dot, nu_dot = sd.vector_field(p, eta, nu, tau, WaterMotion(v_c, jnp.zeros(3)))
         return jnp.concatenate([eta_dot, nu_dot])
 
     check_grads(field, (eta0, nu0, tau, v_c), order=1, modes=["fwd", "rev"])
@@ -339,7 +340,7 @@ def test_gradients_match_finite_differences():
     # a trajectory loss (reverse mode through a scan) against central differences
     @jax.jit
     def loss(tau, d_scale, v_c):
-        args = sd.SixDofArgs(p._replace(D=p.D * d_scale), v_c, jnp.zeros(3))
+        args = sd.SixDofArgs(p._replace(D=p.D * d_scale), WaterMotion(v_c, jnp.zeros(3)))
 
         def step(x, _):
             f = lambda t, y, a: (sd.sixdof_plant(t, y, tau, a), None)

@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 from tuning.blackbox import batch_objective, cmaes_popsize, run_cmaes, run_random_search
-from tuning.cli import run_tune_config
 from tuning.config import ConfigError, validate_config
 from tuning.loss import TuningProblem, aggregate, objective, problem_data
 from tuning.optim import forward_mode, run_gradient_tuner
 from tuning.params import FRAC_MAX, GainSpace, rh_bound
-from tuning.scenarios import sample_scenarios
+from tuning.run import run_tune_config
+from tuning.scenarios import Nominal, sample_scenarios
 from vcjax import cli, loops
 from vcjax.control.vcm import pm_gains
 
@@ -232,6 +232,31 @@ def test_lbfgs_on_a_quadratic():
     res = run_gradient_tuner(loss, jnp.zeros(3), optimizer="lbfgs", steps=30)
     np.testing.assert_allclose(res.theta, 1.0 / jnp.diag(A), rtol=1e-6)
     assert res.evals >= len(res.history)
+
+
+def test_tuner_options_object_or_keywords():
+    """run_gradient_tuner takes its settings as a TunerOptions (and callbacks as TunerHooks) or,
+    as before, by name: the same run; a name that is neither is refused."""
+    from tuning.optim import TunerHooks, TunerOptions
+
+    loss = lambda th: jnp.sum((th - jnp.asarray([1.0, -2.0])) ** 2)
+    seen = []
+    a = run_gradient_tuner(loss, jnp.zeros(2), optimizer="adam", steps=4, learning_rate=0.3)
+    b = run_gradient_tuner(
+        loss,
+        jnp.zeros(2),
+        (),
+        TunerOptions(optimizer="adam", steps=4, learning_rate=0.3),
+        hooks=TunerHooks(progress=lambda k, n, rec: seen.append((k, n))),
+    )
+    np.testing.assert_array_equal(a.theta, b.theta)
+    assert a.history[-1]["loss"] == b.history[-1]["loss"] and seen[-1] == (4, 4)
+    with pytest.raises(TypeError, match="learning_rat"):
+        run_gradient_tuner(loss, jnp.zeros(2), learning_rat=0.3)
+    with pytest.raises(ValueError, match="steps"):
+        run_gradient_tuner(loss, jnp.zeros(2), options=TunerOptions(steps=0))
+    with pytest.raises(TypeError, match="options"):
+        run_gradient_tuner(loss, jnp.zeros(2), TunerOptions(steps=2))  # in args' place
 
 
 def test_nan_guard_skips_reports_and_aborts():
@@ -462,7 +487,7 @@ def test_engine_loop_loss_gradient_matches_central_differences():
     problem = TuningProblem(space=GainSpace(loop=loop), num_steps=60, timing="sampled")
     data = problem_data(problem, dt=0.01)
     small = loops.arm_loop_params(tau_max=(20.0, 5.0))
-    batch = sample_scenarios(0, 2, loop=loop, current_max=0.0, plant=small, design=small)
+    batch = sample_scenarios(0, 2, loop=loop, current_max=0.0, nominal=Nominal(small, small))
     f = jax.jit(lambda th: objective(th, data, batch, problem)[0])
     g = np.asarray(
         jax.jit(jax.grad(lambda th: objective(th, data, batch, problem)[0]))(data.theta_ref)
@@ -548,7 +573,7 @@ import jax
 jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp, numpy as np
 from benchmarks.perf.sharded_gradient import loop_allreduces
-from tuning.cli import distribute
+from tuning.run import distribute
 from tuning.loss import TuningProblem, objective, problem_data
 from tuning.scenarios import sample_scenarios
 assert jax.device_count() == 2
@@ -593,20 +618,34 @@ def test_tile_gains_must_be_a_bool():
         TuningProblem(tile_gains="yes")
 
 
-def test_host_driven_lbfgs_takes_optax_steps():
-    """The L-BFGS step drives optax's zoom line search from the host around one compiled
-    value_and_grad; its iterates, losses and evaluation counts are those of ``optax.lbfgs``
-    run in one jitted step (the line search in its while_loop), on a function whose line
-    searches both extend and zoom (Rosenbrock's, from its classic start)."""
+def _rosenbrock(th, a):
+    return jnp.sum(a * (th[1:] - th[:-1] ** 2) ** 2 + (1.0 - th[:-1]) ** 2)
+
+
+def _barrier(th, a):  # NaN for th <= 0: the line search must stay inside
+    return jnp.sum((th - 3.0) ** 2) - a[0] * jnp.sum(jnp.log(th))
+
+
+@pytest.mark.parametrize(
+    "loss, th0, a, max_ls",
+    [
+        (_rosenbrock, [-1.2, 1.0, -0.5, 0.8], [100.0, 80.0, 120.0], 12),
+        (_barrier, [0.01, 0.02, 0.5], [1.0], 2),
+    ],
+    ids=["rosenbrock", "barrier-budget-2"],
+)
+def test_host_driven_lbfgs_takes_optax_steps(loss, th0, a, max_ls):
+    """The L-BFGS step drives the zoom line search (``tuning.linesearch``) from the host around
+    one compiled value_and_grad; its iterates, losses and evaluation counts are those of
+    ``optax.lbfgs`` run in one jitted step (the line search in its while_loop): on a function
+    whose line searches both extend and zoom (Rosenbrock's, from its classic start), and with a
+    budget of 2 evaluations, on a barrier whose search runs out and takes its safe step."""
     import optax
 
     from tuning.optim import LBFGSStep, init_state, make_optimizer, make_step
 
-    def loss(th, a):
-        return jnp.sum(a * (th[1:] - th[:-1] ** 2) ** 2 + (1.0 - th[:-1]) ** 2)
-
-    a = jnp.asarray([100.0, 80.0, 120.0])
-    opt = make_optimizer("lbfgs", memory_size=5, max_linesearch_steps=12)
+    a, th0 = jnp.asarray(a), jnp.asarray(th0)
+    opt = make_optimizer("lbfgs", memory_size=5, max_linesearch_steps=max_ls)
     step = make_step(loss, opt, "lbfgs")
     assert isinstance(step, LBFGSStep)
 
@@ -618,20 +657,22 @@ def test_host_driven_lbfgs_takes_optax_steps():
             upd, new = opt.update(grad, state, theta, value=value, grad=grad, value_fn=f)
         return theta + upd, new, value
 
-    th0 = jnp.asarray([-1.2, 1.0, -0.5, 0.8])
     th_a, st_a = th0, init_state(opt, th0)
     th_b, st_b = th0, init_state(opt, th0)
-    counts = []
+    counts, ran_out = [], 0
     for _ in range(12):
         th_a, st_a, info = step(th_a, st_a, jnp.asarray(1.0), (a,))
         th_b, st_b, value_b = optax_step(th_b, st_b)
         assert bool(info.ok)
         assert float(info.loss) == pytest.approx(float(value_b), rel=1e-13, abs=1e-300)
         np.testing.assert_allclose(th_a, th_b, rtol=1e-12, atol=1e-14)
-        counts.append(int(optax.tree.get(st_b, "info").num_linesearch_steps))
+        ls = optax.tree.get(st_b, "info")
+        counts.append(int(ls.num_linesearch_steps))
+        ran_out += counts[-1] == max_ls and float(ls.curvature_error) > 0
         assert int(info.evals) == counts[-1] + (len(counts) == 1)
     assert max(counts) > 1  # some line searches took more than one evaluation
-    assert float(loss(th_a, a)) < 0.05 * float(loss(th0, a))
+    assert float(loss(th_a, a)) < float(loss(th0, a)) - 0.9 * abs(float(loss(th0, a)))
+    assert (ran_out > 0) == (max_ls == 2)  # the budget of 2 ran out: the safe step was taken
     assert step._cache_size() == 1  # the one value_and_grad compiled once
 
 

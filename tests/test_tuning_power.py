@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tuning import cli as tcli
+from tuning import run as tcli
 from tuning.config import load_config
 from tuning.loss import (
     TERMS,

@@ -11,6 +11,7 @@ from _craft import K_RUDDER
 
 from vcjax import paths
 from vcjax.control.vcm import VCMConfig, pm_gains, vcm_law, vcm_params, vcm_state
+from vcjax.environment import WaterMotion
 from vcjax.linalg import rot2, wrap_angle
 from vcjax.mechanics import (
     Underactuation,
@@ -33,7 +34,7 @@ def _closed_form_run(T=12.0, dt=0.05, gains=GAINS):
     params = vcm_params(gains, MODEL, LINE_COEFFS, u_d=2.0, k_rudder=K_RUDDER)
 
     def plant(t, x, tau, args):
-        return d3.vector_field(MODEL, x[0], x[1], tau, jnp.zeros(2))
+        return d3.vector_field(MODEL, x[0], x[1], tau, WaterMotion(jnp.zeros(3), None))
 
     def controller(t, x, z, p):
         return vcm_law(cfg, p, t, x[0], x[1], z)

@@ -12,6 +12,7 @@ from _craft import K_RUDDER
 
 from vcjax import paths
 from vcjax.control.vcm import VCMConfig, pm_gains, vcm_law, vcm_params, vcm_state
+from vcjax.environment import WaterMotion
 from vcjax.linalg import rot2, wrap_angle
 from vcjax.mechanics import VCMGains, VirtualConstraints, reaction_force
 from vcjax.rollout import RolloutConfig, rollout
@@ -32,7 +33,9 @@ def make_loop(cfg):
     def plant(t, x, tau, args):
         eta, nu = x
         V_c = args
-        return d3.vector_field(MODEL, eta, nu, tau, V_c)
+        return d3.vector_field(
+            MODEL, eta, nu, tau, WaterMotion(jnp.append(jnp.asarray(V_c), 0.0), None)
+        )
 
     def controller(t, x, z, params):
         eta, nu = x

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from scipy import integrate, optimize
 
-from vcjax.environment import waves
+from vcjax.environment import WaterMotion, waves
 from vcjax.vehicles import remus100, sixdof
 
 G = 9.81
@@ -78,11 +78,11 @@ _field_jit = jax.jit(_field_fn)
 
 def _field(sea, t, p, current=None, current_dot=None):
     """Every kinematic function of the module at one ``(t, p)`` (one program per sea shape)."""
-    dt = sea.omega.dtype
-    z = jnp.zeros(3, dtype=dt)
-    cur = lambda c: z if c is None else jnp.asarray(c, dtype=dt)
-    t = jnp.asarray(t, dtype=dt)
-    return _field_jit(sea, t, jnp.asarray(p, dtype=dt), cur(current), cur(current_dot))
+    dtype = sea.omega.dtype
+    z = jnp.zeros(3, dtype=dtype)
+    cur = lambda c: z if c is None else jnp.asarray(c, dtype=dtype)
+    t = jnp.asarray(t, dtype=dtype)
+    return _field_jit(sea, t, jnp.asarray(p, dtype=dtype), cur(current), cur(current_dot))
 
 
 @partial(jax.jit, static_argnames="what")
@@ -618,7 +618,7 @@ def _explicit_nu_dot(b, eta, nu, tau, v_w, a_w, m_d):
 def _door_and_explicit(b, eta, nu, tau, v_w, a_w, m_d):
     R = sixdof.Rzyx(eta[3], eta[4], eta[5])
     corr = waves.current_door_correction(R, a_w, b.M_RB, m_d, b.r_bb)
-    _, nu_dot = sixdof.vector_field(b, eta, nu, tau + corr, v_w, a_w)
+    _, nu_dot = sixdof.vector_field(b, eta, nu, tau + corr, WaterMotion(v_w, a_w))
     return nu_dot, _explicit_nu_dot(b, eta, nu, tau, v_w, a_w, m_d), corr
 
 
@@ -658,7 +658,7 @@ def _follow(sea, current, b, m_d, p0, psi, period):
         v_w, a_w = kin(t, eta[:3])
         R = sixdof.Rzyx(eta[3], eta[4], eta[5])
         tau = waves.current_door_correction(R, a_w, b.M_RB, m_d, b.r_bb)
-        return sixdof.vector_field(b, eta, nu, tau, v_w, a_w), kin(t, x)[0]
+        return sixdof.vector_field(b, eta, nu, tau, WaterMotion(v_w, a_w)), kin(t, x)[0]
 
     z = jnp.zeros_like(psi)
     eta0 = jnp.concatenate([p0, jnp.stack([z, z, psi])])
@@ -708,6 +708,12 @@ def test_a_neutrally_buoyant_body_moves_with_the_water_particles(regular):
     assert dev < 2 * 0.02 * tilt
 
 
+def _in_full(p, v_w, a_w):
+    """REMUS 100's arguments with the whole water rotated in full (no share named uniform)."""
+    still = WaterMotion(jnp.zeros_like(v_w), jnp.zeros_like(a_w))
+    return remus100.Remus100Args(p, WaterMotion(v_w, a_w), uniform=still)
+
+
 @partial(jax.jit, static_argnames="steps")
 def _follow_remus(sea, current, p, p0, period, steps):
     """The REMUS 100 plant itself (actuators off), taking the water as its (3,) current, with
@@ -718,7 +724,7 @@ def _follow_remus(sea, current, p, p0, period, steps):
     def both(t, y):
         x, q = y
         v_w, a_w = waves.water_kinematics(sea, t, x.eta[:3], current)
-        args = remus100.Remus100Args(p, v_w, a_w)
+        args = _in_full(p, v_w, a_w)
         dx = remus100.remus100_plant(t, x, jnp.zeros(3), args)
         R = sixdof.Rzyx(x.eta[3], x.eta[4], x.eta[5])
         corr = waves.current_door_correction(R, a_w, p.body.M_RB, m_d, p.body.r_bb)
@@ -748,7 +754,7 @@ def _remus_on_the_particle(sea, current, p, t, x, psi):
         jnp.concatenate([R.T @ v_w, jnp.zeros(3)]),
         jnp.zeros(3),
     )
-    dx = remus100.remus100_plant(t, state, jnp.zeros(3), remus100.Remus100Args(p, v_w, a_w))
+    dx = remus100.remus100_plant(t, state, jnp.zeros(3), _in_full(p, v_w, a_w))
     m_d = p.body.B / p.body.W * p.body.M_RB[0, 0]
     corr = waves.current_door_correction(R, a_w, p.body.M_RB, m_d, p.body.r_bb)
     nu_dot = dx.nu + jnp.linalg.solve(remus100.mass_matrix(p), corr)

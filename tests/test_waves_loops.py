@@ -23,7 +23,7 @@ from vcjax import loops, sweep
 from vcjax.cli import main
 from vcjax.config import ConfigError
 from vcjax.config.scenario import ScenarioChoice, import_module_file
-from vcjax.environment import waves
+from vcjax.environment import WaterMotion, waves
 from vcjax.linalg import Rzyx
 from vcjax.plots.sweep import sweep_figures
 from vcjax.rollout import RolloutConfig, rollout
@@ -51,8 +51,9 @@ class DrifterLoop(loops.loop_class("puck")):
     feels: ClassVar[dict] = {**loops.loop_class("puck").feels, "waves": True}
 
     def plant_in_sea(self, t, x, u, args, water):
-        v_w, _ = water.at(t, self.position(x[0], args.params))
-        return self.plant(t, x, u, args._replace(current=v_w))
+        return self.plant(
+            t, x, u, args._replace(water=water.at(t, self.position(x[0], args.params)))
+        )
 
 
 loops.register(DrifterLoop, replace=True)
@@ -104,7 +105,7 @@ def test_the_odin_loop_in_a_sea_is_the_plant_fed_the_water_and_a_calm_sea_change
         b = p.body
         fk = waves.froude_krylov(Rzyx(*x.eta[3:]), a_w, b.B / b.W * b.M_RB[0, 0], b.r_bb)
         body = fk - b.M_RB[:, :3] @ (Rzyx(*x.eta[3:]).T @ a_w)
-        args = odin.OdinArgs(p, sc.disturbance + body, v_w, a_w)
+        args = odin.OdinArgs(p, sc.disturbance + body, WaterMotion(v_w, a_w))
         return odin.odin_plant(t, x, u, args)
 
     x0, z0 = loop.initial_state(sc)
@@ -131,8 +132,9 @@ def _remus_fields(x, u, t, sea, cur, sc):
     args = _REMUS.plant_args(sc._replace(current=cur), cur, jnp.zeros(3))
     got = _REMUS.plant_in_sea(t, x, u, args, loops.Water.of_sea(sea, 2.0, cur, None))
     p = args.vehicle
-    v_w, a_w = waves.water_kinematics(sea, t, x.eta[:3] + jnp.asarray([0, 0, 2.0]), cur)
-    dx = remus100.remus100_plant(t, x, u, remus100.Remus100Args(p, v_w, a_w))
+    v_w, a_w = water = waves.water_kinematics(sea, t, x.eta[:3] + jnp.asarray([0, 0, 2.0]), cur)
+    still = WaterMotion(jnp.zeros(3), jnp.zeros(3))  # no uniform share: the full rotation for all
+    dx = remus100.remus100_plant(t, x, u, remus100.Remus100Args(p, water, uniform=still))
     b = p.body
     R = Rzyx(*x.eta[3:])
     corr = waves.current_door_correction(R, a_w, b.M_RB, b.M_RB[0, 0], b.r_bb)

@@ -7,18 +7,21 @@ Modules: [`tuning.params`][tuning.params] (unconstrained parametrisation of a lo
 [`tuning.optim`][tuning.optim]
 (optax L-BFGS/Adam, guarded, one jit per step), [`tuning.blackbox`][tuning.blackbox] (CMA-ES with
 pycma, and
-random search, as baselines), [`tuning.config`][tuning.config] (TOML), [`tuning.cli`][tuning.cli]
-([`run_tune_config`][tuning.cli.run_tune_config], what ``vcjax tune`` runs).
+random search, as baselines), [`tuning.config`][tuning.config] (TOML), [`tuning.run`][tuning.run]
+([`run_tune_config`][tuning.run.run_tune_config], what ``vcjax tune`` runs: the one command line
+of the tuner).
 """
 
-from tuning.cli import run_tune_config
 from tuning.loss import TuningProblem, loss_weights, objective, problem_data
-from tuning.optim import run_gradient_tuner
+from tuning.optim import TunerHooks, TunerOptions, run_gradient_tuner
 from tuning.params import GainSpace
+from tuning.run import run_tune_config
 from tuning.scenarios import sample_scenarios
 
 __all__ = [
     "GainSpace",
+    "TunerHooks",
+    "TunerOptions",
     "TuningProblem",
     "loss_weights",
     "objective",

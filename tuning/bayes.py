@@ -21,7 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from tuning.blackbox import BlackBoxResult, generation_loop
+from tuning.blackbox import BlackBoxResult, generation_loop, hooks_from
 
 __all__ = ["run_bayes"]
 
@@ -49,15 +49,15 @@ def run_bayes(
     popsize: int = 8,
     seed: int = 0,
     n_startup: int = 10,
-    on_gen: Callable | None = None,
-    progress: Callable | None = None,
-    should_stop: Callable[[], bool] | None = None,
+    **hooks,
 ) -> BlackBoxResult:
     """optuna TPE on the batch objective ``f`` (from
     [`batch_objective`][tuning.blackbox.batch_objective])
     over ``theta0 +- box`` (n,), ``popsize`` candidates per call of ``f`` (one vmapped batch),
     at most ``max_evals`` candidates; ``n_startup`` random candidates before TPE models the
-    loss; ``should_stop`` polled before each batch."""
+    loss; ``hooks``: ``on_gen``, ``progress``, ``should_stop`` (polled before each batch), as
+    in [`run_cmaes`][tuning.blackbox.run_cmaes]."""
+    hooks = hooks_from(hooks, "run_bayes")
     optuna = _optuna()
     x0 = np.asarray(theta0, dtype=float).ravel()
     if x0.size < 1 or not np.all(np.isfinite(x0)):
@@ -87,6 +87,4 @@ def run_bayes(
         for t, val in zip(asked, np.asarray(v, dtype=float), strict=True):
             study.tell(t, float(val) if np.isfinite(val) else _WORST)
 
-    return generation_loop(
-        ask, tell, f, int(popsize), x0, max_evals, on_gen, progress, should_stop or (lambda: False)
-    )
+    return generation_loop(ask, tell, f, int(popsize), x0, max_evals, hooks)

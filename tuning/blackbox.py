@@ -27,6 +27,7 @@ __all__ = [
     "BlackBoxResult",
     "cma_strategy",
     "cmaes_popsize",
+    "GenerationHooks",
     "run_cmaes",
     "run_random_search",
     "generation_loop",
@@ -36,15 +37,29 @@ __all__ = [
 _WORST = 1e300
 
 
-def batch_objective(loss_fn: Callable, args: tuple = ()) -> Callable:
+def batch_objective(loss_fn: Callable, args: tuple = (), static=None) -> Callable:
     """``f(X (lambda, n)) -> (lambda,)`` NumPy values of ``loss_fn(theta, *args)``, jitted+vmapped.
 
-    Non-finite values come back as ``inf``.
+    Non-finite values come back as ``inf``. ``static``: a plain description of everything that
+    fixes ``loss_fn`` (e.g. the tuning config); with it, and the program store on
+    ([`vcjax.runtime.programs`][vcjax.runtime.programs]), the batch program is keyed in the
+    store, so a warm run loads it instead of tracing (as the gradient tuner's step does).
     """
-    g = jax.jit(jax.vmap(loss_fn, in_axes=(0,) + (None,) * len(args)))
+    from vcjax.runtime import programs
+
+    vf = jax.vmap(loss_fn, in_axes=(0,) + (None,) * len(args))
+    g = jax.jit(vf)
+    built: dict = {}
 
     def f(X):
-        v = np.asarray(jax.device_get(g(jnp.asarray(X), *args)), dtype=float)
+        X = jnp.asarray(X)
+        if static is not None and programs.store_dir() is not None:
+            if X.shape not in built:
+                built[X.shape], _ = programs.build("tune:batch_loss", vf, static, (X, *args))
+            v = built[X.shape](X, *args)
+        else:
+            v = g(X, *args)
+        v = np.asarray(jax.device_get(v), dtype=float)
         return np.where(np.isfinite(v), v, np.inf)
 
     return f
@@ -67,12 +82,39 @@ class BlackBoxResult(NamedTuple):
     history: list
 
 
-def generation_loop(ask, tell, f, lam, theta0, max_evals, on_gen, progress, stop=lambda: False):
+class GenerationHooks(NamedTuple):
+    """Callbacks of the black-box tuners.
+
+    Attributes:
+        on_gen: ``on_gen(gen, incumbent, record) -> dict | None`` after each generation; a
+            returned dict is merged into the history record.
+        progress: ``progress(gen, total, record)`` for a progress bar.
+        should_stop: polled before each generation; True ends the run (e.g. a wall-clock
+            budget).
+    """
+
+    on_gen: Callable | None = None
+    progress: Callable | None = None
+    should_stop: Callable[[], bool] | None = None
+
+
+def hooks_from(kwargs: dict, fn: str) -> GenerationHooks:
+    """The [`GenerationHooks`][tuning.blackbox.GenerationHooks] a tuner was given by name
+    (``TypeError`` for any other name, as Python's)."""
+    unknown = sorted(set(kwargs) - set(GenerationHooks._fields))
+    if unknown:
+        raise TypeError(f"{fn}() got an unexpected keyword argument {unknown[0]!r}")
+    return GenerationHooks(**kwargs)
+
+
+def generation_loop(ask, tell, f, lam, theta0, max_evals, hooks: GenerationHooks | None = None):
     """The loop every black-box tuner runs ([`tuning.bayes`][tuning.bayes] too): ``X = ask()``
     (lambda, n),
     ``vals = f(X)`` (one batch), ``tell(X, vals)``, until ``max_evals`` candidates or
-    ``stop()``; keeps the incumbent, times the generations (``wall_s``: ask + f + tell, without
-    ``on_gen``)."""
+    ``hooks.should_stop()``; keeps the incumbent, times the generations (``wall_s``: ask + f +
+    tell, without ``hooks.on_gen``)."""
+    on_gen, progress, should_stop = hooks or GenerationHooks()
+    stop = should_stop or (lambda: False)
     best_x, best_f = np.asarray(theta0, dtype=float), np.inf
     history, evals, wall, gen = [], 0, 0.0, 0
     total = max(1, max_evals // lam)
@@ -139,16 +181,16 @@ def run_cmaes(
     max_evals: int = 1000,
     popsize: int | None = None,
     seed: int = 0,
-    on_gen: Callable | None = None,
-    progress: Callable | None = None,
-    should_stop: Callable[[], bool] | None = None,
+    **hooks,
 ) -> BlackBoxResult:
     """pycma CMA-ES from ``theta0`` with step ``sigma0`` (in ``theta`` units: log-gains) on the
     batch objective ``f`` (from [`batch_objective`][tuning.blackbox.batch_objective]), for at most
     ``max_evals`` candidates
     (whole generations; fewer if pycma's own termination criteria fire first). Each generation
-    is one call ``f(X)`` with ``X`` (lambda, n): one vmapped, jitted batch. ``should_stop()``,
-    polled before each generation, ends the run early (e.g. a wall-clock budget)."""
+    is one call ``f(X)`` with ``X`` (lambda, n): one vmapped, jitted batch. ``hooks``:
+    ``on_gen``, ``progress``, ``should_stop`` ([`GenerationHooks`][tuning.blackbox.GenerationHooks];
+    ``should_stop()``, polled before each generation, ends the run early)."""
+    on_gen, progress, should_stop = hooks_from(hooks, "run_cmaes")
     es = cma_strategy(theta0, sigma0, popsize, seed)
     asked = []
 
@@ -160,16 +202,9 @@ def run_cmaes(
         v = np.where(np.isfinite(v), np.asarray(v, dtype=float), _WORST)
         es.tell(asked, v.tolist())
 
+    stop = lambda: bool(es.stop()) or bool(should_stop and should_stop())
     return generation_loop(
-        ask,
-        tell,
-        f,
-        int(es.popsize),
-        theta0,
-        max_evals,
-        on_gen,
-        progress,
-        stop=lambda: bool(es.stop()) or bool(should_stop and should_stop()),
+        ask, tell, f, int(es.popsize), theta0, max_evals, GenerationHooks(on_gen, progress, stop)
     )
 
 
@@ -181,12 +216,11 @@ def run_random_search(
     max_evals: int = 1000,
     popsize: int = 16,
     seed: int = 0,
-    on_gen: Callable | None = None,
-    progress: Callable | None = None,
-    should_stop: Callable[[], bool] | None = None,
+    **hooks,
 ) -> BlackBoxResult:
     """Pure random search: candidates ``theta0 + radius * N(0, I)`` (batches of ``popsize``),
-    the best one kept; ``should_stop`` as in [`run_cmaes`][tuning.blackbox.run_cmaes]."""
+    the best one kept; ``hooks`` as in [`run_cmaes`][tuning.blackbox.run_cmaes]."""
+    hooks = hooks_from(hooks, "run_random_search")
     if not (np.isfinite(radius) and radius > 0):
         raise ValueError(f"radius: expected a finite value > 0, got {radius!r}")
     rng = np.random.default_rng(seed)
@@ -200,7 +234,4 @@ def run_random_search(
             first[0] = False
         return X
 
-    stop = should_stop or (lambda: False)
-    return generation_loop(
-        ask, lambda X, v: None, f, popsize, theta0, max_evals, on_gen, progress, stop
-    )
+    return generation_loop(ask, lambda X, v: None, f, popsize, theta0, max_evals, hooks)

@@ -17,7 +17,7 @@ command) naming the file and the offending ``section.key``::
     radius = 40.0
 
     [simulation]                    # shared with sweeps (vcjax.config.schema.Simulation); the
-    horizon = 80.0                  # keys horizon, dt, integrator, timing, smooth, edd may
+    horizon = 80.0                  # keys horizon, dt, integrator, timing, smooth may
     u_d = [1.0, 1.5]                # instead be written under [problem] (the older spelling)
 
     [current]                       # shared with sweeps (constant model only): replaces
@@ -41,7 +41,6 @@ command) naming the file and the offending ``section.key``::
     smooth = true                   # tanh actuator saturation while training (gradients pass)
     checkpoint = false              # jax.checkpoint (long horizons under reverse mode)
     checkpoint_every = 10           # with checkpoint: segment length (1 = every step)
-    edd = "paper"                   # or "implied"
     risk = "mean"                   # or "cvar"
     alpha = 0.2                     # CVaR level (fraction of worst scenarios)
     log_box = 3.0                   # gains kept within e^log_box of the initial ones (penalty)
@@ -74,6 +73,11 @@ command) naming the file and the offending ``section.key``::
     [disturbance]
     force = []                      # optional: one range per generalised force component
 
+    [gauss_markov]                  # optional: any section of a vcjax.environment component
+    sigma = 0.05                    # (vcjax.environment.register; not the shared ones above),
+                                    # checked and sampled per scenario by its component, as
+                                    # in sweeps (loops that cannot feel it refuse it)
+
     [model_error]                   # plant-only multiplicative errors, as in sweep configs
     relative = 0.0
     # fields = [...]                # the vehicle's parameter names (omitted: its default set)
@@ -99,6 +103,19 @@ command) naming the file and the offending ``section.key``::
 
     [report]
     plot_scenarios = 4              # held-out scenarios drawn in the before/after figures
+
+    [robust]                        # optional: robust tuning (tuning/robust.py); its presence
+    adversarial_every = 5           # switches it on: every K steps a search for the worst
+    adversarial_count = 4           # scenarios against the current gains fills the batch's
+    budget = 10                     # adversarial slot (ascent steps of each search)
+    starts = 8
+    step_size = 0.1
+    metric = "tuning_loss"          # or a sweep metric
+    seed = 7
+    compare = false                 # also tune without [robust] (summary: robust.nominal)
+    check_starts = 16               # the independent worst-case search at the end
+    check_budget = 20
+    check_seed = 1007
 """
 
 from __future__ import annotations
@@ -106,9 +123,18 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from tuning.spec import _SECTIONS, DEFAULTS, KEY_DOCS, Problem, TuneConfig, TuneSimulation
+from tuning.spec import (
+    _OPTIONAL,
+    _SECTIONS,
+    DEFAULTS,
+    KEY_DOCS,
+    LOSS_NAMES,
+    TuneConfig,
+    TuneSimulation,
+)
 from vcjax import loops
 from vcjax.config import (
+    SECTIONS,
     ConfigError,
     Current,
     Simulation,
@@ -118,11 +144,12 @@ from vcjax.config import (
     parse_section,
     read_toml,
 )
-from vcjax.config.aliases import note_old_spellings
-from vcjax.config.frozen import freeze, thaw
+from vcjax.config.aliases import moved_values, note_old_spellings, take_moved
+from vcjax.config.frozen import freeze
 from vcjax.config.scenario import loop_options, parse_scenario
-from vcjax.config.schema import REGISTERED, check_value
-from vcjax.sweep.config import check_waves, refusal
+from vcjax.config.schema import registered
+from vcjax.environment import lookup
+from vcjax.sweep.config import check_waves, environment_sections, refusal
 from vcjax.sweep.spec import check_wave_step
 
 __all__ = [
@@ -139,8 +166,9 @@ __all__ = [
 #: the shared [simulation], [current] and [waves] (vcjax.config.schema)
 _SPECIAL = ("scenario", "initial", "simulation", "current", "waves")
 #: [simulation] keys that tune configs may also write under [problem] (the older spelling)
-_SIM_IN_PROBLEM = ("horizon", "dt", "integrator", "timing", "smooth", "edd")
-_PROBLEM_KEYS = {f.name: f for f in dataclasses.fields(Problem)}
+_SIM_IN_PROBLEM = ("horizon", "dt", "integrator", "timing", "smooth")
+#: the sections that are not an environment component's here (the tune's own, the shared ones)
+_NOT_COMPONENTS = (*_SECTIONS, *_SPECIAL, *SECTIONS)
 
 
 def _sections(raw: dict) -> dict:
@@ -148,9 +176,8 @@ def _sections(raw: dict) -> dict:
     ``[disturbance]``, ``[model_error]``), parsed by the one validator
     ([`vcjax.config.parse_section`][vcjax.config.schema.parse_section]); unknown sections suggest
     the closest."""
-    if not isinstance(raw, dict):
-        raise ConfigError("config: expected a table of sections")
-    known = sorted([*_SECTIONS, *_SPECIAL, *REGISTERED])
+    added = registered()
+    known = sorted([*_SECTIONS, *_SPECIAL, *added, *_OPTIONAL])
     for name, table in raw.items():
         if name not in known:
             raise ConfigError(
@@ -158,26 +185,27 @@ def _sections(raw: dict) -> dict:
             )
         if not isinstance(table, dict):
             raise ConfigError(f"[{name}]: expected a table, got {type(table).__name__} {table!r}")
-    for name, cls in REGISTERED.items():  # sections added by vcjax.config.register_section
+    for name, cls in added.items():  # sections added by vcjax.config.register_section
         parse_section(cls, raw.get(name), name)
-    return {name: parse_section(cls, raw.get(name), name) for name, cls in _SECTIONS.items()}
+    sec = {name: parse_section(cls, raw.get(name), name) for name, cls in _SECTIONS.items()}
+    for name, cls in _OPTIONAL.items():  # [robust]: None where not given
+        sec[name] = parse_section(cls, raw[name], name) if name in raw else None
+    return sec
 
 
 def _simulation(raw: dict, sec: dict):
     """Fold ``[simulation]`` into ``sec["problem"]`` (its keys horizon, dt, integrator, timing,
-    smooth, edd may instead be written under ``[problem]``, the older spelling; both at once is
+    smooth may instead be written under ``[problem]``, the older spelling; both at once is
     refused) and return ``u_d``."""
     sim_raw = raw.get("simulation", {})
-    sim = parse_section(Simulation, {k: v for k, v in sim_raw.items() if k != "edd"}, "simulation")
+    sim = parse_section(Simulation, sim_raw, "simulation")
     over = {}
     for k in sim_raw:
         if k in raw.get("problem", {}) and k in _SIM_IN_PROBLEM:
             raise ConfigError(
                 f"[simulation] {k}: also given as [problem] {k} (its older spelling); write it once"
             )
-        if k == "edd":
-            over["edd"] = check_value("[simulation] edd", sim_raw[k], _PROBLEM_KEYS[k].metadata)
-        elif k in _SIM_IN_PROBLEM:
+        if k in _SIM_IN_PROBLEM:
             over[k] = getattr(sim, k)
     p = dataclasses.replace(sec["problem"], **over)
     if p.horizon / p.dt < 1:
@@ -186,23 +214,13 @@ def _simulation(raw: dict, sec: dict):
     return sim.u_d
 
 
-def _tune_current(cur: Current, table: dict, current_max: float) -> dict:
-    """The current a tune samples, both keys resolved (what ``run.json`` records is what runs).
+def _current_and_waves(raw: dict, sec: dict) -> tuple[Current, Waves | None]:
+    """``[current]`` and ``[waves]`` (``None`` without it: the section's presence is the switch).
 
     Without ``[current] speed`` and ``direction_deg`` the current is ``[scenarios]
     current_max``'s: speed ``[0, current_max]`` in any direction ``[0, 360]``; writing either
     key switches to ``[current]``, whose other key then takes its section default (0.5 m/s,
-    90 deg). ``model = "constant"`` (the default, and the only model a tune samples) changes
-    nothing: a default means the same written or omitted.
-    """
-    if "speed" not in table and "direction_deg" not in table:
-        return {"speed": [0.0, float(current_max)], "direction_deg": [0.0, 360.0]}
-    return {"speed": list(cur.speed), "direction_deg": list(cur.direction_deg)}
-
-
-def _current_and_waves(raw: dict, sec: dict) -> tuple[dict, dict | None]:
-    """``[current]`` (resolved, ``_tune_current``) and ``[waves]`` (every key, defaults
-    filled in: the section's presence is the switch; ``None`` without it)."""
+    90 deg). ``model = "constant"`` (the default, and the only model a tune samples)."""
     cur_raw = raw.get("current", {})
     cur = parse_section(Current, cur_raw, "current")
     if {"speed", "direction_deg"} & set(cur_raw) and "current_max" in raw.get("scenarios", {}):
@@ -212,19 +230,21 @@ def _current_and_waves(raw: dict, sec: dict) -> tuple[dict, dict | None]:
         )
     if cur.model != "constant":
         raise ConfigError("[current] model: vcjax tune samples constant currents only")
-    current = _tune_current(cur, cur_raw, sec["scenarios"].current_max)
+    if "speed" not in cur_raw and "direction_deg" not in cur_raw:
+        m = float(sec["scenarios"].current_max)
+        cur = dataclasses.replace(cur, speed=(0.0, m), direction_deg=(0.0, 360.0))
     if "waves" not in raw:
-        return current, None
-    wav = parse_section(Waves, raw["waves"], "waves")
+        return cur, None
     check_waves(raw["waves"])
+    wav = parse_section(Waves, raw["waves"], "waves")
     check_wave_step(wav.tp[0], sec["problem"].dt, "[waves] tp")
-    return current, {k: thaw(v) for k, v in dataclasses.asdict(wav).items()}
+    return cur, wav
 
 
-def _controller(raw: dict, sec: dict, choice):
-    """The controller (``[problem] variant`` is the older spelling of ``[scenario]
-    controller``) and the ``edd`` that runs (``[problem]``/``[simulation] edd`` are older
-    spellings of ``[scenario] edd``): disagreeing spellings are refused naming both."""
+def _controller(sec: dict, choice):
+    """The controller (``[problem] variant`` is the older spelling of ``[scenario] controller``;
+    disagreeing spellings are refused naming both), and ``choice`` recording it and every loop
+    option with an older spelling as it runs (``run.json`` records what runs)."""
     p = sec["problem"]
     cls = loops.loop_class(choice.vehicle)
     ctrl = p.variant or choice.controller or cls.default_controller or cls.controllers[0]
@@ -238,30 +258,16 @@ def _controller(raw: dict, sec: dict, choice):
             f"[problem] variant: {p.variant!r} contradicts [scenario] controller "
             f"{choice.controller!r} (its newer spelling); give one of them"
         )
-    edd = p.edd
-    if "edd" in loop_options(cls):
-        given = dict(choice.options)
-        old = [f"[{s}] edd" for s in ("problem", "simulation") if "edd" in raw.get(s, {})]
-        if "edd" in given and old and given["edd"] != p.edd:
-            raise ConfigError(
-                f"{old[0]}: {p.edd!r} contradicts [scenario] edd {given['edd']!r} (its newer "
-                "spelling); give one of them"
-            )
-        if "edd" in given:
-            edd = given["edd"]  # what runs is what run.json records
-        else:
-            choice = dataclasses.replace(choice, options=(*choice.options, ("edd", p.edd)))
-    sec["problem"] = dataclasses.replace(p, variant=ctrl, edd=edd)
-    return dataclasses.replace(choice, controller=ctrl)  # run.json records what runs
+    given = dict(choice.options)
+    ran = {k: v for k, v in moved_values(choice).items() if k in loop_options(cls)}
+    options = (*choice.options, *((k, v) for k, v in ran.items() if k not in given))
+    sec["problem"] = dataclasses.replace(p, variant=ctrl)
+    return dataclasses.replace(choice, controller=ctrl, options=options)
 
 
-def _vehicle_keys(raw: dict, sec: dict, loop, waves) -> dict:
+def _vehicle_keys(raw: dict, sec: dict, loop, current: Current, waves, env) -> dict:
     """The keys whose valid names are the vehicle's (gain groups, parameter names, initial
     keys) and the disturbances it can feel; returns the ``[initial]`` ranges."""
-    try:  # a sea the loop cannot take is refused, never silently ignored
-        loops.check_disturbances(loop, False, False, waves=waves is not None)
-    except ValueError as err:
-        raise ConfigError(refusal(err)) from None
     names = [g.name for g in loop.gain_specs()]
     bad = [t for t in sec["problem"].tune if t not in names]
     if bad:
@@ -282,33 +288,69 @@ def _vehicle_keys(raw: dict, sec: dict, loop, waves) -> dict:
                 f"{closest(k, loop.initial_keys)}; expected one of {list(loop.initial_keys)}"
             )
         init[k] = as_range(f"[initial] {k}", v)
+    try:  # a current, a sea or a component the loop cannot take is refused, never ignored
+        loops.check_disturbances(loop, max(current.speed) > 0, False, waves=waves is not None)
+        loops.check_environment(loop, [lookup(s) for s, _ in env])
+    except ValueError as err:
+        raise ConfigError(refusal(err)) from None
     return init
+
+
+def _check_robust(rob) -> None:
+    """Cross-checks of ``[robust]`` (the one validator checked each key): ``starts >=
+    adversarial_count``; the metric one of the tuning loss's names or a sweep metric's (an
+    actuator's ``max_abs_<name>`` is checked against the loop's when the search is built)."""
+    if rob.starts < rob.adversarial_count:
+        raise ConfigError(
+            f"[robust] starts: must be >= adversarial_count ({rob.adversarial_count}), "
+            f"got {rob.starts}"
+        )
+    from vcjax.metrics import METRICS
+    from vcjax.search import ALIASES
+
+    known = [*LOSS_NAMES, *METRICS, *ALIASES]
+    if rob.metric not in known and not rob.metric.startswith("max_abs_"):
+        raise ConfigError(
+            f"[robust] metric: unknown metric {rob.metric!r}{closest(rob.metric, known)}; "
+            f"expected one of {known} (or max_abs_<actuator>)"
+        )
 
 
 def validate_config(raw: dict, config_path=None) -> TuneConfig:
     """Defaults filled in, every value checked; returns the frozen
     [`TuneConfig`][tuning.spec.TuneConfig].
 
-    ``cfg.scenario`` is the parsed ``[scenario]``, ``cfg.initial`` the ``[initial]`` ranges;
-    ``config_path`` resolves the files a config names (default: the working directory).
+    ``cfg.scenario`` is the parsed ``[scenario]``, ``cfg.initial`` the ``[initial]`` ranges,
+    ``cfg.environment`` the sections of [`vcjax.environment`][vcjax.environment] components
+    (checked by their component, as in sweeps); ``config_path`` resolves the files a config
+    names (default: the working directory).
 
     Raises:
         ConfigError: ``[section] key: message`` for an unknown section/key (the closest valid
             one suggested), a wrong type, a value out of range, a controller or gain the
             vehicle does not have, two spellings of one setting that disagree.
     """
+    if not isinstance(raw, dict):
+        raise ConfigError("config: expected a table of sections")
+    raw, older = take_moved(raw)  # loop options in their older spellings
+    where = config_path or Path("config")
+    choice = parse_scenario(raw.get("scenario"), "scenario", where, older)  # may register
+    raw, env = environment_sections(raw, _NOT_COMPONENTS, "")
     sec = _sections(raw)
     u_d = _simulation(raw, sec)
     current, waves = _current_and_waves(raw, sec)
-    choice = parse_scenario(raw.get("scenario"), "scenario", config_path or Path("config"))
-    choice = _controller(raw, sec, choice)
-    init = _vehicle_keys(raw, sec, choice.loop(sec["problem"].variant), waves)
+    choice = _controller(sec, choice)
+    loop = choice.loop(sec["problem"].variant)
+    init = _vehicle_keys(raw, sec, loop, current, waves, env)
+    if sec["robust"] is not None:
+        _check_robust(sec["robust"])
     return TuneConfig(
         **sec,
         simulation=TuneSimulation(u_d=u_d),
-        current=freeze(current),
-        waves=None if waves is None else freeze(waves),
+        current=current,
+        waves=waves,
         initial=freeze(init),
+        environment=env,
         scenario=choice,
     )
 

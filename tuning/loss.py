@@ -76,29 +76,36 @@ class LossWeights(NamedTuple):
     depth: Any = 0.0
 
 
-def loss_weights(
-    eps=1.0,
-    u_tilde=1.0,
-    psi_tilde=1.0,
-    sat_excess=10.0,
-    sat_time=1.0,
-    effort=0.0,
-    unhealthy=1000.0,
-    sat_width=0.05,
-    depth=0.0,
-    dtype=None,
-) -> LossWeights:
-    """Validated [`LossWeights`][tuning.loss.LossWeights] (every weight finite and >= 0,
-    ``sat_width`` > 0)."""
-    vals = dict(locals())
-    vals.pop("dtype")
+#: The default of every weight of [`loss_weights`][tuning.loss.loss_weights] (the ``[weights]``
+#: section's defaults).
+DEFAULT_WEIGHTS = {
+    "eps": 1.0,
+    "u_tilde": 1.0,
+    "psi_tilde": 1.0,
+    "sat_excess": 10.0,
+    "sat_time": 1.0,
+    "effort": 0.0,
+    "unhealthy": 1000.0,
+    "sat_width": 0.05,
+    "depth": 0.0,
+}
+
+
+def loss_weights(dtype=None, **weights) -> LossWeights:
+    """Validated [`LossWeights`][tuning.loss.LossWeights] of ``dtype`` from the weights given by
+    name (``eps=2.0``, ...; the others at ``DEFAULT_WEIGHTS``): every weight finite and >= 0,
+    ``sat_width`` > 0."""
+    unknown = sorted(set(weights) - set(DEFAULT_WEIGHTS))
+    if unknown:
+        raise TypeError(f"loss_weights() got an unexpected keyword argument {unknown[0]!r}")
+    vals = {**DEFAULT_WEIGHTS, **weights}
     for k, v in vals.items():
         if isinstance(v, bool) or not isinstance(v, int | float | np.floating | np.integer):
             raise ValueError(f"weights.{k}: expected a number, got {v!r}")
         if not (math.isfinite(v) and v >= 0):
             raise ValueError(f"weights.{k}: expected a finite value >= 0, got {v!r}")
     if not vals["sat_width"] > 0:
-        raise ValueError(f"weights.sat_width: expected > 0, got {sat_width!r}")
+        raise ValueError(f"weights.sat_width: expected > 0, got {vals['sat_width']!r}")
     dtype = jnp.zeros(()).dtype if dtype is None else dtype
     return LossWeights(**{k: jnp.asarray(v, dtype=dtype) for k, v in vals.items()})
 

@@ -7,8 +7,9 @@ runs it, inside one jitted step, the gradient is traced and compiled three times
 search and in both branches of its loop body), the largest program of the tuner by far. Here
 the search is driven from the host instead ([`LBFGSStep`][tuning.optim.LBFGSStep]): one compiled
 ``value_and_grad`` program, called at every point the search asks for, and small jitted
-programs for optax's own L-BFGS direction and zoom line-search steps (the same arithmetic, so
-the same iterates). Every step reports its loss, gradient norm, whether it was accepted, and how
+programs for optax's L-BFGS direction and the zoom line search's rounds
+([`tuning.linesearch`][tuning.linesearch]: optax's arithmetic written out, so the same
+iterates). Every step reports its loss, gradient norm, whether it was accepted, and how
 many batch ``value_and_grad`` evaluations it used.
 
 Guard: a step whose loss, gradient or update is not finite is *rejected*: the parameters and the
@@ -26,6 +27,7 @@ calls ``jax.value_and_grad`` itself, also uses it.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from typing import Any, NamedTuple
@@ -35,6 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from tuning.linesearch import Zoom
 from vcjax.runtime import distributed, programs
 
 __all__ = [
@@ -48,6 +51,8 @@ __all__ = [
     "make_step",
     "init_state",
     "TuneResult",
+    "TunerOptions",
+    "TunerHooks",
     "run_gradient_tuner",
     "tuner_options",
 ]
@@ -232,27 +237,6 @@ def _accept(theta, state, value, grad, updates, new_state, ok, evals):
     return new_theta, new_state, StepInfo(value, gnorm, ok, evals, unorm)
 
 
-def _zoom(max_linesearch_steps: int):
-    """optax's zoom line search as ``(init, step, cond)`` with the settings of
-    ``optax.scale_by_zoom_linesearch(max_linesearch_steps, initial_guess_strategy="one")``
-    (its defaults). optax runs ``step`` in a ``while_loop``; [`LBFGSStep`][tuning.optim.LBFGSStep]
-    runs it from
-    the host. (``zoom_linesearch`` is optax's own building block of that transformation.)"""
-    from optax._src.linesearch import zoom_linesearch
-
-    return zoom_linesearch(
-        max_linesearch_steps=max_linesearch_steps,
-        max_stepsize=None,
-        tol=0.0,
-        increase_factor=2.0,
-        slope_rtol=1e-4,
-        curv_rtol=0.9,
-        approx_dec_rtol=1e-6,
-        interval_threshold=1e-5,
-        verbose=False,
-    )
-
-
 class LBFGSStep:
     """One L-BFGS step ([`make_step`][tuning.optim.make_step]), the line search driven from the
     host.
@@ -263,11 +247,11 @@ class LBFGSStep:
     search evaluates the loss and gradient once, at a step size its state decides. optax runs
     the rounds in a ``while_loop`` in the jitted step, whose two branches (search an interval,
     zoom into it) each hold the whole batch ``value_and_grad``, besides the one before the
-    search: three copies of the largest program. Here the rounds run on the host: a jitted
-    *probe* (the round with a stand-in evaluation that ends the search, so the state records
-    the step size the round asks for) gives the point, the one compiled ``value_and_grad``
-    evaluates it, and the jitted round proper consumes that evaluation. optax's own ``init``
-    and ``step`` functions do the arithmetic, so the iterates are optax's (tested against
+    search: three copies of the largest program. Here the rounds run on the host
+    ([`tuning.linesearch.Zoom`][tuning.linesearch.Zoom]): a jitted program gives the point the
+    round asks for, the one compiled ``value_and_grad`` evaluates it, and the jitted round proper
+    consumes that evaluation. The direction is optax's ``scale_by_lbfgs`` and the search is
+    optax's arithmetic step for step, so the iterates are optax's (tested against
     ``optax.lbfgs`` run in one ``jax.jit``).
 
     Call it as the jitted Adam step: ``step(theta, state, scale, args)``; ``state`` is
@@ -284,41 +268,24 @@ class LBFGSStep:
         # value_and_grad in vcjax.runtime.programs' store (None: traced every run)
         self._program_static = program_static
         self._stored: tuple | None = None  # (argument spec, compiled call) from the store
-        init_ls, step_ls, cond_ls = _zoom(max_linesearch_steps)
+        zoom = Zoom(max_linesearch_steps=max_linesearch_steps)
         direction = optax.chain(
             optax.scale_by_lbfgs(memory_size=memory_size, scale_init_precond=True),
             optax.scale(-1.0),
         )
 
         def start(theta, state, value, grad):
-            """The direction, and the line search's first probe."""
+            """The direction, and the line search's first point."""
             with jax.numpy_dtype_promotion("standard"):
                 d, dir_state = direction.update(grad, state[:2], theta)
-                ls = init_ls(
-                    d,
-                    theta,
-                    value=value,
-                    grad=grad,
-                    prev_stepsize=state[2].learning_rate,
-                    initial_guess_strategy="one",
-                )
-                return d, dir_state, ls, probe(ls), cond_ls(ls)
-
-        def probe(ls):
-            # a stand-in evaluation (value -inf, zero gradient) meets both Wolfe conditions,
-            # so the round ends without replacing its step size: the point it evaluates
-            fake = lambda p: (
-                jnp.asarray(-jnp.inf, ls.value.dtype),
-                jax.tree.map(jnp.zeros_like, p),
-            )
-            stepsize = step_ls(ls, value_and_grad_fn=fake, fn_kwargs={}).stepsize
-            return optax.tree.add_scale(ls.params, stepsize, ls.updates)
+                ls = zoom.init(d, theta, value, grad)
+                return d, dir_state, ls, zoom.point(ls), zoom.running(ls)
 
         def advance(ls, value, grad):
-            """The round that evaluated ``(value, grad)`` at the probed point; the next probe."""
+            """The round that evaluated ``(value, grad)`` at the last point; the next point."""
             with jax.numpy_dtype_promotion("standard"):
-                ls = step_ls(ls, value_and_grad_fn=lambda p: (value, grad), fn_kwargs={})
-                return ls, probe(ls), cond_ls(ls)
+                ls = zoom.advance(ls, value, grad)
+                return ls, zoom.point(ls), zoom.running(ls)
 
         def finish(theta, state, value, grad, d, dir_state, ls, evals):
             """``scale_by_zoom_linesearch``'s update from the search's final state; the guard."""
@@ -436,32 +403,177 @@ class TuneResult(NamedTuple):
 
 
 def tuner_options(optimizer_section: dict) -> dict:
-    """Keyword arguments of [`run_gradient_tuner`][tuning.optim.run_gradient_tuner] from a config's
-    ``[optimizer]`` section."""
+    """Keyword arguments of [`run_gradient_tuner`][tuning.optim.run_gradient_tuner] (the fields of
+    [`TunerOptions`][tuning.optim.TunerOptions]) from a config's ``[optimizer]`` section."""
     o = optimizer_section
     keys = ("steps", "learning_rate", "memory_size", "max_linesearch_steps", "grad_mode")
     opts = {k: o[k] for k in keys + ("max_bad_steps", "grad_tol")}
     return {"optimizer": o["name"], **opts}
 
 
+@dataclasses.dataclass(frozen=True)
+class TunerOptions:
+    """Settings of [`run_gradient_tuner`][tuning.optim.run_gradient_tuner] (plain values).
+
+    Attributes:
+        optimizer, learning_rate, memory_size, max_linesearch_steps: see
+            [`make_optimizer`][tuning.optim.make_optimizer].
+        steps: number of optimiser steps.
+        grad_mode: ``"reverse"`` or ``"forward"``.
+        max_bad_steps: abort after this many consecutive rejected steps.
+        grad_tol: stop (``"converged"``) when the gradient norm drops below it.
+        program_static: see [`make_step`][tuning.optim.make_step].
+    """
+
+    optimizer: str = "lbfgs"
+    steps: int = 50
+    learning_rate: float = 0.05
+    memory_size: int = 10
+    max_linesearch_steps: int = 15
+    grad_mode: str = "reverse"
+    max_bad_steps: int = 5
+    grad_tol: float = 1e-8
+    program_static: Any = None
+
+    @classmethod
+    def from_section(cls, optimizer_section, **overrides) -> TunerOptions:
+        """From a config's ``[optimizer]`` section ([`tuner_options`][tuning.optim.tuner_options]),
+        with ``overrides``."""
+        return cls(**{**tuner_options(optimizer_section), **overrides})
+
+    def optimizer_fn(self):
+        """The optax optimiser ([`make_optimizer`][tuning.optim.make_optimizer])."""
+        return make_optimizer(
+            self.optimizer, self.learning_rate, self.memory_size, self.max_linesearch_steps
+        )
+
+
+class TunerHooks(NamedTuple):
+    """Callbacks of [`run_gradient_tuner`][tuning.optim.run_gradient_tuner].
+
+    Attributes:
+        on_step: ``on_step(k, theta, record) -> dict | None`` called after each step with the
+            new parameters; a returned dict is merged into the history record. Its run time is
+            excluded from ``wall_s``.
+        progress: ``progress(k, steps, record)`` for a progress bar.
+        should_stop: polled after each step; True ends the loop there (``reason``
+            ``"interrupted"``; the best parameters so far are returned, no further evaluation).
+        refresh: ``refresh(k, theta, args) -> args | None`` called before step ``k``: new
+            ``args`` of the same shapes (e.g. robust tuning's new adversarial scenarios,
+            [`tuning.robust`][tuning.robust]) replace the old from that step on; the objective
+            changed, so L-BFGS restarts its memory and the best parameters are those of the
+            latest ``args``.
+    """
+
+    on_step: Callable | None = None
+    progress: Callable | None = None
+    should_stop: Callable[[], bool] | None = None
+    refresh: Callable | None = None
+
+
+_OPTION_FIELDS = tuple(f.name for f in dataclasses.fields(TunerOptions))
+
+
+def _settings(options, hooks, kwargs) -> tuple[TunerOptions, TunerHooks]:
+    """``options`` and ``hooks`` with the keyword arguments of the older signature (every field
+    of either, by name) merged in; checked."""
+    unknown = sorted(set(kwargs) - set(_OPTION_FIELDS) - set(TunerHooks._fields))
+    if unknown:
+        raise TypeError(f"run_gradient_tuner() got an unexpected keyword argument {unknown[0]!r}")
+    options = dataclasses.replace(
+        options or TunerOptions(), **{k: v for k, v in kwargs.items() if k in _OPTION_FIELDS}
+    )
+    hooks = (hooks or TunerHooks())._replace(
+        **{k: v for k, v in kwargs.items() if k in TunerHooks._fields}
+    )
+    steps, max_bad = options.steps, options.max_bad_steps
+    if not (isinstance(steps, int) and steps >= 1):
+        raise ValueError(f"steps: expected a positive int, got {steps!r}")
+    if not (isinstance(max_bad, int) and max_bad >= 1):
+        raise ValueError(f"max_bad_steps: expected a positive int, got {max_bad!r}")
+    return options, hooks
+
+
+class _Loop:
+    """The bookkeeping of [`run_gradient_tuner`][tuning.optim.run_gradient_tuner]'s loop: the
+    current iterate, the last accepted step's input, the best parameters, the guard's counters."""
+
+    def __init__(self, theta, state):
+        self.theta, self.state = theta, state
+        self.good = (theta, state)  # input of the last accepted step
+        self.best_theta, self.best_loss = theta, np.inf
+        self.history: list = []
+        self.n_bad = self.consecutive = self.evals = self.stalls = 0
+        self.scale = 1.0
+        self.wall = 0.0
+
+    def record(self, k: int, info) -> dict:
+        """The history record of step ``k`` from its ``StepInfo`` (on the host)."""
+        loss = float(info.loss)
+        self.evals += int(info.evals)
+        return {
+            "iter": k,
+            "loss": loss if np.isfinite(loss) else None,
+            "grad_norm": float(info.grad_norm) if np.isfinite(info.grad_norm) else None,
+            "ok": bool(info.ok),
+            "evals": int(info.evals),
+            "cum_evals": self.evals,
+            "update_norm": float(info.update_norm),
+            "wall_s": self.wall,
+        }
+
+    def restart(self, theta, state) -> None:
+        """A new objective (``TunerHooks.refresh``): the best and the last good input are
+        those of the new one from here on."""
+        self.theta, self.state = theta, state
+        self.good = (theta, state)
+        self.best_theta, self.best_loss = theta, np.inf
+        self.scale = 1.0
+
+    def take(self, new_theta, new_state, loss: float, ok: bool) -> None:
+        """The guard: move on after an accepted step; revert and halve the step after a
+        rejected one."""
+        if ok:
+            self.consecutive = 0
+            if loss < self.best_loss:
+                self.best_theta, self.best_loss = self.theta, loss
+            self.good = (self.theta, self.state)
+            self.theta, self.state = new_theta, new_state
+        else:
+            self.n_bad += 1
+            self.consecutive += 1
+            self.theta, self.state = self.good  # revert to the last good input, smaller step
+            self.scale *= 0.5
+
+    def stop(self, rec: dict, options: TunerOptions, should_stop) -> str | None:
+        """Why the loop ends after the step of ``rec`` (None: it goes on)."""
+        ok = rec["ok"]
+        if self.consecutive >= options.max_bad_steps:
+            return f"aborted: {self.consecutive} consecutive non-finite steps"
+        if ok and rec["grad_norm"] is not None and rec["grad_norm"] < options.grad_tol:
+            return "converged"
+        self.stalls = self.stalls + 1 if ok and rec["update_norm"] == 0.0 else 0
+        if self.stalls >= 3:
+            return "stalled"
+        if should_stop is not None and should_stop():
+            return "interrupted"
+        return None
+
+    def finish(self, final: float) -> None:
+        """The final iterate's loss ``final``: it is the best when lower."""
+        if np.isfinite(final) and final < self.best_loss:
+            self.best_theta, self.best_loss = self.theta, final
+
+
 def run_gradient_tuner(
     loss_fn: Callable,
     theta0,
     args: tuple = (),
+    options: TunerOptions | None = None,
     *,
-    optimizer: str = "lbfgs",
-    steps: int = 50,
-    learning_rate: float = 0.05,
-    memory_size: int = 10,
-    max_linesearch_steps: int = 15,
-    grad_mode: str = "reverse",
-    max_bad_steps: int = 5,
-    grad_tol: float = 1e-8,
-    on_step: Callable | None = None,
-    progress: Callable | None = None,
+    hooks: TunerHooks | None = None,
     step_fn: Callable | None = None,
-    should_stop: Callable[[], bool] | None = None,
-    program_static=None,
+    **kwargs,
 ) -> TuneResult:
     """Minimise ``loss_fn(theta, *args)`` from ``theta0`` (n,).
 
@@ -469,99 +581,62 @@ def run_gradient_tuner(
         loss_fn: pure scalar loss.
         theta0: (n,) start.
         args: tuple of traced extra arguments of ``loss_fn``.
-        optimizer, learning_rate, memory_size, max_linesearch_steps: see
-            [`make_optimizer`][tuning.optim.make_optimizer].
-        steps: number of optimiser steps.
-        grad_mode: ``"reverse"`` or ``"forward"``.
-        max_bad_steps: abort after this many consecutive rejected steps.
-        grad_tol: stop (``"converged"``) when the gradient norm drops below it.
-        on_step: ``on_step(k, theta, record) -> dict | None`` called after each step with the
-            new parameters; a returned dict is merged into the history record. Its run time is
-            excluded from ``wall_s``.
-        progress: ``progress(k, steps, record)`` for a progress bar.
+        options: the settings ([`TunerOptions`][tuning.optim.TunerOptions]; default: its
+            defaults).
+        hooks: the callbacks ([`TunerHooks`][tuning.optim.TunerHooks]: ``on_step``,
+            ``progress``, ``should_stop``).
         step_fn: a step from [`make_step`][tuning.optim.make_step] to reuse (avoids recompiling).
-        should_stop: polled after each step; True ends the loop there (``reason``
-            ``"interrupted"``; the best parameters so far are returned, no further evaluation).
-        program_static: see [`make_step`][tuning.optim.make_step].
+        **kwargs: any field of ``TunerOptions`` or ``TunerHooks`` by name (``optimizer="adam"``,
+            ``steps=30``, ``on_step=...``), over ``options`` and ``hooks``.
     """
-    if not (isinstance(steps, int) and steps >= 1):
-        raise ValueError(f"steps: expected a positive int, got {steps!r}")
-    if not (isinstance(max_bad_steps, int) and max_bad_steps >= 1):
-        raise ValueError(f"max_bad_steps: expected a positive int, got {max_bad_steps!r}")
-    opt = make_optimizer(optimizer, learning_rate, memory_size, max_linesearch_steps)
-    step = step_fn or make_step(loss_fn, opt, optimizer, grad_mode, program_static)
+    if isinstance(args, TunerOptions) or not isinstance(options, TunerOptions | None):
+        raise TypeError("run_gradient_tuner(): give the settings as options=TunerOptions(...)")
+    options, hooks = _settings(options, hooks, kwargs)
+    opt = options.optimizer_fn()
+    step = step_fn or make_step(
+        loss_fn, opt, options.optimizer, options.grad_mode, options.program_static
+    )
     theta = jnp.asarray(theta0)
     state = init_state(opt, theta)
     theta, state = replicate_like(args, theta, state)  # compile the step once, not twice
-    scale = 1.0
-    good = (theta, state)  # input of the last accepted step
-    best_theta, best_loss = theta, np.inf
-    history, n_bad, consecutive, total_evals, stalls = [], 0, 0, 0, 0
+    run = _Loop(theta, state)
     reason = "steps"
-    wall = 0.0
-    for k in range(steps):
+    for k in range(options.steps):
+        if hooks.refresh is not None and (new := hooks.refresh(k, run.theta, args)) is not None:
+            args = new
+            state = init_state(opt, run.theta) if options.optimizer == "lbfgs" else run.state
+            run.restart(*replicate_like(args, run.theta, state))
         t0 = time.perf_counter()
-        new_theta, new_state, info = step(theta, state, jnp.asarray(scale, theta.dtype), args)
+        scale = jnp.asarray(run.scale, run.theta.dtype)
+        new_theta, new_state, info = step(run.theta, run.state, scale, args)
         info = jax.device_get(info)
-        wall += time.perf_counter() - t0
-        loss, ok = float(info.loss), bool(info.ok)
-        total_evals += int(info.evals)
-        rec = {
-            "iter": k,
-            "loss": loss if np.isfinite(loss) else None,
-            "grad_norm": float(info.grad_norm) if np.isfinite(info.grad_norm) else None,
-            "ok": ok,
-            "evals": int(info.evals),
-            "cum_evals": total_evals,
-            "update_norm": float(info.update_norm),
-            "wall_s": wall,
-        }
-        if ok:
-            consecutive = 0
-            if loss < best_loss:
-                best_theta, best_loss = theta, loss
-            good = (theta, state)
-            theta, state = new_theta, new_state
-        else:
-            n_bad += 1
-            consecutive += 1
-            theta, state = good  # revert to the last good input and take a smaller step
-            scale *= 0.5
-        if on_step is not None:
-            extra = on_step(k, theta, rec)
+        run.wall += time.perf_counter() - t0
+        rec = run.record(k, info)
+        run.take(new_theta, new_state, float(info.loss), rec["ok"])
+        if hooks.on_step is not None:
+            extra = hooks.on_step(k, run.theta, rec)
             if extra:
                 rec.update(extra)
-        history.append(rec)
-        if progress is not None:
-            progress(k + 1, steps, rec)
-        if consecutive >= max_bad_steps:
-            reason = f"aborted: {consecutive} consecutive non-finite steps"
-            break
-        if ok and rec["grad_norm"] is not None and rec["grad_norm"] < grad_tol:
-            reason = "converged"
-            break
-        stalls = stalls + 1 if ok and rec["update_norm"] == 0.0 else 0
-        if stalls >= 3:
-            reason = "stalled"
-            break
-        if should_stop is not None and should_stop():
-            reason = "interrupted"
+        run.history.append(rec)
+        if hooks.progress is not None:
+            hooks.progress(k + 1, options.steps, rec)
+        stop = run.stop(rec, options, hooks.should_stop)
+        if stop is not None:
+            reason = stop
             break
     aborted = reason.startswith("aborted")
     # the final iterate's loss (L-BFGS keeps it in its state; else evaluate)
     if not aborted and reason != "interrupted":
-        if optimizer == "lbfgs":
-            final = float(jax.device_get(optax.tree.get(state, "value")))
+        if options.optimizer == "lbfgs":
+            run.finish(float(jax.device_get(optax.tree.get(run.state, "value"))))
         else:
-            final = float(jax.device_get(jax.jit(loss_fn)(theta, *args)))
-        if np.isfinite(final) and final < best_loss:
-            best_theta, best_loss = theta, final
+            run.finish(float(jax.device_get(jax.jit(loss_fn)(run.theta, *args))))
     return TuneResult(
-        theta=best_theta,
-        loss=float(best_loss),
-        history=history,
-        n_bad=n_bad,
+        theta=run.best_theta,
+        loss=float(run.best_loss),
+        history=run.history,
+        n_bad=run.n_bad,
         aborted=aborted,
         reason=reason,
-        evals=total_evals,
+        evals=run.evals,
     )

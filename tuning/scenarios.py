@@ -25,15 +25,20 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import jax
 import numpy as np
 
 from tuning.params import default_loop
 from vcjax import loops, sweep
+from vcjax.config import Initial
+from vcjax.sweep.run import with_environment
 
 __all__ = [
     "SCENARIO_AXES",
+    "Nominal",
+    "config_spec",
     "scenario_spec",
     "sample_scenarios",
     "scenario_at",
@@ -90,19 +95,52 @@ def scenario_spec(
     return sweep.ScenarioSpec(initial=tuple(init.items()), **(current | extra))
 
 
+@dataclasses.dataclass(frozen=True)
+class Nominal:
+    """The nominal parameters a batch perturbs: ``plant``, ``design`` (default: the vehicle's;
+    ``plant`` defaults to ``design``) and the path ``coeffs`` (default: the vehicle's default
+    path's)."""
+
+    plant: Any = None
+    design: Any = None
+    coeffs: Any = None
+
+
+def config_spec(cfg, loop: loops.Loop) -> sweep.ScenarioSpec:
+    """The [`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec] of a tune config
+    ([`TuneConfig`][tuning.spec.TuneConfig]): its parsed sections as they are (``[current]``,
+    ``[waves]``, ``[model_error]``, ``[disturbance]``, ``[simulation] u_d``, the environment
+    components'), the ``[initial]`` ranges over the ``[scenarios]`` offsets about ``loop``'s
+    start."""
+    sc = cfg.scenarios
+    base = scenario_spec(
+        loop,
+        current_max=sc.current_max,
+        position_offset=sc.position_offset,
+        heading_offset=math.radians(sc.heading_offset_deg),
+    )
+    init = dict(base.initial.values) | dict(cfg.initial)
+    return dataclasses.replace(
+        base,
+        current=cfg.current,
+        waves=cfg.waves,
+        initial=Initial(values=tuple(init.items())),
+        model_error=cfg.model_error,
+        disturbance=cfg.disturbance,
+        u_d=cfg.simulation.u_d,
+        environment=cfg.environment,
+    )
+
+
 def sample_scenarios(
     seed: int,
     n: int,
+    spec: sweep.ScenarioSpec | None = None,
     *,
     loop: loops.Loop | None = None,
-    current_max: float = 1.0,
-    position_offset: float = 5.0,
-    heading_offset: float = np.pi / 4,
-    extra: dict | None = None,
-    plant=None,
-    design=None,
-    coeffs=None,
+    nominal: Nominal | None = None,
     dtype=None,
+    **distribution,
 ) -> loops.Scenario:
     """``n`` random scenarios of ``loop`` (default: Simulation 1's).
 
@@ -110,37 +148,42 @@ def sample_scenarios(
         seed: PRNG seed (different seeds give independent batches: use one for training and
             another for the held-out batch).
         n: batch size.
+        spec: the distribution ([`config_spec`][tuning.scenarios.config_spec] of a config);
+            default: ``scenario_spec(loop, **distribution)``
+            ([`scenario_spec`][tuning.scenarios.scenario_spec]: ``current_max``,
+            ``position_offset``, ``heading_offset``, ``extra``).
         loop: the loop (its vehicle's initial keys and parameters).
-        current_max, position_offset, heading_offset, extra: the distribution
-            ([`scenario_spec`][tuning.scenarios.scenario_spec]).
-        plant, design: nominal parameters (default: the vehicle's); coeffs: path coefficients
-            (default: the vehicle's default path's).
+        nominal: the nominal parameters ([`Nominal`][tuning.scenarios.Nominal]).
         dtype: float dtype (default: the parameters').
 
     Returns:
-        batched [`Scenario`][vcjax.loops.types.Scenario] (see ``SCENARIO_AXES``).
+        batched [`Scenario`][vcjax.loops.types.Scenario] (see ``SCENARIO_AXES``); the draws of
+        scenario ``i`` are a ``vcjax sweep``'s of the same distribution and seed (environment
+        components included).
     """
     if not (isinstance(n, int | np.integer) and n >= 1):
         raise ValueError(f"n: expected a positive int, got {n!r}")
     loop = default_loop() if loop is None else loop
-    spec = scenario_spec(
-        loop,
-        current_max=current_max,
-        position_offset=position_offset,
-        heading_offset=heading_offset,
-        extra=extra,
+    if spec is None:
+        spec = scenario_spec(loop, **distribution)
+    elif distribution:
+        raise TypeError(f"sample_scenarios: spec given, and also {sorted(distribution)}")
+    nominal = Nominal() if nominal is None else nominal
+    design = loop.default_params(dtype) if nominal.design is None else nominal.design
+    plant = design if nominal.plant is None else nominal.plant
+    coeffs = type(loop).default_path()[1] if nominal.coeffs is None else nominal.coeffs
+    ftype = jax.numpy.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
+    coeffs = jax.tree_util.tree_map(lambda a: jax.numpy.asarray(a, ftype), coeffs)
+    mc = sweep.sample_scenarios(spec, int(seed), np.arange(n), dtype=ftype, loop=loop)
+    cfg = sweep.MCConfig(
+        num_steps=1, model_fields=spec.fields_for(loop), environment=spec.environment
     )
-    design = loop.default_params(dtype) if design is None else design
-    plant = design if plant is None else plant
-    coeffs = type(loop).default_path()[1] if coeffs is None else coeffs
-    dt = jax.numpy.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
-    coeffs = jax.tree_util.tree_map(lambda a: jax.numpy.asarray(a, dt), coeffs)
-    mc = sweep.sample_scenarios(spec, int(seed), np.arange(n), dtype=dt, loop=loop)
-    cfg = sweep.MCConfig(num_steps=1, model_fields=spec.fields_for(loop))
-    if spec.model_error == 0:
+    if spec.model_error.relative == 0:
         cfg = dataclasses.replace(cfg, model_fields=())
         mc = mc._replace(model_factors=mc.model_factors[:, :0])
-    to = lambda sc: sweep.to_scenario(loop, sc, plant, design, coeffs, cfg)
+    to = lambda sc: with_environment(
+        loop, sweep.to_scenario(loop, sc, plant, design, coeffs, cfg), sc.key, cfg
+    )
     return jax.vmap(to, out_axes=SCENARIO_AXES)(mc)
 
 

@@ -12,7 +12,7 @@ from typing import Any
 
 from vcjax.config.frozen import FrozenSection, freeze, thaw
 from vcjax.config.scenario import ScenarioChoice
-from vcjax.config.schema import Disturbance, ModelError, key
+from vcjax.config.schema import Current, Disturbance, ModelError, Waves, key
 
 __all__ = [
     "DEFAULTS",
@@ -25,6 +25,7 @@ __all__ = [
     "Heldout",
     "Optimizer",
     "Report",
+    "Robust",
     "ForceRanges",
     "PlantError",
     "TuneSimulation",
@@ -54,13 +55,6 @@ class Problem(FrozenSection):
         False, "bool", "", "jax.checkpoint segments of the rollout under reverse mode"
     )
     checkpoint_every: int = key(10, "int", "", "steps per checkpointed segment", lo=1)
-    edd: str = key(
-        "paper",
-        "str",
-        "",
-        "VCM e_ddot mode: paper or implied (older spelling of [scenario] edd)",
-        choices=("paper", "implied"),
-    )
     risk: str = key(
         "mean",
         "str",
@@ -167,6 +161,39 @@ class Report(FrozenSection):
     )
 
 
+#: spellings of the tuning loss as a metric (``[robust] metric``, ``vcjax falsify --metric loss``)
+LOSS_NAMES = ("tuning_loss", "loss")
+
+
+@dataclasses.dataclass(frozen=True)
+class Robust(FrozenSection):
+    """``[robust]`` (optional; its presence switches robust tuning on,
+    [`tuning.robust`][tuning.robust]): every ``adversarial_every`` steps, a gradient search
+    of the tune's own scenario ranges for the worst scenarios against the current gains; the
+    ``adversarial_count`` worst replace the adversarial slot of the training batch."""
+
+    adversarial_every: int = key(5, "int", "", "optimiser steps between two searches (K)", lo=1)
+    adversarial_count: int = key(
+        4, "int", "", "worst scenarios put in the training batch by each search", lo=1
+    )
+    budget: int = key(10, "int", "", "ascent steps of each search (one rollout per start)", lo=1)
+    starts: int = key(8, "int", "", "starts of each search (>= adversarial_count)", lo=1)
+    step_size: float = key(0.1, "float", "", "Adam step of the search in the unit box", **_POS)
+    metric: str = key(
+        "tuning_loss",
+        "str",
+        "",
+        "what is maximised: tuning_loss (the [weights] loss) or a sweep metric",
+    )
+    seed: int = key(7, "seed", "", "seed of the searches (round r: scenarios r x starts on)")
+    compare: bool = key(
+        False, "bool", "", "also tune without [robust] in the same run (summary: robust.nominal)"
+    )
+    check_starts: int = key(16, "int", "", "starts of the independent worst-case search", lo=1)
+    check_budget: int = key(20, "int", "", "ascent steps of that search", lo=1)
+    check_seed: int = key(1007, "seed", "", "its seed (other than the training searches')")
+
+
 @dataclasses.dataclass(frozen=True)
 class TuneSimulation(FrozenSection):
     """What ``[simulation]`` adds to ``[problem]``: the desired-speed range [m/s]."""
@@ -199,12 +226,15 @@ class TuneConfig(FrozenSection):
     """A tuning config, parsed once (``load_config``), frozen and hashable.
 
     Attributes are the sections (``cfg.problem.horizon``; ``cfg["problem"]["horizon"]`` reads
-    the same); ``scenario`` is the parsed ``[scenario]``
-    ([`ScenarioChoice`][vcjax.config.scenario.ScenarioChoice]), ``initial`` the ``[initial]`` ranges
-    and
-    ``current`` the ``[current]`` keys given, as ``(key, value)`` pairs. Read as a mapping,
-    ``current``, ``initial`` and ``scenario`` are plain dicts (as the older dict result had
-    them); ``to_dict`` is what ``run.json`` records and ``from_dict`` reads it back.
+    the same); the shared ones as they are parsed: ``current``
+    ([`Current`][vcjax.config.schema.Current], the ``[scenarios] current_max`` shorthand written
+    out), ``waves`` ([`Waves`][vcjax.config.schema.Waves] or ``None``), ``disturbance``,
+    ``model_error``; ``initial`` the ``[initial]`` ranges as ``(key, range)`` pairs,
+    ``environment`` the sections of [`vcjax.environment`][vcjax.environment] components
+    (``((section, table), ...)``, as a sweep's) and ``scenario`` the parsed ``[scenario]``
+    ([`ScenarioChoice`][vcjax.config.scenario.ScenarioChoice]). Read as a mapping, ``current``,
+    ``waves``, ``initial``, ``environment`` and ``scenario`` are plain dicts; ``to_dict`` is what
+    ``run.json`` records and ``from_dict`` reads it back.
     """
 
     problem: Problem = Problem()
@@ -217,10 +247,12 @@ class TuneConfig(FrozenSection):
     disturbance: Disturbance = Disturbance()
     model_error: ModelError = ModelError()
     simulation: TuneSimulation = TuneSimulation()
-    current: tuple[tuple[str, Any], ...] = ()
-    waves: tuple[tuple[str, Any], ...] | None = None
+    current: Current = Current(speed=(0.0, 1.0), direction_deg=(0.0, 360.0))
+    waves: Waves | None = None
     initial: tuple[tuple[str, tuple[float, float]], ...] = ()
+    environment: tuple = ()
     scenario: ScenarioChoice = ScenarioChoice()
+    robust: Robust | None = None  # [robust] given: robust tuning (tuning.robust)
 
     def __getitem__(self, key: str) -> Any:
         if key in _PLAIN:
@@ -229,31 +261,44 @@ class TuneConfig(FrozenSection):
 
     def to_dict(self) -> dict:
         out = {k: thaw(getattr(self, k)) for k in self._keys() if k not in _PLAIN}
-        out["current"] = {k: thaw(v) for k, v in self.current}
-        out["waves"] = None if self.waves is None else {k: thaw(v) for k, v in self.waves}
+        out["current"] = _plain(self.current)
+        out["waves"] = None if self.waves is None else _plain(self.waves)
         out["initial"] = {k: thaw(v) for k, v in self.initial}
+        out["environment"] = {s: {k: thaw(v) for k, v in t} for s, t in self.environment}
         out["scenario"] = self.scenario.to_dict()
+        if self.robust is None:  # recorded only where given
+            out.pop("robust")
         return out
 
     @classmethod
     def from_dict(cls, d) -> TuneConfig:
         d = dict(d)
         waves = d.pop("waves", None)
+        robust = d.pop("robust", None)
         plain = {
-            "current": freeze(dict(d.pop("current", {}))),
-            "waves": None if waves is None else freeze(dict(waves)),
+            "current": Current(**{k: freeze(v) for k, v in d.pop("current", {}).items()}),
+            "waves": None if waves is None else Waves(**{k: freeze(v) for k, v in waves.items()}),
             "initial": freeze(dict(d.pop("initial", {}))),
+            "environment": freeze(dict(d.pop("environment", {}))),
             "scenario": ScenarioChoice.from_dict(d.pop("scenario", ScenarioChoice().to_dict())),
+            "robust": None if robust is None else Robust.from_dict(robust),
         }
         return dataclasses.replace(super().from_dict(d), **plain)
 
 
+def _plain(section) -> dict:
+    return {f.name: thaw(getattr(section, f.name)) for f in dataclasses.fields(section)}
+
+
 #: the fields of [`TuneConfig`][tuning.spec.TuneConfig] that read as plain dicts
-_PLAIN = ("current", "waves", "initial", "scenario")
+_PLAIN = ("current", "waves", "initial", "environment", "scenario")
 
 #: section -> key -> default (lists where the frozen sections hold tuples); the configuration
 #: reference is generated from it
 DEFAULTS: dict[str, dict[str, Any]] = {name: cls().to_dict() for name, cls in _SECTIONS.items()}
+#: the optional sections (parsed only where given; their presence is a switch)
+_OPTIONAL = {"robust": Robust}
+DEFAULTS |= {name: cls().to_dict() for name, cls in _OPTIONAL.items()}
 
 
 #: (section, key) -> (unit, description) of the tune-only keys, read from the sections'
@@ -262,6 +307,6 @@ DEFAULTS: dict[str, dict[str, Any]] = {name: cls().to_dict() for name, cls in _S
 #: configuration reference is generated from it
 KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     (name, f.name): (f.metadata["unit"], f.metadata["doc"])
-    for name, cls in _SECTIONS.items()
+    for name, cls in {**_SECTIONS, **_OPTIONAL}.items()
     for f in dataclasses.fields(cls)
 }

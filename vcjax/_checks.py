@@ -21,6 +21,7 @@ __all__ = [
     "float_dtype",
     "as_float_array",
     "check_params",
+    "with_options",
 ]
 
 
@@ -143,3 +144,21 @@ def check_params(
         check_positive(f"{name}.{field}", getattr(params, field), strict=False)
     for label, fn in (spd or {}).items():
         check_spd(f"{name}: {label}", fn(params), symmetric=symmetric)
+
+
+def with_options(cls, options, kwargs: dict, fn: str):
+    """``options`` (default ``cls()``, a dataclass of settings) with the fields named in
+    ``kwargs`` replaced: how a function that takes an options object keeps accepting the keyword
+    arguments of its older signature. A name that is no field raises ``TypeError`` as Python
+    does for ``fn``."""
+    import dataclasses
+
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(kwargs) - names)
+    if unknown:
+        raise TypeError(f"{fn}() got an unexpected keyword argument {unknown[0]!r}")
+    if options is None:
+        return cls(**kwargs)
+    if not isinstance(options, cls):
+        raise TypeError(f"{fn}(): options must be a {cls.__name__}, got {type(options).__name__}")
+    return dataclasses.replace(options, **kwargs) if kwargs else options

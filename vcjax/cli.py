@@ -179,6 +179,12 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help='also write results.nc (labelled xarray dataset; pip install "vcjax[xarray]")',
     )
+    w.add_argument(
+        "--scenario",
+        metavar="WORST_JSON",
+        help="run exactly the scenarios of a worst.json (vcjax falsify, or a robust tune's) "
+        "instead of sampling: writes scenarios.json with every metric of each",
+    )
     _add_cpu_devices(w)
     _add_overwrite(w)
     _add_size_limits(w)
@@ -201,7 +207,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     x.add_argument("config", help="sweep-style TOML config with a [falsify] section")
     x.add_argument("--out", default="out/falsify", help="output directory (default: out/falsify)")
-    x.add_argument("--metric", metavar="NAME", help="sweep metric to maximise (default max_abs_e)")
+    x.add_argument(
+        "--metric",
+        metavar="NAME",
+        help="sweep metric to maximise (default max_abs_e), or loss: the tuning loss of one "
+        "scenario with the file's [weights]",
+    )
     x.add_argument(
         "--bound", type=float, metavar="X", help="stop as soon as a scenario's metric exceeds X"
     )

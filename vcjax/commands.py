@@ -303,6 +303,8 @@ def sweep(args) -> int:
     if (rc := _use_cores(args, "sweep")) is not None:
         return rc
     _enable_x64(args.x64)
+    if getattr(args, "scenario", None) is not None:
+        return _sweep_scenarios(args)
     from vcjax.plots.sweep import sweep_figures as draw
     from vcjax.sweep import load_config, run_sweep_config
 
@@ -354,7 +356,9 @@ def sweep(args) -> int:
                 )
     for f in result["files"]:
         print(f"wrote {f}")
-    config = {"file": args.config, "spec": spec, **extras}
+    from vcjax.sweep.spec import spec_to_dict
+
+    config = {"file": args.config, "spec": spec_to_dict(spec), **extras}  # as summary.json
     _record(args.out, "sweep", args, config=config, seeds={"sweep": spec.seed})
     if summary is not None and summary.get("interrupted"):
         return _interrupted(
@@ -372,19 +376,24 @@ def falsify(args) -> int:
     from vcjax.search.config import load_config, replay_worst, run_falsify_config
 
     try:  # everything checked before --out is touched
-        cfg = load_config(args.config, metric=args.metric, bound=args.bound)
+        cfg = load_config(
+            args.config, metric=args.metric, bound=args.bound, loss_metric=_loss_metric
+        )
         if args.replay is not None:
             from vcjax.search.config import read_worst
 
             read_worst(args.replay, cfg["envelope"], cfg["metric"])
     except (OSError, ValueError) as err:
         return fail(f"falsify: {err}")
+    from vcjax.search.config import metric_label
+
+    name = metric_label(cfg["metric"])
     out = _prepare(args, args.out, "falsify")
-    record = {"file": args.config, "spec": cfg["spec"], **cfg["opts"], "metric": cfg["metric"]}
+    record = {"file": args.config, "spec": cfg["spec"], **cfg["opts"], "metric": name}
     if args.replay is not None:
         res = replay_worst(cfg, args.replay, out)
         for s in res["replay"]["scenarios"]:
-            print(f"{cfg['metric']} {s[cfg['metric']]} (recorded {s['recorded']})")
+            print(f"{name} {s[name]} (recorded {s['recorded']})")
         for f in res["files"]:
             print(f"wrote {f}")
         _record(out, "falsify", args, config={**record, "replay": args.replay})
@@ -406,6 +415,48 @@ def falsify(args) -> int:
     if s["interrupted"]:
         return _interrupted("falsify", f"kept what was found (summary.json: interrupted) in {out}")
     return 0
+
+
+def _sweep_scenarios(args) -> int:
+    """``vcjax sweep CONFIG --scenario worst.json``: the scenarios of a ``worst.json`` (their
+    parameters, seed and scenario numbers) run with the config's loop, gains and settings;
+    ``scenarios.json`` holds every metric of each and the value ``worst.json`` recorded."""
+    import json
+    from pathlib import Path
+
+    from vcjax.search.config import load_config, metric_label, read_worst, replay_worst
+
+    try:  # everything checked before --out is touched
+        try:
+            doc = json.loads(Path(args.scenario).read_text())
+        except (OSError, json.JSONDecodeError) as err:
+            raise ValueError(f"--scenario: {args.scenario}: {err}") from None
+        metric = doc.get("metric") if isinstance(doc, dict) else None
+        if not isinstance(metric, str):
+            raise ValueError(f"--scenario: {args.scenario}: expected a worst.json with a metric")
+        cfg = load_config(args.config, metric=metric, loss_metric=_loss_metric)
+        read_worst(args.scenario, cfg["envelope"], cfg["metric"])
+    except (OSError, ValueError) as err:
+        return fail(f"sweep: {str(err).replace('--replay', '--scenario')}")
+    out = _prepare(args, args.out, "sweep")
+    cfg["figures"] = False
+    res = replay_worst(cfg, args.scenario, out, name="scenarios.json", every_metric=True)
+    name = metric_label(cfg["metric"])
+    for s in res["replay"]["scenarios"]:
+        print(f"{name} {s[name]} (recorded {s['recorded']})")
+    for f in res["files"]:
+        print(f"wrote {f}")
+    config = {"file": args.config, "spec": cfg["spec"], "scenario": args.scenario}
+    _record(out, "sweep", args, config=config, seeds={"sweep": res["replay"]["seed"]})
+    return 0
+
+
+def _loss_metric(weights: dict):
+    """``--metric loss``: the tuning loss of one scenario with a ``[weights]`` table (the
+    tuner's; imported only when asked for)."""
+    from tuning.robust import TuningLossMetric
+
+    return TuningLossMetric.of_table(weights)
 
 
 def interruptible():
@@ -438,7 +489,7 @@ def _size_check(args, command: str, spec=None, cfg=None) -> None:
         est = sizing.sweep_estimate(spec)
         sc = spec.scenario
         if sc.waves:
-            notes = waves.envelope_warnings(sc.wave_hs, sc.wave_tp, sc.wave_origin_depth)
+            notes = waves.envelope_warnings(sc.waves.hs, sc.waves.tp, sc.waves.origin_depth)
     else:
         est = sizing.tune_estimate(cfg)
         if wav := cfg.get("waves"):

@@ -321,8 +321,8 @@ def validate_path(path: Path, coeffs, w_range=(-50.0, 50.0), num: int = 401) -> 
 
 def _vec(name, x, n=None, dtype=None):
     a = check_array(name, x, (n,) if n is not None else None)
-    dt = dtype or jnp.result_type(float)
-    return jnp.asarray(a if a is not None else x, dtype=dt)
+    dtype = dtype or jnp.result_type(float)
+    return jnp.asarray(a if a is not None else x, dtype=dtype)
 
 
 def _lift3(name, x):

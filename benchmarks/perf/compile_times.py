@@ -221,10 +221,10 @@ def tune_program(config: Path):
     programs of :class:`tuning.optim.LBFGSStep`)."""
     import jax.numpy as jnp
 
-    from tuning.cli import build, distribute
     from tuning.config import load_config
     from tuning.loss import objective
     from tuning.optim import init_state, make_optimizer, make_step, replicate_like, tuner_options
+    from tuning.run import build, distribute
 
     cfg = load_config(config)
     problem, _, data, train, _ = build(cfg)

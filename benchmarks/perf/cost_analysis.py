@@ -151,26 +151,27 @@ def components(batch: int, iters: int, repeats: int) -> list[dict]:
 
     from vcjax import paths
     from vcjax.control.vcm import VCMConfig, vcm_law, vcm_params, vcm_state
+    from vcjax.environment import WaterMotion
     from vcjax.vehicles import infante
 
     gains, sc = C.base_inputs()
     scb = C.batched_scenario(sc, batch)
     veh = sc.plant
-    dt = sc.eta0.dtype
-    eps_ = jnp.asarray(1e-6, dt)
+    dtype = sc.eta0.dtype
+    eps_ = jnp.asarray(1e-6, dtype)
     nu = jnp.broadcast_to(sc.nu0, (batch, 3))
-    x = infante.InfanteState(eta=scb.eta0, nu=nu, act=jnp.zeros((batch, 2), dt))
-    V_c = scb.current[:, :2]
-    args = infante.PlantArgs(vehicle=veh, V_c=V_c, V_c_dot=jnp.zeros((batch, 2), dt))
-    u_cmd = jnp.broadcast_to(jnp.asarray([500.0, 0.1], dt), (batch, 2))
-    Y, N = infante.rudder_gains(veh, jnp.array([1.0, 0.0, 0.0], dt))
+    x = infante.InfanteState(eta=scb.eta0, nu=nu, act=jnp.zeros((batch, 2), dtype))
+    water = WaterMotion(scb.current, jnp.zeros((batch, 3), dtype))
+    args = infante.PlantArgs(vehicle=veh, water=water)
+    u_cmd = jnp.broadcast_to(jnp.asarray([500.0, 0.1], dtype), (batch, 2))
+    Y, N = infante.rudder_gains(veh, jnp.array([1.0, 0.0, 0.0], dtype))
     cp = vcm_params(gains.vcm, infante.design_model(veh), sc.path, u_d=sc.u_d, k_rudder=Y / N)
     cfg = VCMConfig(path=paths.LINE, actuation="underactuated", integral=True)
     z = jax.vmap(lambda w: vcm_state(varpi0=0.0)._replace(varpi=w))(scb.eta0[:, 1])
 
     def plant_body(s):
         xs, a = s
-        a_axes = infante.PlantArgs(vehicle=None, V_c=0, V_c_dot=0)
+        a_axes = infante.PlantArgs(vehicle=None, water=0)
         xd = jax.vmap(infante.infante_plant, in_axes=(None, 0, 0, a_axes))(0.0, xs, u_cmd, a)
         return jax.tree_util.tree_map(lambda p, q: p + eps_ * q, xs, xd), a
 
@@ -200,7 +201,7 @@ def components(batch: int, iters: int, repeats: int) -> list[dict]:
 
     M = infante.mass_matrix(veh)
     Minv = jnp.linalg.inv(M)
-    f0 = jnp.ones((batch, 3), dt)
+    f0 = jnp.ones((batch, 3), dtype)
 
     def solve_body(f):
         return f + eps_ * jax.vmap(lambda b: jnp.linalg.solve(M, b))(f)

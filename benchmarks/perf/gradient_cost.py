@@ -184,11 +184,11 @@ def _abstract_inputs(batch):
     import jax
 
     gains, sc = C.base_inputs()
-    dt = sc.eta0.dtype
+    dtype = sc.eta0.dtype
     batched = C.batched_scenario(sc, 2)
     scb = sc._replace(
         **{
-            f: jax.ShapeDtypeStruct((batch, *getattr(batched, f).shape[1:]), dt)
+            f: jax.ShapeDtypeStruct((batch, *getattr(batched, f).shape[1:]), dtype)
             for f in C.scenario_axes(sc)._asdict()
             if getattr(C.scenario_axes(sc), f) == 0
         }

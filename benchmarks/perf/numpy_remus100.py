@@ -75,7 +75,7 @@ def main(argv=None):
     ref = reference()
     p, rm_args, x0, cmds = pvs_inputs()
     q = numpy_params(rm.remus100_params(dtype=jnp.float64) if args.dtype == "float64" else p)
-    v_c = np.asarray(rm_args.v_c, dtype=np.float64)
+    v_c = np.asarray(rm_args.water.velocity[:2], dtype=np.float64)
     e0, n0, a0 = (columns(ref, k)[0] for k in (POSE, VEL, ACT))
     c_np = columns(ref, CMD)[:-1]
     rows = []

@@ -120,7 +120,7 @@ def _programs(components: int, steps: int):
     import jax
     import jax.numpy as jnp
 
-    from vcjax.environment import waves
+    from vcjax.environment import WaterMotion, waves
     from vcjax.linalg import spd_solve_small
     from vcjax.vehicles import remus100, sixdof
 
@@ -150,15 +150,16 @@ def _programs(components: int, steps: int):
         return xf.eta[2]
 
     def with_current(key, hs, tp, beta, v_c, depth):
-        args = remus100.Remus100Args(p, v_c[:2], jnp.zeros(2, dtype))
+        args = remus100.Remus100Args(p, WaterMotion(v_c, jnp.zeros(3, dtype)))
         return run(lambda t, x: remus100.remus100_plant(t, x, cmd, args), depth)
 
     def with_waves(key, hs, tp, beta, v_c, depth, correction=True):
         sea = waves.sea_state(key, hs, tp, beta, components=components)
 
         def field(t, x):
-            v_w, a_w = waves.water_kinematics(sea, t, x.eta[:3], v_c)
-            dx = remus100.remus100_plant(t, x, cmd, remus100.Remus100Args(p, v_w, a_w))
+            v_w, a_w = water = waves.water_kinematics(sea, t, x.eta[:3], v_c)
+            still = WaterMotion(jnp.zeros(3, dtype), jnp.zeros(3, dtype))  # all rotated in full
+            dx = remus100.remus100_plant(t, x, cmd, remus100.Remus100Args(p, water, uniform=still))
             if not correction:
                 return dx
             R = sixdof.Rzyx(x.eta[3], x.eta[4], x.eta[5])

@@ -91,10 +91,10 @@ def run_tuner(
     import numpy as np
 
     from tuning.blackbox import batch_objective, cmaes_popsize, run_cmaes, run_random_search
-    from tuning.cli import build
     from tuning.config import load_config
     from tuning.loss import objective
     from tuning.optim import run_gradient_tuner, tuner_options
+    from tuning.run import build
 
     if tuner not in TUNERS:
         raise ValueError(f"tuner: unknown {tuner!r}; expected one of {list(TUNERS)}")
@@ -134,6 +134,8 @@ def run_tuner(
         opts = {**tuner_options(cfg.optimizer), "steps": _MANY}
         opts["optimizer"] = opts["optimizer"] if tuner == "gradient" else tuner
         opts["grad_mode"] = grad_mode or opts["grad_mode"]
+        # keyed in the program store as `vcjax tune` keys it: a warm run loads, not traces
+        opts["program_static"] = ("tuner study", cfg.to_dict(), opts["grad_mode"])
         res = run_gradient_tuner(
             loss_fn,
             theta0,
@@ -146,7 +148,7 @@ def run_tuner(
         info.update(reason=res.reason, n_bad=res.n_bad)
         info["evals"] = res.evals
     else:
-        f = batch_objective(loss_fn, (data, train))
+        f = batch_objective(loss_fn, (data, train), static=("tuner study", cfg.to_dict()))
         lam = cmaes_popsize(space.size)
         cb = lambda g, th, rec: record(th, rec["cum_evals"] * B)
         common = dict(max_evals=_MANY, seed=seed, on_gen=cb, should_stop=stop)

@@ -58,8 +58,8 @@ class LosPDLaw(loops.Law):
             raise ValueError("los_pd gains: every gain must be > 0")
         return gains
 
-    def params(self, loop, gains, sc, model, k_rudder):
-        return LosPDParams(gains, sc.path, sc.u_d, model)
+    def params(self, loop, gains, sc, design):  # design: INFANTE's model and rudder ratio
+        return LosPDParams(gains, sc.path, sc.u_d, design.model)
 
     def initial_state(self, loop, sc):
         return LosPDState(varpi=sc.varpi0)

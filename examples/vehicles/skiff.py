@@ -95,7 +95,7 @@ class SkiffLoop(loops.EngineLoop):
         T = rotation(q[2])
         sat = smooth_saturate if self.smooth else saturate  # smooth while tuning, if asked
         tau = T @ sat(T.T @ u, p.tau_max) + args.disturbance
-        qd_r = qd - self.water_velocity(q, args.current, p)  # velocity relative to the water
+        qd_r = qd - self.water_velocity(q, args.water.velocity, p)  # relative to the water
         return qd, jnp.linalg.solve(self.mass_matrix(q, p), tau - self.bias_force(q, qd_r, p))
 
     def signals(self, traj, sc):  # commands as the thrusters see them

@@ -20,8 +20,10 @@ key with its
   doc, bounds, choices) and parsed by [`parse_section`][vcjax.config.schema.parse_section],
   the one validator; keys that do not apply to the others' values are refused there
   (``CROSS_CHECKS``). [`register_section`][vcjax.config.schema.register_section] adds a section (an
-  environment component's):
-  sweep and tune configs then accept and check it.
+  environment component's) to the one table of added sections,
+  [`vcjax.environment.REGISTRY`][vcjax.environment.component.REGISTRY], where
+  [`vcjax.environment.register`][vcjax.environment.component.register] puts components: sweep and
+  tune configs then accept and check it.
 * [`vcjax.config.aliases`][vcjax.config.aliases] -- ``ALIASES``, the older spellings in
   one table (read from the declarations), each used one giving a note naming the new spelling.
 * [`vcjax.config.reference`][vcjax.config.reference] -- [`schema`][vcjax.config.schema] returns
@@ -35,12 +37,14 @@ Older spellings stay accepted: in tune configs ``[problem] horizon/dt/integrator
 (= ``[simulation]``), ``[problem] variant`` (= ``[scenario] controller``), ``[scenarios]
 current_max`` (= ``[current] speed = [0, m]`` in every direction), ``[scenarios]
 position_offset/heading_offset_deg`` (ranges of ``[initial]`` about the default start); in sweep
-configs ``[sweep] variants`` (several controllers on the same scenarios) and ``[simulation]
-edd`` (= ``[scenario] edd``). A key given under both spellings is refused.
+configs ``[sweep] variants`` (several controllers on the same scenarios); a loop option that
+moved to ``[scenario]`` from ``[simulation]``/``[problem]`` (``aliases.MOVED``). A key given
+under both spellings is refused.
 
 Layering: this package sits just above [`vcjax.loops`][vcjax.loops] (``[scenario]`` reads the loop
 registry and the loop classes' dataclass fields); ``values`` and ``schema`` import nothing of
-vcjax, and [`vcjax.loops`][vcjax.loops] never imports this package.
+vcjax at import time (``schema``'s added sections live in ``vcjax.environment.REGISTRY``), and
+[`vcjax.loops`][vcjax.loops] never imports this package.
 """
 
 from vcjax.config.reference import reference_markdown, schema

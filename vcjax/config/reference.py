@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 
 from vcjax.config.scenario import ScenarioChoice
-from vcjax.config.schema import SECTIONS
+from vcjax.config.schema import SECTIONS, registered
 
 __all__ = ["schema", "reference_markdown", "toml_literal"]
 
@@ -44,7 +44,7 @@ def schema() -> dict[str, dict]:
     """Every shared section: ``{name: {"doc": str, "keys": {key: {"type", "default", "unit",
     "doc", ...}}}}`` (``[scenario]`` included), for a reference table."""
     out = {}
-    for name, cls in {"scenario": ScenarioChoice, **SECTIONS}.items():
+    for name, cls in {"scenario": ScenarioChoice, **SECTIONS, **registered()}.items():
         keys = {}
         for f in dataclasses.fields(cls):
             if "type" not in f.metadata:

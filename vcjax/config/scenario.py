@@ -7,10 +7,9 @@
     controller = "vcm_integral"  # one of that vehicle's controllers (errors list them)
     params = "model.json"        # optional: parameter overrides of plant AND design model
     plant_params = "plant.json"  # optional: overrides of the plant only (after params)
-    edd = "paper"                # optional static options of the loop class: any of its
+    # integral = true            # optional static options of the loop class: any of its
                                  # dataclass fields but controller, path and smooth
-                                 # (INFANTE-class: edd = "paper" | "implied"; ODIN: also
-                                 # integral, polish)
+                                 # (e.g. ODIN: integral, polish; the errors list them)
     [scenario.path]
     kind = "circle"              # "line" | "circle" | "helix" | "waypoints" | "lawnmower"
     center = [0.0, 0.0]          # kind-specific keys (vcjax.paths constructors):
@@ -226,7 +225,7 @@ class ScenarioChoice:
     given), path (``[scenario.path]``; ``None``: the vehicle's default), parameter overrides
     (name, value) of plant and design (``params``) and of the plant only (``plant_params``), and
     the static options of the loop class, written as keys of ``[scenario]`` named like its
-    dataclass fields (e.g. ``edd``; ODIN: ``integral``, ``polish``). Without ``[scenario]``:
+    dataclass fields (e.g. ODIN's ``integral``, ``polish``). Without ``[scenario]``:
     Simulation 1 (``DEFAULT_SCENARIO``)."""
 
     vehicle: str = key(
@@ -312,15 +311,37 @@ class ScenarioChoice:
         )
 
 
-def parse_scenario(raw: dict | None, where: str, config_path) -> ScenarioChoice:
+def _with_older(options: tuple, older: dict, opts: dict, where: str) -> tuple:
+    """``options`` with the loop options given in an older spelling (``older``: ``{key: (older
+    spelling, value)}``, [`take_moved`][vcjax.config.aliases.take_moved]); a loop without the
+    option runs without it, as before it moved. Both spellings must agree."""
+    given = dict(options)
+    for k, (old, v) in older.items():
+        if k not in opts:
+            continue
+        v = _option(f"{where}: {old}", v, opts[k])
+        if k in given and given[k] != v:
+            raise ConfigError(
+                f"{where}: {old}: {v!r} contradicts [scenario] {k} {given[k]!r} (its newer "
+                "spelling); give one of them"
+            )
+        given[k] = v
+    return tuple(given.items())
+
+
+def parse_scenario(
+    raw: dict | None, where: str, config_path, older: dict | None = None
+) -> ScenarioChoice:
     """Validated [`ScenarioChoice`][vcjax.config.scenario.ScenarioChoice] of a ``[scenario]`` table
-    (``None``: Simulation 1).
+    (``None``: Simulation 1); ``older``: loop options given in an older spelling
+    ([`take_moved`][vcjax.config.aliases.take_moved]).
 
     Raises:
         ConfigError: naming the file, ``[scenario]`` and the key; parameter files by path.
     """
-    if raw is None:
+    if raw is None and not older:
         return ScenarioChoice()
+    raw = {} if raw is None else raw
     module = None
     if "module" in raw:
         given = raw["module"]
@@ -359,6 +380,7 @@ def parse_scenario(raw: dict | None, where: str, config_path) -> ScenarioChoice:
     options = tuple(
         (k, _option(f"{where}: [scenario] {k}", raw[k], opts[k])) for k in opts if k in raw
     )
+    options = _with_older(options, older or {}, opts, where)
     path = None if "path" not in raw else path_spec(raw["path"], where)
     choice = ScenarioChoice(
         vehicle=vehicle, controller=controller, module=module, path=path, options=options

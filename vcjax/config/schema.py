@@ -36,7 +36,7 @@ from vcjax.config.values import (
 
 __all__ = [
     "DEFAULT_SCENARIO",
-    "REGISTERED",
+    "registered",
     "register_section",
     "Simulation",
     "Current",
@@ -323,22 +323,29 @@ def _model_error_applies(err: ModelError, table: dict, name) -> None:
 CROSS_CHECKS = {Current: _current_applies, Waves: _waves_apply, ModelError: _model_error_applies}
 
 
-#: the sections added by [`register_section`][vcjax.config.schema.register_section] (e.g. an
-#: environment component's), beyond
-#: the built-in ones
-REGISTERED: dict[str, type] = {}
+def registered() -> dict[str, type]:
+    """The sections added by [`register_section`][vcjax.config.schema.register_section], beyond the
+    built-in ones: the section dataclasses of the one table of added sections
+    ([`vcjax.environment.REGISTRY`][vcjax.environment.component.REGISTRY], which also holds the
+    environment components)."""
+    from vcjax.environment.component import REGISTRY
+
+    return {n: d for n, d in REGISTRY.items() if isinstance(d, type)}
 
 
 def register_section(name: str, cls: type, check=None, replace: bool = False) -> type:
-    """Add a shared section ``[name]`` (e.g. an environment component's): ``cls`` is a frozen
-    dataclass whose fields are declared with [`key`][vcjax.config.schema.key] (type, default, unit,
-    doc, bounds);
+    """Add a shared section ``[name]``: ``cls`` is a frozen dataclass whose fields are declared
+    with [`key`][vcjax.config.schema.key] (type, default, unit, doc, bounds);
     ``check(obj, table, name_of)`` optionally refuses keys that do not apply to the others'
-    values (``name_of(key)`` gives ``"[name] key"``). From then on ``vcjax sweep`` and ``vcjax
-    tune`` configs accept the section, parse it with
+    values (``name_of(key)`` gives ``"[name] key"``). It joins the one table of added sections
+    ([`vcjax.environment.REGISTRY`][vcjax.environment.component.REGISTRY], where
+    [`vcjax.environment.register`][vcjax.environment.component.register] puts a component's); from
+    then on ``vcjax sweep`` and ``vcjax tune`` configs accept the section, parse it with
     [`parse_section`][vcjax.config.schema.parse_section] (the one validator)
     and the configuration reference lists it. A taken name is refused unless ``replace``.
     Returns ``cls``."""
+    from vcjax.environment.component import REGISTRY, add_section
+
     if not (isinstance(name, str) and name.isidentifier()):
         raise ValueError(f"register_section: expected a section name, got {name!r}")
     if not (dataclasses.is_dataclass(cls) and isinstance(cls, type)):
@@ -348,9 +355,9 @@ def register_section(name: str, cls: type, check=None, replace: bool = False) ->
             raise TypeError(f"register_section: [{name}] {f.name}: declare it with key()")
         if f.default is dataclasses.MISSING:
             raise TypeError(f"register_section: [{name}] {f.name}: needs a default")
-    if name in SECTIONS and not replace:
+    if (name in SECTIONS or name in REGISTRY) and not replace:
         raise ValueError(f"register_section: [{name}] is taken (replace=True to replace it)")
-    SECTIONS[name] = REGISTERED[name] = cls
+    add_section(name, cls, replace=True)
     if check is not None:
         CROSS_CHECKS[cls] = check
     return cls

@@ -170,6 +170,31 @@ class VCMConfig:
         check_edd(self.edd)
 
 
+@dataclasses.dataclass(frozen=True)
+class VCMLoopOptions:
+    """The static option of a loop whose laws include the VCM law: a mixin of the loop's
+    dataclass (``class MyLoop(VCMLoopOptions, Loop)``), so the option is declared once for every
+    such vehicle and parsed from ``[scenario]`` like the loop's other options.
+
+    Attributes:
+        edd: which ``e_ddot`` enters the VCM heading row, ``"paper"`` or ``"implied"`` (module
+            docstring).
+    """
+
+    edd: Literal["paper", "implied"] = "paper"
+
+    def __post_init__(self):
+        post = getattr(super(), "__post_init__", None)
+        if post is not None:
+            post()
+        check_edd(self.edd)
+
+    def vcm_config(self, **choices) -> VCMConfig:
+        """The [`VCMConfig`][vcjax.control.vcm.VCMConfig] of this loop's VCM law: the loop's
+        path and option, and ``choices`` (actuation, integral, guidance)."""
+        return VCMConfig(path=self.path, edd=self.edd, **choices)
+
+
 class VCMState(NamedTuple):
     """Controller state.
 

@@ -15,6 +15,8 @@
   ``[gauss_markov]``, [`Waves`][vcjax.environment.sea.Waves] ``[waves]``,
   [`SensorNoise`][vcjax.environment.noise.SensorNoise] ``[sensor_noise]``,
   [`ConstantForce`][vcjax.environment.force.ConstantForce] ``[force]``.
+* [`WaterMotion`][vcjax.environment.component.WaterMotion]: the water at a vehicle (velocity and
+  material acceleration, (3,) NED each), the one door of every plant in ``vcjax.vehicles``.
 * [`Environment`][vcjax.environment.component.Environment]: the components of one run with their
 sampled parameters (a pytree:
   the components are its static structure); [`sample`][vcjax.environment.component.sample] draws one
@@ -25,9 +27,12 @@ sampled parameters (a pytree:
 from vcjax.environment import current, waves
 from vcjax.environment.component import (
     KINDS,
+    REGISTRY,
     Component,
     Environment,
     Key,
+    WaterMotion,
+    add_section,
     check_section,
     components,
     draw,
@@ -35,6 +40,8 @@ from vcjax.environment.component import (
     lookup,
     register,
     sample,
+    unregister,
+    water_motion,
 )
 from vcjax.environment.flow import ConstantCurrent, CurrentParams, GaussMarkov, GaussMarkovParams
 from vcjax.environment.force import ConstantForce, ForceParams
@@ -49,6 +56,9 @@ register(ConstantForce())
 
 __all__ = [
     "KINDS",
+    "REGISTRY",
+    "add_section",
+    "unregister",
     "Component",
     "ConstantCurrent",
     "ConstantForce",
@@ -61,6 +71,7 @@ __all__ = [
     "NoiseParams",
     "SeaParams",
     "SensorNoise",
+    "WaterMotion",
     "Waves",
     "check_section",
     "components",
@@ -70,5 +81,6 @@ __all__ = [
     "lookup",
     "register",
     "sample",
+    "water_motion",
     "waves",
 ]

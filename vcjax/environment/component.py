@@ -46,18 +46,25 @@ from typing import Any, ClassVar, NamedTuple
 import jax
 import jax.numpy as jnp
 
+from vcjax._checks import as_float_array, float_dtype
+
 __all__ = [
     "KINDS",
     "Component",
     "Environment",
     "Key",
+    "WaterMotion",
     "check_section",
     "components",
     "lookup",
     "draw",
     "freeze",
     "register",
+    "unregister",
+    "REGISTRY",
+    "add_section",
     "sample",
+    "water_motion",
 ]
 
 #: what a component asks of a loop (see the module docstring)
@@ -71,6 +78,46 @@ KIND_WORDS = {
     "force": "a disturbance force",
     "noise": "sensor noise",
 }
+
+
+class WaterMotion(NamedTuple):
+    """The water at a vehicle: the one door through which every plant takes it.
+
+    A plant's arguments hold one ``water: WaterMotion``; what the plant does with it is the
+    plant's model (a horizontal-plane craft uses the first two components and cannot feel the
+    vertical one; a 6-DOF body takes all three), written in its module. The loops build it from
+    the environment ([`Loop.plant_args`][vcjax.loops.loop.Loop.plant_args],
+    [`Loop.with_current`][vcjax.loops.loop.Loop.with_current],
+    [`Water.at`][vcjax.loops.types.Water.at] in a sea).
+
+    Attributes:
+        velocity: (3,) the water's velocity in NED at the vehicle [m/s] (uniform current plus
+            what varies in space, e.g. a wave's orbital motion).
+        acceleration: (3,) its material acceleration ``Dv/Dt`` in NED [m/s^2] (zeros for a
+            constant uniform current), or ``None``: zero, and the plant leaves its terms out
+            (the same numbers as zeros).
+    """
+
+    velocity: Any
+    acceleration: Any
+
+
+def water_motion(velocity=None, acceleration=None, dtype=None) -> WaterMotion:
+    """Validated [`WaterMotion`][vcjax.environment.component.WaterMotion]: ``velocity`` and
+    ``acceleration`` (3,) NED (default zeros: still water), as float arrays of ``dtype``
+    (default: the velocity's own float dtype, or JAX's default float). ``ValueError`` naming
+    the field for a wrong shape or a NaN/inf entry."""
+    if velocity is None:
+        v = jnp.zeros(3, float_dtype(dtype))
+    else:
+        v = as_float_array("velocity", velocity, (3,), dtype)
+    dtype = v.dtype
+    a = (
+        jnp.zeros(3, dtype)
+        if acceleration is None
+        else as_float_array("acceleration", acceleration, (3,), dtype)
+    )
+    return WaterMotion(v, a)
 
 
 class Key(NamedTuple):
@@ -203,11 +250,30 @@ class Component:
         raise NotImplementedError(f"{type(self).__name__}.noise")
 
 
-_REGISTRY: dict[str, Component] = {}
+#: THE table of sections beyond the built-in ones of [`vcjax.config.schema`][vcjax.config.schema],
+#: by TOML section name: a [`Component`][vcjax.environment.component.Component] (``register``) or a
+#: section dataclass ([`vcjax.config.register_section`][vcjax.config.schema.register_section]);
+#: sweep and tune configs accept, check and sample from what it holds
+REGISTRY: dict[str, Any] = {}
+
+
+def add_section(name: str, decl, replace: bool = False) -> None:
+    """Put ``decl`` (a component, or a section dataclass) into ``REGISTRY`` as ``[name]``; a
+    name taken by another declaration is refused unless ``replace``."""
+    old = REGISTRY.get(name)
+    if old is not None and not replace and old != decl:
+        raise ValueError(f"section [{name}] is taken (replace=True to replace it)")
+    REGISTRY[name] = decl
+
+
+def unregister(name: str) -> None:
+    """Forget the section ``[name]`` (a component or a registered section), if known."""
+    REGISTRY.pop(name, None)
 
 
 def register(comp: Component, *, replace: bool = False) -> Component:
-    """Make ``comp`` known by its section name (one line per new disturbance)."""
+    """Make ``comp`` known by its section name (one line per new disturbance): its section
+    joins ``REGISTRY``, the one table of added sections."""
     if not isinstance(comp, Component):
         raise ValueError(f"register: expected a Component, got {type(comp).__name__}")
     if not comp.section or comp.kind not in KINDS:
@@ -216,23 +282,28 @@ def register(comp: Component, *, replace: bool = False) -> Component:
         )
     if type(comp).sample is Component.sample:
         raise ValueError(f"register: {type(comp).__name__} defines no sample()")
-    if comp.section in _REGISTRY and not replace and _REGISTRY[comp.section] != comp:
-        raise ValueError(f"register: section [{comp.section}] is taken")
-    _REGISTRY[comp.section] = comp
+    try:
+        add_section(comp.section, comp, replace)
+    except ValueError as err:
+        raise ValueError(f"register: {err}") from None
     return comp
+
+
+def _components() -> dict[str, Component]:
+    return {k: v for k, v in REGISTRY.items() if isinstance(v, Component)}
 
 
 def lookup(section: str) -> Component:
     """The registered component of ``section`` (``ValueError`` listing the known ones)."""
-    try:
-        return _REGISTRY[section]
-    except KeyError:
-        raise ValueError(f"[{section}]: no such component; known: {sorted(_REGISTRY)}") from None
+    comps = _components()
+    if section not in comps:
+        raise ValueError(f"[{section}]: no such component; known: {sorted(comps)}")
+    return comps[section]
 
 
 def components() -> tuple[str, ...]:
-    """The registered section names."""
-    return tuple(sorted(_REGISTRY))
+    """The registered component section names."""
+    return tuple(sorted(_components()))
 
 
 @jax.tree_util.register_pytree_node_class

@@ -99,8 +99,8 @@ def gauss_markov_current(mean=(0.0, 0.5), sigma=0.1, tau=300.0, max_speed=2.0, d
     check_positive("sigma", sigma, (), strict=False)
     check_positive("tau", tau, ())
     check_positive("max_speed", max_speed, ())
-    dt = jnp.asarray(0.0).dtype if dtype is None else jnp.dtype(dtype)
-    f = lambda x: jnp.asarray(x, dtype=dt)
+    dtype = jnp.asarray(0.0).dtype if dtype is None else jnp.dtype(dtype)
+    f = lambda x: jnp.asarray(x, dtype=dtype)
     return GaussMarkovCurrent(f(mean), f(sigma), f(tau), f(max_speed))
 
 

@@ -108,17 +108,20 @@ body with its actuators off then moves with the water particles (``tests/test_wa
 The water depends on the vehicle's position, so it is evaluated inside the plant's vector field
 (every integrator stage), not once per control step like a uniform current::
 
-    def plant_in_waves(t, x, u, args):             # x.eta (6,), args.v_c / args.v_c_dot (3,)
-        v_w, a_w = water_kinematics(sea, t, x.eta[:3], current)
-        dx = plant(t, x, u, args._replace(v_c=v_w, v_c_dot=a_w))
+    def plant_in_waves(t, x, u, args):             # x.eta (6,), args.water: the plant's door
+        water = water_kinematics(sea, t, x.eta[:3], current)   # WaterMotion(v_w, a_w)
+        dx = plant(t, x, u, args._replace(water=water))
+        a_w = water.acceleration
         R = Rzyx(*x.eta[3:])
         tau_fk = current_door_correction(R, a_w, M_RB, m_d, r_bb)   # (6,) body force
         return dx._replace(nu=dx.nu + M^-1 tau_fk)   # or add tau_fk to the plant's force sum
 
-[`vector_field`][vcjax.vehicles.sixdof.vector_field] takes ``(v_c, v_c_dot)`` (3,) as they are;
-[`vcjax.vehicles.remus100`][vcjax.vehicles.remus100] takes a (3,) ``v_c``/``v_c_dot`` with the full
-rotation (its
-(2,) door is PVS's yaw-only rotation of a horizontal current). For REMUS 100 (``W = B``, CB at
+Every plant takes the water through one door,
+[`WaterMotion`][vcjax.environment.component.WaterMotion] (velocity and material acceleration,
+(3,) NED each): [`vector_field`][vcjax.vehicles.sixdof.vector_field] takes it as it is;
+[`vcjax.vehicles.remus100`][vcjax.vehicles.remus100] rotates the share named uniform
+(``Remus100Args.uniform``, the current) as PVS does, by the yaw angle only, and the rest in
+full. For REMUS 100 (``W = B``, CB at
 the origin, CG 2 cm below) the correction is the pendulum moment ``-m r_bg x R^T a_w``.
 """
 
@@ -132,6 +135,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax._checks import check_array, check_positive, float_dtype, is_concrete
+from vcjax.environment.component import WaterMotion
 
 __all__ = [
     "GRAVITY",
@@ -400,9 +404,9 @@ def calm_sea(components: int = 1, dtype=None) -> Sea:
     Every kinematic function returns exact zeros for it (a placeholder for "no waves" that
     keeps shapes static when some scenarios of a batch have waves and others not).
     """
-    dt = float_dtype(dtype)
-    one = jnp.ones(components, dtype=dt)
-    zero = jnp.zeros(components, dtype=dt)
+    dtype = float_dtype(dtype)
+    one = jnp.ones(components, dtype=dtype)
+    zero = jnp.zeros(components, dtype=dtype)
     return Sea(one, zero, one / GRAVITY, zero, zero)
 
 
@@ -410,9 +414,9 @@ def _sea_dtype(dtype, *xs):
     if dtype is not None:
         return float_dtype(dtype)
     for x in xs:
-        dt = getattr(x, "dtype", None)
-        if dt is not None and jnp.issubdtype(dt, jnp.floating):
-            return jnp.dtype(dt)
+        x_dtype = getattr(x, "dtype", None)
+        if x_dtype is not None and jnp.issubdtype(x_dtype, jnp.floating):
+            return jnp.dtype(x_dtype)
     return float_dtype()
 
 
@@ -464,31 +468,31 @@ def sea_state(
             ``gamma < 1``, ``spreading < 0``, non-integer ``components``); concrete values only.
     """
     _check_static(spectrum, components, spreading, gamma, hs, tp, direction)
-    dt = _sea_dtype(dtype, hs, tp, direction)
-    hs = jnp.asarray(hs, dtype=dt)
-    tp = jnp.asarray(tp, dtype=dt)
-    direction = jnp.asarray(direction, dtype=dt)
+    dtype = _sea_dtype(dtype, hs, tp, direction)
+    hs = jnp.asarray(hs, dtype=dtype)
+    tp = jnp.asarray(tp, dtype=dtype)
+    direction = jnp.asarray(direction, dtype=dtype)
     long_crested = is_concrete(spreading) and float(np.asarray(spreading)) == 0.0
     k_freq, k_phase, k_dir = jax.random.split(key, 3)
 
     wp = 2.0 * math.pi / tp
     lo, hi = wp * BAND[0], wp * BAND[1]
     d_omega = (hi - lo) / components
-    u = jax.random.uniform(k_freq, (components,), dtype=dt)
-    omega = lo + (jnp.arange(components, dtype=dt) + u) * d_omega
+    u = jax.random.uniform(k_freq, (components,), dtype=dtype)
+    omega = lo + (jnp.arange(components, dtype=dtype) + u) * d_omega
     if spectrum == "pm":
         s_unit = pierson_moskowitz(omega, 1.0, tp)
     else:
-        s_unit = jonswap(omega, 1.0, tp, jnp.asarray(gamma, dtype=dt))
+        s_unit = jonswap(omega, 1.0, tp, jnp.asarray(gamma, dtype=dtype))
     e2 = 2.0 * s_unit * d_omega
     pos = e2 > 0
     amplitude = hs * jnp.where(pos, jnp.sqrt(jnp.where(pos, e2, 1.0)), 0.0)
-    phase = jax.random.uniform(k_phase, (components,), dtype=dt, maxval=2.0 * math.pi)
+    phase = jax.random.uniform(k_phase, (components,), dtype=dtype, maxval=2.0 * math.pi)
     if long_crested:
         beta = jnp.broadcast_to(direction, (components,))
     else:
-        s = jnp.asarray(spreading, dtype=dt)
-        b = jax.random.beta(k_dir, s + 0.5, s + 0.5, (components,), dtype=dt)
+        s = jnp.asarray(spreading, dtype=dtype)
+        b = jax.random.beta(k_dir, s + 0.5, s + 0.5, (components,), dtype=dtype)
         beta = direction + jnp.arcsin(jnp.clip(2.0 * b - 1.0, -1.0, 1.0))
     return Sea(omega, amplitude, omega * omega / GRAVITY, phase, beta)
 
@@ -515,11 +519,11 @@ def _sincos(theta):
     ``jnp.cos`` plus ``jnp.sin`` on XLA:CPU, for 6e-7 (float32) and 1e-15 (float64) absolute
     error (``tests/test_waves.py``); its derivative is ``(-sin, cos)`` (a custom JVP).
     """
-    dt = theta.dtype
+    dtype = theta.dtype
     n = jnp.round(theta * (1.0 / (2.0 * math.pi)))
     h = 0.5 * ((theta - n * _TWO_PI_HI) - n * _TWO_PI_LO)
     h2 = h * h
-    terms = 11 if jnp.finfo(dt).bits > 32 else 6
+    terms = 11 if jnp.finfo(dtype).bits > 32 else 6
     s = jnp.full_like(h, (-1) ** terms / math.factorial(2 * terms + 1))
     c = jnp.full_like(h, (-1) ** terms / math.factorial(2 * terms))
     for j in range(terms - 1, -1, -1):
@@ -651,12 +655,13 @@ def water_kinematics(sea: Sea, t, p_ned, current=None, current_dot=None):
         current_dot: (3,) its time derivative [m/s^2] (default 0).
 
     Returns:
-        ``(v_w (3,), a_w (3,))``: ``v_w = current + u(t, p)`` [m/s] and
+        [`WaterMotion`][vcjax.environment.component.WaterMotion] ``(v_w (3,), a_w (3,))``:
+        ``v_w = current + u(t, p)`` [m/s] and
         ``a_w = current_dot + du/dt + G v_w`` [m/s^2] (``G`` =
         [`orbital_velocity_gradient`][vcjax.environment.waves.orbital_velocity_gradient]),
         the acceleration of the water particle at ``p`` (the convective term makes a body that
         follows the particle feel exactly the particle's acceleration; the current, being uniform,
-        only advects the waves). Pass them to a plant as its current and current derivative.
+        only advects the waves). Pass it to a plant as its water (its one door).
     """
     if current_dot is not None and jnp.shape(current_dot) != (3,):
         raise ValueError(
@@ -667,7 +672,7 @@ def water_kinematics(sea: Sea, t, p_ned, current=None, current_dot=None):
     v = u if current is None else u + current
     if current_dot is not None:
         a = a + current_dot
-    return v, a
+    return WaterMotion(v, a)
 
 
 # --------------------------------------------------------------------------------------------

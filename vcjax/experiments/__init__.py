@@ -15,7 +15,7 @@ Every experiment takes ``--horizon``, ``--dt``, ``--max-steps``, ``--out``, ``--
 options' flags.
 
 The experiments (``EXPERIMENTS``): ``sim1`` (Simulation 1 of the paper: INFANTE-class on a
-line, every controller; ``--edd``, ``--timing``, ``--diverge-e``), ``sim2`` (Simulation 2:
+line, every controller; its loop option and ``--timing``, ``--diverge-e``), ``sim2`` (Simulation 2:
 ODIN-class on a helix, both actuation modes; ``--actuation``, ``--diverge-e``, ``--waves``,
 ``--wave-seed``), ``remus100`` (a 3-D lawnmower survey of the PVS REMUS 100 under a cross
 current, every controller; ``--diverge-e``, ``--waves``, ``--wave-seed``), ``arm`` (the two-link

@@ -20,7 +20,7 @@ The pieces, usable on their own (tests, notebooks, benchmarks)::
 
     from vcjax import experiments
     sim1 = experiments.get("sim1")
-    setup = sim1.setup(horizon=20.0, current=(0.0, 0.3), edd="implied")  # validated
+    setup = sim1.setup(horizon=20.0, current=(0.0, 0.3), timing="sampled")  # validated
     sc = sim1.scenario("vcm", setup)            # a loops.Scenario
     traj = sim1.simulate("vcm", setup, scenario=sc)   # jitted; gains: the loop's defaults
     m = sim1.metrics(sim1.outcome("vcm", setup, traj, scenario=sc), setup)
@@ -297,6 +297,44 @@ class Experiment:
         sc = self.scenario(variant, setup) if scenario is None else scenario
         return rollout(loop, gains, sc, self.rollout_config(setup), setup.dt)
 
+    def programs(self, setup: Setup, gains: dict, scenarios: dict) -> dict:
+        """``{variant: call}``: each variant's rollout ``call(gains, scenario, dt)`` built with
+        [`vcjax.runtime.programs.build_all`][vcjax.runtime.programs.build_all] (loaded from the
+        program store, not traced, when an identical one was stored; the variants compiled
+        concurrently), when the store is on (the command line's default); ``{}`` when it is off
+        ([`simulate`][vcjax.experiments.base.Experiment.simulate]'s jitted runner then builds
+        each).
+
+        The key's static part is the variant's loop and rollout configuration (a changed
+        option that changes the loop, the horizon or ``dt`` through the number of steps, or a
+        user's law file: another program); gains, scenario and ``dt`` are traced inputs.
+        """
+        from vcjax.runtime import programs
+
+        if programs.store_dir() is None or not scenarios:
+            return {}
+        if type(self).simulate is not Experiment.simulate:  # a runner of its own: used as is
+            return {}
+        if not (setup.horizon > 0 and setup.dt > 0 and setup.horizon / setup.dt >= 1):
+            return {}  # simulate says what is wrong
+        config = self.rollout_config(setup)
+        jobs, names = [], list(scenarios)
+        for v in names:
+            loop = self.loop(v, setup.options)
+
+            def program(g, sc, dt, _loop=loop):
+                return loops.simulate(_loop, g, sc, config, dt)
+
+            jobs.append(
+                (
+                    f"simulate:{self.name}:{v}",
+                    program,
+                    (loop, config),
+                    (gains[v], scenarios[v], setup.dt),
+                )
+            )
+        return {v: call for v, (call, _) in zip(names, programs.build_all(jobs), strict=True)}
+
     def outcome(self, variant, setup, traj, gains=None, scenario=None) -> Outcome:
         """The [`Outcome`][vcjax.experiments.base.Outcome] of a trajectory of ``variant`` (defaults
         as ``simulate``)."""
@@ -315,15 +353,22 @@ class Experiment:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         names = self.variants(setup.options)
+        scenarios = {v: self.scenario(v, setup) for v in names}
+        gains_of = {
+            v: self.default_gains(v, setup.options) if gains is None else gains for v in names
+        }
+        stored = self.programs(setup, gains_of, scenarios)
         outcomes, results = {}, {}
         for i, v in enumerate(names):
             progress(
                 f"[{i + 1}/{len(names)}] simulating {self.label(v)} "
                 f"({setup.horizon:g} s, dt {setup.dt:g} s)"
             )
-            sc = self.scenario(v, setup)
-            g = self.default_gains(v, setup.options) if gains is None else gains
-            traj = jax.device_get(self.simulate(v, setup, g, sc))
+            sc, g = scenarios[v], gains_of[v]
+            if v in stored:
+                traj = jax.device_get(stored[v](g, sc, setup.dt))
+            else:
+                traj = jax.device_get(self.simulate(v, setup, g, sc))
             outcomes[v] = Outcome(self.loop(v, setup.options), sc, g, traj)
             results[v] = self.metrics(outcomes[v], setup)
         path = out / "metrics.json"

@@ -66,7 +66,7 @@ class Sim2Options(PathBound, WaveOptions):
     """Options of ``vcjax simulate sim2`` (``--diverge-e`` default: 25 % of ``u_d x
     horizon``, at least 50 m, [`vcjax.metrics.path_bound`][vcjax.metrics.path_bound]). The loop's
     own options
-    (integral action, ``edd``, allocation polish) are the ``odin`` loop's defaults."""
+    (integral action, the VCM heading row, allocation polish) are the ``odin`` loop's defaults."""
 
     actuation: Literal["underactuated", "full"] = option(
         "underactuated",
@@ -164,7 +164,7 @@ class Sim2(Experiment):
             self.loop("underactuated"),
             eta0=eta0,
             nu0=np.zeros(6),
-            current=args.v_c,
+            current=args.water.velocity,
             u_d=U_D,
             plant=vehicle,
             disturbance=args.tau_dist,

@@ -13,15 +13,17 @@ figures.
 
 from vcjax.identify.config import load_fit_config, run_fit_config
 from vcjax.identify.data import Log, load_log, save_log_csv
-from vcjax.identify.fit import FitResult, fit_logs
-from vcjax.identify.lm import levenberg_marquardt, schur_information
+from vcjax.identify.fit import FitResult, FitSettings, fit_logs
+from vcjax.identify.lm import LMOptions, levenberg_marquardt, schur_information
 from vcjax.identify.models import FIT_MODELS, FitModel, current_vector, get_fit_model
 from vcjax.identify.shooting import ShootingProblem, make_segments
 
 __all__ = [
     "FIT_MODELS",
     "FitModel",
+    "FitSettings",
     "FitResult",
+    "LMOptions",
     "Log",
     "ShootingProblem",
     "current_vector",

@@ -33,7 +33,7 @@ from vcjax.config import ConfigError, check_schema, parse_section, read_toml
 from vcjax.config.frozen import FrozenSection
 from vcjax.config.schema import key
 from vcjax.identify.data import load_log
-from vcjax.identify.fit import FitResult, fit_logs
+from vcjax.identify.fit import FitResult, FitSettings, fit_logs
 from vcjax.identify.models import get_fit_model, scalar_fields
 from vcjax.runtime.outputs import write_json_atomic
 
@@ -195,10 +195,7 @@ def run_fit_config(
         if progress:
             print(f"  stage {stage} iteration {it:3d}: cost {cost:.6g} (damping {lam:.2g})")
 
-    result: FitResult = fit_logs(
-        model,
-        logs,
-        list(f.params),
+    options = FitSettings(
         step=m.step,
         fit_current=f.fit_current,
         current_speed=float(m.current_speed),
@@ -206,9 +203,9 @@ def run_fit_config(
         initial_scale=float(f.initial_scale),
         segment_steps=f.segment_steps,
         max_iters=f.max_iters,
-        callback=callback,
         max_memory_gb=max_memory_gb,
     )
+    result: FitResult = fit_logs(model, logs, list(f.params), options, callback=callback)
     fit = result.to_json()
     fit["files"] = [str(x) for x in cfg.data.files]
     fit["config"] = cfg.to_dict()

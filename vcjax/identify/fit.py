@@ -11,10 +11,11 @@ import dataclasses
 import math
 import time
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
-from vcjax._checks import float_dtype
+from vcjax._checks import float_dtype, with_options
 from vcjax.identify.checks import (
     check_excitation,
     check_logs,
@@ -27,7 +28,7 @@ from vcjax.identify.models import FitModel
 from vcjax.identify.shooting import CURRENT_NAMES, ShootingProblem, make_segments, seg_count
 from vcjax.runtime import sizing
 
-__all__ = ["FitResult", "fit_logs", "CORRELATION_WARN"]
+__all__ = ["FitSettings", "FitResult", "fit_logs", "CORRELATION_WARN"]
 
 #: |correlation| above which a pair of estimates is reported as not separately identifiable.
 CORRELATION_WARN = 0.99
@@ -176,89 +177,98 @@ def _identifiability(names, corr, info_n) -> list[str]:
     return out
 
 
-def fit_logs(
-    model: FitModel,
-    logs: Sequence[Log],
-    params: Sequence[str],
-    step: str = "rk4",
-    fit_current: bool = False,
-    current_speed: float = 0.0,
-    current_direction: float = 0.0,
-    initial_scale: float = 1.0,
-    segment_steps: int = 50,
-    max_iters: int = 50,
-    base=None,
-    dtype=None,
-    callback=None,
-    max_memory_gb: float | None = None,
-) -> FitResult:
-    """Estimate ``params`` of ``model``'s plant from ``logs`` (see the module docstring).
+@dataclasses.dataclass(frozen=True)
+class FitSettings:
+    """Settings of [`fit_logs`][vcjax.identify.fit.fit_logs] (the ``[model]`` and ``[fit]``
+    sections of a fit config, less the vehicle and the parameter names).
 
-    Args:
-        model: [`FitModel`][vcjax.identify.models.FitModel]; logs: one or more
-            [`Log`][vcjax.identify.data.Log].
-        params: scalar parameter names; step: ``"pvs"`` or an integrator name.
-        fit_current: also estimate the current; current_speed [m/s], current_direction [rad]:
-            the known current (or, with ``fit_current``, the initial guess).
+    Attributes:
+        step: ``"pvs"`` or an integrator name.
+        fit_current: also estimate the current.
+        current_speed, current_direction: the known current [m/s], [rad] (or, with
+            ``fit_current``, the initial guess).
         initial_scale: start every parameter at ``nominal * initial_scale``.
-        segment_steps: samples per shooting segment (>= 2); max_iters: per stage.
+        segment_steps: samples per shooting segment (>= 2).
+        max_iters: Levenberg-Marquardt iterations per stage.
         base: the nominal parameters (default: the vehicle's defaults in ``dtype``).
-        callback: ``callback(stage, iteration, cost, lam)`` after every iteration.
-        max_memory_gb: limit of the estimated memory (``fit_estimate``;
-            default 80 % of the machine's).
-
-    Raises:
-        ValueError: naming the argument (before anything is compiled).
+        dtype: floating-point type of the default ``base``.
+        max_memory_gb: limit of the estimated memory (``fit_estimate``; default 80 % of the
+            machine's).
     """
-    t_start = time.perf_counter()
+
+    step: str = "rk4"
+    fit_current: bool = False
+    current_speed: float = 0.0
+    current_direction: float = 0.0
+    initial_scale: float = 1.0
+    segment_steps: int = 50
+    max_iters: int = 50
+    base: Any = None
+    dtype: Any = None
+    max_memory_gb: float | None = None
+
+
+def _check_inputs(model: FitModel, logs, params, o: FitSettings) -> None:
+    """Every argument of [`fit_logs`][vcjax.identify.fit.fit_logs] that can be checked without
+    the data's content (``ValueError`` naming it)."""
     if not logs:
         raise ValueError("files: no logs given")
-    if not (isinstance(segment_steps, int) and segment_steps >= 2):
-        raise ValueError(f"segment_steps: expected an int >= 2, got {segment_steps!r}")
-    if not (isinstance(max_iters, int) and max_iters >= 1):
-        raise ValueError(f"max_iters: expected an int >= 1, got {max_iters!r}")
-    if not (math.isfinite(initial_scale) and initial_scale > 0):
-        raise ValueError(f"initial_scale: expected a finite value > 0, got {initial_scale!r}")
-    if not params and not fit_current:
+    if not (isinstance(o.segment_steps, int) and o.segment_steps >= 2):
+        raise ValueError(f"segment_steps: expected an int >= 2, got {o.segment_steps!r}")
+    if not (isinstance(o.max_iters, int) and o.max_iters >= 1):
+        raise ValueError(f"max_iters: expected an int >= 1, got {o.max_iters!r}")
+    if not (math.isfinite(o.initial_scale) and o.initial_scale > 0):
+        raise ValueError(f"initial_scale: expected a finite value > 0, got {o.initial_scale!r}")
+    if not params and not o.fit_current:
         raise ValueError("params: nothing to fit (empty list and fit_current = false)")
     for log in logs:
         if log.x.shape[1] != model.n_x or log.u.shape[1] != model.n_u:
             raise ValueError(f"{log.name}: state/command columns do not match {model.vehicle!r}")
-    base = model.nominal(float_dtype(dtype)) if base is None else base
-    check_logs(model, logs, base)  # time in s, uniform sampling, angles in rad: before compiling
-    prob = ShootingProblem(model, step, params, base, fit_current, current_speed, current_direction)
-    est = sizing.fit_estimate(seg_count(logs, segment_steps), segment_steps, model.n_x, len(params))
-    sizing.check_estimate(est, "fit", max_memory_gb=max_memory_gb)  # before anything is built
-    seg = make_segments(logs, segment_steps)
-    mask = seg.mask
-    cols = model.state_columns
-    all_x = np.concatenate([log.x for log in logs])
-    spread = np.std(all_x, axis=0)
-    spread = np.where(spread > 0, spread, 1.0)
 
-    z0 = prob.z_initial(initial_scale)
-    s0 = seg.y[:, 0, :]
 
-    def phys(z, s, w):
-        return prob.residuals(z, s, seg, w).reshape(seg.y.shape) / w
+@dataclasses.dataclass
+class _Shots:
+    """The segmented logs of a fit and their counts: ``spread`` (per channel standard deviation
+    of every sample, 1 where constant), ``n_real`` samples, ``m`` residuals, ``n_par`` unknowns
+    and the degrees-of-freedom factor ``m / (m - n_par)``."""
 
-    history, stage_iters = [], []
-    z, s = z0, s0
-    w = 1.0 / spread
-    rms_before = _channel_rms(phys(z0, s0, w), mask, cols)
-    n_real = float(mask.sum())
-    m = n_real * model.n_x
-    n_par = z0.size + seg.y.shape[0] * model.n_x
+    seg: Any
+    spread: np.ndarray
+    n_real: float
+    m: float
+    n_par: int
+
+    @property
+    def dof_factor(self) -> float:
+        return self.m / (self.m - self.n_par)
+
+    def noise(self, r, w) -> np.ndarray:
+        """(n_x,) residual standard deviation per channel of the residuals ``r`` with weights
+        ``w``."""
+        seg = self.seg
+        sq = (r.reshape(seg.y.shape) / w) ** 2 * seg.mask[..., None]
+        return np.sqrt(np.sum(sq, axis=(0, 1)) / self.n_real * self.dof_factor)
+
+
+def _shots(model: FitModel, logs, o: FitSettings, n_z: int) -> _Shots:
+    seg = make_segments(logs, o.segment_steps)
+    spread = np.std(np.concatenate([log.x for log in logs]), axis=0)
+    n_real = float(seg.mask.sum())
+    m, n_par = n_real * model.n_x, n_z + seg.y.shape[0] * model.n_x
     if m - n_par <= 0:
         raise ValueError(
-            f"segment_steps: {segment_steps} leaves no residual degrees of freedom "
+            f"segment_steps: {o.segment_steps} leaves no residual degrees of freedom "
             f"({int(m)} residuals for {n_par} unknowns)"
         )
-    dof_factor = m / (m - n_par)
-    _, Jz0, Js0 = prob.linearize(z0, s0, seg, w)  # each parameter excited by the logs?
-    info0 = schur_information(Jz0, Js0)
-    sensitivity = check_excitation(prob.all_names, info0, m)
-    before = conditioning_before_fit(prob.all_names, info0)
+    return _Shots(seg, np.where(spread > 0, spread, 1.0), n_real, m, n_par)
+
+
+def _two_stages(prob: ShootingProblem, sh: _Shots, z0, max_iters: int, callback):
+    """``(result, weights, cost history, iterations per stage)``: the fit with the spread
+    weights, then (unless it fitted to round-off or was interrupted) with the noise weights of
+    its residuals."""
+    history, stage_iters = [], []
+    z, s, w, seg = z0, sh.seg.y[:, 0, :], 1.0 / sh.spread, sh.seg
     res = None
     for stage in (1, 2):
         cb = (lambda it, c, lam, _s=stage: callback(_s, it, c, lam)) if callback else None
@@ -276,48 +286,115 @@ def fit_logs(
         if res.reason == "interrupted":
             break
         if stage == 1:
-            sig = np.sqrt(
-                np.sum((res.r.reshape(seg.y.shape) / w) ** 2 * mask[..., None], axis=(0, 1))
-                / n_real
-                * dof_factor
-            )
-            if np.all(sig < 1e-7 * spread):
+            sig = sh.noise(res.r, w)
+            if np.all(sig < 1e-7 * sh.spread):
                 break  # noise-free data fitted to round-off: nothing to reweight
-            w = 1.0 / np.maximum(sig, 1e-12 * spread)
+            w = 1.0 / np.maximum(sig, 1e-12 * sh.spread)
+    return res, w, history, stage_iters
 
-    noise = np.sqrt(
-        np.sum((res.r.reshape(seg.y.shape) / w) ** 2 * mask[..., None], axis=(0, 1))
-        / n_real
-        * dof_factor
-    )
-    sigma2 = float(np.sum(res.r**2)) / (m - n_par)
+
+def _uncertainty(prob: ShootingProblem, sh: _Shots, res):
+    """``(standard deviations, correlation, normalised information)`` of the estimates (delta
+    method through the parameters' scaling)."""
+    sigma2 = float(np.sum(res.r**2)) / (sh.m - sh.n_par)
     info = schur_information(res.Jz, res.Js)
     d = np.sqrt(np.maximum(np.diag(info), 1e-300))
     info_n = info / np.outer(d, d)
     cov_n = np.linalg.inv(info_n + 1e-12 * np.eye(len(d)))
     cov_z = sigma2 * cov_n / np.outer(d, d)
-    g = prob.scale_jacobian(z)
+    g = prob.scale_jacobian(res.z)
     cov = cov_z * np.outer(g, g)
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     corr = cov / np.outer(np.where(sd > 0, sd, 1.0), np.where(sd > 0, sd, 1.0))
+    return sd, corr, info_n
+
+
+def _excitation(prob: ShootingProblem, sh: _Shots, z0):
+    """``(sensitivity, warning or None)``: is each parameter excited by the logs, and how well
+    conditioned the problem is, at the start (spread weights)."""
+    seg = sh.seg
+    _, Jz0, Js0 = prob.linearize(z0, seg.y[:, 0, :], seg, 1.0 / sh.spread)
+    info0 = schur_information(Jz0, Js0)
+    sensitivity = check_excitation(prob.all_names, info0, sh.m)
+    return sensitivity, conditioning_before_fit(prob.all_names, info0)
+
+
+def _trust(prob: ShootingProblem, sh: _Shots, res, actuator_coeffs):
+    """``(std, correlation, identifiability warnings, trust warnings)`` of the estimate."""
     names = prob.all_names
+    sd, corr, info_n = _uncertainty(prob, sh, res)
     finite = bool(np.all(np.isfinite(info_n)) and np.all(np.isfinite(corr)))
-    warns = [before] if before else []
-    warns += _identifiability(names, corr, info_n) if finite else []
+    warns = _identifiability(names, corr, info_n) if finite else []
     std = {n: float(v) for n, v in zip(names, sd, strict=True)}
-    estimates, nominal = prob.values(z), prob.values(np.zeros_like(z))
+    estimates, nominal = prob.values(res.z), prob.values(np.zeros_like(res.z))
     untrusted = trust_warnings(
-        names, estimates, nominal, std, info_n, actuator_coeffs=model.actuator_coeffs
+        names, estimates, nominal, std, info_n, actuator_coeffs=actuator_coeffs
     )
-    warns += untrusted
+    return std, corr, warns, untrusted
+
+
+def _ending(res, stage_iters, o: FitSettings) -> list[str]:
+    """A warning when the fit was interrupted or did not converge."""
     if res.reason == "interrupted":
-        warns.append(
+        return [
             f"interrupted after {sum(stage_iters)} iterations: the estimates are the last "
             "accepted iterate, not an optimum"
-        )
-    elif not res.converged:
-        warns.append(f"did not converge in {max_iters} iterations ; raise max_iters")
+        ]
+    if not res.converged:
+        return [f"did not converge in {o.max_iters} iterations ; raise max_iters"]
+    return []
 
+
+def fit_logs(
+    model: FitModel,
+    logs: Sequence[Log],
+    params: Sequence[str],
+    options: FitSettings | None = None,
+    *,
+    callback=None,
+    **kwargs,
+) -> FitResult:
+    """Estimate ``params`` of ``model``'s plant from ``logs`` (see the module docstring).
+
+    Args:
+        model: [`FitModel`][vcjax.identify.models.FitModel]; logs: one or more
+            [`Log`][vcjax.identify.data.Log].
+        params: scalar parameter names.
+        options: [`FitSettings`][vcjax.identify.fit.FitSettings] (integration, current, start,
+            segments, iterations, memory limit); its fields are also accepted by name
+            (``step="pvs"``, ``segment_steps=25``, ...).
+        callback: ``callback(stage, iteration, cost, lam)`` after every iteration.
+
+    Raises:
+        ValueError: naming the argument (before anything is compiled).
+    """
+    t_start = time.perf_counter()
+    o = with_options(FitSettings, options, kwargs, "fit_logs")
+    _check_inputs(model, logs, params, o)
+    base = model.nominal(float_dtype(o.dtype)) if o.base is None else o.base
+    check_logs(model, logs, base)  # time in s, uniform sampling, angles in rad: before compiling
+    prob = ShootingProblem(
+        model, o.step, params, base, o.fit_current, o.current_speed, o.current_direction
+    )
+    est = sizing.fit_estimate(
+        seg_count(logs, o.segment_steps), o.segment_steps, model.n_x, len(params)
+    )
+    sizing.check_estimate(est, "fit", max_memory_gb=o.max_memory_gb)  # before anything is built
+    z0 = prob.z_initial(o.initial_scale)
+    sh = _shots(model, logs, o, z0.size)
+    seg, mask, cols = sh.seg, sh.seg.mask, model.state_columns
+
+    def phys(z, s, w):
+        return prob.residuals(z, s, seg, w).reshape(seg.y.shape) / w
+
+    rms_before = _channel_rms(phys(z0, seg.y[:, 0, :], 1.0 / sh.spread), mask, cols)
+    sensitivity, before = _excitation(prob, sh, z0)
+    res, w, history, stage_iters = _two_stages(prob, sh, z0, o.max_iters, callback)
+    z, s = res.z, res.s
+    names = prob.all_names
+    std, corr, trust, untrusted = _trust(prob, sh, res, model.actuator_coeffs)
+    warns = ([before] if before else []) + trust + untrusted + _ending(res, stage_iters, o)
+    estimates, nominal = prob.values(z), prob.values(np.zeros_like(z))
     return FitResult(
         names=names,
         estimates=estimates,
@@ -329,7 +406,7 @@ def fit_logs(
         residual_rms_after=_channel_rms(phys(z, s, w), mask, cols),
         free_run_rms_before=_free_rms(prob, z0, logs),
         free_run_rms_after=_free_rms(prob, z, logs),
-        noise_std={c: float(v) for c, v in zip(cols, noise, strict=True)},
+        noise_std={c: float(v) for c, v in zip(cols, sh.noise(res.r, w), strict=True)},
         cost_history=[float(c) for c in history],
         stage_iterations=stage_iters,
         iterations=int(sum(stage_iters)),
@@ -340,7 +417,7 @@ def fit_logs(
         z=np.asarray(z),
         z0=np.asarray(z0),
         segments=int(seg.y.shape[0]),
-        samples=int(n_real),
+        samples=int(sh.n_real),
         problem=prob,
         s=np.asarray(s),
         weights=np.asarray(w),

@@ -34,7 +34,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["LMResult", "levenberg_marquardt", "schur_information", "lm_step"]
+__all__ = ["LMOptions", "LMResult", "levenberg_marquardt", "schur_information", "lm_step"]
 
 
 def _blocks(r, Jz, Js):
@@ -104,18 +104,80 @@ class LMResult:
     reason: str
 
 
+@dataclasses.dataclass(frozen=True)
+class LMOptions:
+    """Settings of [`levenberg_marquardt`][vcjax.identify.lm.levenberg_marquardt].
+
+    Attributes:
+        max_iters: iteration limit.
+        lam0: initial damping (relative to ``diag(J^T J)``).
+        ftol: stop when an accepted step lowers the cost by less than ``ftol`` x the cost.
+        xtol: stop when an accepted step has ``max |dz| < xtol`` and lowered the cost by less
+            than ``1e-6`` x the cost (``z`` on a log scale: a relative parameter change).
+        rtol_cost: stop when the cost is below ``rtol_cost`` x the initial cost (noise-free
+            data fitted to round-off).
+    """
+
+    max_iters: int = 50
+    lam0: float = 1e-3
+    ftol: float = 1e-6
+    xtol: float = 1e-8
+    rtol_cost: float = 1e-20
+
+
+class _State:
+    """The iterate of [`levenberg_marquardt`][vcjax.identify.lm.levenberg_marquardt]: ``z``,
+    ``s``, the residuals and Jacobians there, the cost, the damping ``lam`` and its factor
+    ``nu``, the cost history and the accepted steps."""
+
+    def __init__(self, linearize, z, s, lam):
+        self.linearize = linearize
+        self.move(z, s)
+        self.history = [self.cost]
+        self.lam, self.nu = float(lam), 2.0
+        self.accepted = 0
+
+    def move(self, z, s) -> None:
+        self.z, self.s = z, s
+        self.r, self.Jz, self.Js = (np.asarray(a, np.float64) for a in self.linearize(z, s))
+        self.cost = 0.5 * float(np.sum(self.r * self.r))
+
+    def iterate(self, residual, o: LMOptions) -> str | None:
+        """One damped step (accepted or rejected; the history grows by one); the reason to
+        stop after it, if any."""
+        dz, ds, predicted = lm_step(self.r, self.Jz, self.Js, self.lam)
+        z_new, s_new = self.z + dz, self.s + ds
+        r_new = np.asarray(residual(z_new, s_new), np.float64)
+        cost_new = 0.5 * float(np.sum(r_new * r_new))
+        rho = (self.cost - cost_new) / predicted if predicted > 0 else -1.0
+        if not (np.isfinite(cost_new) and rho > 0):
+            self.lam *= self.nu
+            self.nu *= 2.0
+            self.history.append(self.cost)
+            return "no further decrease (damping limit)" if self.lam > 1e16 else None
+        decrease = self.cost - cost_new
+        self.move(z_new, s_new)
+        self.lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+        self.nu = 2.0
+        self.accepted += 1
+        self.history.append(self.cost)
+        if decrease <= o.ftol * cost_new:
+            return "relative cost decrease below ftol"
+        if np.max(np.abs(dz), initial=0.0) < o.xtol and decrease <= 1e-6 * cost_new:
+            return "parameter step below xtol"
+        return None
+
+
 def levenberg_marquardt(
     linearize: Callable,
     residual: Callable,
     z0,
     s0,
-    max_iters: int = 50,
-    lam0: float = 1e-3,
-    ftol: float = 1e-6,
-    xtol: float = 1e-8,
-    rtol_cost: float = 1e-20,
+    options: LMOptions | None = None,
+    *,
     callback: Callable | None = None,
     should_stop: Callable[[], bool] | None = None,
+    **kwargs,
 ) -> LMResult:
     """Minimise ``0.5 |r(z, s)|^2`` over ``z`` and the blocks ``s``.
 
@@ -123,65 +185,36 @@ def levenberg_marquardt(
         linearize: ``(z, s) -> (r (J, m), Jz (J, m, p), Js (J, m, n))``.
         residual: ``(z, s) -> r (J, m)``.
         z0: (p,) initial parameters; s0: (J, n) initial nuisance variables.
-        max_iters: iteration limit; lam0: initial damping (relative to ``diag(J^T J)``).
-        ftol: stop when an accepted step lowers the cost by less than ``ftol`` x the cost.
-        xtol: stop when an accepted step has ``max |dz| < xtol`` and lowered the cost by less
-            than ``1e-6`` x the cost (``z`` on a log scale: a relative parameter change).
-        rtol_cost: stop when the cost is below ``rtol_cost`` x the initial cost (noise-free
-            data fitted to round-off).
+        options: [`LMOptions`][vcjax.identify.lm.LMOptions] (iteration limit, initial damping,
+            tolerances); its fields are also accepted by name (``max_iters=30``).
         callback: called as ``callback(iteration, cost, lam)`` after every iteration.
         should_stop: polled before every iteration (default
             ``stop_requested``: SIGINT / SIGTERM in the CLI); True
             stops with the last accepted iterate, ``converged = False``, ``reason = "interrupted"``.
     """
+    from vcjax._checks import with_options
     from vcjax.runtime.interrupts import stop_requested
 
+    o = with_options(LMOptions, options, kwargs, "levenberg_marquardt")
     should_stop = stop_requested if should_stop is None else should_stop
-    z, s = np.asarray(z0, np.float64), np.asarray(s0, np.float64)
-    r, Jz, Js = (np.asarray(a, np.float64) for a in linearize(z, s))
-    cost = 0.5 * float(np.sum(r * r))
-    history = [cost]
-    lam, nu = float(lam0), 2.0
-    converged, reason, accepted, it = False, "iteration limit", 0, 0
-    if not np.isfinite(cost):
-        return LMResult(z, s, r, Jz, Js, history, 0, 0, False, "non-finite cost at the start")
-    cost0 = cost
-    for it in range(1, max_iters + 1):
+    st = _State(linearize, np.asarray(z0, np.float64), np.asarray(s0, np.float64), o.lam0)
+    if not np.isfinite(st.cost):
+        return LMResult(
+            st.z, st.s, st.r, st.Jz, st.Js, st.history, 0, 0, False, "non-finite cost at the start"
+        )
+    cost0, reason, it = st.cost, None, 0
+    for it in range(1, o.max_iters + 1):
         if should_stop():
-            converged, reason, it = False, "interrupted", it - 1
+            reason, it = "interrupted", it - 1
             break
-        if cost <= rtol_cost * cost0:
-            converged, reason, it = True, "cost at round-off level", it - 1
+        if st.cost <= o.rtol_cost * cost0:
+            reason, it = "cost at round-off level", it - 1
             break
-        dz, ds, predicted = lm_step(r, Jz, Js, lam)
-        z_new, s_new = z + dz, s + ds
-        r_new = np.asarray(residual(z_new, s_new), np.float64)
-        cost_new = 0.5 * float(np.sum(r_new * r_new))
-        rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
-        if np.isfinite(cost_new) and rho > 0:
-            decrease = cost - cost_new
-            z, s = z_new, s_new
-            r, Jz, Js = (np.asarray(a, np.float64) for a in linearize(z, s))
-            cost = 0.5 * float(np.sum(r * r))
-            lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-            nu = 2.0
-            accepted += 1
-            history.append(cost)
-            if callback:
-                callback(it, cost, lam)
-            if decrease <= ftol * cost_new:
-                converged, reason = True, "relative cost decrease below ftol"
-                break
-            if np.max(np.abs(dz), initial=0.0) < xtol and decrease <= 1e-6 * cost_new:
-                converged, reason = True, "parameter step below xtol"
-                break
-        else:
-            lam *= nu
-            nu *= 2.0
-            history.append(cost)
-            if callback:
-                callback(it, cost, lam)
-            if lam > 1e16:
-                converged, reason = True, "no further decrease (damping limit)"
-                break
-    return LMResult(z, s, r, Jz, Js, history, it, accepted, converged, reason)
+        reason = st.iterate(residual, o)
+        if callback:
+            callback(it, st.cost, st.lam)
+        if reason is not None:
+            break
+    converged = reason is not None and reason != "interrupted"
+    reason = "iteration limit" if reason is None else reason
+    return LMResult(st.z, st.s, st.r, st.Jz, st.Js, st.history, it, st.accepted, converged, reason)

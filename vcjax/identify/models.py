@@ -26,6 +26,7 @@ from collections.abc import Callable
 import jax.numpy as jnp
 import numpy as np
 
+from vcjax.environment import WaterMotion
 from vcjax.integrators import INTEGRATORS, get_integrator
 from vcjax.vehicles import infante as inf
 from vcjax.vehicles import remus100 as rm
@@ -144,6 +145,12 @@ def _infante_pack(s: inf.InfanteState):
     return jnp.concatenate([s.eta, s.nu, s.act])
 
 
+def _water(v_c):
+    """The plant's water door for the horizontal current ``v_c`` (2,): constant, no vertical."""
+    v = jnp.concatenate([v_c, jnp.zeros_like(v_c[:1])])
+    return WaterMotion(v, jnp.zeros_like(v))
+
+
 def _infante_unpack(x):
     return inf.InfanteState(eta=x[:3], nu=x[3:6], act=x[6:8])
 
@@ -191,9 +198,7 @@ FIT_MODELS: dict[str, FitModel] = {
         ),  # fmt: skip
         steps=("pvs",) + _INTEGRATOR_STEPS,
         nominal=lambda dtype: rm.remus100_params(dtype=dtype),
-        make_args=lambda p, v_c: rm.Remus100Args(
-            vehicle=p, v_c=v_c, v_c_dot=jnp.zeros_like(v_c), M_factor=rm.mass_factor(p)
-        ),
+        make_args=lambda p, v_c: rm.Remus100Args(p, _water(v_c), M_factor=rm.mass_factor(p)),
         unpack=_remus_unpack,
         pack=_remus_pack,
         plant=rm.remus100_plant,
@@ -209,7 +214,7 @@ FIT_MODELS: dict[str, FitModel] = {
         units=("m", "m", "rad", "m/s", "m/s", "rad/s", "N", "rad"),
         steps=_INTEGRATOR_STEPS,
         nominal=lambda dtype: inf.infante_params(dtype=dtype),
-        make_args=lambda p, v_c: inf.PlantArgs(vehicle=p, V_c=v_c, V_c_dot=jnp.zeros_like(v_c)),
+        make_args=lambda p, v_c: inf.PlantArgs(vehicle=p, water=_water(v_c)),
         unpack=_infante_unpack,
         pack=_infante_pack,
         plant=inf.infante_plant,

@@ -44,6 +44,7 @@ import numpy as np
 
 from vcjax.identify.data import Log
 from vcjax.identify.models import FitModel, current_vector, scalar_fields
+from vcjax.runtime import programs
 
 __all__ = ["Segments", "make_segments", "seg_count", "ShootingProblem", "CURRENT_NAMES"]
 
@@ -225,19 +226,45 @@ class ShootingProblem:
             (Jz, Js), r = jax.jacfwd(f, argnums=(0, 1), has_aux=True)(z, s)
             return r, Jz, Js
 
-        self._res = jax.jit(jax.vmap(seg, in_axes=axes))
-        self._lin = jax.jit(jax.vmap(jac, in_axes=axes))
-        self._sim = jax.jit(self.simulate)
+        self._fns = {
+            "residuals": jax.vmap(seg, in_axes=axes),
+            "linearize": jax.vmap(jac, in_axes=axes),
+            "free_run": self.simulate,
+        }
+        self._res = jax.jit(self._fns["residuals"])
+        self._lin = jax.jit(self._fns["linearize"])
+        self._sim = jax.jit(self._fns["free_run"])
+        self._built: dict = {}  # (name, argument spec) -> the program from the store
+
+    def _static(self) -> tuple:
+        """What fixes the programs besides their arguments' shapes (the store's key): the
+        model, the step, the fitted names and the nominal parameters they scale, the current."""
+        return (self.model, self.step_name, self.names, self.base, self.fit_current, self.current0)
+
+    def _call(self, name: str, jitted, *args):
+        """``jitted(*args)``, or with the program store on (the command line) the program
+        [`vcjax.runtime.programs.build`][vcjax.runtime.programs.build] gives: loaded from the
+        store, not traced, when an identical fit stored it (one per argument shape)."""
+        if programs.store_dir() is None:
+            return jitted(*args)
+        spec = (name, programs.argument_spec(args))
+        if spec not in self._built:
+            self._built[spec], _ = programs.build(
+                f"fit:{name}", self._fns[name], self._static(), args
+            )
+        return self._built[spec](*args)
 
     def residuals(self, z, s, seg: Segments, w):
         """(J, S n_x) weighted residuals (numpy)."""
         a = self._arrays(seg, w)
-        return np.asarray(self._res(jnp.asarray(z, self.dtype), jnp.asarray(s, self.dtype), *a))
+        z, s = jnp.asarray(z, self.dtype), jnp.asarray(s, self.dtype)
+        return np.asarray(self._call("residuals", self._res, z, s, *a))
 
     def linearize(self, z, s, seg: Segments, w):
         """Residuals and their Jacobians ``(r (J, m), Jz (J, m, q), Js (J, m, n_x))`` (numpy)."""
         a = self._arrays(seg, w)
-        out = self._lin(jnp.asarray(z, self.dtype), jnp.asarray(s, self.dtype), *a)
+        z, s = jnp.asarray(z, self.dtype), jnp.asarray(s, self.dtype)
+        out = self._call("linearize", self._lin, z, s, *a)
         return tuple(np.asarray(o) for o in out)
 
     def cost(self, z, s, seg: Segments, w):
@@ -250,7 +277,9 @@ class ShootingProblem:
     def free_run(self, z, log: Log) -> np.ndarray:
         """(N, n_x) free simulation of a whole log from its first sample (numpy)."""
         return np.asarray(
-            self._sim(
+            self._call(
+                "free_run",
+                self._sim,
                 jnp.asarray(z, self.dtype),
                 jnp.asarray(log.x[0], self.dtype),
                 jnp.asarray(log.u[:-1], self.dtype),

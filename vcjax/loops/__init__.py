@@ -5,7 +5,7 @@ A *loop* assembles a vehicle's plant, the controller's design model, a law and t
 [`vcjax.rollout.rollout`][vcjax.rollout.rollout] runs. Three kinds of data, kept apart:
 
 * the [`Loop`][vcjax.loops.loop.Loop] itself — static and hashable (vehicle, controller, path
-  kind, static law options such as ``edd``, ``smooth``): one compilation per loop;
+  kind, static law options such as ``smooth``): one compilation per loop;
 * the [`Scenario`][vcjax.loops.types.Scenario] — traced, the same container for every loop: initial
   state ``eta0``/``nu0``, ``current`` (the water's NED velocity (3,) [m/s], built from a speed
   and a direction with [`current_ned`][vcjax.environment.current.current_ned]), ``u_d``, ``varpi0``,
@@ -74,11 +74,14 @@ any
    restrict them with ``param_names()``, choose the default perturbed set with
    ``default_model_fields()``); ``default_path()`` (classmethod) — ``(Path, coeffs)``;
    ``plant(t, x, u, args)``, ``control(t, x, z, ctrl) -> (u, z_dot, aux)`` (usually: the
-   law's ``step`` then the actuator map); ``plant_args(sc, current, current_dot)``,
-   ``ctrl_params(gains, sc)`` (the law's ``params``; the design model comes from
-   ``sc.design``), ``initial_state(sc) -> (x0, z0)``, ``initial_from(values) -> (eta0,
-   nu0)``, ``position(eta, params) -> (3,)`` (where the path must be: craft position, end
-   effector); ``signals(traj, sc) -> Signals`` (true errors, commands over limits, actuator
+   law's ``step`` then the actuator map); ``plant_args(sc, current, current_dot)`` (the
+   plant's arguments, the water in one door:
+   [`WaterMotion`][vcjax.environment.component.WaterMotion]),
+   ``ctrl_params(gains, sc)`` (``law.params(self, gains, sc, self.law_design(sc))``;
+   ``law_design(sc)``, default ``sc.design``, is what the laws are designed on),
+   ``initial_state(sc) -> (x0, z0)``, ``initial_from(values) -> (eta0, nu0)``,
+   ``position(eta, params) -> (3,)`` (where the path must be: craft position, end effector);
+   ``signals(traj, sc) -> Signals`` (true errors, commands over limits, actuator
    magnitudes); optionally ``measure(x, noise)``, ``with_current(args, current, rate)`` and
    ``plant_in_sea(t, x, u, args, water)`` ([`Water`][vcjax.loops.types.Water]).
    Gains (``default_gains``, ``gain_specs``, ``symmetric_pairs``, ``gains_from_json``) come

@@ -56,8 +56,8 @@ def arm_loop_params(tau_max=(40.0, 15.0), dtype=None, **arm) -> ArmLoopParams:
     keywords)."""
     check_positive("tau_max", tau_max, (2,))
     a = arm_params(**arm)
-    dt = jnp.asarray(0.0).dtype if dtype is None else dtype
-    vals = [jnp.asarray(v, dt) for v in a] + [jnp.asarray(tau_max, dt)]
+    dtype = jnp.asarray(0.0).dtype if dtype is None else dtype
+    vals = [jnp.asarray(v, dtype) for v in a] + [jnp.asarray(tau_max, dtype)]
     return ArmLoopParams(*vals)
 
 

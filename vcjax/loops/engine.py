@@ -34,8 +34,11 @@ mass, and [`vcjax.loops.arm`][vcjax.loops.arm] for the two-link arm.
 ([`EngineLoop.water_velocity`][vcjax.loops.engine.EngineLoop.water_velocity]) is the generalised
 velocity at which the point would move with the water: by default the solution of
 ``J(q) qd_c = V_c`` with ``J = dp/dq`` (the point's Jacobian; least squares when not square)
-and ``V_c`` the current's first 2 or 3 NED components — right for a body whose drag is written on
-its velocity over ground (a puck, a craft in its own coordinates). The current's acceleration
+and ``V_c`` the first 2 or 3 NED components of the water's velocity (``args.water.velocity``:
+[`EngineArgs`][vcjax.loops.engine.EngineArgs] holds the water in the one door of every plant,
+[`WaterMotion`][vcjax.environment.component.WaterMotion]; a point that moves in a plane cannot
+feel the vertical component) — right for a body whose drag is written on its velocity over
+ground (a puck, a craft in its own coordinates). The current's acceleration
 (added-mass force) is not modelled; a time-varying (Gauss–Markov) current is taken the same way.
 A system without water ([`vcjax.loops.arm`][vcjax.loops.arm]) leaves ``"current"`` and
 ``"varying_current"`` out of ``feels``: configs asking for a current are
@@ -51,6 +54,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import warnings
 from typing import Any, ClassVar, NamedTuple
 
 import jax
@@ -58,6 +62,7 @@ import jax.numpy as jnp
 
 from vcjax import paths
 from vcjax._checks import check_positive
+from vcjax.environment import WaterMotion
 from vcjax.linalg import rot2, saturate, smooth_saturate, spd_solve_small
 from vcjax.loops.law import Law
 from vcjax.loops.loop import Loop
@@ -115,11 +120,27 @@ class _Args(NamedTuple):
 
 
 class EngineArgs(NamedTuple):
-    """The plant's traced arguments: parameters, constant disturbance (n,), current (3,) NED."""
+    """The plant's traced arguments: parameters, constant disturbance (n,), and the water
+    ([`WaterMotion`][vcjax.environment.component.WaterMotion]: velocity and material
+    acceleration, (3,) NED each; the engine's plant uses the velocity,
+    [`EngineLoop.water_velocity`][vcjax.loops.engine.EngineLoop.water_velocity])."""
 
     params: Any
     disturbance: Any
-    current: Any
+    water: WaterMotion
+
+    @property
+    def current(self):
+        """Deprecated: the water's velocity (3,) NED, ``water.velocity`` (the name of the
+        door before every plant took the water through one
+        [`WaterMotion`][vcjax.environment.component.WaterMotion])."""
+        warnings.warn(
+            "EngineArgs.current is deprecated: use args.water.velocity (every plant takes the "
+            "water through one door, vcjax.environment.WaterMotion)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.water.velocity
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,7 +149,8 @@ class EngineLaw(Law):
     docstring) on the loop's design mechanics; gains
     [`EngineGains`][vcjax.loops.engine.EngineGains].
 
-    ``params(loop, gains, sc)``; ``step(loop, params, t, (q, qd), z) -> (tau, z_dot, aux)``.
+    ``params(loop, gains, sc, design)`` (``design``: ``sc.design``, the design parameters);
+    ``step(loop, params, t, (q, qd), z) -> (tau, z_dot, aux)``.
     """
 
     def default_gains(self, loop) -> EngineGains:
@@ -143,8 +165,8 @@ class EngineLaw(Law):
     def validate_gains(self, gains):
         return engine_gains(gains.P_G, gains.P_Phi, gains.sigma)
 
-    def params(self, loop, gains, sc):
-        return gains, _Args(sc.design, sc.path, sc.u_d, gains.sigma)
+    def params(self, loop, gains, sc, design):
+        return gains, _Args(design, sc.path, sc.u_d, gains.sigma)
 
     def initial_state(self, loop, sc):
         return jnp.atleast_1d(sc.varpi0)
@@ -242,7 +264,8 @@ class EngineLoop(Loop):
         q, qd = x
         sat = smooth_saturate if self.smooth else saturate
         tau = sat(u, p.tau_max) + args.disturbance
-        qd_r = qd - self.water_velocity(q, args.current, p) if self.can_feel("current") else qd
+        felt = self.can_feel("current")
+        qd_r = qd - self.water_velocity(q, args.water.velocity, p) if felt else qd
         qdd = spd_solve_small(self.mass_matrix(q, p), tau - self.bias_force(q, qd_r, p))
         return qd, qdd
 
@@ -250,13 +273,13 @@ class EngineLoop(Loop):
         return self.law.step(self, ctrl, t, x, z)
 
     def plant_args(self, sc: Scenario, current, current_dot):
-        return EngineArgs(sc.plant, sc.disturbance, current)
+        return EngineArgs(sc.plant, sc.disturbance, WaterMotion(current, current_dot))
 
     def with_current(self, args, current, current_dot):
-        return args._replace(current=current)
+        return args._replace(water=WaterMotion(current, current_dot))
 
     def ctrl_params(self, gains, sc: Scenario):
-        return self.law.params(self, gains, sc)
+        return self.law.params(self, gains, sc, self.law_design(sc))
 
     def initial_state(self, sc: Scenario):
         return (sc.eta0, sc.nu0), self.law.initial_state(self, sc)

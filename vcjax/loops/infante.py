@@ -13,10 +13,11 @@ inside the VCM heading row); ``ilos`` (40), ``los_pid`` (39) and ``alos`` (Fosse
 
 A law of this vehicle ([`Law`][vcjax.loops.law.Law]) is called with
 
-* ``params(loop, gains, sc, model, k_rudder)`` — ``model``: the design model
-  ([`design_model`][vcjax.vehicles.infante.design_model] of ``sc.design``), ``k_rudder``: the
-  rudder's sway
-  force per unit yaw moment ([`rudder_ratio`][vcjax.loops.infante.rudder_ratio]);
+* ``params(loop, gains, sc, design)`` — ``design``: an
+  [`InfanteDesign`][vcjax.loops.infante.InfanteDesign], ``design.model`` the design model
+  ([`design_model`][vcjax.vehicles.infante.design_model] of ``sc.design``) and
+  ``design.k_rudder`` the rudder's sway force per unit yaw moment
+  ([`rudder_ratio`][vcjax.loops.infante.rudder_ratio]);
 * ``step(loop, params, t, x, z) -> (tau, z_dot, aux)`` — ``x``: the measured
   [`InfanteState`][vcjax.vehicles.infante.InfanteState] (pose ``x.eta = [x, y, psi]``, velocity over
   ground ``x.nu = [u, v, r]``), ``tau``: (3,) ``[tau_u, tau_v, tau_r]`` (``tau_v`` is not
@@ -41,7 +42,8 @@ from vcjax.control.baselines import (
     baseline_params,
     baseline_state,
 )
-from vcjax.control.vcm import VCMConfig, check_edd, pm_gains, vcm_law, vcm_params, vcm_state
+from vcjax.control.vcm import VCMLoopOptions, pm_gains, vcm_law, vcm_params, vcm_state
+from vcjax.environment import WaterMotion
 from vcjax.loops.geometry import path_errors, path_frames, path_poses
 from vcjax.loops.law import Law
 from vcjax.loops.loop import Loop
@@ -51,6 +53,7 @@ from vcjax.loops.types import Scenario, Signals
 from vcjax.vehicles import infante
 
 __all__ = [
+    "InfanteDesign",
     "InfanteGains",
     "infante_gains",
     "InfanteVCMLaw",
@@ -75,6 +78,21 @@ class InfanteGains(NamedTuple):
 
     vcm: Any
     baseline: Any
+
+
+class InfanteDesign(NamedTuple):
+    """What an INFANTE law is designed on ([`Law.params`][vcjax.loops.law.Law.params]'s
+    ``design``, from ``sc.design``).
+
+    Attributes:
+        model: [`Design3DOF`][vcjax.vehicles.design3dof.Design3DOF], the design model
+            ([`design_model`][vcjax.vehicles.infante.design_model]).
+        k_rudder: () the rudder's sway force per unit yaw moment
+            ([`rudder_ratio`][vcjax.loops.infante.rudder_ratio]).
+    """
+
+    model: Any
+    k_rudder: Any
 
 
 def infante_gains() -> InfanteGains:
@@ -127,19 +145,15 @@ class InfanteVCMLaw(_InfanteLaw):
     def symmetric_pairs(self, loop):
         return PM_PAIRS
 
-    def params(self, loop, gains, sc, model, k_rudder):
-        return vcm_params(gains.vcm, model, sc.path, u_d=sc.u_d, k_rudder=k_rudder)
+    def params(self, loop, gains, sc, design):
+        return vcm_params(gains.vcm, design.model, sc.path, u_d=sc.u_d, k_rudder=design.k_rudder)
 
     def initial_state(self, loop, sc):
         return vcm_state(varpi0=sc.varpi0)
 
     def step(self, loop, params, t, x, z):
-        cfg = VCMConfig(
-            path=loop.path,
-            actuation="underactuated",
-            edd=loop.edd,
-            integral=self.integral,
-            guidance=self.guidance,
+        cfg = loop.vcm_config(
+            actuation="underactuated", integral=self.integral, guidance=self.guidance
         )
         return vcm_law(cfg, params, t, x.eta, x.nu, z)
 
@@ -163,8 +177,9 @@ class InfanteBaselineLaw(_InfanteLaw):
         names = ("Delta", "sigma", "k_u", "k_psi_p", "k_psi_d", *self.extra)
         return tuple(gain_spec(n, f"baseline.{n}") for n in names)
 
-    def params(self, loop, gains, sc, model, k_rudder):
-        return baseline_params(gains.baseline, model, sc.path, u_d=sc.u_d, k_rudder=k_rudder)
+    def params(self, loop, gains, sc, design):
+        m, k = design
+        return baseline_params(gains.baseline, m, sc.path, u_d=sc.u_d, k_rudder=k)
 
     def initial_state(self, loop, sc):
         return baseline_state(varpi0=sc.varpi0)
@@ -179,14 +194,12 @@ _SCALAR_FIELDS = tuple(f for f in infante.InfanteParams._fields if f != "cf_x")
 
 
 @dataclasses.dataclass(frozen=True)
-class InfanteLoop(Loop):
+class InfanteLoop(VCMLoopOptions, Loop):
     """INFANTE-class craft (3-DOF horizontal plant, thrust + rudder) under one controller.
 
-    Attributes (besides [`Loop`][vcjax.loops.loop.Loop]'s):
-        edd: which ``e_ddot`` enters the VCM heading row (``"paper"`` or ``"implied"``).
+    Attributes: [`Loop`][vcjax.loops.loop.Loop]'s and the VCM law's option
+    ([`VCMLoopOptions`][vcjax.control.vcm.VCMLoopOptions]).
     """
-
-    edd: Literal["paper", "implied"] = "paper"
 
     vehicle: ClassVar[str] = "infante"
     #: the columns of ``Signals.cmd_ratio``
@@ -221,10 +234,6 @@ class InfanteLoop(Loop):
         "orbital motion is as much vertical as horizontal and decays with depth",
     }
 
-    def __post_init__(self):
-        super().__post_init__()
-        check_edd(self.edd)
-
     # ---------------------------------------------------------------- parameters and gains
     @classmethod
     def default_path(cls):
@@ -257,17 +266,19 @@ class InfanteLoop(Loop):
         return infante.actuator_commands(vehicle, x.nu, tau[0], tau[2]), z_dot, aux
 
     def plant_args(self, sc: Scenario, current, current_dot):
-        return infante.PlantArgs(vehicle=sc.plant, V_c=current[:2], V_c_dot=current_dot[:2])
+        return infante.PlantArgs(vehicle=sc.plant, water=WaterMotion(current, current_dot))
 
     def with_current(self, args, current, current_dot):
-        return args._replace(V_c=current[:2], V_c_dot=current_dot[:2])
+        return args._replace(water=WaterMotion(current, current_dot))
+
+    def law_design(self, sc: Scenario) -> InfanteDesign:
+        """The design model and rudder sway ratio of ``sc.design``."""
+        return InfanteDesign(infante.design_model(sc.design), rudder_ratio(sc.design))
 
     def ctrl_params(self, gains: InfanteGains, sc: Scenario):
         """The law's params (design model derived from ``sc.design``, rudder sway ratio,
         desired speed, path) and the design vehicle (actuator map)."""
-        model = infante.design_model(sc.design)
-        k_rudder = rudder_ratio(sc.design)
-        return self.law.params(self, gains, sc, model, k_rudder), sc.design
+        return self.law.params(self, gains, sc, self.law_design(sc)), sc.design
 
     def initial_state(self, sc: Scenario):
         x0 = infante.InfanteState(eta=sc.eta0, nu=sc.nu0, act=jnp.zeros(2, sc.eta0.dtype))

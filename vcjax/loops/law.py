@@ -11,8 +11,11 @@ vehicle's inner loops) and asks its law for everything that depends on the contr
 * ``validate_gains(gains)`` — eager checks run after
 [`gains_from_json`][vcjax.loops.params.gains_from_json]
   (the one gains-JSON reader) has read a file;
-* ``params(loop, gains, sc)`` — the law's traced parameters from the gains and the scenario (the
-  design model comes from ``sc.design``);
+* ``params(loop, gains, sc, design)`` — the law's traced parameters from the gains, the scenario
+  and ``design``: what the loop derives from the design vehicle ``sc.design`` for its laws
+  ([`Loop.law_design`][vcjax.loops.loop.Loop.law_design]: INFANTE's design model and rudder
+  ratio, REMUS 100's design model at ``u_d``, ODIN's 3-DOF design model, an engine loop's
+  ``sc.design`` itself). One signature for every law of every vehicle;
 * ``initial_state(loop, sc)`` — the law's state at ``t = 0``;
 * ``step(loop, params, t, meas, z) -> (tau, z_dot, aux)`` — one control step. What ``meas``
   holds and what ``tau`` means is the vehicle's convention, written in its loop's docstring
@@ -76,8 +79,9 @@ class Law:
         return gains_from_json(d, base, validate=self.validate_gains)
 
     @required
-    def params(self, loop, gains, sc):
-        """The law's traced parameters (gains, design model from ``sc.design``, path, ...)."""
+    def params(self, loop, gains, sc, design):
+        """The law's traced parameters (gains, path, ...) from ``design``, what the loop derives
+        from ``sc.design`` ([`Loop.law_design`][vcjax.loops.loop.Loop.law_design])."""
         raise NotImplementedError(f"{type(self).__name__}.params")
 
     @required

@@ -159,13 +159,21 @@ class Loop:
     @required
     def plant_args(self, sc: Scenario, current, current_dot):
         """The plant's traced arguments for plant parameters ``sc.plant`` and a current (3,)
-        NED [m/s] with its rate (3,) [m/s^2]."""
+        NED [m/s] with its rate (3,) [m/s^2], which go into the plant's one water door
+        ([`WaterMotion`][vcjax.environment.component.WaterMotion], every plant's ``water``)."""
         raise NotImplementedError
 
     @required
     def ctrl_params(self, gains, sc: Scenario):
-        """The controller's traced parameters (design model from ``sc.design``)."""
+        """The controller's traced parameters (design model from ``sc.design``; a loop with laws
+        calls ``law.params(self, gains, sc, self.law_design(sc))``)."""
         raise NotImplementedError
+
+    def law_design(self, sc: Scenario):
+        """What the loop derives from the design vehicle ``sc.design`` for its laws, the last
+        argument of [`Law.params`][vcjax.loops.law.Law.params] (traced; the vehicle's
+        convention, written in its loop's docstring). Default: ``sc.design`` itself."""
+        return sc.design
 
     @required
     def initial_state(self, sc: Scenario):
@@ -222,7 +230,9 @@ class Loop:
 
         The loop knows how its plant takes the water: it evaluates ``water`` at the vehicle's
         NED position (every integrator stage: the sea depends on where the vehicle is), hands
-        the velocity and material acceleration to the plant's current door and adds the
+        the velocity and material acceleration to the plant's water door
+        (``water.at(t, p)``, a [`WaterMotion`][vcjax.environment.component.WaterMotion]) and
+        adds the
         Froude–Krylov correction
         ([`current_door_correction`][vcjax.environment.waves.current_door_correction]). A calm
         sea (``hs = 0``) must give exactly ``plant``'s result.

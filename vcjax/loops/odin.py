@@ -33,15 +33,14 @@ from vcjax.control.attitude import roll_pitch_pd
 from vcjax.control.depth import depth_pid, depth_reference
 from vcjax.control.vcm import (
     VCMAux,
-    VCMConfig,
+    VCMLoopOptions,
     VCMState,
-    check_edd,
     pm_gains,
     vcm_law,
     vcm_params,
     vcm_state,
 )
-from vcjax.environment import waves
+from vcjax.environment import WaterMotion, waves
 from vcjax.linalg import Rzyx
 from vcjax.loops.geometry import path_errors, path_poses
 from vcjax.loops.law import Law
@@ -185,7 +184,9 @@ class OdinLaw(Law):
     ([`vcjax.control.vcm.vcm_law`][vcjax.control.vcm.vcm_law]) and the
     gains of the loop's depth and attitude loops ([`OdinGains`][vcjax.loops.odin.OdinGains]).
 
-    ``params(loop, gains, sc) -> OdinCtrlParams``; ``step(loop, params, t, (eta3, nu3), z) ->
+    ``params(loop, gains, sc, design) -> OdinCtrlParams`` (``design``: the 3-DOF design model
+    of ``sc.design`` at ``u_d``, [`OdinLoop.law_design`][vcjax.loops.odin.OdinLoop.law_design]);
+    ``step(loop, params, t, (eta3, nu3), z) ->
     (tau3, z_dot, aux)`` on the horizontal projection ``[x, y, psi]``, ``[u, v, r]``.
 
     Attributes:
@@ -218,18 +219,15 @@ class OdinLaw(Law):
             int_z_limit=gains.int_z_limit,
         )
 
-    def params(self, loop, gains, sc) -> OdinCtrlParams:
-        model = odin.design_model(sc.design, sc.u_d)
-        vp = vcm_params(gains.vcm, model, sc.path, u_d=sc.u_d, k_rudder=0.0)
+    def params(self, loop, gains, sc, design) -> OdinCtrlParams:
+        vp = vcm_params(gains.vcm, design, sc.path, u_d=sc.u_d, k_rudder=0.0)
         return OdinCtrlParams(vcm=vp, gains=gains, vehicle=sc.design)
 
     def initial_state(self, loop, sc):
         return OdinCtrlState(vcm=vcm_state(varpi0=sc.varpi0), int_z=jnp.zeros_like(sc.u_d))
 
     def step(self, loop, params, t, meas, z):
-        cfg = VCMConfig(
-            path=loop.path, actuation=self.actuation, edd=loop.edd, integral=loop.integral
-        )
+        cfg = loop.vcm_config(actuation=self.actuation, integral=loop.integral)
         eta3, nu3 = meas
         return vcm_law(cfg, params.vcm, t, eta3, nu3, z.vcm)
 
@@ -244,19 +242,18 @@ _IDX = (0, 1, 5)  # [x, y, psi] of eta, [u, v, r] of nu
 
 
 @dataclasses.dataclass(frozen=True)
-class OdinLoop(Loop):
+class OdinLoop(VCMLoopOptions, Loop):
     """ODIN-class sphere (6-DOF plant, 8 thrusters) under the horizontal VCM law + depth and
     attitude loops + allocation (module docstring).
 
-    Attributes (besides [`Loop`][vcjax.loops.loop.Loop]'s):
+    Attributes (besides [`Loop`][vcjax.loops.loop.Loop]'s and the VCM law's option,
+    [`VCMLoopOptions`][vcjax.control.vcm.VCMLoopOptions]):
         integral: integral action (41) in the VCM law (gains ``P_int``).
-        edd: ``"paper"`` or ``"implied"`` (see [`vcjax.control.vcm`][vcjax.control.vcm]).
         polish: projected-gradient steps of the allocation (see
         [`vcjax.allocation`][vcjax.allocation]).
     """
 
     integral: bool = True
-    edd: Literal["paper", "implied"] = "paper"
     polish: int = 50
 
     vehicle: ClassVar[str] = "odin"
@@ -277,10 +274,6 @@ class OdinLoop(Loop):
     }
     default_speed: ClassVar[float] = 0.5
     feels: ClassVar[dict[str, bool | str]] = {"force": True, "current": True, "waves": True}
-
-    def __post_init__(self):
-        super().__post_init__()
-        check_edd(self.edd)
 
     @property
     def actuation(self) -> str:
@@ -354,7 +347,8 @@ class OdinLoop(Loop):
         return al.f, OdinCtrlState(vcm=zd_vcm, int_z=int_z_dot), out
 
     def plant_args(self, sc: Scenario, current, current_dot):
-        return odin.OdinArgs(vehicle=sc.plant, tau_dist=sc.disturbance, v_c=current)
+        # a constant current: no acceleration terms (ODIN takes no time-varying current)
+        return odin.OdinArgs(sc.plant, sc.disturbance, WaterMotion(current, None))
 
     def plant_in_sea(self, t, x, u, args, water):
         """The 6-DOF plant in a sea: the water's velocity and material acceleration at the
@@ -363,16 +357,21 @@ class OdinLoop(Loop):
         ([`current_door_correction`][vcjax.environment.waves.current_door_correction]: the
         pendulum moment of the CG below the CB, plus the buoyancy excess if ``B != W``) added to the
         body disturbance. A calm sea changes nothing (every added term is exactly 0)."""
-        v_w, a_w = water.at(t, x.eta[:3])
+        w = water.at(t, x.eta[:3])
         b = args.vehicle.body
         m = b.M_RB[0, 0]
         R = Rzyx(x.eta[3], x.eta[4], x.eta[5])
-        tau_w = waves.current_door_correction(R, a_w, b.M_RB, m * b.B / b.W, b.r_bb)
-        args = args._replace(v_c=v_w, v_c_dot=a_w, tau_dist=args.tau_dist + tau_w)
+        tau_w = waves.current_door_correction(R, w.acceleration, b.M_RB, m * b.B / b.W, b.r_bb)
+        args = args._replace(water=w, tau_dist=args.tau_dist + tau_w)
         return self.plant(t, x, u, args)
 
+    def law_design(self, sc: Scenario):
+        """The 3-DOF design model of ``sc.design`` at ``u_d``
+        ([`design_model`][vcjax.vehicles.odin.design_model])."""
+        return odin.design_model(sc.design, sc.u_d)
+
     def ctrl_params(self, gains: OdinGains, sc: Scenario) -> OdinCtrlParams:
-        return self.law.params(self, gains, sc)
+        return self.law.params(self, gains, sc, self.law_design(sc))
 
     def initial_state(self, sc: Scenario):
         x0 = odin.OdinState(eta=sc.eta0, nu=sc.nu0, thrust=jnp.zeros(8, sc.eta0.dtype))

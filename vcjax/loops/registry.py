@@ -226,11 +226,26 @@ def _same_force(cls: type[Loop], taus: dict) -> None:
     )
 
 
+def _check_signature(what: str, method, names: tuple[str, ...], hint: str = "") -> None:
+    """Refuse a law method that cannot be called with the arguments ``names`` (the one
+    signature the loops call it with)."""
+    try:
+        inspect.signature(method).bind(*names)
+    except TypeError:
+        raise ValueError(
+            f"{what}: {method.__name__}{inspect.signature(method)} must take "
+            f"({', '.join(names)}){hint}"
+        ) from None
+    except ValueError:  # no signature to inspect (a builtin): the trace will tell
+        pass
+
+
 def check_step(cls: type[Loop], controller: str, who: str = "check_step", compare: bool = True):
     """Trace one step of ``cls``'s loop with ``controller`` (``jax.eval_shape``, default
     gains and scenario) before any work, and refuse (``ValueError`` naming the vehicle, the law
     and what is wrong) a law whose methods do not take the arguments the loop passes (a
-    ``step`` without ``z``), whose gains are not a NamedTuple (a dict), whose ``z_dot`` does
+    ``step`` without ``z``, a ``params`` not ``(loop, gains, sc, design)``), whose gains are
+    not a NamedTuple (a dict), whose ``z_dot`` does
     not match its state ``z``, whose force ``tau`` differs in shape from the vehicle's other
     laws' (a (2,) force for a 3-DOF plant, which indexing would silently clamp), or whose
     plant derivative does not match the state. Returns the shapes of the law's force ``tau``
@@ -241,14 +256,14 @@ def check_step(cls: type[Loop], controller: str, who: str = "check_step", compar
         f"law {controller!r} ({type(law).__name__})" if law is not None else repr(controller)
     )
     if law is not None:
-        try:
-            inspect.signature(law.step).bind("loop", "params", "t", "meas", "z")
-        except TypeError:
-            raise ValueError(
-                f"{what}: step{inspect.signature(law.step)} must take (loop, params, t, meas, z)"
-            ) from None
-        except ValueError:  # no signature to inspect (a builtin): the trace will tell
-            pass
+        _check_signature(what, law.step, ("loop", "params", "t", "meas", "z"))
+        _check_signature(
+            what,
+            law.params,
+            ("loop", "gains", "sc", "design"),
+            " (design: what the vehicle's loop derives from sc.design, loop.law_design(sc); "
+            "an INFANTE law's former model and k_rudder are design.model and design.k_rudder)",
+        )
     try:
         x0, z0, u, z_dot, x_dot, out = _trace(cls, controller)
     except _Wrong as err:
@@ -308,7 +323,7 @@ def default_path(vehicle: str):
 
 def make_loop(vehicle: str, controller: str, path: paths.Path | None = None, **options) -> Loop:
     """The loop of ``vehicle`` x ``controller`` on ``path`` (default: the vehicle's default path
-    kind); ``options``: the loop's static fields (e.g. ``edd``, ``smooth``)."""
+    kind); ``options``: the loop's static fields (e.g. ``smooth``, ``integral``)."""
     cls = loop_class(vehicle)
     if controller not in cls.controllers:
         raise ValueError(

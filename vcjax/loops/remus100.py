@@ -39,7 +39,7 @@ from vcjax.control.baselines3d import (
     decoupled_law,
     decoupled_state,
 )
-from vcjax.control.vcm import VCMConfig, check_edd, pm_gains, vcm_params, vcm_state
+from vcjax.control.vcm import VCMLoopOptions, pm_gains, vcm_params, vcm_state
 from vcjax.control.vcm3d import (
     VCM3DConfig,
     pose_errors,
@@ -48,7 +48,7 @@ from vcjax.control.vcm3d import (
     vcm3d_params,
     vcm3d_state,
 )
-from vcjax.environment import waves
+from vcjax.environment import WaterMotion, waves
 from vcjax.linalg import Rzyx, wrap_angle
 from vcjax.loops.law import Law
 from vcjax.loops.loop import Loop
@@ -174,8 +174,8 @@ class RemusVCM3DLaw(_RemusLaw):
         names += [("sigma_i", 2)] if self.guidance == "ilos" else []
         return _specs("vcm3d", names)
 
-    def params(self, loop, gains, sc, dm):
-        return vcm3d_params(gains.vcm3d, dm, sc.path, u_d=sc.u_d)
+    def params(self, loop, gains, sc, design):
+        return vcm3d_params(gains.vcm3d, design, sc.path, u_d=sc.u_d)
 
     def initial_state(self, loop, sc):
         return vcm3d_state(varpi0=sc.varpi0)
@@ -203,7 +203,8 @@ class RemusDecoupledLaw(_RemusLaw):
         names = [("P_G", 3), ("P_Phi", 5), ("Delta", 1), ("sigma", 1), ("sigma_i", 1)]
         return _specs("horizontal", names) + _specs("decoupled_autopilot", [("w_theta", 1)])
 
-    def params(self, loop, gains, sc, dm):
+    def params(self, loop, gains, sc, design):
+        dm = design
         inertia, drag = _inertia_drag(dm, sc.u_d)
         horiz = vcm_params(
             gains.horizontal, rd.horizontal_design(dm), sc.path, u_d=sc.u_d,
@@ -216,7 +217,7 @@ class RemusDecoupledLaw(_RemusLaw):
         return decoupled_state(vcm_state(varpi0=sc.varpi0))
 
     def step(self, loop, params, t, m, z):
-        hcfg = VCMConfig(path=loop.path, actuation="underactuated", edd=loop.edd, integral=True)
+        hcfg = loop.vcm_config(actuation="underactuated", integral=True)
         dcfg = DecoupledConfig(dataclasses.replace(hcfg, guidance="ilos"), rd.body_bias5)
         return decoupled_law(dcfg, params, t, m.q, m.qd, m.nu, z)
 
@@ -237,8 +238,8 @@ class RemusAutopilotLaw(_RemusLaw):
         names += [("gamma", 2)] if self.guidance == "alos" else []
         return _specs("autopilot", names)
 
-    def params(self, loop, gains, sc, dm):
-        inertia, drag = _inertia_drag(dm, sc.u_d)
+    def params(self, loop, gains, sc, design):
+        inertia, drag = _inertia_drag(design, sc.u_d)
         return baseline3d_params(gains.autopilot, inertia, drag, sc.path, sc.u_d)
 
     def initial_state(self, loop, sc):
@@ -262,15 +263,13 @@ REMUS_CONTROLLERS = tuple(REMUS_LAWS)
 
 
 @dataclasses.dataclass(frozen=True)
-class Remus100Loop(Loop):
+class Remus100Loop(VCMLoopOptions, Loop):
     """The PVS REMUS 100 (6-DOF, fins + propeller) under one 3-D path-following controller.
 
-    Attributes (besides [`Loop`][vcjax.loops.loop.Loop]'s):
-        edd: which ``e_ddot`` enters the heading row of ``decoupled``'s 2-D VCM law
-            (``"paper"`` or ``"implied"``, [`VCMConfig`][vcjax.control.vcm.VCMConfig]).
+    Attributes: [`Loop`][vcjax.loops.loop.Loop]'s and the VCM law's option
+    ([`VCMLoopOptions`][vcjax.control.vcm.VCMLoopOptions]: it selects the heading row of
+    ``decoupled``'s 2-D VCM law).
     """
-
-    edd: Literal["paper", "implied"] = "paper"
 
     vehicle: ClassVar[str] = "remus100"
     laws: ClassVar[dict[str, Law]] = REMUS_LAWS
@@ -289,10 +288,6 @@ class Remus100Loop(Loop):
         "varying_current": True,
         "waves": True,
     }
-
-    def __post_init__(self):
-        super().__post_init__()
-        check_edd(self.edd)
 
     # ---------------------------------------------------------------- parameters and gains
     @classmethod
@@ -328,18 +323,18 @@ class Remus100Loop(Loop):
     def plant_args(self, sc: Scenario, current, current_dot):
         return r100.Remus100Args(
             vehicle=sc.plant,
-            v_c=current[:2],
-            v_c_dot=current_dot[:2],
+            water=WaterMotion(current, current_dot),
             M_factor=r100.mass_factor(sc.plant),  # M is constant: factored once per scenario
         )
 
     def with_current(self, args, current, current_dot):
-        return args._replace(v_c=current[:2], v_c_dot=current_dot[:2])
+        return args._replace(water=WaterMotion(current, current_dot))
 
     def plant_in_sea(self, t, x, u, args, water):
-        """The PVS plant in a sea: the current keeps PVS's yaw-only door (``args.v_c``), the
-        orbital motion at the hull's position goes through the full rotation on top of it
-        (``v_w``), and the pendulum moment of the CG
+        """The PVS plant in a sea: the water at the hull (current + orbital motion) through the
+        plant's door, the current named as its uniform share (``Remus100Args.uniform``: PVS's
+        yaw-only door; the orbital motion goes through the full rotation on top of it), and the
+        pendulum moment of the CG
         below the CB ([`current_door_correction`][vcjax.environment.waves.current_door_correction];
         ``W = B``, CB at the
         CO) joins the force sum. A calm sea changes nothing (every added term is exactly 0)."""
@@ -348,10 +343,16 @@ class Remus100Loop(Loop):
         m = b.M_RB[0, 0]
         R = Rzyx(x.eta[3], x.eta[4], x.eta[5])
         tau_w = waves.current_door_correction(R, a_w, b.M_RB, m * b.B / b.W, b.r_bb)
-        return self.plant(t, x, u, args._replace(v_w=u_w, v_w_dot=a_w, tau_w=tau_w))
+        at_hull = water.plus(u_w, a_w)
+        return self.plant(t, x, u, args._replace(water=at_hull, uniform=args.water, tau_w=tau_w))
+
+    def law_design(self, sc: Scenario) -> rd.Remus100Design:
+        """The design model of ``sc.design`` at ``u_d``
+        ([`Remus100Design`][vcjax.vehicles.remus100_design.Remus100Design])."""
+        return rd.Remus100Design(sc.design, sc.u_d, jnp.asarray(0.5, sc.u_d.dtype))
 
     def ctrl_params(self, gains: RemusGains, sc: Scenario):
-        dm = rd.Remus100Design(sc.design, sc.u_d, jnp.asarray(0.5, sc.u_d.dtype))
+        dm = self.law_design(sc)
         return self.law.params(self, gains, sc, dm), dm
 
     def initial_state(self, sc: Scenario):

@@ -117,9 +117,9 @@ def make_scenario(
     """
     plant = loop.default_params(dtype) if plant is None else loop.validate_params(plant, "plant")
     design = plant if design is None else loop.validate_params(design, "design")
-    dt = jnp.asarray(jax.tree_util.tree_leaves(plant)[0]).dtype
+    ftype = jnp.asarray(jax.tree_util.tree_leaves(plant)[0]).dtype
     coeffs = type(loop).default_path()[1] if coeffs is None else coeffs
-    coeffs = _cast(coeffs, dt)
+    coeffs = _cast(coeffs, ftype)
     initial = dict(initial or {})
     unknown = sorted(set(initial) - set(loop.initial_keys))
     if unknown:
@@ -129,12 +129,12 @@ def make_scenario(
         v = float(initial.get(k, default))
         if not np.isfinite(v):
             raise ValueError(f"initial: {k}: not finite: {v}")
-        vals[k] = jnp.asarray(np.radians(v) if k.endswith("_deg") else v, dt)
+        vals[k] = jnp.asarray(np.radians(v) if k.endswith("_deg") else v, ftype)
     eta_i, nu_i = loop.initial_from(vals)
     if (eta0 is not None or nu0 is not None) and initial:
         raise ValueError("initial: give the initial keys or eta0/nu0, not both")
-    eta0 = eta_i if eta0 is None else _state("eta0", eta0, np.shape(eta_i), dt)
-    nu0 = nu_i if nu0 is None else _state("nu0", nu0, np.shape(nu_i), dt)
+    eta0 = eta_i if eta0 is None else _state("eta0", eta0, np.shape(eta_i), ftype)
+    nu0 = nu_i if nu0 is None else _state("nu0", nu0, np.shape(nu_i), ftype)
     cur = np.asarray(current, dtype=float)
     if cur.shape == (2,):
         cur = np.concatenate([cur, [0.0]])
@@ -156,7 +156,7 @@ def make_scenario(
         varpi0 = start_parameter(loop.path, coeffs, loop.position(eta0, design))
     if sea is not None:
         check_disturbances(loop, False, False, waves=True)
-        sea = _check_sea(sea, dt)
+        sea = _check_sea(sea, ftype)
         if not np.isfinite(origin_depth):
             raise ValueError(f"origin_depth: expected a finite depth [m], got {origin_depth!r}")
     if environment is not None:
@@ -166,19 +166,19 @@ def make_scenario(
                 f"{type(environment).__name__}"
             )
         check_environment(loop, environment)
-        environment = _cast(environment, dt)
+        environment = _cast(environment, ftype)
     return Scenario(
         eta0=eta0,
         nu0=nu0,
-        current=jnp.asarray(cur, dt),
-        u_d=jnp.asarray(u_d, dt),
-        varpi0=jnp.asarray(varpi0, dt),
+        current=jnp.asarray(cur, ftype),
+        u_d=jnp.asarray(u_d, ftype),
+        varpi0=jnp.asarray(varpi0, ftype),
         path=coeffs,
         plant=plant,
         design=design,
-        disturbance=jnp.asarray(disturbance, dt),
+        disturbance=jnp.asarray(disturbance, ftype),
         sea=sea,
-        origin_depth=None if sea is None else jnp.asarray(origin_depth, dt),
+        origin_depth=None if sea is None else jnp.asarray(origin_depth, ftype),
         environment=environment,
     )
 

@@ -10,7 +10,7 @@ from typing import Any, NamedTuple
 
 import jax.numpy as jnp
 
-from vcjax.environment import SeaParams, Waves
+from vcjax.environment import SeaParams, WaterMotion, Waves
 
 __all__ = ["Scenario", "Water", "GainSpec", "Signals"]
 
@@ -101,14 +101,19 @@ class Water(NamedTuple):
             a = jnp.zeros_like(self.current)
         return u, a
 
-    def at(self, t, p_ned):
-        """``(v_w (3,), a_w (3,))``: the water's velocity (current + fields) [m/s] and material
-        acceleration [m/s^2] at the NED point ``p_ned`` (3,) [m], time ``t`` [s]."""
-        u, a = self.waves_at(t, p_ned)
+    def at(self, t, p_ned) -> WaterMotion:
+        """The water at the NED point ``p_ned`` (3,) [m], time ``t`` [s]: a
+        [`WaterMotion`][vcjax.environment.component.WaterMotion] (velocity, current + fields
+        [m/s], and material acceleration [m/s^2], (3,) each; unpacks as ``v_w, a_w``), what
+        a plant's door takes."""
+        return self.plus(*self.waves_at(t, p_ned))
+
+    def plus(self, u, a) -> WaterMotion:
+        """The uniform current with a field's share ``(u, a)`` (3,) on top (what ``at`` adds)."""
         v = u + self.current
         if self.current_dot is not None:
             a = a + self.current_dot
-        return v, a
+        return WaterMotion(v, a)
 
 
 class GainSpec(NamedTuple):

@@ -31,10 +31,14 @@ def _variants(result):
     return [v for v in STYLE if v in result.metrics] + [v for v in result.metrics if v not in STYLE]
 
 
-def _style(v) -> dict:
-    """The variant's line style (the paper's colours; others from the colour cycle)."""
+def _style(v, result=None) -> dict:
+    """The variant's line style (the paper's colours; others from the colour cycle). The paper's
+    equation numbers label the variants only on the paper's vehicle (INFANTE); elsewhere the
+    label is the variant's name."""
     if v in STYLE:
-        return STYLE[v]
+        choice = getattr(getattr(result, "spec", None), "choice", None)
+        vehicle = getattr(choice, "vehicle", "infante")
+        return STYLE[v] if vehicle == "infante" else {**STYLE[v], "label": v}
     cycle = ("tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
     return {"color": cycle[sum(map(ord, v)) % len(cycle)], "ls": "-", "label": v}
 
@@ -84,7 +88,7 @@ def _error_vs_current(result, out: Path) -> Path:
         for v in _variants(result):
             ok = _ok(result, v)
             y = np.maximum(np.asarray(result.metrics[v]["ss_abs_e"], np.float64)[ok], _FLOOR)
-            st = _style(v)
+            st = _style(v, result)
             ax.scatter(x[ok], y, s=6, color=st["color"], alpha=alpha, lw=0)
             if np.ptp(x) > 0:
                 mx, my = _binned_median(x[ok], y, edges)
@@ -131,7 +135,7 @@ def _error_vs_waves(result, out: Path) -> Path:
                 ok = _ok(result, v)
                 y = np.maximum(np.asarray(result.metrics[v][key], np.float64)[ok], _FLOOR)
                 ys.append(y)
-                st = _style(v)
+                st = _style(v, result)
                 ax.scatter(x[ok], y, s=6, color=st["color"], alpha=alpha, lw=0)
                 if np.ptp(x) > 0 and ok.any():
                     mx, my = _binned_median(x[ok], y, edges)
@@ -173,7 +177,7 @@ def _metric_boxes(result, out: Path) -> Path:
             data.append(np.maximum(y, _FLOOR) if log else y)
         bp = ax.boxplot(data, whis=(5, 95), showfliers=False, patch_artist=True)
         for patch, v in zip(bp["boxes"], vs, strict=True):
-            patch.set_facecolor(_style(v)["color"])
+            patch.set_facecolor(_style(v, result)["color"])
             patch.set_alpha(0.5)
         ax.set_xticks(range(1, len(vs) + 1), vs, fontsize=8)
         ax.set_title(title, fontsize=10)
@@ -207,7 +211,7 @@ def _envelopes(result, out: Path) -> Path:
     t = np.asarray(result.trace_t)
     for ax, v in zip(axes, vs, strict=False):
         e = np.asarray(result.traces[v]["e"], np.float64)[_ok(result, v)]
-        st = _style(v)
+        st = _style(v, result)
         if e.shape[0]:
             q = np.percentile(e, [5, 25, 50, 75, 95], axis=0)
             ax.fill_between(t, q[0], q[4], color=st["color"], alpha=0.15, label="5-95 %")
@@ -236,7 +240,7 @@ def _paths(result, out: Path, max_paths: int = 60) -> Path:
         xy = np.asarray(result.traces[v]["xy"], np.float64)
         ok = np.flatnonzero(_ok(result, v))[:max_paths]
         bad = np.flatnonzero(~_ok(result, v))[:max_paths]
-        st = _style(v)
+        st = _style(v, result)
         for i in ok:
             ax.plot(xy[i, :, 1], xy[i, :, 0], color=st["color"], lw=0.6, alpha=0.5)
         for i in bad:

@@ -18,6 +18,13 @@ by a SHA-256 of everything that can change it:
   versions, ``XLA_FLAGS``, JAX's configuration (x64, dtype promotion, matmul precision, ...),
   the backend and its devices.
 
+Used by ``vcjax sweep`` (each controller's batch program), ``vcjax tune`` (held-out evaluation,
+figures' trajectories, the training step's value-and-gradient), ``vcjax simulate NAME`` (each
+variant's rollout) and ``vcjax fit`` (residuals, Jacobians, free runs). A file holds the
+program's output tree (pickled: ``jax.export`` serialises only the pytree nodes it knows, so the
+exported function returns the flattened outputs) and the serialised export; an output tree
+``pickle`` cannot name (a class defined inside a function) is built as before, not stored.
+
 Multi-process runs (``vcjax launch``) build their programs as before, one after another. A
 static input that cannot be described stably (an object whose ``repr`` holds a memory address,
 a function closing over something else) is not stored: the program is built as before.
@@ -45,6 +52,7 @@ import functools
 import hashlib
 import importlib.util
 import os
+import pickle
 import sys
 import sysconfig
 import threading
@@ -61,6 +69,7 @@ __all__ = [
     "argument_spec",
     "build_all",
     "describe",
+    "for_arguments_like",
     "evict",
     "off_reason",
     "program_key",
@@ -79,7 +88,9 @@ _OFF = ("off", "none", "0", "false", "no")
 #: the environment variable that caps [`build_all`][vcjax.runtime.programs.build_all]'s threads (1:
 #: serial)
 WORKERS_ENV = "VCJAX_COMPILE_WORKERS"
-_FORMAT = 1  # bump when the key's material or the file layout changes
+_FORMAT = 2  # bump when the key's material or the file layout changes
+#: a stored file: this, the pickled output tree's length (8 bytes), the tree, the export
+_MAGIC = b"vcjax-program\x00"
 
 _STORE: list[Path | None] = [None]
 _REPORT: list[dict] = []
@@ -292,10 +303,12 @@ def program_key(name: str, static, args) -> str:
 # ----------------------------------------------------------------------------- building
 
 
-def build(name: str, fn, static, args: tuple):
+def build(name: str, fn, static, args: tuple, *, record: bool = True):
     """Compile ``fn(*args)`` (``fn`` with its static inputs bound; ``static``: those inputs, for
     the key) and return ``(call, info)``: ``call(*args)`` runs the compiled program on new values
-    of the same shapes; ``info`` is this program's [`report`][vcjax.runtime.programs.report] entry.
+    of the same shapes and returns what ``fn`` returns (any pytree of arrays); ``info`` is this
+    program's [`report`][vcjax.runtime.programs.report] entry (``record=False``: not added to
+    it).
 
     With the store on, the program is loaded from it when an identical one was stored (no
     tracing), else exported, stored and loaded back; either way compiled from the exported
@@ -310,37 +323,87 @@ def build(name: str, fn, static, args: tuple):
             key = program_key(name, static, args)
         except Unstable:
             key = None
-    if key is None:
+    leaves, treedef = jax.tree_util.tree_flatten(args)
+    loaded = None if key is None else _load(folder, key)
+    reused = loaded is not None
+    if key is not None and loaded is None:
+        loaded = _export_and_store(folder, key, fn, treedef, leaves)
+    if loaded is None:  # not storable (a static input, or the outputs' structure)
+        key = None
         compiled = jax.jit(fn).lower(*args).compile()
-        info = {"name": name, "key": None, "reused": False}
         call = compiled
     else:
-        leaves, treedef = jax.tree_util.tree_flatten(args)
-        exp, reused = _load(folder, key), True
-        if exp is None:
-            reused = False
-
-            def flat(*xs):
-                return fn(*jax.tree_util.tree_unflatten(treedef, xs))
-
-            shardings = tuple(getattr(x, "sharding", None) for x in leaves)
-            if any(s is None for s in shardings):
-                jitted = jax.jit(flat)
-            else:
-                jitted = jax.jit(flat, in_shardings=shardings)
-            blob = _export().export(jitted)(*leaves).serialize()
-            _save(folder, key, bytes(blob))
-            exp = _export().deserialize(blob)
+        exp, out_tree = loaded
         compiled = jax.jit(exp.call).lower(*leaves).compile()
 
         def call(*a):
-            return compiled(*jax.tree_util.tree_leaves(a))
+            return jax.tree_util.tree_unflatten(out_tree, compiled(*jax.tree_util.tree_leaves(a)))
 
-        info = {"name": name, "key": key[:16], "reused": reused}
+    info = {"name": name, "key": None if key is None else key[:16], "reused": reused}
     info["build_s"] = round(time.perf_counter() - t0, 3)
-    with _LOCK:
-        _REPORT.append(info)
+    if record:
+        with _LOCK:
+            _REPORT.append(info)
     return call, dict(info)
+
+
+def _export_and_store(folder: Path, key: str, fn, treedef, leaves):
+    """Export ``fn`` at ``leaves`` (its outputs flattened: ``jax.export`` serialises only the
+    pytrees it knows), store it and return it as loaded back, ``(exported, output tree)``; None
+    when the output tree cannot be stored (a class ``pickle`` cannot name)."""
+    out_tree = []
+
+    def flat(*xs):
+        out, tree = jax.tree_util.tree_flatten(fn(*jax.tree_util.tree_unflatten(treedef, xs)))
+        out_tree.append(tree)
+        return out
+
+    # a committed array's placement is part of the program; an uncommitted one (a new array on
+    # the default device) goes where the others are, as with jax.jit
+    shardings = tuple(x.sharding if getattr(x, "committed", False) else None for x in leaves)
+    if all(s is None for s in shardings):
+        jitted = jax.jit(flat)
+    else:
+        jitted = jax.jit(flat, in_shardings=shardings)
+    program = bytes(_export().export(jitted)(*leaves).serialize())
+    try:
+        tree = pickle.dumps(out_tree[-1], protocol=4)
+        if pickle.loads(tree) != out_tree[-1]:
+            return None
+    except Exception:  # a local class, or one pickle cannot import back
+        return None
+    blob = _pack(tree, program)
+    _save(folder, key, blob)
+    # compiled from the form read back, as the next run will compile it (the same module:
+    # the persistent cache's key)
+    return _unpack(blob)
+
+
+def _pack(tree: bytes, program: bytes) -> bytes:
+    return _MAGIC + len(tree).to_bytes(8, "little") + tree + program
+
+
+def _unpack(blob: bytes):
+    """``(exported, output tree)`` of a stored file; raises on a damaged or foreign one."""
+    if not blob.startswith(_MAGIC):
+        raise ValueError("not a program of this store")
+    n = int.from_bytes(blob[len(_MAGIC) : len(_MAGIC) + 8], "little")
+    start = len(_MAGIC) + 8
+    tree = pickle.loads(blob[start : start + n])
+    return _export().deserialize(bytearray(blob[start + n :])), tree
+
+
+def for_arguments_like(call, args, fallback):
+    """``call`` (a built program, e.g. from [`build_all`][vcjax.runtime.programs.build_all]) for
+    arguments of the spec of ``args`` ([`argument_spec`][vcjax.runtime.programs.argument_spec]:
+    structure, shapes, dtypes, shardings), ``fallback`` (e.g. the jitted function) for any
+    other: a program built ahead of time for one batch, still right for another."""
+    spec = argument_spec(args)
+
+    def run(*a):
+        return call(*a) if argument_spec(a) == spec else fallback(*a)
+
+    return run
 
 
 def build_all(jobs, workers: int | None = None) -> list:
@@ -362,7 +425,10 @@ def build_all(jobs, workers: int | None = None) -> list:
     from concurrent.futures import ThreadPoolExecutor
 
     with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="vcjax-compile") as pool:
-        return list(pool.map(lambda job: build(*job), jobs))
+        built = list(pool.map(lambda job: build(*job, record=False), jobs))
+    with _LOCK:  # the report in the jobs' order, whichever finished first
+        _REPORT.extend(dict(info) for _, info in built)
+    return built
 
 
 def _path(folder: Path, key: str) -> Path:
@@ -370,20 +436,21 @@ def _path(folder: Path, key: str) -> Path:
 
 
 def _load(folder: Path, key: str):
+    """``(exported, output tree)`` stored under ``key``; None when absent or unreadable."""
     path = _path(folder, key)
     try:
         blob = path.read_bytes()
     except OSError:
         return None
     try:
-        exp = _export().deserialize(bytearray(blob))
+        loaded = _unpack(blob)
     except Exception:  # a truncated or foreign file: rebuild (and overwrite it)
         return None
     try:
         os.utime(path)  # most recently used
     except OSError:
         pass
-    return exp
+    return loaded
 
 
 def _save(folder: Path, key: str, blob: bytes) -> None:

@@ -150,7 +150,7 @@ def sweep_estimate(spec) -> Estimate:
     device = chunk * seg * STATE_FLOATS * _F64 * 4
     parts = {"host results": host, "device chunk": device}
     sc = spec.scenario
-    comps = int(sc.wave_components) if sc.waves else 0
+    comps = int(sc.waves.components) if sc.waves else 0
     if comps:
         parts["sea"] = chunk * comps * (WAVE_SEA_ARRAYS + WAVE_WORK_ARRAYS) * _F64
     return Estimate(

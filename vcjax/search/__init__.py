@@ -16,10 +16,20 @@ replay;
 rollouts.
 """
 
-from vcjax.search.core import ALIASES, FalsifyResult, evaluate, falsify, metric_name
+from vcjax.search.core import (
+    ALIASES,
+    FalsifyOptions,
+    FalsifyResult,
+    SegmentMetric,
+    evaluate,
+    falsify,
+    metric_name,
+)
 from vcjax.search.envelope import (
     Envelope,
     Setting,
+    SettingOptions,
+    envelope_from_scenario,
     envelope_from_spec,
     make_setting,
     scenario_from,
@@ -29,8 +39,12 @@ from vcjax.search.envelope import (
 __all__ = [
     "ALIASES",
     "Envelope",
+    "FalsifyOptions",
     "FalsifyResult",
+    "SegmentMetric",
     "Setting",
+    "SettingOptions",
+    "envelope_from_scenario",
     "envelope_from_spec",
     "evaluate",
     "falsify",

@@ -19,7 +19,10 @@ fixed, with a ``[falsify]`` section instead of ``[sweep]``::
     keep = 10                 # int >= 1: scenarios written to worst.json
     controller = "vcm"        # optional: the controller ([scenario] controller otherwise)
 
-``--metric`` and ``--bound`` on the command line override the file's.
+``--metric`` and ``--bound`` on the command line override the file's. ``metric = "loss"``
+(or ``"tuning_loss"``) searches the tuning loss of one scenario (``vcjax tune``'s, with the
+file's optional ``[weights]`` section, the tune's keys and defaults), simulated as the tune's
+held-out batch (hard-clipped actuators).
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ import jax
 import numpy as np
 
 from vcjax.config import ConfigError, as_int, as_number, read_toml
-from vcjax.search.core import evaluate, falsify, metric_name
+from vcjax.search.core import FalsifyOptions, evaluate, falsify, metric_name
 from vcjax.search.envelope import Envelope, envelope_from_spec, setting_from_spec
 
 __all__ = ["FALSIFY_KEYS", "KEY_DOCS", "load_config", "run_falsify_config", "replay_worst"]
@@ -66,20 +69,9 @@ KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
 }
 
 
-def load_config(path, metric: str | None = None, bound: float | None = None) -> dict:
-    """Read and check a falsify config (everything, before any work or output).
-
-    Returns ``{"spec", "gains_path", "figures", "loop", "gains", "envelope", "setting",
-    "metric", "bound", "opts"}``. Raises [`ConfigError`][vcjax.config.values.ConfigError] naming the
-    file,
-    section and key.
-    """
-    from vcjax.sweep.config import load_config as load_sweep
-
-    path = Path(path)
-    where = str(path)
-    raw = read_toml(path)
-    fal = raw.pop("falsify", {})
+def _falsify_section(fal, where: str, metric: str | None, bound: float | None) -> dict:
+    """The ``[falsify]`` table checked, with its defaults and the command line's ``--metric``,
+    ``--bound``."""
     if not isinstance(fal, dict):
         raise ConfigError(f"{where}: [falsify]: expected a table")
     unknown = sorted(set(fal) - set(FALSIFY_KEYS))
@@ -109,6 +101,34 @@ def load_config(path, metric: str | None = None, bound: float | None = None) -> 
             raise ConfigError(f"[falsify] metric: expected a string, got {opts['metric']!r}")
     except ConfigError as err:
         raise ConfigError(f"{where}: {err}") from None
+    return opts
+
+
+#: spellings of the tuning loss as a metric
+LOSS_METRICS = ("loss", "tuning_loss")
+
+
+def load_config(
+    path, metric: str | None = None, bound: float | None = None, loss_metric=None
+) -> dict:
+    """Read and check a falsify config (everything, before any work or output).
+
+    ``loss_metric(weights_table) -> SegmentMetric``: how ``metric = "loss"`` is built from the
+    file's ``[weights]`` table (the CLI passes ``tuning.robust.TuningLossMetric.of_table``;
+    vcjax itself never imports the tuner).
+
+    Returns ``{"spec", "gains_path", "figures", "loop", "gains", "envelope", "setting",
+    "metric", "bound", "opts"}``. Raises [`ConfigError`][vcjax.config.values.ConfigError] naming the
+    file,
+    section and key.
+    """
+    from vcjax.sweep.config import load_config as load_sweep
+
+    path = Path(path)
+    where = str(path)
+    raw = read_toml(path)
+    opts = _falsify_section(raw.pop("falsify", {}), where, metric, bound)
+    weights = raw.pop("weights", None)
     sweep = dict(raw.get("sweep", {}))
     sweep.setdefault("num_scenarios", 1)
     sweep["seed"] = opts["seed"]
@@ -135,8 +155,21 @@ def load_config(path, metric: str | None = None, bound: float | None = None) -> 
     if not env.searched:
         raise ConfigError(f"{where}: nothing to search: give at least one range [lo, hi]")
     setting = setting_from_spec(spec, env)
+    m = opts["metric"]
+    if m in LOSS_METRICS:
+        if loss_metric is None:
+            raise ConfigError(f"{where}: [falsify] metric (--metric): {m}: needs the tuner")
+        try:
+            m = loss_metric({} if weights is None else weights)
+        except ValueError as err:
+            raise ConfigError(f"{where}: {err}") from None
+    elif weights is not None:
+        raise ConfigError(
+            f'{where}: [weights]: only with metric = "loss" (the tuning loss), '
+            f"not {opts['metric']!r}"
+        )
     try:
-        m = metric_name(loop, gains, setting, opts["metric"])
+        m = metric_name(loop, gains, setting, m)
     except ValueError as err:
         raise ConfigError(f"{where}: [falsify] metric (--metric): {err}") from None
     return {
@@ -162,12 +195,7 @@ def run_falsify_config(cfg: dict, out_dir, progress=None) -> dict:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     o = cfg["opts"]
-    res = falsify(
-        cfg["loop"],
-        cfg["gains"],
-        cfg["envelope"],
-        cfg["metric"],
-        cfg["setting"],
+    search = FalsifyOptions(
         starts=o["starts"],
         steps=o["steps"],
         step_size=o["step_size"],
@@ -175,6 +203,7 @@ def run_falsify_config(cfg: dict, out_dir, progress=None) -> dict:
         bound=cfg["bound"],
         progress=progress,
     )
+    res = falsify(cfg["loop"], cfg["gains"], cfg["envelope"], cfg["metric"], cfg["setting"], search)
     files = [write_worst(res, cfg, out / "worst.json", o["keep"])]
     summary = {
         "metric": res.metric,
@@ -252,7 +281,12 @@ def figures(res, cfg: dict, out: Path) -> list[Path]:
     ]
 
 
-def read_worst(path, env: Envelope, metric: str) -> tuple[dict, np.ndarray, np.ndarray]:
+def metric_label(metric) -> str:
+    """The name a metric (a sweep metric's name or a ``SegmentMetric``) is reported under."""
+    return metric if isinstance(metric, str) else metric.name
+
+
+def read_worst(path, env: Envelope, metric) -> tuple[dict, np.ndarray, np.ndarray]:
     """``(doc, x (B, P), index (B,))`` of a ``worst.json`` (checked against the envelope's
     parameter names and the metric)."""
     path = Path(path)
@@ -280,19 +314,24 @@ def read_worst(path, env: Envelope, metric: str) -> tuple[dict, np.ndarray, np.n
     return doc, np.stack(xs), np.asarray(idx)
 
 
-def replay_worst(cfg: dict, worst_path, out_dir) -> dict:
+def replay_worst(
+    cfg: dict, worst_path, out_dir, name: str = "replay.json", every_metric: bool = False
+) -> dict:
     """Run the scenarios of a ``worst.json`` again (its seed, scenario numbers and parameters)
-    and write ``replay.json``: ``{"metric", "seed", "scenarios": [{metric: value, "recorded":
-    the value in worst.json, "params", "index", "diverged"}]}``."""
+    and write ``replay.json`` (or ``name``): ``{"metric", "seed", "scenarios": [{metric:
+    value, "recorded": the value in worst.json, "params", "index", "diverged"}]}``, with
+    ``every_metric`` also ``"metrics"``: every metric of the run (``vcjax sweep
+    --scenario``)."""
     import dataclasses
 
     from vcjax.runtime.outputs import write_json_atomic
 
     metric = cfg["metric"]
     doc, x, idx = read_worst(worst_path, cfg["envelope"], metric)
+    m_obj, metric = metric, metric_label(metric)
     setting = dataclasses.replace(cfg["setting"], seed=int(doc.get("seed", 0)))
     t0 = time.perf_counter()
-    m = evaluate(cfg["loop"], cfg["gains"], cfg["envelope"], setting, metric, x, idx)
+    m = evaluate(cfg["loop"], cfg["gains"], cfg["envelope"], setting, m_obj, x, idx)
     rows = []
     for j, s in enumerate(doc["scenarios"]):
         rows.append(
@@ -304,10 +343,12 @@ def replay_worst(cfg: dict, worst_path, out_dir) -> dict:
                 "diverged": bool(m["diverged"][j]),
             }
         )
+        if every_metric:
+            rows[-1]["metrics"] = {k: _num(v[j]) for k, v in m.items() if k != "diverged"}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rep = {"metric": metric, "seed": setting.seed, "scenarios": rows}
-    files = [write_json_atomic(out / "replay.json", rep)]
+    files = [write_json_atomic(out / name, rep)]
     if cfg["figures"]:
         from vcjax.search.figures import plot_worst, worst_trajectory
 

@@ -11,7 +11,7 @@ import dataclasses
 import functools
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple, Protocol
 
 import jax
 import jax.numpy as jnp
@@ -23,7 +23,16 @@ from vcjax.runtime.interrupts import stop_requested
 from vcjax.search.envelope import Envelope, Setting, make_setting, scenario_from
 from vcjax.sweep.run import _act_names, simulate_scenario
 
-__all__ = ["ALIASES", "FalsifyResult", "falsify", "evaluate", "metric_name", "soft_metric"]
+__all__ = [
+    "ALIASES",
+    "FalsifyOptions",
+    "FalsifyResult",
+    "SegmentMetric",
+    "falsify",
+    "evaluate",
+    "metric_name",
+    "soft_metric",
+]
 
 #: other spellings of the sweep metrics
 ALIASES = {
@@ -38,9 +47,39 @@ SHARPNESS = 16.0
 _FLOOR = -1.0e6  # log-domain stand-in for an empty or masked sample (finite: no NaN gradients)
 
 
-def metric_name(loop, gains, setting: Setting, name: str) -> str:
+class SegmentMetric(Protocol):
+    """A metric of one rollout that is not a sweep metric (e.g. the tuning loss:
+    ``tuning.robust.TuningLossMetric``), folded segment by segment like the sweep metrics.
+
+    A hashable, frozen object (it is a static argument of the compiled search): ``name`` (the
+    key it is reported under), ``init(dtype)`` (an accumulator pytree), ``update(acc, seg,
+    sig, ks)`` (fold the segment's [`Trajectory`][vcjax.rollout.Trajectory] ``seg``, its
+    [`Signals`][vcjax.loops.types.Signals] ``sig`` and its (L,) step indices ``ks``),
+    ``value(acc, n)`` (the () metric after ``n`` steps). A smooth metric: its gradient is
+    ascended as is.
+    """
+
+    name: str
+
+    def init(self, dtype) -> Any: ...
+
+    def update(self, acc, seg, sig, ks) -> Any: ...
+
+    def value(self, acc, n: int) -> Any: ...
+
+
+def _name(metric) -> str:
+    return metric if isinstance(metric, str) else metric.name
+
+
+def metric_name(loop, gains, setting: Setting, name):
     """The sweep metric ``name`` (or an alias of ``ALIASES``) of ``loop``'s metrics
-    (``ValueError`` listing them)."""
+    (``ValueError`` listing them); a [`SegmentMetric`][vcjax.search.core.SegmentMetric] is
+    returned as it is."""
+    if not isinstance(name, str):
+        if not all(hasattr(name, a) for a in ("name", "init", "update", "value")):
+            raise ValueError(f"metric: expected a metric name or a SegmentMetric, got {name!r}")
+        return name
     env = Envelope.build(loop, {})
     sc = scenario_from(jnp.asarray(env.lo), 0, env, dataclasses.replace(setting, sea=None))
     from vcjax.sweep.run import to_scenario
@@ -60,9 +99,12 @@ def soft_metric(name: str) -> bool:
     return name.startswith("max_")
 
 
-def _metrics(x, index, gains, env: Envelope, setting: Setting, metric: str, sharpness: float):
+def _metrics(x, index, gains, env: Envelope, setting: Setting, metric, sharpness: float):
     """``(surrogate, metrics)`` of one scenario: the metrics of a streamed rollout and, for a
-    max metric, its power mean over the same samples (else the metric itself)."""
+    max metric, its power mean over the same samples (else the metric itself); a
+    [`SegmentMetric`][vcjax.search.core.SegmentMetric] is added to the metrics under its
+    name."""
+    custom = not isinstance(metric, str)
     loop, config = setting.loop, setting.config
     sc = scenario_from(x, index, env, setting)
     n = config.num_steps
@@ -74,10 +116,12 @@ def _metrics(x, index, gains, env: Envelope, setting: Setting, metric: str, shar
         names = _act_names(loop, gains, s)
 
         def update(acc, seg, ks):
-            macc, soft, healthy = acc
+            macc, soft, healthy, cacc = acc
             sig = loop.signals(seg, s)
             macc = metrics_update(macc, sig, seg.finite, ks, k0)
-            if soft_metric(metric):
+            if custom:
+                cacc = metric.update(cacc, seg, sig, ks)
+            elif soft_metric(metric):
                 if metric == "max_abs_e":
                     a, mask = jnp.abs(sig.eps[:, 1]), jnp.ones(ks.shape, bool)
                 elif metric == "max_dist_3d":
@@ -86,17 +130,20 @@ def _metrics(x, index, gains, env: Envelope, setting: Setting, metric: str, shar
                     a, mask = sig.act[metric.removeprefix("max_abs_")], jnp.ones(ks.shape, bool)
                 la = jnp.where(mask, p * jnp.log(jnp.abs(a) + 1e-30), _FLOOR)
                 soft = jnp.logaddexp(soft, jax.scipy.special.logsumexp(la))
-            return (macc, soft, healthy & seg.healthy), None
+            return (macc, soft, healthy & seg.healthy, cacc), None
 
-        init = (metrics_init(names, dtype), jnp.asarray(_FLOOR, dtype), jnp.array(True))
+        cacc = metric.init(dtype) if custom else ()
+        init = (metrics_init(names, dtype), jnp.asarray(_FLOOR, dtype), jnp.array(True), cacc)
         L = min(100, n)
         return Reduction(init, update, L)
 
     (acc, _), _ = simulate_scenario(loop, gains, setting.nominal, sc, config, setting.dt, reduction)
-    macc, soft, healthy = acc
+    macc, soft, healthy, cacc = acc
     m = metrics_finalize(macc, n, k0, jnp.asarray(setting.dt, dtype), setting.diverge_e)
     m["diverged"] = m["diverged"] | ~healthy
-    if soft_metric(metric):
+    if custom:
+        m[metric.name] = surrogate = metric.value(cacc, n)
+    elif soft_metric(metric):
         count = n - k0 if metric == "max_dist_3d" else n
         surrogate = jnp.exp((soft - jnp.log(count)) / p)
     else:
@@ -130,7 +177,7 @@ def _key(setting: Setting):
     return dataclasses.replace(setting, nominal=None)
 
 
-def evaluate(loop, gains, env: Envelope, setting: Setting, metric: str, x, index) -> dict:
+def evaluate(loop, gains, env: Envelope, setting: Setting, metric, x, index) -> dict:
     """The metrics (name -> (B,) numpy) of parameter vectors ``x`` (B, P) in config units with
     the random draws of scenarios ``index`` (B,): e.g. a replay of ``worst.json``."""
     x = jnp.asarray(np.asarray(x, dtype=float), _dtype(setting))
@@ -227,23 +274,165 @@ class FalsifyResult:
         ]
 
 
+@dataclasses.dataclass(frozen=True)
+class FalsifyOptions:
+    """How [`falsify`][vcjax.search.core.falsify] searches.
+
+    Attributes:
+        starts: gradient ascents run together (under ``vmap``).
+        steps: ascent steps of each.
+        step_size: Adam's step in the envelope's unit box.
+        random_rollouts: rollouts of the random baseline (default: as many as the ascent ran).
+        random_batch: rollouts per batch of the baseline (at least ``starts``).
+        bound: stop (each search) as soon as a scenario's metric exceeds it.
+        sharpness: power of the power-mean surrogate of a ``max_*`` metric.
+        progress: receives a line per step / batch.
+        stop: polled between steps (default: ``stop_requested``); the result keeps what was
+            found.
+        first_index: the scenario number of the first start (the starts are ``first_index``,
+            ``first_index + 1``, ...: their random draws; the baseline's follow them): another
+            set of draws under the same seed without compiling again (the seed is static), as
+            robust tuning's rounds do; its starting points are drawn from it too.
+    """
+
+    starts: int = 8
+    steps: int = 20
+    step_size: float = 0.05
+    random_rollouts: int | None = None
+    random_batch: int = 256
+    bound: float | None = None
+    sharpness: float = SHARPNESS
+    progress: Callable[[str], Any] | None = None
+    stop: Callable[[], bool] | None = None
+    first_index: int = 0
+
+
+_OPTION_FIELDS = frozenset(f.name for f in dataclasses.fields(FalsifyOptions))
+
+
+class _Search(NamedTuple):
+    """What both searches of [`falsify`][vcjax.search.core.falsify] share."""
+
+    envelope: Envelope
+    setting: Setting
+    key: Setting  # the static part (``_key``)
+    metric: str
+    gains: Any
+    dtype: Any
+    width: Any  # (P,) 1 where the envelope has a range, 0 where it is a point
+    o: FalsifyOptions
+    say: Callable[[str], Any]
+    stop: Callable[[], bool]
+
+
+def _ascent(c: _Search) -> dict:
+    """Multi-start projected gradient ascent (Adam in the unit box): each start's worst point,
+    its metric and divergence flag, the curve, and how the ascent ended."""
+    o, metric, starts = c.o, c.metric, c.o.starts
+    name = _name(metric)
+    i0 = int(o.first_index)
+    rng = np.random.default_rng([c.setting.seed, 1] + ([i0] if i0 else []))
+    z = jnp.asarray(rng.random((starts, len(c.envelope.names))), c.dtype) * c.width
+    index = jnp.arange(i0, i0 + starts, dtype=jnp.int32)
+    m1, m2 = jnp.zeros_like(z), jnp.zeros_like(z)
+    best_v, best_val = np.full(starts, -np.inf), np.full(starts, np.nan)
+    best_z, best_div = np.asarray(z), np.zeros(starts, bool)
+    out = {"curve": [], "falsified": False, "interrupted": False, "first_s": None, "done": 0}
+    t0 = time.perf_counter()
+    compiled = functools.partial(
+        _value_and_grad, env=c.envelope, setting=c.key, metric=metric, sharpness=float(o.sharpness)
+    )
+    b1, b2 = 0.9, 0.999
+    for k in range(o.steps):
+        if k and c.stop():
+            out["interrupted"] = True
+            break
+        m, g = compiled(z, index, c.gains, c.setting.nominal)
+        v = np.asarray(m[name])
+        out["first_s"] = time.perf_counter() - t0 if out["first_s"] is None else out["first_s"]
+        r = _rank(v)
+        better = r > best_v
+        best_v = np.where(better, r, best_v)
+        best_val = np.where(better, v, best_val)
+        best_z = np.where(better[:, None], np.asarray(z), best_z)
+        best_div = np.where(better, np.asarray(m["diverged"]), best_div)
+        out["done"] += starts
+        worst = float(np.max(best_v))
+        out["curve"].append((out["done"], worst))
+        c.say(f"gradient step {k + 1}/{o.steps}: {out['done']} rollouts, worst {name} {worst:.4g}")
+        if o.bound is not None and worst > o.bound:
+            out["falsified"] = True
+            break
+        g = jnp.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0) * c.width
+        m1 = b1 * m1 + (1 - b1) * g
+        m2 = b2 * m2 + (1 - b2) * g * g
+        mh = m1 / (1 - b1 ** (k + 1))
+        vh = m2 / (1 - b2 ** (k + 1))
+        z = jnp.clip(z + o.step_size * mh / (jnp.sqrt(vh) + 1e-8), 0.0, 1.0) * c.width
+    out["wall_s"] = time.perf_counter() - t0
+    x = np.asarray(c.envelope.from_unit(jnp.asarray(best_z, c.dtype)))
+    out.update(x=x, index=np.asarray(index), value=best_val, diverged=best_div.astype(bool))
+    return out
+
+
+def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
+    """Plain random sampling of the same envelope, new scenario numbers, in equal batches of at
+    most ``random_batch`` (at least ``starts``: no padded work in the timing)."""
+    o, metric, starts, P = c.o, c.metric, c.o.starts, len(c.envelope.names)
+    name = _name(metric)
+    t1 = time.perf_counter()
+    i0 = int(o.first_index)
+    rng = np.random.default_rng([c.setting.seed, 2] + ([i0] if i0 else []))
+    rx, ri, rv, rd, rcurve = [], [], [], [], []
+    rworst, rfals = -np.inf, False
+    fwd = None
+    batch = max(starts, -(-n_rand // max(1, -(-n_rand // o.random_batch)))) if n_rand else starts
+    j = 0
+    while j < n_rand and not interrupted:
+        if j and c.stop():
+            interrupted = True
+            break
+        zb = rng.random((batch, P)) * np.asarray(c.width)
+        xb = np.asarray(c.envelope.from_unit(jnp.asarray(zb, c.dtype)))
+        ib = np.arange(i0 + starts + j, i0 + starts + j + batch, dtype=np.int32)
+        if fwd is None:
+            fwd = functools.partial(_forward, env=c.envelope, setting=c.key, metric=metric)
+        m = jax.device_get(fwd(jnp.asarray(xb, c.dtype), ib, c.gains, c.setting.nominal))
+        nb = min(batch, n_rand - j)
+        rx.append(xb[:nb])
+        ri.append(ib[:nb])
+        rv.append(np.asarray(m[name])[:nb])
+        rd.append(np.asarray(m["diverged"])[:nb])
+        for k, r in enumerate(_rank(rv[-1])):  # one point per rollout
+            rworst = max(rworst, float(r))
+            rcurve.append((j + k + 1, rworst))
+        j += nb
+        c.say(f"random: {j}/{n_rand} rollouts, worst {name} {rworst:.4g}")
+        if o.bound is not None and rworst > o.bound:
+            rfals = True
+            break
+    cat = lambda parts, shape: np.concatenate(parts) if parts else np.zeros(shape)
+    return {
+        "random_x": cat(rx, (0, P)),
+        "random_index": cat(ri, (0,)).astype(np.int64),
+        "random_value": cat(rv, (0,)),
+        "random_diverged": cat(rd, (0,)).astype(bool),
+        "random_curve": rcurve,
+        "random_rollouts": j,
+        "random_wall_s": time.perf_counter() - t1,
+        "random_falsified": rfals,
+        "interrupted": interrupted,
+    }
+
+
 def falsify(
     loop,
     gains,
     envelope,
-    metric: str,
+    metric,
     setting: Setting | None = None,
-    *,
-    starts: int = 8,
-    steps: int = 20,
-    step_size: float = 0.05,
-    random_rollouts: int | None = None,
-    random_batch: int = 256,
-    bound: float | None = None,
-    sharpness: float = SHARPNESS,
-    progress: Callable[[str], Any] | None = None,
-    stop: Callable[[], bool] | None = None,
-    **setting_options,
+    options: FalsifyOptions | None = None,
+    **kwargs,
 ) -> FalsifyResult:
     """Search the envelope for the scenarios that make ``metric`` largest.
 
@@ -260,131 +449,51 @@ def falsify(
             [`Envelope`][vcjax.search.envelope.Envelope], or a
             mapping name -> ``(lo, hi)`` or number
             ([`Envelope.build`][vcjax.search.envelope.Envelope.build]);
-        metric: a sweep metric of the loop (or an alias, ``ALIASES``).
+        metric: a sweep metric of the loop (or an alias, ``ALIASES``), or a
+            [`SegmentMetric`][vcjax.search.core.SegmentMetric] (e.g. the tuning loss).
         setting: [`Setting`][vcjax.search.envelope.Setting] (horizon, dt, nominal parameters, sea,
             seed); default:
-            [`make_setting`][vcjax.search.envelope.make_setting] of ``setting_options``.
-        bound: stop (each search) as soon as a scenario's metric exceeds it.
-        progress: receives a line per step / batch; stop: polled between steps (default:
-            ``stop_requested``); the result keeps what was found.
+            [`make_setting`][vcjax.search.envelope.make_setting] of the keyword arguments that
+            are not search options (``horizon=60.0``, ``dt=0.05``, ...).
+        options: [`FalsifyOptions`][vcjax.search.core.FalsifyOptions] (starts, steps, step size,
+            baseline, ``bound``, sharpness, ``progress``, ``stop``); its fields are also
+            accepted by name (``starts=8``, ``bound=2.0``, ...).
     """
+    from vcjax._checks import with_options
+
+    opts = {k: v for k, v in kwargs.items() if k in _OPTION_FIELDS}
+    setting_options = {k: v for k, v in kwargs.items() if k not in _OPTION_FIELDS}
+    o = with_options(FalsifyOptions, options, opts, "falsify")
     if not isinstance(envelope, Envelope):
         envelope = Envelope.build(loop, envelope, dt=setting_options.get("dt", 0.05))
     if setting is None:
         setting = make_setting(loop, envelope, **setting_options)
     elif setting_options:
         raise ValueError(f"give a setting or its options, not both: {sorted(setting_options)}")
-    if starts < 1 or steps < 1:
-        raise ValueError(f"starts, steps: expected >= 1, got {starts}, {steps}")
+    if o.starts < 1 or o.steps < 1:
+        raise ValueError(f"starts, steps: expected >= 1, got {o.starts}, {o.steps}")
     metric = metric_name(loop, gains, setting, metric)
     setting = dataclasses.replace(setting, loop=loop)
-    stop = stop_requested if stop is None else stop
-    say = progress or (lambda line: None)
     dtype = _dtype(setting)
-    key = _key(setting)
-    P = len(envelope.names)
-    rng = np.random.default_rng([setting.seed, 1])
-    z = jnp.asarray(rng.random((starts, P)), dtype)
-    index = jnp.arange(starts, dtype=jnp.int32)
     width = jnp.asarray(np.asarray(envelope.hi) > np.asarray(envelope.lo), dtype)
-    z = z * width
-    m1 = jnp.zeros_like(z)
-    m2 = jnp.zeros_like(z)
-    best_v = np.full(starts, -np.inf)
-    best_val = np.full(starts, np.nan)
-    best_z = np.asarray(z)
-    best_div = np.zeros(starts, bool)
-    curve, falsified, interrupted = [], False, False
-    t0 = time.perf_counter()
-    compiled = functools.partial(
-        _value_and_grad, env=envelope, setting=key, metric=metric, sharpness=float(sharpness)
-    )
-    first_s = None
-    done = 0
-    b1, b2 = 0.9, 0.999
-    for k in range(steps):
-        if k and stop():
-            interrupted = True
-            break
-        m, g = compiled(z, index, gains, setting.nominal)
-        v = np.asarray(m[metric])
-        first_s = time.perf_counter() - t0 if first_s is None else first_s
-        r = _rank(v)
-        better = r > best_v
-        best_v = np.where(better, r, best_v)
-        best_val = np.where(better, v, best_val)
-        best_z = np.where(better[:, None], np.asarray(z), best_z)
-        best_div = np.where(better, np.asarray(m["diverged"]), best_div)
-        done += starts
-        worst = float(np.max(best_v))
-        curve.append((done, worst))
-        say(f"gradient step {k + 1}/{steps}: {done} rollouts, worst {metric} {worst:.4g}")
-        if bound is not None and worst > bound:
-            falsified = True
-            break
-        g = jnp.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0) * width
-        m1 = b1 * m1 + (1 - b1) * g
-        m2 = b2 * m2 + (1 - b2) * g * g
-        mh = m1 / (1 - b1 ** (k + 1))
-        vh = m2 / (1 - b2 ** (k + 1))
-        z = jnp.clip(z + step_size * mh / (jnp.sqrt(vh) + 1e-8), 0.0, 1.0) * width
-    wall_s = time.perf_counter() - t0
-
-    # the baseline: plain random sampling of the same envelope, new scenario numbers
-    n_rand = done if random_rollouts is None else int(random_rollouts)
-    t1 = time.perf_counter()
-    rng = np.random.default_rng([setting.seed, 2])
-    rx, ri, rv, rd, rcurve = [], [], [], [], []
-    rworst, rfals = -np.inf, False
-    fwd = None
-    # equal batches of at most random_batch (at least starts): no padded work in the timing
-    batch = max(starts, -(-n_rand // max(1, -(-n_rand // random_batch)))) if n_rand else starts
-    j = 0
-    while j < n_rand and not interrupted:
-        if j and stop():
-            interrupted = True
-            break
-        zb = rng.random((batch, P)) * np.asarray(width)
-        xb = np.asarray(envelope.from_unit(jnp.asarray(zb, dtype)))
-        ib = np.arange(starts + j, starts + j + batch, dtype=np.int32)
-        if fwd is None:
-            fwd = functools.partial(_forward, env=envelope, setting=key, metric=metric)
-        m = jax.device_get(fwd(jnp.asarray(xb, dtype), ib, gains, setting.nominal))
-        nb = min(batch, n_rand - j)
-        rx.append(xb[:nb])
-        ri.append(ib[:nb])
-        rv.append(np.asarray(m[metric])[:nb])
-        rd.append(np.asarray(m["diverged"])[:nb])
-        for k, r in enumerate(_rank(rv[-1])):  # one point per rollout
-            rworst = max(rworst, float(r))
-            rcurve.append((j + k + 1, rworst))
-        j += nb
-        say(f"random: {j}/{n_rand} rollouts, worst {metric} {rworst:.4g}")
-        if bound is not None and rworst > bound:
-            rfals = True
-            break
-    random_wall_s = time.perf_counter() - t1
-    cat = lambda parts, shape: np.concatenate(parts) if parts else np.zeros(shape)
+    stop = stop_requested if o.stop is None else o.stop
+    say = o.progress or (lambda line: None)
+    c = _Search(envelope, setting, _key(setting), metric, gains, dtype, width, o, say, stop)
+    a = _ascent(c)
+    n_rand = a["done"] if o.random_rollouts is None else int(o.random_rollouts)
+    b = _baseline(c, n_rand, a["interrupted"])
     return FalsifyResult(
-        metric=metric,
+        metric=_name(metric),
         envelope=envelope,
-        x=np.asarray(envelope.from_unit(jnp.asarray(best_z, dtype))),
-        index=np.asarray(index),
-        value=best_val,
-        diverged=best_div.astype(bool),
-        curve=curve,
-        random_x=cat(rx, (0, P)),
-        random_index=cat(ri, (0,)).astype(np.int64),
-        random_value=cat(rv, (0,)),
-        random_diverged=cat(rd, (0,)).astype(bool),
-        random_curve=rcurve,
-        rollouts=done,
-        random_rollouts=j,
-        wall_s=wall_s,
-        random_wall_s=random_wall_s,
-        first_step_s=first_s,
-        bound=bound,
-        falsified=falsified,
-        random_falsified=rfals,
-        interrupted=interrupted,
+        x=a["x"],
+        index=a["index"],
+        value=a["value"],
+        diverged=a["diverged"],
+        curve=a["curve"],
+        rollouts=a["done"],
+        wall_s=a["wall_s"],
+        first_step_s=a["first_s"],
+        bound=o.bound,
+        falsified=a["falsified"],
+        **b,
     )

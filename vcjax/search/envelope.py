@@ -41,7 +41,16 @@ from vcjax.environment import waves
 from vcjax.environment.current import current_ned
 from vcjax.sweep.spec import MCConfig, MCScenario, ScenarioSpec, SweepSpec, check_wave_step
 
-__all__ = ["Envelope", "Setting", "scenario_from", "setting_from_spec", "envelope_from_spec"]
+__all__ = [
+    "Envelope",
+    "Setting",
+    "SettingOptions",
+    "make_setting",
+    "scenario_from",
+    "setting_from_spec",
+    "envelope_from_spec",
+    "envelope_from_scenario",
+]
 
 _WAVE = ("wave_hs", "wave_tp", "wave_direction_deg", "wave_spreading", "wave_origin_depth")
 _PLAIN = ("current_speed", "current_direction_deg", "u_d")
@@ -292,27 +301,32 @@ def scenario_from(x, index, env: Envelope, setting: Setting) -> MCScenario:
 def envelope_from_spec(spec: SweepSpec) -> Envelope:
     """The envelope of a sweep spec's scenario ranges (every ``[lo, hi]`` searched, every
     number fixed; ``[model_error] relative = r``: each field's factor in ``[1 - r, 1 + r]``)."""
-    sc: ScenarioSpec = spec.scenario
-    loop = spec.loop(spec.variants[0])
+    return envelope_from_scenario(spec.scenario, spec.loop(spec.variants[0]), spec.dt)
+
+
+def envelope_from_scenario(sc: ScenarioSpec, loop, dt: float | None = None) -> Envelope:
+    """The envelope of a [`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec]'s ranges for ``loop``
+    (as [`envelope_from_spec`][vcjax.search.envelope.envelope_from_spec]; e.g. the scenario
+    distribution of a tune, ``tuning.robust``)."""
     r = {
-        "current_speed": sc.current_speed,
-        "current_direction_deg": sc.current_direction_deg,
+        "current_speed": sc.current.speed,
+        "current_direction_deg": sc.current.direction_deg,
         "u_d": sc.u_d or (loop.default_speed,) * 2,
     }
-    r |= {f"initial.{k}": v for k, v in sc.initial}
-    if sc.model_error > 0:
-        r |= {f"model.{f}": (1 - sc.model_error, 1 + sc.model_error) for f in sc.fields_for(loop)}
-    if sc.disturbance:
-        r |= {f"disturbance.{i}": v for i, v in enumerate(sc.disturbance)}
+    r |= {f"initial.{k}": v for k, v in sc.initial.values}
+    rel = sc.model_error.relative
+    if rel > 0:
+        r |= {f"model.{f}": (1 - rel, 1 + rel) for f in sc.fields_for(loop)}
+    r |= {f"disturbance.{i}": v for i, v in enumerate(sc.disturbance.force)}
     if sc.waves:
         r |= {
-            "wave_hs": sc.wave_hs,
-            "wave_tp": sc.wave_tp,
-            "wave_direction_deg": sc.wave_direction_deg,
-            "wave_spreading": sc.wave_spreading,
-            "wave_origin_depth": sc.wave_origin_depth,
+            "wave_hs": sc.waves.hs,
+            "wave_tp": sc.waves.tp,
+            "wave_direction_deg": sc.waves.direction_deg,
+            "wave_spreading": sc.waves.spreading,
+            "wave_origin_depth": sc.waves.origin_depth,
         }
-    return Envelope.build(loop, r, dt=spec.dt)
+    return Envelope.build(loop, r, dt=dt)
 
 
 def setting_from_spec(spec: SweepSpec, env: Envelope, variant: str | None = None) -> Setting:
@@ -326,7 +340,8 @@ def setting_from_spec(spec: SweepSpec, env: Envelope, variant: str | None = None
     config = dataclasses.replace(
         spec.mc_config(), model_fields=env.model_fields, record_stride=0, checkpoint=True
     )
-    sea = (sc.wave_spectrum, sc.wave_components, sc.wave_gamma) if sc.waves else None
+    w = sc.waves
+    sea = None if w is None else (w.spectrum, w.components, w.gamma)
     return Setting(
         loop=loop,
         config=config,
@@ -334,37 +349,57 @@ def setting_from_spec(spec: SweepSpec, env: Envelope, variant: str | None = None
         nominal=nominal(spec),
         diverge_e=spec.diverge_e,
         sea=sea,
-        current_gm=(sc.current_sigma, sc.current_tau, sc.current_max_speed),
+        current_gm=(sc.current.sigma, sc.current.tau, sc.current.max_speed),
         noise_std=tuple(float(a) for a in np.asarray(sc.noise_std(loop)).ravel()),
         seed=spec.seed,
     )
 
 
-def make_setting(
-    loop,
-    env: Envelope,
-    *,
-    horizon: float = 60.0,
-    dt: float = 0.05,
-    integrator: str = "rk4",
-    tail: float = 0.2,
-    diverge_e: float = 50.0,
-    seed: int = 0,
-    spectrum: str = "jonswap",
-    components: int = 64,
-    gamma: float = 3.3,
-    nominal=None,
-    dtype=None,
-) -> Setting:
+@dataclasses.dataclass(frozen=True)
+class SettingOptions:
+    """What [`make_setting`][vcjax.search.envelope.make_setting] builds a
+    [`Setting`][vcjax.search.envelope.Setting] from.
+
+    Attributes:
+        horizon, dt: simulated time and step [s].
+        integrator: the rollout's integrator; tail: fraction of the horizon of the tail
+            metrics; diverge_e: cross-track error [m] counted as diverged.
+        seed: the random draws' seed.
+        spectrum, components, gamma: the sea, when the envelope has one.
+        nominal: ``(plant, design, coeffs)`` (default: the loop's default plant as design model,
+            and its vehicle's default path coefficients).
+        dtype: floating-point type of the default plant.
+    """
+
+    horizon: float = 60.0
+    dt: float = 0.05
+    integrator: str = "rk4"
+    tail: float = 0.2
+    diverge_e: float = 50.0
+    seed: int = 0
+    spectrum: str = "jonswap"
+    components: int = 64
+    gamma: float = 3.3
+    nominal: Any = None
+    dtype: Any = None
+
+
+def make_setting(loop, env: Envelope, options: SettingOptions | None = None, **kwargs) -> Setting:
     """A [`Setting`][vcjax.search.envelope.Setting] for ``loop`` by hand: its default plant, design
     model and path
     coefficients unless ``nominal = (plant, design, coeffs)`` is given; a sea (``spectrum``,
-    ``components``, ``gamma``) when the envelope has one; gradient checkpointed per segment."""
+    ``components``, ``gamma``) when the envelope has one; gradient checkpointed per segment.
+    ``options``: [`SettingOptions`][vcjax.search.envelope.SettingOptions]; its fields are also
+    accepted by name (``horizon=2.0``, ``dt=0.05``, ...)."""
+    from vcjax._checks import with_options
+
+    o = with_options(SettingOptions, options, kwargs, "make_setting")
+    nominal, horizon, dt = o.nominal, o.horizon, o.dt
     if nominal is None:
         path, coeffs = type(loop).default_path()
         if path != loop.path:
             raise ValueError("nominal: the loop's path is not its vehicle's default; give coeffs")
-        plant = loop.default_params(dtype)
+        plant = loop.default_params(o.dtype)
         dt_ = jnp.asarray(jax.tree_util.tree_leaves(plant)[0]).dtype
         coeffs = jax.tree_util.tree_map(
             lambda a: (
@@ -377,15 +412,15 @@ def make_setting(
         raise ValueError(f"horizon, dt: expected 0 < dt <= horizon, got {horizon!r}, {dt!r}")
     config = MCConfig(
         num_steps=max(1, int(round(horizon / dt))),
-        integrator=integrator,
-        tail=tail,
+        integrator=o.integrator,
+        tail=o.tail,
         model_fields=env.model_fields,
         checkpoint=True,
     )
     if env.has_waves:
         check_wave_step(env.lo[env.names.index("wave_tp")], dt, "envelope: wave_tp")
-    sea = (spectrum, int(components), float(gamma)) if env.has_waves else None
+    sea = (o.spectrum, int(o.components), float(o.gamma)) if env.has_waves else None
     noise = tuple(float(a) for a in np.asarray(loop.noise_std({})).ravel())  # none (zeros)
     return Setting(
-        loop, config, float(dt), nominal, float(diverge_e), sea, noise_std=noise, seed=int(seed)
+        loop, config, float(dt), nominal, float(o.diverge_e), sea, noise_std=noise, seed=int(o.seed)
     )

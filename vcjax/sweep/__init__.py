@@ -62,6 +62,7 @@ TOML schema (every key optional unless marked; a value written ``range`` is eith
     controller = "vcm_integral" # optional: one controller (else [sweep] variants)
     params = "model.json"       # optional: parameter overrides, plant and design model
     plant_params = "plant.json" # optional: overrides of the plant only (after params)
+                                # + the loop class's static options (errors list them)
     [scenario.path]
     kind = "circle"             # "line" | "circle" | "helix" | "waypoints" (+ their keys)
     radius = 40.0
@@ -78,7 +79,6 @@ TOML schema (every key optional unless marked; a value written ``range`` is eith
     dt = 0.05                   # s, > 0, <= horizon
     integrator = "rk4"          # "euler" | "heun" | "rk4"
     timing = "continuous"       # "continuous" | "sampled"
-    edd = "paper"               # VCM e_ddot mode: "paper" | "implied"
     u_d = 2.0                   # range, m/s, desired speed (> 0; default: the vehicle's)
     gains = "gains.json"        # optional gains file (the vehicle's gains JSON, e.g. what
                                 # vcjax tune writes), relative to the config file

@@ -17,9 +17,7 @@ from vcjax.config import (
     ConfigError,
     Current,
     Disturbance,
-    Initial,
     ModelError,
-    SensorNoise,
     Simulation,
     Waves,
     as_bool,
@@ -30,20 +28,24 @@ from vcjax.config import (
     read_toml,
     resolve_file,
 )
-from vcjax.config.aliases import note_old_spellings
+from vcjax.config.aliases import note_old_spellings, take_moved
 from vcjax.config.scenario import parse_scenario
-from vcjax.config.schema import REGISTERED
+from vcjax.config.schema import registered
 from vcjax.sweep.results import load_results, merge_results, save_results, summarize
 from vcjax.sweep.run import run_sweep
-from vcjax.sweep.spec import ScenarioSpec, SweepSpec
+from vcjax.sweep.spec import SECTIONS, ScenarioSpec, SweepSpec
+
+#: the sections a ScenarioSpec holds as they are parsed
+SCENARIO_SECTIONS = tuple(SECTIONS)
 
 __all__ = ["SCHEMA", "load_config", "run_sweep_config", "check_waves", "refusal"]
 
-#: section -> keys ([initial] and [sensor_noise] keys depend on the vehicle)
+#: section -> keys ([initial] and [sensor_noise] keys depend on the vehicle); a key of
+#: [sweep], [simulation], [metrics] or [output] that is a field of SweepSpec is that field
 SCHEMA: dict[str, tuple[str, ...] | None] = {
     "scenario": None,  # vcjax.config.scenario checks it (the options depend on the loop)
     "sweep": ("num_scenarios", "seed", "variants", "chunk_size"),
-    "simulation": (*(f.name for f in dataclasses.fields(Simulation)), "edd", "gains"),
+    "simulation": (*(f.name for f in dataclasses.fields(Simulation)), "gains"),
     "current": tuple(f.name for f in dataclasses.fields(Current)),
     "waves": tuple(f.name for f in dataclasses.fields(Waves)),
     "initial": None,
@@ -53,51 +55,16 @@ SCHEMA: dict[str, tuple[str, ...] | None] = {
     "metrics": ("tail", "diverge_e"),
     "output": ("record_points", "figures"),
 }
-#: (section, key) -> SweepSpec field
-SPEC_FIELDS = _SPEC_KEYS = {
-    ("sweep", "num_scenarios"): "num_scenarios",
-    ("sweep", "seed"): "seed",
-    ("sweep", "variants"): "variants",
-    ("sweep", "chunk_size"): "chunk_size",
-    ("simulation", "horizon"): "horizon",
-    ("simulation", "dt"): "dt",
-    ("simulation", "integrator"): "integrator",
-    ("simulation", "timing"): "timing",
-    ("simulation", "edd"): "edd",
-    ("metrics", "tail"): "tail",
-    ("metrics", "diverge_e"): "diverge_e",
-    ("output", "record_points"): "record_points",
-}
-_SCENARIO_KEYS = {
-    ("simulation", "u_d"): "u_d",
-    ("current", "model"): "current_model",
-    ("current", "speed"): "current_speed",
-    ("current", "direction_deg"): "current_direction_deg",
-    ("current", "sigma"): "current_sigma",
-    ("current", "tau"): "current_tau",
-    ("current", "max_speed"): "current_max_speed",
-    ("model_error", "relative"): "model_error",
-    ("model_error", "fields"): "model_fields",
-    ("waves", "spectrum"): "wave_spectrum",
-    ("waves", "hs"): "wave_hs",
-    ("waves", "tp"): "wave_tp",
-    ("waves", "direction_deg"): "wave_direction_deg",
-    ("waves", "gamma"): "wave_gamma",
-    ("waves", "spreading"): "wave_spreading",
-    ("waves", "components"): "wave_components",
-    ("waves", "origin_depth"): "wave_origin_depth",
-}
+#: the sections whose keys are SweepSpec fields of the same name
+_SPEC_SECTIONS = ("sweep", "simulation", "metrics", "output")
 
 
 def _toml_name(msg: str) -> str:
-    """Rewrite a spec field name at the start of ``msg`` into its ``[section] key``."""
+    """Rewrite a SweepSpec field name at the start of ``msg`` into its ``[section] key``."""
     head, sep, rest = msg.partition(":")
-    for (sec, key), field in (*_SPEC_KEYS.items(), *_SCENARIO_KEYS.items()):
-        if head == field:
-            return f"[{sec}] {key}{sep}{rest}"
-    if head in ("initial", "noise", "disturbance"):
-        sec = {"noise": "sensor_noise"}.get(head, head)
-        return f"[{sec}]{sep}{rest}"
+    for sec in _SPEC_SECTIONS:
+        if head in SCHEMA[sec]:
+            return f"[{sec}] {head}{sep}{rest}"
     return msg
 
 
@@ -119,22 +86,21 @@ def refusal(err: ValueError) -> str:
     return msg
 
 
-def _sections(raw: dict, where: str) -> dict:
+def _sections(raw: dict) -> dict:
     """The shared sections ([`vcjax.config.schema`][vcjax.config.schema]) of a sweep config,
-    parsed."""
-    kinds = {
-        "simulation": Simulation,
-        "current": Current,
-        "waves": Waves,
-        "initial": Initial,
-        "model_error": ModelError,
-        "sensor_noise": SensorNoise,
-        "disturbance": Disturbance,
-    }
-    out = {}
-    for sec, cls in kinds.items():
-        table = {k: v for k, v in raw.get(sec, {}).items() if k not in ("edd", "gains")}
-        out[sec] = parse_section(cls, table, sec)
+    parsed (``"waves"``: ``None`` without ``[waves]``)."""
+    out = {"waves": None}
+    for sec, cls in SECTIONS.items():
+        if sec != "waves" or "waves" in raw:
+            if sec == "waves":
+                check_waves(raw["waves"])
+            out[sec] = parse_section(cls, raw.get(sec), sec)
+    sim = {k: v for k, v in raw.get("simulation", {}).items() if k != "gains"}
+    out["simulation"] = parse_section(Simulation, sim, "simulation")
+    if "smooth" in sim and out["simulation"].smooth:
+        raise ConfigError(
+            "[simulation] smooth: a sweep simulates the hard-clipped plant (smooth = false)"
+        )
     return out
 
 
@@ -149,7 +115,7 @@ def environment_sections(raw: dict, schema, where: str) -> tuple[dict, tuple]:
         try:
             env.append(environment.freeze(sec, raw[sec]))
         except ValueError as err:
-            raise ConfigError(f"{where}: {err}") from None
+            raise ConfigError(f"{where}: {err}" if where else str(err)) from None
     return {k: v for k, v in raw.items() if k not in known}, tuple(env)
 
 
@@ -164,30 +130,72 @@ ENGINE_CURRENT_NOTE = (
 )
 
 
-def _check_spellings(raw: dict, choice, spec_kw: dict) -> None:
-    """Old and new spellings of one setting given together must agree (refused naming both);
-    ``spec_kw["edd"]`` becomes what runs: ``[scenario] edd`` when given (``run.json`` and
-    ``summary.json`` record the mode the loop used)."""
+def _check_tables(raw: dict, cls, where: str) -> dict:
+    """Every section and key known (the sections added to the one table of sections included,
+    the vehicle's ``[initial]`` and ``[sensor_noise]`` keys), ``[sweep] num_scenarios`` given;
+    returns the added sections, parsed."""
+    added = registered()
+    check_schema(
+        raw,
+        {**SCHEMA, **{n: tuple(f.name for f in dataclasses.fields(c)) for n, c in added.items()}},
+        where,
+    )
+    for sec, valid in (("initial", tuple(cls.initial_keys)), ("sensor_noise", cls.noise_channels)):
+        for key in raw.get(sec, {}):
+            if key not in valid:
+                raise ConfigError(
+                    f"{where}: unknown key [{sec}] {key!r} for vehicle {cls.vehicle!r}; "
+                    f"expected one of {list(valid)}"
+                )
+    if "num_scenarios" not in raw.get("sweep", {}):
+        raise ConfigError(f"{where}: [sweep] num_scenarios is required")
+    return {n: parse_section(c, raw.get(n), n, where) for n, c in added.items()}
+
+
+def _spec_keys(raw: dict, choice, cls) -> dict:
+    """The keys of ``[sweep]``, ``[simulation]``, ``[metrics]``, ``[output]`` that are
+    [`SweepSpec`][vcjax.sweep.spec.SweepSpec] fields; ``variants``: ``[sweep] variants`` (which
+    must agree with ``[scenario] controller``), else the controller, else the vehicle's."""
+    fields = {f.name for f in dataclasses.fields(SweepSpec)}
+    kw = {k: v for s in _SPEC_SECTIONS for k, v in raw.get(s, {}).items() if k in fields}
     ctrl = choice.controller
-    if ctrl is not None and "variants" in spec_kw and tuple(spec_kw["variants"]) != (ctrl,):
-        raise ConfigError(
-            f"[sweep] variants: {list(spec_kw['variants'])} contradicts [scenario] controller "
-            f"{ctrl!r} (its newer spelling); give one of them"
-        )
-    given = dict(choice.options)
-    if "edd" in given:
-        if "edd" in spec_kw and spec_kw["edd"] != given["edd"]:
+    if "variants" in kw:
+        kw["variants"] = as_str_list("[sweep] variants", kw["variants"])
+        if ctrl is not None and tuple(kw["variants"]) != (ctrl,):
             raise ConfigError(
-                f"[simulation] edd: {spec_kw['edd']!r} contradicts [scenario] edd "
-                f"{given['edd']!r} (its newer spelling); give one of them"
+                f"[sweep] variants: {list(kw['variants'])} contradicts [scenario] controller "
+                f"{ctrl!r} (its newer spelling); give one of them"
             )
-        spec_kw["edd"] = given["edd"]
+    elif ctrl:
+        kw["variants"] = (ctrl,)
+    elif choice.vehicle != "infante":
+        kw["variants"] = cls.controllers
+    return kw
+
+
+def _scenario(raw: dict, sec: dict, env: tuple, cls, where: str) -> ScenarioSpec:
+    """The [`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec]: the parsed sections as they are (a
+    loop that feels no current gets still water unless ``[current] speed`` is given); a current,
+    sea or component the loop cannot take is refused, never silently ignored."""
+    current = sec["current"]
+    if "speed" not in raw.get("current", {}):
+        if not cls.can_feel("current"):
+            current = dataclasses.replace(current, speed=(0.0, 0.0))
+        elif issubclass(cls, loops.EngineLoop):
+            note(ENGINE_CURRENT_NOTE.format(where=where, vehicle=cls.vehicle))
+    try:
+        gm = current.model == "gauss_markov"
+        loops.check_disturbances(cls, max(current.speed) > 0, gm, waves=sec["waves"] is not None)
+        loops.check_environment(cls, [environment.lookup(s) for s, _ in env])
+    except ValueError as err:
+        raise ConfigError(refusal(err)) from None
+    keep = {k: sec[k] for k in SCENARIO_SECTIONS}
+    return ScenarioSpec(**keep | {"current": current}, u_d=sec["simulation"].u_d, environment=env)
 
 
 def load_config(config_path, raw: dict | None = None) -> tuple[SweepSpec, dict]:
     """Read and validate a sweep TOML file (schema: [`vcjax.sweep`][vcjax.sweep]); ``raw``: its
-    tables
-    already read (e.g. ``vcjax falsify``'s, without its own section).
+    tables already read (e.g. ``vcjax falsify``'s, without its own section).
 
     Returns:
         ``(spec, extras)``: the [`SweepSpec`][vcjax.sweep.spec.SweepSpec] and ``extras = {"gains":
@@ -201,77 +209,24 @@ def load_config(config_path, raw: dict | None = None) -> tuple[SweepSpec, dict]:
             referenced file by its path).
     """
     config_path = Path(config_path)
-    raw = read_toml(config_path) if raw is None else raw
+    given = read_toml(config_path) if raw is None else raw
     where = str(config_path)
-    choice = parse_scenario(raw.get("scenario"), where, config_path)  # may register components
+    raw, older = take_moved(given)  # loop options in their older spellings
+    choice = parse_scenario(raw.get("scenario"), where, config_path, older)  # may register
     raw, env = environment_sections(raw, SCHEMA, where)
-    registered = {n: tuple(f.name for f in dataclasses.fields(c)) for n, c in REGISTERED.items()}
-    check_schema(raw, {**SCHEMA, **registered}, where)
-    own = {n: parse_section(c, raw.get(n), n, where) for n, c in REGISTERED.items()}
     cls = loops.loop_class(choice.vehicle)
-    for sec, valid in (("initial", tuple(cls.initial_keys)), ("sensor_noise", cls.noise_channels)):
-        for key in raw.get(sec, {}):
-            if key not in valid:
-                raise ConfigError(
-                    f"{where}: unknown key [{sec}] {key!r} for vehicle {choice.vehicle!r}; "
-                    f"expected one of {list(valid)}"
-                )
-    if "num_scenarios" not in raw.get("sweep", {}):
-        raise ConfigError(f"{where}: [sweep] num_scenarios is required")
-
-    spec_kw, sc_kw = {}, {}
+    own = _check_tables(raw, cls, where)
     try:
-        sections = _sections(raw, where)
-        if "smooth" in raw.get("simulation", {}) and sections["simulation"].smooth:
-            raise ConfigError(
-                "[simulation] smooth: a sweep simulates the hard-clipped plant (smooth = false)"
-            )
-        for (sec, key), field in _SPEC_KEYS.items():
-            if key in raw.get(sec, {}):
-                v = raw[sec][key]
-                if field == "variants":
-                    v = as_str_list(f"[{sec}] {key}", v)
-                spec_kw[field] = v
-        _check_spellings(raw, choice, spec_kw)
-        if "variants" not in spec_kw:
-            spec_kw["variants"] = (choice.controller,) if choice.controller else SweepSpec.variants
-            if not choice.controller and choice.vehicle != "infante":
-                spec_kw["variants"] = cls.controllers
-        for (sec, key), field in _SCENARIO_KEYS.items():
-            if key in raw.get(sec, {}):
-                sc_kw[field] = getattr(sections[sec], key)
-        sc_kw["environment"] = env
-        sc_kw["initial"] = sections["initial"].values
-        sc_kw["noise"] = sections["sensor_noise"].values
-        if "force" in raw.get("disturbance", {}):
-            sc_kw["disturbance"] = sections["disturbance"].force
-        if not cls.can_feel("current") and "speed" not in raw.get("current", {}):
-            sc_kw["current_speed"] = (0.0, 0.0)  # the default current is Simulation 1's
-        elif issubclass(cls, loops.EngineLoop) and "speed" not in raw.get("current", {}):
-            note(ENGINE_CURRENT_NOTE.format(where=where, vehicle=choice.vehicle))
-        if "waves" in raw:
-            check_waves(raw["waves"])
-            sc_kw["wave_spectrum"] = sections["waves"].spectrum
-        try:  # a current or a sea the loop cannot take is refused, never silently ignored
-            loops.check_disturbances(
-                cls,
-                max(sc_kw.get("current_speed", ScenarioSpec.current_speed)) > 0,
-                sc_kw.get("current_model", ScenarioSpec.current_model) == "gauss_markov",
-                waves="waves" in raw,
-            )
-            loops.check_environment(cls, [environment.lookup(sec) for sec, _ in env])
-        except ValueError as err:
-            raise ConfigError(refusal(err)) from None
-        gains = raw.get("simulation", {}).get("gains")
+        scenario = _scenario(raw, _sections(raw), env, cls, where)
+        spec = SweepSpec(scenario=scenario, choice=choice, **_spec_keys(raw, choice, cls))
         figures = as_bool("[output] figures", raw.get("output", {}).get("figures", True))
-        spec = SweepSpec(scenario=ScenarioSpec(**sc_kw), choice=choice, **spec_kw)
     except ConfigError as err:
         raise ConfigError(f"{where}: {_toml_name(str(err))}") from None
-    gains_path = None
+    gains = raw.get("simulation", {}).get("gains")
     if gains is not None:
-        gains_path = resolve_file(f"{where}: [simulation] gains", gains, config_path)
-    note_old_spellings(raw, where)  # once the config is known to be valid
-    return spec, {"gains": gains_path, "figures": figures, "sections": own}
+        gains = resolve_file(f"{where}: [simulation] gains", gains, config_path)
+    note_old_spellings(given, where)  # once the config is known to be valid
+    return spec, {"gains": gains, "figures": figures, "sections": own}
 
 
 def run_sweep_config(
@@ -366,7 +321,6 @@ KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
         "vcm_ilos); must agree with [scenario] controller when both are given",
     ),
     ("sweep", "chunk_size"): ("", "scenarios per compiled batch (rounded to the device count)"),
-    ("simulation", "edd"): ("", "VCM e_ddot mode: paper or implied"),
     ("simulation", "gains"): ("file", "the vehicle's gains JSON (what vcjax tune writes)"),
     ("metrics", "tail"): ("", "fraction of the run that is the steady-state window"),
     ("metrics", "diverge_e"): ("m", "cross-track bound beyond which a run counts as diverged"),

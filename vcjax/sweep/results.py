@@ -168,7 +168,7 @@ def wave_table(result: SweepResult, hs_bins: int = 3, depth_bins: int = 3) -> di
         lo, hi = r
         return np.linspace(lo, hi, n + 1) if hi > lo else np.array([lo, hi])
 
-    he, de = edges(sc.wave_hs, hs_bins), edges(sc.wave_origin_depth, depth_bins)
+    he, de = edges(sc.waves.hs, hs_bins), edges(sc.waves.origin_depth, depth_bins)
     ih = np.clip(np.searchsorted(he, hs, side="right") - 1, 0, len(he) - 2)
     idp = np.clip(np.searchsorted(de, depth, side="right") - 1, 0, len(de) - 2)
     out = {"hs_edges": he.tolist(), "origin_depth_edges": de.tolist(), "variants": {}}

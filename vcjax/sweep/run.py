@@ -57,10 +57,10 @@ def nominal(spec: SweepSpec, dtype=None):
     coefficients (as arrays of the parameters' dtype)."""
     loop = spec.loop(spec.variants[0])
     plant, design = spec.choice.nominal(loop, dtype)
-    dt = jnp.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
+    ftype = jnp.asarray(jax.tree_util.tree_leaves(design)[0]).dtype
+    floating = lambda a: jnp.issubdtype(jnp.asarray(a).dtype, jnp.floating)
     coeffs = jax.tree_util.tree_map(
-        lambda a: jnp.asarray(a, dt) if jnp.issubdtype(jnp.asarray(a).dtype, jnp.floating) else a,
-        spec.choice.coeffs(),
+        lambda a: jnp.asarray(a, ftype) if floating(a) else a, spec.choice.coeffs()
     )
     return plant, design, coeffs
 
@@ -97,6 +97,15 @@ def to_scenario(loop, sc: MCScenario, plant, design, coeffs, config: MCConfig) -
 _ENVIRONMENT_STREAM = 0x656E76
 
 
+def with_environment(loop, s: loops.Scenario, key, config: MCConfig) -> loops.Scenario:
+    """``s`` with the further environment components of ``config`` (``MCConfig.environment``),
+    drawn from the scenario's own ``key`` (a stream of its own: the other draws are unchanged)."""
+    if not config.environment:
+        return s
+    k_env = jax.random.fold_in(key, _ENVIRONMENT_STREAM)
+    return s._replace(environment=environment.sample(k_env, dict(config.environment), loop))
+
+
 def simulate_scenario(
     loop, gains, nominal_params, sc: MCScenario, config: MCConfig, dt, reduction=None
 ) -> tuple[Trajectory, loops.Scenario]:
@@ -131,9 +140,7 @@ def simulate_scenario(
         noise_std=sc.noise_std,
         key=sc.key,
     )
-    if config.environment:  # the further components, drawn from the scenario's own key
-        k_env = jax.random.fold_in(sc.key, _ENVIRONMENT_STREAM)
-        s = s._replace(environment=environment.sample(k_env, dict(config.environment), loop))
+    s = with_environment(loop, s, sc.key, config)
     red = None if reduction is None else reduction(s)
     return loops.simulate(loop, gains, s, rcfg, dt, dist, dp, reduction=red), s
 
@@ -305,6 +312,109 @@ def _progress_bar(total: int, progress) -> ProgressBar | None:
     return ProgressBar(total, "sweep ", sink=sink)
 
 
+class _Parts:
+    """What the chunks of a sweep returned, per chunk: scenario numbers, sampled fields, and per
+    variant the metrics and traces (the padding dropped)."""
+
+    def __init__(self, variants):
+        self.idx, self.sc = [], []
+        self.m = {v: [] for v in variants}
+        self.tr = {v: [] for v in variants}
+
+    def add_scenarios(self, idx, sc, n_valid: int) -> None:
+        self.idx.append(idx[:n_valid])
+        host_sc = jax.device_get(sc)
+        self.sc.append(
+            {
+                f: np.asarray(getattr(host_sc, f))[:n_valid]
+                for f in SCENARIO_FIELDS
+                if getattr(host_sc, f) is not None
+            }
+        )
+
+    def add(self, v, m, tr, n_valid: int) -> None:
+        self.m[v].append({k: np.asarray(a)[:n_valid] for k, a in m.items()})
+        self.tr[v].append({k: np.asarray(a)[:n_valid] for k, a in tr.items()})
+
+    def gather(self, spec: SweepSpec):
+        """``(index, scenarios, metrics, traces)`` of every chunk, concatenated."""
+
+        def cat(parts, key):
+            arrs = [p[key] for p in parts]
+            return np.concatenate(arrs) if arrs else np.zeros((0,))
+
+        index = np.concatenate(self.idx) if self.idx else np.zeros(0, dtype=np.int64)
+        kept = [f for f in SCENARIO_FIELDS if spec.scenario.waves or not f.startswith("wave_")]
+        scenarios = {f: cat(self.sc, f) for f in kept}
+        names = {v: list(self.m[v][0]) if self.m[v] else [] for v in spec.variants}
+        metrics = {v: {k: cat(self.m[v], k) for k in names[v]} for v in spec.variants}
+        traces = {v: {k: cat(self.tr[v], k) for k in ("e", "xy")} for v in spec.variants}
+        return index, scenarios, metrics, traces
+
+
+class _Chunks:
+    """A sweep cut into chunks of ``chunk`` scenarios (a multiple of the device count) over
+    ``devices``: the placement of batches and of the replicated arguments, each variant's
+    program (compiled at the first chunk) and its compile and run times."""
+
+    def __init__(self, spec: SweepSpec, loops_: dict, gains_of: dict, devices: list):
+        self.spec, self.loops = spec, loops_
+        self.n_dev = n_dev = len(devices)
+        chunk = -(-spec.chunk_size // n_dev) * n_dev
+        self.chunk = min(chunk, -(-spec.num_scenarios // n_dev) * n_dev)
+        self.n_chunks = -(-spec.num_scenarios // self.chunk)
+        nom = nominal(spec)
+        self.dtype = jnp.asarray(jax.tree_util.tree_leaves(nom[1])[0]).dtype
+        self.config = spec.mc_config()
+        dt = jnp.asarray(spec.dt, self.dtype)
+        diverge_e = jnp.asarray(spec.diverge_e, self.dtype)
+        if n_dev == 1 and devices[0] == jax.devices()[0]:
+            self.put_batch = put_repl = lambda tree: tree  # no sharding: run_batch's program
+        else:
+            mesh = _mesh(devices)
+            batch_sh = NamedSharding(mesh, PartitionSpec("scenarios"))
+            repl = NamedSharding(mesh, PartitionSpec())
+            self.put_batch = lambda tree: jax.device_put(tree, batch_sh)
+            put_repl = lambda tree: jax.device_put(tree, repl)
+        self.replicated = put_repl((gains_of, nom, dt, diverge_e))
+        self.compiled: dict = {}
+        self.compile_s = dict.fromkeys(spec.variants, 0.0)
+        self.run_s = dict.fromkeys(spec.variants, 0.0)
+
+    def run(self, c: int, parts: _Parts, bar) -> None:
+        """Chunk ``c`` (padded with copies of its last scenario) through every variant."""
+        spec, chunk = self.spec, self.chunk
+        lo = c * chunk
+        n_valid = min(chunk, spec.num_scenarios - lo)
+        idx = np.arange(lo, lo + chunk)
+        idx[n_valid:] = lo + n_valid - 1  # pad with copies of the last scenario
+        loop0 = self.loops[spec.variants[0]]
+        sc = sample_scenarios(spec.scenario, spec.seed, idx, self.dtype, loop=loop0)
+        sc_d = self.put_batch(sc)
+        parts.add_scenarios(idx, sc, n_valid)
+        gains_d, nom_d, dt_d, div_d = self.replicated
+        dyns = {v: (gains_d[v], nom_d, sc_d, dt_d, div_d) for v in spec.variants}
+        if not self.compiled:  # every variant's program, built concurrently, once (timed apart)
+            jobs = [
+                (
+                    f"sweep:{v}",
+                    _batch_program(self.loops[v], self.config),
+                    (self.loops[v], self.config),
+                    dyns[v],
+                )
+                for v in spec.variants
+            ]
+            for v, (call, info) in zip(spec.variants, programs.build_all(jobs), strict=True):
+                self.compiled[v], self.compile_s[v] = call, info["build_s"]
+        for v in spec.variants:
+            t0 = time.perf_counter()
+            m, tr = jax.device_get(self.compiled[v](*dyns[v]))
+            self.run_s[v] += time.perf_counter() - t0
+            parts.add(v, m, tr, n_valid)
+            if bar is not None:
+                bar.update(f"chunk {c + 1}/{self.n_chunks} {v}")
+
+
 def run_sweep(
     spec: SweepSpec,
     gains=None,
@@ -351,88 +461,22 @@ def run_sweep(
     p_cnt = jax.process_count() if process_count is None else int(process_count)
     if not 0 <= p_idx < p_cnt:
         raise ConfigError(f"process_index: expected 0 <= index < {p_cnt}, got {p_idx}")
-    n_dev = len(devices)
-    chunk = -(-spec.chunk_size // n_dev) * n_dev
-    chunk = min(chunk, -(-spec.num_scenarios // n_dev) * n_dev)
-    n_chunks = -(-spec.num_scenarios // chunk)
-    mine = list(range(p_idx, n_chunks, p_cnt))
-
-    nom = nominal(spec)
-    dtype = jnp.asarray(jax.tree_util.tree_leaves(nom[1])[0]).dtype
-    config = spec.mc_config()
-    dt = jnp.asarray(spec.dt, dtype)
-    diverge_e = jnp.asarray(spec.diverge_e, dtype)
-    if n_dev == 1 and devices[0] == jax.devices()[0]:
-        put_batch = put_repl = lambda tree: tree  # no sharding: same program as run_batch
-    else:
-        mesh = _mesh(devices)
-        batch_sh = NamedSharding(mesh, PartitionSpec("scenarios"))
-        repl = NamedSharding(mesh, PartitionSpec())
-        put_batch = lambda tree: jax.device_put(tree, batch_sh)
-        put_repl = lambda tree: jax.device_put(tree, repl)
-    gains_d, nom_d, dt_d, div_d = put_repl((gains_of, nom, dt, diverge_e))
-
+    r = _Chunks(spec, loops_, gains_of, devices)
+    mine = list(range(p_idx, r.n_chunks, p_cnt))
     bar = _progress_bar(len(mine) * len(spec.variants), progress)
-    compiled, compile_s = {}, dict.fromkeys(spec.variants, 0.0)
-    run_s = dict.fromkeys(spec.variants, 0.0)
-    parts_idx, parts_sc = [], []
-    parts_m = {v: [] for v in spec.variants}
-    parts_tr = {v: [] for v in spec.variants}
-    loop0 = loops_[spec.variants[0]]
+    parts = _Parts(spec.variants)
     stop = stop_requested if stop is None else stop
     interrupted = False
     for c in mine:
         if stop():  # a signal arrived: keep the chunks done (at least one, once started)
-            interrupted = bool(parts_idx)
+            interrupted = bool(parts.idx)
             if interrupted:
                 break
-        lo = c * chunk
-        n_valid = min(chunk, spec.num_scenarios - lo)
-        idx = np.arange(lo, lo + chunk)
-        idx[n_valid:] = lo + n_valid - 1  # pad with copies of the last scenario
-        sc = sample_scenarios(spec.scenario, spec.seed, idx, dtype, loop=loop0)
-        sc_d = put_batch(sc)
-        parts_idx.append(idx[:n_valid])
-        host_sc = jax.device_get(sc)
-        parts_sc.append(
-            {
-                f: np.asarray(getattr(host_sc, f))[:n_valid]
-                for f in SCENARIO_FIELDS
-                if getattr(host_sc, f) is not None
-            }
-        )
-        dyns = {v: (gains_d[v], nom_d, sc_d, dt_d, div_d) for v in spec.variants}
-        if not compiled:  # every variant's program, built concurrently, once (timed apart)
-            jobs = [
-                (f"sweep:{v}", _batch_program(loops_[v], config), (loops_[v], config), dyns[v])
-                for v in spec.variants
-            ]
-            for v, (call, info) in zip(spec.variants, programs.build_all(jobs), strict=True):
-                compiled[v], compile_s[v] = call, info["build_s"]
-        for v in spec.variants:
-            dyn = dyns[v]
-            t0 = time.perf_counter()
-            m, tr = jax.device_get(compiled[v](*dyn))
-            run_s[v] += time.perf_counter() - t0
-            parts_m[v].append({k: np.asarray(a)[:n_valid] for k, a in m.items()})
-            parts_tr[v].append({k: np.asarray(a)[:n_valid] for k, a in tr.items()})
-            if bar is not None:
-                bar.update(f"chunk {c + 1}/{n_chunks} {v}")
-
-    def cat(parts, key):
-        arrs = [p[key] for p in parts]
-        return np.concatenate(arrs) if arrs else np.zeros((0,))
-
-    index = np.concatenate(parts_idx) if parts_idx else np.zeros(0, dtype=np.int64)
-    kept = [f for f in SCENARIO_FIELDS if spec.scenario.waves or not f.startswith("wave_")]
-    scenarios = {f: cat(parts_sc, f) for f in kept}
-    names = {v: list(parts_m[v][0]) if parts_m[v] else [] for v in spec.variants}
-    metrics = {v: {k: cat(parts_m[v], k) for k in names[v]} for v in spec.variants}
-    traces = {v: {k: cat(parts_tr[v], k) for k in ("e", "xy")} for v in spec.variants}
-    trace_t = config.trace_steps * spec.dt
+        r.run(c, parts, bar)
+    index, scenarios, metrics, traces = parts.gather(spec)
     n_mine = int(index.size)
     timing = {
-        v: run_timing(compile_s[v], run_s[v], n_mine, config.num_steps, n_dev)
+        v: run_timing(r.compile_s[v], r.run_s[v], n_mine, r.config.num_steps, r.n_dev)
         for v in spec.variants
     }
     return SweepResult(
@@ -441,9 +485,9 @@ def run_sweep(
         scenarios=scenarios,
         metrics=metrics,
         traces=traces,
-        trace_t=trace_t,
+        trace_t=r.config.trace_steps * spec.dt,
         wall_s=time.perf_counter() - t_start,
-        devices=n_dev,
+        devices=r.n_dev,
         timing=timing,
         interrupted=interrupted,
     )

@@ -22,9 +22,24 @@ import jax.numpy as jnp
 import numpy as np
 
 from vcjax import loops
-from vcjax.config import ConfigError, as_choice, as_int, as_number, as_range, as_seed
-from vcjax.config.scenario import ScenarioChoice
-from vcjax.config.schema import MIN_SPREADING
+from vcjax.config import (
+    ConfigError,
+    Current,
+    Disturbance,
+    Initial,
+    ModelError,
+    SensorNoise,
+    Simulation,
+    Waves,
+    as_choice,
+    as_int,
+    as_number,
+    as_seed,
+    parse_section,
+)
+from vcjax.config.aliases import moved_values
+from vcjax.config.scenario import ScenarioChoice, loop_options
+from vcjax.config.schema import check_value
 from vcjax.environment import freeze, waves
 from vcjax.environment.current import current_ned
 
@@ -39,64 +54,170 @@ __all__ = [
     "spec_from_dict",
 ]
 
-_CURRENT_MODELS = ("constant", "gauss_markov")
+#: the sections a [`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec] holds, by TOML name
+SECTIONS = {
+    "current": Current,
+    "waves": Waves,
+    "initial": Initial,
+    "model_error": ModelError,
+    "sensor_noise": SensorNoise,
+    "disturbance": Disturbance,
+}
+#: the flat keywords of the Python API (``ScenarioSpec(current_speed=...)``) and of the
+#: ``summary.json``/``run.json`` record: keyword -> (section, key); ``u_d`` is ``[simulation]``'s
+FLAT: dict[str, tuple[str, str]] = {
+    **{f"current_{f.name}": ("current", f.name) for f in dataclasses.fields(Current)},
+    "initial": ("initial", "values"),
+    "u_d": ("simulation", "u_d"),
+    "model_error": ("model_error", "relative"),
+    "model_fields": ("model_error", "fields"),
+    "noise": ("sensor_noise", "values"),
+    "disturbance": ("disturbance", "force"),
+    **{f"wave_{f.name}": ("waves", f.name) for f in dataclasses.fields(Waves)},
+}
+#: what the flat keywords meant for the two ``[waves]`` keys without a default
+_FLAT_WAVES = {"hs": (0.0, 0.0), "tp": (8.0, 8.0)}
 
 
-@dataclasses.dataclass(frozen=True)
+def _table(section) -> dict:
+    """The keys of a parsed section that differ from their defaults (a TOML-like table)."""
+    fields = dataclasses.fields(section)
+    if len(fields) == 1 and "open_keys" in fields[0].metadata:
+        return dict(getattr(section, fields[0].name))
+    return {
+        f.name: getattr(section, f.name) for f in fields if getattr(section, f.name) != f.default
+    }
+
+
+def _flat_default(sec: str, key: str):
+    if sec == "waves" and key in _FLAT_WAVES:
+        return _FLAT_WAVES[key]
+    return next(f.default for f in dataclasses.fields(SECTIONS[sec]) if f.name == key)
+
+
+def _same(a, b) -> bool:
+    """Equal, a list reading as the tuple it was written from."""
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a is b
+    return a == b
+
+
+def _flat_sections(given: dict, flat: dict) -> dict:
+    """The sections of ``given`` with the flat keywords ``flat`` written in: each touched section
+    parsed again by the one validator ([`parse_section`][vcjax.config.schema.parse_section])."""
+    tables: dict[str, dict] = {}
+    for name, v in flat.items():
+        sec, key = FLAT[name]
+        if sec == "simulation":
+            given["u_d"] = v
+            continue
+        if sec not in tables:
+            old = given.get(sec)
+            tables[sec] = {} if old is None else _table(old)
+            if isinstance(old, Waves):  # a sea's spectrum is its switch, default or not
+                tables[sec]["spectrum"] = old.spectrum
+        if key == "values":
+            tables[sec] = dict(v)
+        elif key != "spectrum" and _same(
+            v, _flat_default(sec, key)
+        ):  # a default means the key was not given
+            tables[sec].pop(key, None)
+        else:
+            tables[sec][key] = v
+    if "waves" in tables:
+        calm = {f.name: f.default for f in dataclasses.fields(Waves)} | _FLAT_WAVES
+        sea = [f"wave_{k}" for k, v in tables["waves"].items() if k != "spectrum" and calm[k] != v]
+        if tables["waves"].get("spectrum") is None and sea:
+            raise ConfigError(
+                f"{sea[0]}: given without wave_spectrum, so no sea would be simulated (a "
+                f'calm run); set wave_spectrum = "jonswap" or "pm" ({", ".join(sea)})'
+            )
+        given["waves"] = None
+        table = tables.pop("waves")
+        if table.get("spectrum") is not None:
+            tables["waves"] = _FLAT_WAVES | table
+    for sec, table in tables.items():
+        given[sec] = parse_section(SECTIONS[sec], table, sec)
+    return given
+
+
+_U_D = next(f for f in dataclasses.fields(Simulation) if f.name == "u_d")
+
+
+@dataclasses.dataclass(frozen=True, init=False)
 class ScenarioSpec:
-    """The distribution scenarios are drawn from (validated on construction).
+    """The distribution scenarios are drawn from: the parsed sections of a config, as they are.
 
-    Every ``(lo, hi)`` pair is sampled uniformly (``lo == hi``: fixed). Units: speeds [m/s],
-    angles [deg] (``current_direction_deg``: towards which the water flows, clockwise from
-    north), the vehicle's ``[initial]`` keys in their units (``*_deg``: degrees).
-    The defaults are the paper's Simulation 1 (current 0.5 m/s towards east, the vehicle's
-    default start, no model error, no noise).
+    Every ``(lo, hi)`` pair is sampled uniformly (``lo == hi``: fixed); the sections and their
+    units are [`vcjax.config.schema`][vcjax.config.schema]'s. The defaults are the paper's
+    Simulation 1 (current 0.5 m/s towards east, the vehicle's default start, no model error, no
+    noise, no sea).
 
     Attributes:
-        initial: ``((key, (lo, hi)), ...)`` over the loop's ``initial_keys`` (missing keys:
-            the loop's defaults).
-        model_fields: plant parameters scaled by ``1 + model_error U(-1, 1)`` (``None``: the
+        current: [`Current`][vcjax.config.schema.Current] (``[current]``).
+        waves: [`Waves`][vcjax.config.schema.Waves] (``[waves]``: every scenario gets a random
+            sea, [`sea_state`][vcjax.environment.waves.sea_state]); ``None``: no waves.
+        initial: [`Initial`][vcjax.config.schema.Initial] over the loop's ``initial_keys``
+            (missing keys: the loop's defaults).
+        model_error: [`ModelError`][vcjax.config.schema.ModelError] (``fields`` ``None``: the
             loop's ``default_model_fields()``).
-        noise: ``((channel, std), ...)`` sensor-noise standard deviations over the loop's
+        sensor_noise: [`SensorNoise`][vcjax.config.schema.SensorNoise] over the loop's
             ``noise_channels`` (``*_deg``: degrees, deg/s).
-        disturbance: per component of the generalised disturbance force, a range [N, N m]
-            (empty: none).
-        wave_spectrum: ``"jonswap"`` or ``"pm"``: every scenario gets a random sea
-            ([`sea_state`][vcjax.environment.waves.sea_state]) of ``wave_components`` components
-            with its
-            own ``wave_hs`` [m], ``wave_tp`` [s], ``wave_direction_deg`` (towards, clockwise from
-            north) and ``wave_origin_depth`` [m] drawn from the ranges; ``None``: no waves.
-        wave_gamma: JONSWAP peak enhancement; wave_spreading: ``s`` of the ``cos^2s``
-            spreading (0: long-crested).
+        disturbance: [`Disturbance`][vcjax.config.schema.Disturbance] (empty: none).
+        u_d: ``[simulation] u_d`` range [m/s] (``None``: the loop's speed).
         environment: ``((section, table), ...)``: further components of
             [`vcjax.environment`][vcjax.environment] by their section name, each table checked by
-            its
-            component ([`vcjax.environment.freeze`][vcjax.environment.component.freeze]) and sampled
-            per scenario from the
-            scenario's key.
+            its component ([`vcjax.environment.freeze`][vcjax.environment.component.freeze]) and
+            sampled per scenario from the scenario's key.
+
+    The Python API may also write the keys flat (``ScenarioSpec(current_speed=(0, 1),
+    wave_spectrum="pm", wave_hs=(1, 2), model_error=0.1)``, the names of ``FLAT``): a thin
+    constructor that writes them into the sections; ``spec.current_speed`` and the other flat
+    names read them back.
     """
 
-    current_speed: tuple[float, float] = (0.5, 0.5)
-    current_direction_deg: tuple[float, float] = (90.0, 90.0)
-    current_model: str = "constant"
-    current_sigma: float = 0.05
-    current_tau: float = 300.0
-    current_max_speed: float = 2.0
-    initial: tuple[tuple[str, tuple[float, float]], ...] = ()
+    current: Current = Current()
+    waves: Waves | None = None
+    initial: Initial = Initial()
+    model_error: ModelError = ModelError()
+    sensor_noise: SensorNoise = SensorNoise()
+    disturbance: Disturbance = Disturbance()
     u_d: tuple[float, float] | None = None
-    model_error: float = 0.0
-    model_fields: tuple[str, ...] | None = None
-    noise: tuple[tuple[str, float], ...] = ()
-    disturbance: tuple[tuple[float, float], ...] = ()
-    wave_spectrum: str | None = None
-    wave_hs: tuple[float, float] = (0.0, 0.0)
-    wave_tp: tuple[float, float] = (8.0, 8.0)
-    wave_direction_deg: tuple[float, float] = (0.0, 0.0)
-    wave_gamma: float = 3.3
-    wave_spreading: float = 0.0
-    wave_components: int = 64
-    wave_origin_depth: tuple[float, float] = (0.0, 0.0)
     environment: tuple = ()
+
+    def __init__(self, **kw):
+        given = {f.name: f.default for f in dataclasses.fields(self)}
+        flat = {}
+        for k, v in kw.items():
+            cls = SECTIONS.get(k)
+            if k in ("u_d", "environment") or (cls is not None and isinstance(v, cls)):
+                given[k] = v
+            elif k == "waves" and v is None:
+                given[k] = None
+            elif k in FLAT:
+                flat[k] = v
+            else:
+                raise TypeError(f"ScenarioSpec: unexpected keyword {k!r}")
+        for k, v in _flat_sections(given, flat).items():
+            object.__setattr__(self, k, v)
+        self.__post_init__()
+
+    def __getattr__(self, name):
+        if name not in FLAT:
+            raise AttributeError(name)
+        return self.flat(name)
+
+    def flat(self, name: str):
+        """The value of the flat keyword ``name`` (``FLAT``)."""
+        sec, key = FLAT[name]
+        if sec == "simulation":
+            return self.u_d
+        section = getattr(self, sec)
+        if section is None:  # no sea: the flat keywords' defaults
+            return _FLAT_WAVES.get(key, getattr(Waves(), key))
+        return getattr(section, key)
 
     def __post_init__(self):
         s = object.__setattr__
@@ -104,111 +225,46 @@ class ScenarioSpec:
             s(self, "environment", tuple(freeze(sec, t) for sec, t in self.environment))
         except ValueError as err:
             raise ConfigError(str(err)) from None
-        s(self, "current_speed", as_range("current_speed", self.current_speed, lo_min=0.0))
-        s(
-            self,
-            "current_direction_deg",
-            as_range("current_direction_deg", self.current_direction_deg),
-        )
-        as_choice("current_model", self.current_model, _CURRENT_MODELS)
-        as_number("current_sigma", self.current_sigma, lo=0.0)
-        as_number("current_tau", self.current_tau, lo=0.0, lo_open=True)
-        as_number("current_max_speed", self.current_max_speed, lo=0.0, lo_open=True)
-        s(self, "initial", tuple((k, as_range(k, v)) for k, v in dict(self.initial).items()))
         if self.u_d is not None:
-            s(self, "u_d", as_range("u_d", self.u_d, positive=True))
-        as_number("model_error", self.model_error, lo=0.0, hi=1.0, hi_open=True)
-        if self.model_fields is not None:
-            fields = tuple(self.model_fields)
-            if len(set(fields)) != len(fields):
-                raise ConfigError(f"model_fields: repeated fields in {list(fields)}")
-            s(self, "model_fields", fields)
-        noise = tuple((k, as_number(k, v, lo=0.0)) for k, v in dict(self.noise).items())
-        s(self, "noise", noise)
-        s(self, "disturbance", tuple(as_range("disturbance", r) for r in self.disturbance))
-        if self.wave_spectrum is not None:
-            as_choice("wave_spectrum", self.wave_spectrum, waves.SPECTRA)
-        s(self, "wave_hs", as_range("wave_hs", self.wave_hs, lo_min=0.0))
-        s(self, "wave_tp", as_range("wave_tp", self.wave_tp, positive=True))
-        s(self, "wave_direction_deg", as_range("wave_direction_deg", self.wave_direction_deg))
-        s(self, "wave_origin_depth", as_range("wave_origin_depth", self.wave_origin_depth))
-        as_number("wave_gamma", self.wave_gamma, lo=1.0)
-        as_number("wave_spreading", self.wave_spreading, lo=0.0)
-        s(self, "wave_components", as_int("wave_components", self.wave_components, 1))
-        self._check_applies()
-
-    def _check_applies(self) -> None:
-        """A field that does not apply to the others' values is refused, never ignored: sea
-        fields without ``wave_spectrum`` (the scenarios would be calm), ``wave_gamma`` with the
-        Pierson-Moskowitz spectrum, a ``wave_spreading`` in ``(0, 1)`` (``vcjax.config.schema.
-        MIN_SPREADING``), Gauss-Markov fields with a constant current."""
-        default = ScenarioSpec.__dataclass_fields__
-        changed = [
-            f for f in default if getattr(self, f) != default[f].default and f != "wave_spectrum"
-        ]
-        if not self.waves:
-            sea = [f for f in changed if f.startswith("wave_")]
-            if sea:
-                raise ConfigError(
-                    f"{sea[0]}: given without wave_spectrum, so no sea would be simulated (a "
-                    f'calm run); set wave_spectrum = "jonswap" or "pm" ({", ".join(sea)})'
-                )
-        else:  # the NED origin must lie below the mean surface
-            try:
-                waves.check_origin_depth(self.wave_origin_depth, "wave_origin_depth")
+            s(self, "u_d", check_value("u_d", self.u_d, _U_D.metadata))
+        if self.waves is not None:
+            if self.waves.hs is None or self.waves.tp is None:
+                raise ConfigError("[waves] hs and tp are required (a number or [lo, hi] each)")
+            try:  # the NED origin must lie below the mean surface
+                waves.check_origin_depth(self.waves.origin_depth, "[waves] origin_depth")
             except ValueError as err:
                 raise ConfigError(str(err)) from None
-        if self.waves and self.wave_spectrum == "pm" and "wave_gamma" in changed:
-            raise ConfigError("wave_gamma: JONSWAP's peak enhancement; wave_spectrum 'pm' has none")
-        if 0.0 < self.wave_spreading < MIN_SPREADING:
-            raise ConfigError(
-                f"wave_spreading: 0 is long-crested and s >= {MIN_SPREADING:g} spreads as cos^2s "
-                f"(1 the widest), got {self.wave_spreading:g}"
-            )
-        if self.current_model == "constant":
-            gm = [f for f in ("current_sigma", "current_tau", "current_max_speed") if f in changed]
-            if gm:
-                raise ConfigError(
-                    f"{gm[0]}: applies to current_model 'gauss_markov' only (the current is "
-                    "constant)"
-                )
 
     def without_waves(self) -> ScenarioSpec:
-        """The same distribution in calm water (every ``wave_*`` field at its default)."""
-        default = ScenarioSpec.__dataclass_fields__
-        calm = {f: default[f].default for f in default if f.startswith("wave_")}
-        return dataclasses.replace(self, **calm)
-
-    @property
-    def waves(self) -> bool:
-        """Every scenario has a sea (``wave_spectrum`` set)."""
-        return self.wave_spectrum is not None
+        """The same distribution in calm water."""
+        return dataclasses.replace(self, waves=None)
 
     def check_dt(self, dt: float) -> None:
         """With waves, [`check_wave_step`][vcjax.sweep.spec.check_wave_step] of the shortest
-        ``wave_tp``."""
+        ``tp``."""
         if self.waves:
-            check_wave_step(self.wave_tp[0], dt)
+            check_wave_step(self.waves.tp[0], dt, "[waves] tp")
 
     def check_for(self, loop: loops.Loop) -> None:
         """The vehicle-specific keys are the loop's (raises naming the key and listing the
         valid ones)."""
-        for k, _ in self.initial:
+        for k, _ in self.initial.values:
             if k not in loop.initial_keys:
                 raise ConfigError(
-                    f"initial: unknown key {k!r} for vehicle {loop.vehicle!r}; "
+                    f"[initial]: unknown key {k!r} for vehicle {loop.vehicle!r}; "
                     f"expected {list(loop.initial_keys)}"
                 )
         valid = loop.param_names()
-        bad = [f for f in self.model_fields or () if f not in valid]
+        bad = [f for f in self.model_error.fields or () if f not in valid]
         if bad:
             raise ConfigError(
-                f"model_fields: unknown {loop.vehicle} parameters {bad}; choose among {list(valid)}"
+                f"[model_error] fields: unknown {loop.vehicle} parameters {bad}; choose among "
+                f"{list(valid)}"
             )
-        for k, _ in self.noise:
+        for k, _ in self.sensor_noise.values:
             if k not in loop.noise_channels:
                 raise ConfigError(
-                    f"noise: unknown channel {k!r} for vehicle {loop.vehicle!r}; "
+                    f"[sensor_noise]: unknown channel {k!r} for vehicle {loop.vehicle!r}; "
                     f"expected {list(loop.noise_channels)}"
                 )
         if self.waves:
@@ -216,26 +272,27 @@ class ScenarioSpec:
                 loops.check_disturbances(loop, False, False, waves=True)
             except ValueError as err:
                 raise ConfigError(str(err)) from None
-        if self.disturbance:
+        force = self.disturbance.force
+        if force:
             if not loop.can_feel("force"):
-                raise ConfigError(f"disturbance: the {loop.vehicle} plant takes no disturbance")
+                raise ConfigError(f"[disturbance]: the {loop.vehicle} plant takes no disturbance")
             n_nu = int(np.shape(loop.initial_from(_zeros(loop))[1])[0])
-            if len(self.disturbance) != n_nu:
-                raise ConfigError(
-                    f"disturbance: expected {n_nu} components, got {len(self.disturbance)}"
-                )
+            if len(force) != n_nu:
+                raise ConfigError(f"[disturbance]: expected {n_nu} components, got {len(force)}")
 
     def fields_for(self, loop: loops.Loop) -> tuple[str, ...]:
-        return loop.default_model_fields() if self.model_fields is None else self.model_fields
+        fields = self.model_error.fields
+        return loop.default_model_fields() if fields is None else fields
 
     def noise_std(self, loop: loops.Loop) -> np.ndarray:
         """Per-entry sensor-noise standard deviations (SI: ``*_deg`` channels in radians)."""
-        d = {k: math.radians(v) if k.endswith("_deg") else v for k, v in self.noise}
+        d = {k: math.radians(v) if k.endswith("_deg") else v for k, v in self.sensor_noise.values}
         return loop.noise_std(d)
 
     @property
-    def sensor_noise(self) -> bool:
-        return any(v > 0 for _, v in self.noise)
+    def noisy(self) -> bool:
+        """Some sensor-noise standard deviation is positive."""
+        return any(v > 0 for _, v in self.sensor_noise.values)
 
 
 def check_wave_step(tp: float, dt: float, name: str = "wave_tp") -> None:
@@ -270,7 +327,6 @@ class SweepSpec:
     dt: float = 0.05
     integrator: str = "rk4"
     timing: str = "continuous"
-    edd: str = "paper"
     chunk_size: int = 256
     tail: float = 0.2
     diverge_e: float = 50.0
@@ -293,7 +349,6 @@ class SweepSpec:
         as_number("dt", self.dt, lo=0.0, lo_open=True, hi=self.horizon)
         as_choice("integrator", self.integrator, ("euler", "heun", "rk4"))
         as_choice("timing", self.timing, ("continuous", "sampled"))
-        as_choice("edd", self.edd, ("paper", "implied"))
         as_number("tail", self.tail, lo=0.0, lo_open=True, hi=1.0)
         as_number("diverge_e", self.diverge_e, lo=0.0, lo_open=True)
         if not isinstance(self.scenario, ScenarioSpec):
@@ -302,14 +357,8 @@ class SweepSpec:
         self.scenario.check_for(self.loop(variants[0]))
 
     def loop(self, variant: str) -> loops.Loop:
-        """The loop of ``variant`` (``edd`` applies to loops that have that option)."""
-        cls = loops.loop_class(self.choice.vehicle)
-        opts = {}
-        if "edd" in {f.name for f in dataclasses.fields(cls)} and "edd" not in dict(
-            self.choice.options
-        ):
-            opts["edd"] = self.edd
-        return self.choice.loop(variant, **opts)
+        """The loop of ``variant`` (with ``choice``'s path and options)."""
+        return self.choice.loop(variant)
 
     @property
     def num_steps(self) -> int:
@@ -323,8 +372,8 @@ class SweepSpec:
             num_steps=n,
             integrator=self.integrator,
             timing=self.timing,
-            current_model=self.scenario.current_model,
-            sensor_noise=self.scenario.sensor_noise,
+            current_model=self.scenario.current.model,
+            sensor_noise=self.scenario.noisy,
             model_fields=self.scenario.fields_for(self.loop(self.variants[0])),
             tail=self.tail,
             record_stride=stride,
@@ -422,20 +471,21 @@ class MCScenario(NamedTuple):
 def _spec_arrays(spec: ScenarioSpec, loop: loops.Loop, dtype):
     """The continuous part of ``spec`` as arrays (traced: new values do not recompile)."""
     deg = math.pi / 180.0
-    init = dict(spec.initial)
-    ranges = [spec.current_speed, tuple(a * deg for a in spec.current_direction_deg)]
+    cur, sea = spec.current, spec.waves or Waves(**_FLAT_WAVES)
+    init = dict(spec.initial.values)
+    ranges = [cur.speed, tuple(a * deg for a in cur.direction_deg)]
     for k, default in loop.initial_keys.items():
         r = init.get(k, (default, default))
         ranges.append(tuple(a * deg for a in r) if k.endswith("_deg") else r)
     ranges.append(spec.u_d or (loop.default_speed,) * 2)
     f = lambda x: jnp.asarray(np.asarray(x, dtype=np.float64), dtype)
-    gm = (spec.current_sigma, spec.current_tau, spec.current_max_speed)
+    gm = (cur.sigma, cur.tau, cur.max_speed)
     n_nu = int(np.shape(loop.initial_from(_zeros(loop))[1])[0])
-    dist = spec.disturbance or ((0.0, 0.0),) * n_nu
-    wave = (spec.wave_hs, spec.wave_tp, spec.wave_direction_deg, spec.wave_origin_depth)
+    dist = spec.disturbance.force or ((0.0, 0.0),) * n_nu
+    wave = (sea.hs, sea.tp, sea.direction_deg, sea.origin_depth)
     return (
         f(ranges),
-        f(spec.model_error),
+        f(spec.model_error.relative),
         f(gm),
         f(spec.noise_std(loop)),
         f(np.asarray(dist).reshape(-1, 2)),
@@ -445,9 +495,8 @@ def _spec_arrays(spec: ScenarioSpec, loop: loops.Loop, dtype):
 
 def _wave_static(spec: ScenarioSpec):
     """The static part of a spec's sea (spectrum, components, gamma, spreading), or None."""
-    if not spec.waves:
-        return None
-    return (spec.wave_spectrum, spec.wave_components, spec.wave_gamma, spec.wave_spreading)
+    w = spec.waves
+    return None if w is None else (w.spectrum, w.components, w.gamma, w.spreading)
 
 
 def _draw_sea(wave_static, wave_ranges, key):
@@ -539,14 +588,30 @@ def sample_scenarios(
     return _sample(loop, arrays, seed, indices, nf, _wave_static(spec))
 
 
+def _thaw(v):
+    if isinstance(v, tuple):
+        return [_thaw(a) for a in v]
+    return v
+
+
+def scenario_record(sc: ScenarioSpec) -> dict:
+    """The flat record of a [`ScenarioSpec`][vcjax.sweep.spec.ScenarioSpec] (``FLAT`` names, as
+    ``summary.json`` and ``run.json`` have always written it)."""
+    d = {name: _thaw(sc.flat(name)) for name in FLAT}
+    d["initial"] = {k: list(v) for k, v in sc.initial.values}
+    d["noise"] = dict(sc.sensor_noise.values)
+    d["wave_spectrum"] = None if sc.waves is None else sc.waves.spectrum
+    d["environment"] = _thaw(sc.environment)
+    return d
+
+
 def spec_to_dict(spec: SweepSpec) -> dict:
-    """Plain-JSON form of a [`SweepSpec`][vcjax.sweep.spec.SweepSpec]."""
+    """Plain-JSON form of a [`SweepSpec`][vcjax.sweep.spec.SweepSpec] (the loop options that
+    moved to ``[scenario]`` recorded at the top as well, where they were)."""
     d = {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec)}
-    sc = spec.scenario
-    d["scenario"] = {f.name: getattr(sc, f.name) for f in dataclasses.fields(sc)}
-    d["scenario"]["initial"] = {k: list(v) for k, v in sc.initial}
-    d["scenario"]["noise"] = dict(sc.noise)
+    d["scenario"] = scenario_record(spec.scenario)
     d["choice"] = spec.choice.to_dict()
+    d |= moved_values(spec.choice)
     return json.loads(json.dumps(d, default=list))
 
 
@@ -557,9 +622,16 @@ def spec_from_dict(d: dict) -> SweepSpec:
     sc["initial"] = tuple((k, tuple(v)) for k, v in sc["initial"].items())
     sc["noise"] = tuple(sc["noise"].items())
     sc["disturbance"] = tuple(tuple(r) for r in sc["disturbance"])
+    sc["environment"] = tuple((s, tuple(map(tuple, t))) for s, t in sc.get("environment", ()))
     for k, v in sc.items():
         if isinstance(v, list):
             sc[k] = tuple(v)
     d["variants"] = tuple(d["variants"])
-    d["choice"] = ScenarioChoice.from_dict(d["choice"])
+    choice = ScenarioChoice.from_dict(d["choice"])
+    moved = {k: d.pop(k) for k in moved_values(choice) if k in d}
+    opts = loop_options(loops.loop_class(choice.vehicle))
+    given = dict(choice.options)
+    older = {k: v for k, v in moved.items() if k in opts and k not in given}
+    older = {k: v for k, v in older.items() if v != opts[k]["default"]}
+    d["choice"] = dataclasses.replace(choice, options=(*choice.options, *older.items()))
     return SweepSpec(scenario=ScenarioSpec(**sc), **d)

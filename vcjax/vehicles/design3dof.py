@@ -25,6 +25,7 @@ from typing import Any, NamedTuple
 import jax.numpy as jnp
 
 from vcjax._checks import check_array, check_spd
+from vcjax.environment.component import WaterMotion
 from vcjax.linalg import matvec, solve_surge_decoupled
 from vcjax.mechanics import MechanicalSystem, from_body_frame
 
@@ -152,18 +153,23 @@ def current_in_body(psi, r, V_c, V_c_dot=None):
     return jnp.concatenate([vc, z[None]]), jnp.concatenate([vc_dot, z[None]])
 
 
-def vector_field(p: Design3DOF, eta, nu, tau, V_c=None, V_c_dot=None):
-    """``(eta_dot, nu_dot)`` of the design model with an optional current.
+def vector_field(p: Design3DOF, eta, nu, tau, water: WaterMotion | None = None):
+    """``(eta_dot, nu_dot)`` of the design model in optional water.
 
     Args:
         p: parameters; eta: (3,) pose; nu: (3,) body velocity; tau: (3,) body force
-            ``[tau_u, tau_v, tau_r]`` [N, N, N m]; V_c, V_c_dot: (2,) inertial current and rate.
+            ``[tau_u, tau_v, tau_r]`` [N, N, N m];
+        water: [`WaterMotion`][vcjax.environment.component.WaterMotion] (the one door of every
+            plant; velocity and acceleration (3,) NED): its horizontal parts are the current
+            ``V_c`` and its rate (a horizontal-plane model cannot feel the vertical one).
+            Default none (still water).
     """
     eta_dot = pose_rate(eta[2], nu)
-    if V_c is None:
+    if water is None:
         nu_r, nu_c_dot = nu, jnp.zeros_like(nu)
     else:
-        nu_c, nu_c_dot = current_in_body(eta[2], nu[2], V_c, V_c_dot)
+        a = None if water.acceleration is None else water.acceleration[:2]
+        nu_c, nu_c_dot = current_in_body(eta[2], nu[2], water.velocity[:2], a)
         nu_r = nu - nu_c
     nu_r_dot = solve_surge_decoupled(mass_matrix(p), tau - body_bias(p, nu_r))
     return eta_dot, nu_r_dot + nu_c_dot

@@ -21,7 +21,10 @@ Horizontal-plane model (w = p = q = 0, z = 0, phi = theta = 0), state
 
 * ``eta = [x, y, psi]`` (NED north/east [m], heading [rad]); ``eta_dot = J(psi) nu``.
 * ``nu = [u, v, r]`` body velocity; ``nu_r = nu - [R(psi)^T V_c, 0]`` the velocity relative to an
-  irrotational ocean current ``V_c`` (2,) given in the inertial frame.
+  irrotational ocean current ``V_c`` (2,), the horizontal part of the water's NED velocity
+  ``PlantArgs.water`` (the one door of every plant,
+  [`WaterMotion`][vcjax.environment.component.WaterMotion]). A horizontal-plane model cannot
+  feel the water's vertical component: it is ignored.
 * Kinetics (as in ``npsauv.m``, relative-velocity form)::
 
       M nu_r_dot = -C_RB(nu_r) nu_r + tau_hyd(nu_r, delta) + tau_cf(nu_r) + [thrust, 0, 0]
@@ -104,6 +107,7 @@ from vcjax._checks import (
     float_dtype,
     is_concrete,
 )
+from vcjax.environment.component import WaterMotion, water_motion
 from vcjax.linalg import (
     saturate,
     signed_square_sums,
@@ -262,13 +266,14 @@ class PlantArgs(NamedTuple):
 
     Attributes:
         vehicle: [`InfanteParams`][vcjax.vehicles.infante.InfanteParams].
-        V_c: (2,) ocean current in the inertial (NED) frame [m/s].
-        V_c_dot: (2,) its time derivative [m/s^2] (zero for a constant current).
+        water: [`WaterMotion`][vcjax.environment.component.WaterMotion], the water at the
+            vehicle: velocity (3,) NED [m/s] and material acceleration (3,) [m/s^2] (zero for a
+            constant current). The plant uses their horizontal parts ``[:2]`` (the current
+            ``V_c`` and its rate); the vertical part is ignored (a horizontal-plane model).
     """
 
     vehicle: InfanteParams
-    V_c: Any
-    V_c_dot: Any
+    water: WaterMotion
 
 
 # --------------------------------------------------------------------------------------------
@@ -334,7 +339,7 @@ def infante_params(
     n = _NPS_STRIPS
     cf_x = np.linspace(-L / 2, L / 2, n + 1)
 
-    dt = float_dtype(dtype)
+    dtype = float_dtype(dtype)
     vals = dict(
         length=L,
         rho=float(rho),
@@ -368,13 +373,13 @@ def infante_params(
         T_rudder=float(T_rudder),
         rudder_speed_min=float(rudder_speed_min),
     )
-    p = InfanteParams(**{k: jnp.asarray(v, dtype=dt) for k, v in vals.items()})
+    p = InfanteParams(**{k: jnp.asarray(v, dtype=dtype) for k, v in vals.items()})
     check_spd("M (mass, Iz, x_g and added mass)", mass_matrix(p), 3)
 
     # Calibrate X_u|u|: thrust_max + X_other(U) + X_u|u| U^2 = 0 at nu_r = [U, 0, 0], delta = 0.
     U = float(speed_at_max_thrust)
-    nu_r = jnp.asarray([U, 0.0, 0.0], dtype=dt)
-    act0 = jnp.zeros(2, dtype=dt)
+    nu_r = jnp.asarray([U, 0.0, 0.0], dtype=dtype)
+    act0 = jnp.zeros(2, dtype=dtype)
     X_other = float(body_forces(p, nu_r, act0)[0])
     X_uu = -(float(thrust_max) + X_other) / U**2
     if not X_uu < 0:
@@ -382,7 +387,7 @@ def infante_params(
             f"speed_at_max_thrust: calibration needs X_u|u| < 0, got {X_uu:.4g} "
             f"(other pure-surge forces at {U} m/s: {X_other:.4g} N)"
         )
-    return p._replace(X_uu=jnp.asarray(X_uu, dtype=dt))
+    return p._replace(X_uu=jnp.asarray(X_uu, dtype=dtype))
 
 
 def validate(params: InfanteParams, name: str = "vehicle") -> InfanteParams:
@@ -444,19 +449,17 @@ def infante_state(eta, nu, act=None, dtype=None) -> InfanteState:
     return InfanteState(eta=eta, nu=nu, act=act)
 
 
-def plant_args(vehicle: InfanteParams, V_c=None, V_c_dot=None) -> PlantArgs:
-    """Validated [`PlantArgs`][vcjax.vehicles.infante.PlantArgs]; ``V_c`` and ``V_c_dot`` (2,)
-    default to zero.
+def plant_args(vehicle: InfanteParams, water: WaterMotion | None = None) -> PlantArgs:
+    """Validated [`PlantArgs`][vcjax.vehicles.infante.PlantArgs]; ``water``
+    ([`WaterMotion`][vcjax.environment.component.WaterMotion], (3,) NED velocity and
+    acceleration, e.g. ``water_motion([0.0, 0.5, 0.0])``) defaults to still water.
 
     The arrays take the dtype of ``vehicle.mass``.
     """
     validate(vehicle)
-    dt = jnp.asarray(vehicle.mass).dtype
-    V_c = jnp.zeros(2, dtype=dt) if V_c is None else as_float_array("V_c", V_c, (2,), dt)
-    V_c_dot = (
-        jnp.zeros(2, dtype=dt) if V_c_dot is None else as_float_array("V_c_dot", V_c_dot, (2,), dt)
-    )
-    return PlantArgs(vehicle=vehicle, V_c=V_c, V_c_dot=V_c_dot)
+    dtype = jnp.asarray(vehicle.mass).dtype
+    water = WaterMotion(None, None) if water is None else water
+    return PlantArgs(vehicle=vehicle, water=water_motion(*water, dtype=dtype))
 
 
 # --------------------------------------------------------------------------------------------
@@ -540,7 +543,9 @@ def _plant(t, x: InfanteState, u_cmd, args: PlantArgs, smooth: bool) -> InfanteS
     sat = smooth_saturate if smooth else saturate
     act_dot = (sat(u_cmd, limits) - act) / jnp.stack([p.T_thrust, p.T_rudder])
 
-    nu_c, nu_c_dot = current_in_body(eta[2], nu[2], args.V_c, args.V_c_dot)
+    w = args.water  # its horizontal part: the plane's current V_c and its rate
+    a_c = None if w.acceleration is None else w.acceleration[:2]
+    nu_c, nu_c_dot = current_in_body(eta[2], nu[2], w.velocity[:2], a_c)
     nu_r = nu - nu_c
     nu_r_dot = solve_surge_decoupled(mass_matrix(p), body_forces(p, nu_r, act))
     eta_dot = pose_rate(eta[2], nu)
@@ -554,8 +559,7 @@ def infante_plant(t, x: InfanteState, u, args: PlantArgs) -> InfanteState:
         t: () time [s] (unused; the plant is autonomous).
         x: [`InfanteState`][vcjax.vehicles.infante.InfanteState].
         u: (2,) commands [thrust_cmd N, rudder_cmd rad].
-        args: [`PlantArgs`][vcjax.vehicles.infante.PlantArgs] (vehicle, current ``V_c`` (2,),
-            ``V_c_dot`` (2,)).
+        args: [`PlantArgs`][vcjax.vehicles.infante.PlantArgs] (vehicle, the water at it).
 
     Returns:
         [`InfanteState`][vcjax.vehicles.infante.InfanteState] of time derivatives.

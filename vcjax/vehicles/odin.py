@@ -54,8 +54,10 @@ body + added mass,
 with ``f`` (8,) the thruster forces (state), ``f_cmd`` (8,) the commands (input; clipped to
 ``±thrust_max``, or ``thrust_max tanh(f_cmd / thrust_max)`` in
 [`odin_plant_smooth`][vcjax.vehicles.odin.odin_plant_smooth]),
-``tau_dist`` (6,) a constant body-frame disturbance (traced) and ``v_c`` (3,) an optional current
-in NED, with ``v_c_dot`` (3,) its time derivative when it varies (a tidal current, a sea):
+``tau_dist`` (6,) a constant body-frame disturbance (traced) and ``water`` the water at the
+vehicle ([`WaterMotion`][vcjax.environment.component.WaterMotion], the one door of every plant):
+its velocity ``v_c`` (3,) in NED, all three components felt, with its material acceleration
+``v_c_dot`` (3,) when it varies (a tidal current, a sea):
 ``nu_dot = nu_r_dot + nu_c_dot`` as in [`vector_field`][vcjax.vehicles.sixdof.vector_field], so the
 water's acceleration acts on the rigid body and, through ``M_A``, on the added mass. Thruster
 matrix (``s = 1/sqrt(2)``; rows ``[X Y Z K M N]``, columns
@@ -91,6 +93,7 @@ from vcjax._checks import (
     float_dtype,
     is_concrete,
 )
+from vcjax.environment.component import WaterMotion
 from vcjax.linalg import safe_norm, saturate, smooth_saturate
 from vcjax.vehicles import sixdof as sd
 from vcjax.vehicles.design3dof import Design3DOF, design3dof
@@ -157,15 +160,15 @@ class OdinArgs(NamedTuple):
     Attributes:
         vehicle: [`OdinParams`][vcjax.vehicles.odin.OdinParams].
         tau_dist: (6,) constant body-frame disturbance ``[X, Y, Z, K, M, N]`` [N, N m].
-        v_c: (3,) ocean current in NED [m/s] (irrotational; uniform over the hull).
-        v_c_dot: (3,) its time derivative [m/s^2], or ``None`` (the default: a constant current,
-            the same results as zeros).
+        water: [`WaterMotion`][vcjax.environment.component.WaterMotion], the water at the
+            vehicle (irrotational; uniform over the hull): velocity (3,) NED [m/s] and material
+            acceleration (3,) [m/s^2], or ``None`` for a constant current (the same results as
+            zeros).
     """
 
     vehicle: OdinParams
     tau_dist: Any
-    v_c: Any
-    v_c_dot: Any = None
+    water: WaterMotion
 
 
 def thruster_matrix(R_hor=0.356, R_ver=0.252, dtype=None):
@@ -237,7 +240,7 @@ def odin_params(
     R = float(radius)
     if not float(z_g) < R:
         raise ValueError(f"z_g: the CG must lie inside the hull (z_g < radius = {R}), got {z_g}")
-    dt = float_dtype(dtype)
+    dtype = float_dtype(dtype)
     V = 4.0 / 3.0 * math.pi * R**3
     m = float(rho) * V
     Ig = 0.4 * m * R**2
@@ -245,7 +248,7 @@ def odin_params(
     r_bg = np.array([0.0, 0.0, float(z_g)])
     M_RB = np.asarray(
         sd.rigid_body_mass_matrix(
-            jnp.asarray(m, dt), jnp.asarray(Ig * np.eye(3), dt), jnp.asarray(r_bg, dt)
+            jnp.asarray(m, dtype), jnp.asarray(Ig * np.eye(3), dtype), jnp.asarray(r_bg, dtype)
         )
     )
     M_A = np.diag([ma, ma, ma, 0.0, 0.0, 0.0])
@@ -253,14 +256,14 @@ def odin_params(
     T_d = np.array([T_trans] * 3 + [T_rot] * 3, dtype=float)
     D = np.diag(Mdiag / T_d)
     W = m * float(g)
-    body = sd.sixdof_params(M_RB, M_A, D, W, W, r_bg, np.zeros(3), dtype=dt)
-    f = lambda x: jnp.asarray(x, dtype=dt)
+    body = sd.sixdof_params(M_RB, M_A, D, W, W, r_bg, np.zeros(3), dtype=dtype)
+    f = lambda x: jnp.asarray(x, dtype=dtype)
     return OdinParams(
         body=body,
         radius=f(R),
         rho=f(rho),
         drag_coeff=f(0.5 * float(rho) * float(Cd) * math.pi * R**2),
-        thrusters=thruster_matrix(R_hor, R_ver, dtype=dt),
+        thrusters=thruster_matrix(R_hor, R_ver, dtype=dtype),
         thrust_max=f(np.full(8, float(thrust_max))),
         T_thrust=f(T_thrust),
     )
@@ -297,38 +300,41 @@ def odin_state(eta, nu=None, thrust=None, dtype=None) -> OdinState:
     Raises:
         ValueError: naming the field for a wrong shape or a NaN/inf entry.
     """
-    dt = float_dtype(dtype)
-    eta = as_float_array("eta", eta, (6,), dt)
-    nu = jnp.zeros(6, dt) if nu is None else as_float_array("nu", nu, (6,), dt)
-    thrust = jnp.zeros(8, dt) if thrust is None else as_float_array("thrust", thrust, (8,), dt)
+    dtype = float_dtype(dtype)
+    eta = as_float_array("eta", eta, (6,), dtype)
+    nu = jnp.zeros(6, dtype) if nu is None else as_float_array("nu", nu, (6,), dtype)
+    thrust = (
+        jnp.zeros(8, dtype) if thrust is None else as_float_array("thrust", thrust, (8,), dtype)
+    )
     return OdinState(eta=eta, nu=nu, thrust=thrust)
 
 
-def odin_args(vehicle: OdinParams, tau_dist=None, v_c=None, v_c_dot=None) -> OdinArgs:
+def odin_args(vehicle: OdinParams, tau_dist=None, water: WaterMotion | None = None) -> OdinArgs:
     """Validated [`OdinArgs`][vcjax.vehicles.odin.OdinArgs] (arrays take the dtype of ``vehicle``).
 
     Args:
         vehicle: [`OdinParams`][vcjax.vehicles.odin.OdinParams].
         tau_dist: (6,) body disturbance ``[X, Y, Z, K, M, N]``, or (3,) forces only (the paper's
             ``[0, 5, 0]`` N; moments zero). Default zeros.
-        v_c: (3,) ocean current in NED [m/s]. Default zeros.
-        v_c_dot: (3,) its time derivative [m/s^2]. Default ``None`` (constant current).
+        water: [`WaterMotion`][vcjax.environment.component.WaterMotion] (velocity (3,) NED,
+            acceleration (3,) or ``None``: a constant current). Default still water.
     """
     validate(vehicle)
-    dt = jnp.asarray(vehicle.radius).dtype
+    dtype = jnp.asarray(vehicle.radius).dtype
     if tau_dist is None:
-        tau_dist = jnp.zeros(6, dt)
+        tau_dist = jnp.zeros(6, dtype)
     else:
         a = check_array("tau_dist", tau_dist, None)
         if a is not None and a.shape not in ((3,), (6,)):
             raise ValueError(f"tau_dist: expected shape (3,) or (6,), got {a.shape}")
-        tau_dist = jnp.asarray(tau_dist, dtype=dt)
+        tau_dist = jnp.asarray(tau_dist, dtype=dtype)
         if tau_dist.shape == (3,):
-            tau_dist = jnp.concatenate([tau_dist, jnp.zeros(3, dt)])
-    v_c = jnp.zeros(3, dt) if v_c is None else as_float_array("v_c", v_c, (3,), dt)
-    if v_c_dot is not None:
-        v_c_dot = as_float_array("v_c_dot", v_c_dot, (3,), dt)
-    return OdinArgs(vehicle=vehicle, tau_dist=tau_dist, v_c=v_c, v_c_dot=v_c_dot)
+            tau_dist = jnp.concatenate([tau_dist, jnp.zeros(3, dtype)])
+    v, a = (None, None) if water is None else water
+    v = jnp.zeros(3, dtype) if v is None else as_float_array("water.velocity", v, (3,), dtype)
+    if a is not None:
+        a = as_float_array("water.acceleration", a, (3,), dtype)
+    return OdinArgs(vehicle=vehicle, tau_dist=tau_dist, water=WaterMotion(v, a))
 
 
 # --------------------------------------------------------------------------------------------
@@ -357,11 +363,12 @@ def potential_energy(p: OdinParams, eta):
     return -b.W * (eta[2] + z_g - level_g) + b.B * (eta[2] + z_b - level_b)
 
 
-def total_energy(p: OdinParams, x: OdinState, v_c=None):
-    """() kinetic (relative to a constant current, rigid body + added mass) + potential [J]."""
+def total_energy(p: OdinParams, x: OdinState, water: WaterMotion | None = None):
+    """() kinetic (relative to a constant current ``water``, rigid body + added mass) +
+    potential [J]."""
     nu_r = x.nu
-    if v_c is not None:
-        nu_c, _ = sd.current_in_body(x.eta, x.nu, v_c)
+    if water is not None:
+        nu_c, _ = sd.current_in_body(x.eta, x.nu, water.velocity)
         nu_r = x.nu - nu_c
     return sd.kinetic_energy(p.body, nu_r) + potential_energy(p, x.eta)
 
@@ -370,10 +377,11 @@ def _plant(t, x: OdinState, u_cmd, args: OdinArgs, smooth: bool) -> OdinState:
     p = args.vehicle
     sat = smooth_saturate if smooth else saturate
     thrust_dot = (sat(u_cmd, p.thrust_max) - x.thrust) / p.T_thrust
-    nu_c, _ = sd.current_in_body(x.eta, x.nu, args.v_c)
+    v_c, v_c_dot = args.water  # all three components: a 6-DOF body feels vertical water
+    nu_c, _ = sd.current_in_body(x.eta, x.nu, v_c)
     nu_r = x.nu - nu_c
     tau = p.thrusters @ x.thrust + args.tau_dist + drag_force(p, nu_r)
-    eta_dot, nu_dot = sd.vector_field(p.body, x.eta, x.nu, tau, args.v_c, args.v_c_dot)
+    eta_dot, nu_dot = sd.vector_field(p.body, x.eta, x.nu, tau, args.water)
     return OdinState(eta=eta_dot, nu=nu_dot, thrust=thrust_dot)
 
 
@@ -385,8 +393,7 @@ def odin_plant(t, x: OdinState, u_cmd, args: OdinArgs) -> OdinState:
         t: () time [s] (unused; autonomous).
         x: [`OdinState`][vcjax.vehicles.odin.OdinState].
         u_cmd: (8,) thruster commands [N] (hard-clipped to ``±thrust_max``).
-        args: [`OdinArgs`][vcjax.vehicles.odin.OdinArgs] (vehicle, ``tau_dist`` (6,), ``v_c`` (3,),
-            ``v_c_dot``).
+        args: [`OdinArgs`][vcjax.vehicles.odin.OdinArgs] (vehicle, ``tau_dist`` (6,), the water).
 
     Returns:
         [`OdinState`][vcjax.vehicles.odin.OdinState] of time derivatives.

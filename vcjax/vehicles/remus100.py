@@ -49,7 +49,10 @@ Model (6-DOF, NED / body x forward, z down; ``vcjax.vehicles.sixdof`` convention
   ``K_prop / 10`` (PVS: "scaled down by a factor of 10 to match exp. results").
 * ``tau = [(1 - t) X_prop + X_r + X_s, Y_r, Z_s, K_prop/10, -x_s Z_s, x_r Y_r]``.
 * Current: speed ``V_c`` and direction ``beta_c``, i.e. the NED vector
-  ``v_c = [V_c cos beta_c, V_c sin beta_c]``. As in PVS it is rotated by the **yaw angle only**:
+  ``v_c = [V_c cos beta_c, V_c sin beta_c]``, reaching the plant through its one water door
+  ``Remus100Args.water`` ([`WaterMotion`][vcjax.environment.component.WaterMotion], (3,) NED
+  velocity and acceleration). As in PVS it is rotated by the **yaw angle only**, and its vertical
+  component is not felt:
   ``nu_c = [V_c cos(beta_c - psi), V_c sin(beta_c - psi), 0, 0, 0, 0]``,
   ``nu_c_dot = [r v_c, -r u_c, 0, ...]`` (+ the rotated ``v_c_dot`` of a time-varying current,
   zero in PVS). The generic [`vcjax.vehicles.sixdof`][vcjax.vehicles.sixdof] uses the full
@@ -100,6 +103,7 @@ from vcjax._checks import (
     float_dtype,
     is_concrete,
 )
+from vcjax.environment.component import WaterMotion, water_motion
 from vcjax.environment.current import current_ned
 from vcjax.linalg import cho_solve_small, cholesky_small, safe_norm, saturate, smooth_saturate
 from vcjax.vehicles.sixdof import (
@@ -236,30 +240,31 @@ class Remus100Args(NamedTuple):
 
     Attributes:
         vehicle: [`Remus100Params`][vcjax.vehicles.remus100.Remus100Params].
-        v_c: (2,) horizontal current in NED ``[north, east]`` [m/s] (or (3,): see
-            [`current_in_body`][vcjax.vehicles.remus100.current_in_body]).
-        v_c_dot: (2,) its time derivative [m/s^2] (zero in PVS; (3,) with a (3,) ``v_c``).
+        water: [`WaterMotion`][vcjax.environment.component.WaterMotion], the water at the hull
+            (the one door of every plant): velocity (3,) NED [m/s] and material acceleration
+            (3,) [m/s^2].
         M_factor: (6, 6) lower Cholesky factor of ``mass_matrix(vehicle)``
             ([`mass_factor`][vcjax.vehicles.remus100.mass_factor]), or ``None``. ``M`` is constant,
             so [`remus100_args`][vcjax.vehicles.remus100.remus100_args]
             and the loops factor it once, outside the rollout's loop; with ``None`` the plant
             factors it at every evaluation (the same numbers). Rebuild the arguments (or the
             factor) when ``vehicle`` changes.
-        v_w: (3,) NED orbital velocity of waves on top of the current [m/s], rotated in full
-            (``R(Theta)^T``), or None (no waves); see
-            [`orbital_kinematics`][vcjax.environment.waves.orbital_kinematics].
-        v_w_dot: (3,) its material acceleration [m/s^2] (with ``v_w``).
+        uniform: the share of ``water`` that is uniform in space (the current,
+            a [`WaterMotion`][vcjax.environment.component.WaterMotion]), or ``None``: all of it.
+            PVS's door: the uniform share's horizontal part is rotated by the yaw angle only
+            ([`current_in_body`][vcjax.vehicles.remus100.current_in_body]) and its vertical part
+            is not felt (PVS's current is horizontal); the rest, ``water - uniform`` (e.g. the
+            orbital motion of waves), goes through the full rotation ``R(Theta)^T``, all three
+            components.
         tau_w: (6,) extra body force of the waves
         ([`current_door_correction`][vcjax.environment.waves.current_door_correction],
             the pendulum moment of the CG below the CB) [N, N m], or None.
     """
 
     vehicle: Remus100Params
-    v_c: Any
-    v_c_dot: Any
+    water: WaterMotion
     M_factor: Any = None
-    v_w: Any = None
-    v_w_dot: Any = None
+    uniform: WaterMotion | None = None
     tau_w: Any = None
 
 
@@ -371,11 +376,11 @@ def remus100_params(
     cf_coeff = 0.5 * rho * T_draft * hoerner(diam, T_draft)
 
     S_fin = 0.00665
-    dt = float_dtype(dtype)
-    body = sixdof_params(M_RB, M_A, D, W, B, rbg, rbb, dtype=dt)
+    dtype = float_dtype(dtype)
+    body = sixdof_params(M_RB, M_A, D, W, B, rbg, rbb, dtype=dtype)
 
     def s(v):
-        return jnp.asarray(v, dtype=dt)
+        return jnp.asarray(v, dtype=dtype)
 
     return Remus100Params(
         body=body,
@@ -440,40 +445,38 @@ def remus100_state(eta=None, nu=None, act=None, dtype=None) -> Remus100State:
     Raises:
         ValueError: naming the field for a wrong shape or a NaN/inf entry.
     """
-    dt = float_dtype(dtype)
-    eta = jnp.zeros(6, dtype=dt) if eta is None else as_float_array("eta", eta, (6,), dt)
-    nu = jnp.zeros(6, dtype=dt) if nu is None else as_float_array("nu", nu, (6,), dt)
-    act = jnp.zeros(3, dtype=dt) if act is None else as_float_array("act", act, (3,), dt)
+    dtype = float_dtype(dtype)
+    eta = jnp.zeros(6, dtype=dtype) if eta is None else as_float_array("eta", eta, (6,), dtype)
+    nu = jnp.zeros(6, dtype=dtype) if nu is None else as_float_array("nu", nu, (6,), dtype)
+    act = jnp.zeros(3, dtype=dtype) if act is None else as_float_array("act", act, (3,), dtype)
     return Remus100State(eta=eta, nu=nu, act=act)
 
 
 def remus100_args(
-    vehicle: Remus100Params, V_c=0.0, beta_c=0.0, v_c=None, v_c_dot=None
+    vehicle: Remus100Params, V_c=0.0, beta_c=0.0, water: WaterMotion | None = None
 ) -> Remus100Args:
     """Validated [`Remus100Args`][vcjax.vehicles.remus100.Remus100Args].
 
     The current is given either as PVS does, speed ``V_c`` [m/s] and direction ``beta_c``
     [rad] (the direction it flows to, from north towards east; PVS's constructor takes degrees),
-    or directly as the NED vector ``v_c`` (2,) [m/s], which then takes precedence.
+    or as the water at the hull, ``water``, which then takes precedence.
 
     Args:
         vehicle: [`Remus100Params`][vcjax.vehicles.remus100.Remus100Params].
         V_c, beta_c: () current speed [m/s] and direction [rad].
-        v_c: (2,) NED current ``[north, east]`` [m/s] (overrides ``V_c``, ``beta_c``).
-        v_c_dot: (2,) its time derivative [m/s^2] (default 0, as in PVS).
+        water: [`WaterMotion`][vcjax.environment.component.WaterMotion] (velocity (3,) NED
+            [m/s], acceleration (3,) [m/s^2], default 0 as in PVS; overrides ``V_c``,
+            ``beta_c``), e.g. ``water_motion([0.3, -0.2, 0.0])``.
     """
     validate(vehicle)
-    dt = jnp.asarray(vehicle.rho).dtype
-    if v_c is None:
+    dtype = jnp.asarray(vehicle.rho).dtype
+    if water is None:
         check_array("V_c", V_c, ())
         check_array("beta_c", beta_c, ())
-        v_c = current_ned(jnp.asarray(V_c, dtype=dt), jnp.asarray(beta_c, dtype=dt))[:2]
-    else:
-        v_c = as_float_array("v_c", v_c, (2,), dt)
-    v_c_dot = (
-        jnp.zeros(2, dtype=dt) if v_c_dot is None else as_float_array("v_c_dot", v_c_dot, (2,), dt)
-    )
-    return Remus100Args(vehicle=vehicle, v_c=v_c, v_c_dot=v_c_dot, M_factor=mass_factor(vehicle))
+        v = current_ned(jnp.asarray(V_c, dtype=dtype), jnp.asarray(beta_c, dtype=dtype))
+        water = WaterMotion(v, None)
+    water = water_motion(*water, dtype=dtype)
+    return Remus100Args(vehicle=vehicle, water=water, M_factor=mass_factor(vehicle))
 
 
 # --------------------------------------------------------------------------------------------
@@ -642,9 +645,16 @@ def _nu_dot(x: Remus100State, act_applied, args: Remus100Args):
     """``nu_dot`` (6,) with the applied (saturated) actuator values."""
     p = args.vehicle
     eta, nu = x.eta, x.nu
-    nu_c, nu_c_dot = current_in_body(eta, nu, args.v_c, args.v_c_dot)
-    if args.v_w is not None:  # waves on top of the current (its door stays PVS's)
-        nu_w, nu_w_dot = _current_in_body_3d(eta, nu, args.v_w, args.v_w_dot)
+    w = args.water
+    c = w if args.uniform is None else args.uniform
+    # PVS's door: the uniform current's horizontal part, yaw rotation only
+    a_c = None if c.acceleration is None else c.acceleration[:2]
+    nu_c, nu_c_dot = current_in_body(eta, nu, c.velocity[:2], a_c)
+    if args.uniform is not None:  # what varies in space (waves) on top: the full rotation
+        a = w.acceleration
+        if a is not None and c.acceleration is not None:
+            a = a - c.acceleration
+        nu_w, nu_w_dot = _current_in_body_3d(eta, nu, w.velocity - c.velocity, a)
         nu_c, nu_c_dot = nu_c + nu_w, nu_c_dot + nu_w_dot
     nu_r = nu - nu_c
     U_r = safe_norm(nu_r[:3])

@@ -96,8 +96,8 @@ def design_model(p: r100.Remus100Params, U_design=1.5, U_min=0.5) -> Remus100Des
         raise ValueError(f"vehicle: expected Remus100Params, got {type(p).__name__}")
     check_positive("U_design", U_design, ())
     check_positive("U_min", U_min, ())
-    dt = jnp.asarray(p.rho).dtype
-    return Remus100Design(p, jnp.asarray(U_design, dt), jnp.asarray(U_min, dt))
+    dtype = jnp.asarray(p.rho).dtype
+    return Remus100Design(p, jnp.asarray(U_design, dtype), jnp.asarray(U_min, dtype))
 
 
 def to_six(q5, nu5):

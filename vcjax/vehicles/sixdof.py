@@ -9,7 +9,9 @@ body frame has x forward, y starboard, z down; the body origin CO is a fixed poi
   ``R = Rz(psi) Ry(theta) Rx(phi)`` and ``T`` the Euler-angle attitude transform (singular at
   ``theta = +-90 deg``).
 * Kinetics, in the relative velocity ``nu_r = nu - nu_c``, ``nu_c = [R(Theta)^T v_c; 0]`` of an
-  irrotational ocean current ``v_c`` (3,) given in NED::
+  irrotational ocean current ``v_c`` (3,) given in NED (the velocity of the plant's one water
+  door, [`WaterMotion`][vcjax.environment.component.WaterMotion], ``v_c_dot`` its
+  acceleration)::
 
       M nu_r_dot + C(nu_r) nu_r + D nu_r + g(eta) = tau,        M = M_RB + M_A,
       nu_dot = nu_r_dot + nu_c_dot,   nu_c_dot = [-S(omega) R^T v_c + R^T v_c_dot; 0],
@@ -41,6 +43,7 @@ from vcjax._checks import (
     float_dtype,
     is_concrete,
 )
+from vcjax.environment.component import WaterMotion, water_motion
 from vcjax.linalg import Rzyx, spd_solve_small
 
 __all__ = [
@@ -262,12 +265,13 @@ class SixDofArgs(NamedTuple):
 
     Attributes:
         vehicle: [`SixDofParams`][vcjax.vehicles.sixdof.SixDofParams].
-        v_c: (3,) ocean current in NED [m/s]; v_c_dot: (3,) its time derivative [m/s^2].
+        water: [`WaterMotion`][vcjax.environment.component.WaterMotion], the water at the body:
+            velocity ``v_c`` (3,) NED [m/s] (all three components felt) and material
+            acceleration ``v_c_dot`` (3,) [m/s^2].
     """
 
     vehicle: SixDofParams
-    v_c: Any
-    v_c_dot: Any
+    water: WaterMotion
 
 
 def _check_symmetric(name, a, rtol=1e-8):
@@ -294,7 +298,7 @@ def sixdof_params(M_RB, M_A=None, D=None, W=0.0, B=None, r_bg=None, r_bb=None, d
     Raises:
         ValueError: naming the offending field (wrong shape, NaN/inf, not SPD, ...).
     """
-    dt = float_dtype(dtype)
+    dtype = float_dtype(dtype)
     M_A = np.zeros((6, 6)) if M_A is None else M_A
     D = np.zeros((6, 6)) if D is None else D
     B = W if B is None else B
@@ -318,13 +322,13 @@ def sixdof_params(M_RB, M_A=None, D=None, W=0.0, B=None, r_bg=None, r_bb=None, d
     check_positive("W", W, (), strict=False)
     check_positive("B", B, (), strict=False)
     return SixDofParams(
-        M_RB=as_float_array("M_RB", M_RB, (6, 6), dt),
-        M_A=as_float_array("M_A", M_A, (6, 6), dt),
-        D=as_float_array("D", D, (6, 6), dt),
-        W=jnp.asarray(W, dtype=dt),
-        B=jnp.asarray(B, dtype=dt),
-        r_bg=as_float_array("r_bg", r_bg, (3,), dt),
-        r_bb=as_float_array("r_bb", r_bb, (3,), dt),
+        M_RB=as_float_array("M_RB", M_RB, (6, 6), dtype),
+        M_A=as_float_array("M_A", M_A, (6, 6), dtype),
+        D=as_float_array("D", D, (6, 6), dtype),
+        W=jnp.asarray(W, dtype=dtype),
+        B=jnp.asarray(B, dtype=dtype),
+        r_bg=as_float_array("r_bg", r_bg, (3,), dtype),
+        r_bb=as_float_array("r_bb", r_bb, (3,), dtype),
     )
 
 
@@ -352,26 +356,24 @@ def sixdof_state(eta=None, nu=None, dtype=None) -> SixDofState:
     Raises:
         ValueError: naming the field for a wrong shape or a NaN/inf entry.
     """
-    dt = float_dtype(dtype)
-    eta = jnp.zeros(6, dtype=dt) if eta is None else as_float_array("eta", eta, (6,), dt)
-    nu = jnp.zeros(6, dtype=dt) if nu is None else as_float_array("nu", nu, (6,), dt)
+    dtype = float_dtype(dtype)
+    eta = jnp.zeros(6, dtype=dtype) if eta is None else as_float_array("eta", eta, (6,), dtype)
+    nu = jnp.zeros(6, dtype=dtype) if nu is None else as_float_array("nu", nu, (6,), dtype)
     return SixDofState(eta=eta, nu=nu)
 
 
-def sixdof_args(vehicle: SixDofParams, v_c=None, v_c_dot=None) -> SixDofArgs:
-    """Validated [`SixDofArgs`][vcjax.vehicles.sixdof.SixDofArgs]; ``v_c``, ``v_c_dot`` (3,) NED
-    default to zero.
+def sixdof_args(vehicle: SixDofParams, water: WaterMotion | None = None) -> SixDofArgs:
+    """Validated [`SixDofArgs`][vcjax.vehicles.sixdof.SixDofArgs]; ``water``
+    ([`WaterMotion`][vcjax.environment.component.WaterMotion], (3,) NED velocity and
+    acceleration) defaults to still water.
 
     The arrays take the dtype of ``vehicle.M_RB``.
     """
     if not isinstance(vehicle, SixDofParams):
         raise ValueError(f"vehicle: expected SixDofParams, got {type(vehicle).__name__}")
-    dt = jnp.asarray(vehicle.M_RB).dtype
-    v_c = jnp.zeros(3, dtype=dt) if v_c is None else as_float_array("v_c", v_c, (3,), dt)
-    v_c_dot = (
-        jnp.zeros(3, dtype=dt) if v_c_dot is None else as_float_array("v_c_dot", v_c_dot, (3,), dt)
-    )
-    return SixDofArgs(vehicle=vehicle, v_c=v_c, v_c_dot=v_c_dot)
+    dtype = jnp.asarray(vehicle.M_RB).dtype
+    water = WaterMotion(None, None) if water is None else water
+    return SixDofArgs(vehicle=vehicle, water=water_motion(*water, dtype=dtype))
 
 
 # --------------------------------------------------------------------------------------------
@@ -399,8 +401,8 @@ def kinetic_energy(p: SixDofParams, nu_r):
     return 0.5 * nu_r @ mass_matrix(p) @ nu_r
 
 
-def vector_field(p: SixDofParams, eta, nu, tau, v_c=None, v_c_dot=None):
-    """``(eta_dot, nu_dot)`` of model (2) with an optional (possibly time-varying) current.
+def vector_field(p: SixDofParams, eta, nu, tau, water: WaterMotion | None = None):
+    """``(eta_dot, nu_dot)`` of model (2) in optional (possibly time-varying) water.
 
     ``M nu_r_dot = tau - C(nu_r) nu_r - D nu_r - g(eta)``, ``nu_dot = nu_r_dot + nu_c_dot``,
     ``eta_dot = J(Theta) nu``.
@@ -408,16 +410,17 @@ def vector_field(p: SixDofParams, eta, nu, tau, v_c=None, v_c_dot=None):
     Args:
         p: parameters; eta: (6,) pose; nu: (6,) body velocity over ground;
         tau: (6,) generalised body force ``[X, Y, Z, K, M, N]`` [N, N m] about the CO;
-        v_c: (3,) current in NED at this time [m/s] (default none);
-        v_c_dot: (3,) its time derivative [m/s^2] (default 0).
+        water: [`WaterMotion`][vcjax.environment.component.WaterMotion] at this time: the
+            current ``v_c`` (3,) NED [m/s] and its material acceleration ``v_c_dot`` (3,)
+            [m/s^2] (``None``: 0); default none (still water).
 
     Returns:
         ``(eta_dot (6,), nu_dot (6,))``.
     """
-    if v_c is None:
+    if water is None:
         nu_r, nu_c_dot = nu, jnp.zeros_like(nu)
     else:
-        nu_c, nu_c_dot = current_in_body(eta, nu, v_c, v_c_dot)
+        nu_c, nu_c_dot = current_in_body(eta, nu, water.velocity, water.acceleration)
         nu_r = nu - nu_c
     rhs = tau - coriolis(p, nu_r) @ nu_r - p.D @ nu_r - restoring(p, eta)
     nu_r_dot = spd_solve_small(mass_matrix(p), rhs)
@@ -431,19 +434,19 @@ def sixdof_plant(t, x: SixDofState, tau, args: SixDofArgs) -> SixDofState:
     Args:
         t: () time [s] (unused); x: [`SixDofState`][vcjax.vehicles.sixdof.SixDofState]; tau: (6,)
             body force [N, N m];
-        args: [`SixDofArgs`][vcjax.vehicles.sixdof.SixDofArgs] (vehicle, current ``v_c`` and
-            ``v_c_dot`` in NED).
+        args: [`SixDofArgs`][vcjax.vehicles.sixdof.SixDofArgs] (vehicle, the water at it).
     """
-    eta_dot, nu_dot = vector_field(args.vehicle, x.eta, x.nu, tau, args.v_c, args.v_c_dot)
+    eta_dot, nu_dot = vector_field(args.vehicle, x.eta, x.nu, tau, args.water)
     return SixDofState(eta=eta_dot, nu=nu_dot)
 
 
-def make_sixdof_plant(current: Callable) -> Callable:
+def make_sixdof_plant(water: Callable) -> Callable:
     """A plant ``f(t, x, tau, vehicle)`` for a uniform, time-varying current.
 
     Args:
-        current: ``current(t) -> (v_c (3,), v_c_dot (3,))`` in NED [m/s, m/s^2], a pure jnp
-            function of time (uniform in space, hence irrotational).
+        water: ``water(t) ->`` [`WaterMotion`][vcjax.environment.component.WaterMotion]
+            (or the pair ``(v_c (3,), v_c_dot (3,))``) in NED [m/s, m/s^2], a pure jnp function
+            of time (uniform in space, hence irrotational).
 
     Returns:
         ``plant(t, x: SixDofState, tau, vehicle: SixDofParams) -> SixDofState``. Build it once
@@ -451,8 +454,8 @@ def make_sixdof_plant(current: Callable) -> Callable:
     """
 
     def plant(t, x: SixDofState, tau, vehicle: SixDofParams) -> SixDofState:
-        v_c, v_c_dot = current(t)
-        eta_dot, nu_dot = vector_field(vehicle, x.eta, x.nu, tau, v_c, v_c_dot)
+        w = WaterMotion(*water(t))
+        eta_dot, nu_dot = vector_field(vehicle, x.eta, x.nu, tau, w)
         return SixDofState(eta=eta_dot, nu=nu_dot)
 
     return plant
