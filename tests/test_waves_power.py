@@ -1,0 +1,80 @@
+"""Edge cases of :mod:`vcjax.environment.waves` that the mutation run (``tools/mutation.py
+waves``) found untested. Eager checks and short computations (milliseconds each)."""
+
+import math
+import warnings
+
+import pytest
+from scipy.integrate import quad
+
+from vcjax.environment import waves
+
+
+def test_steep_share_of_a_range_in_one_quantity_only():
+    # hs uniform on (1, 3) m at tp 4 s (wavelength 24.98 m): past 1/14 above hs = 1.784 m,
+    # (3 - 1.784) / 2 = 61 % of the range; tp uniform on (4, 6) s at hs 3 m: 59 %
+    (w,) = waves.envelope_warnings((1.0, 3.0), 4.0)
+    assert "(61 % of its sea states are past 1/14)" in w
+    (w,) = waves.envelope_warnings(3.0, (4.0, 6.0))
+    assert "(59 % of its sea states are past 1/14)" in w
+
+
+def test_steep_share_is_the_midpoint_rule_on_400_points():
+    # hs uniform on (0, H) at tp 4 s, H chosen so that only the top cell of 400 (q = 0.99875,
+    # not q = 0.99625) is past 1/14: 1 / 400 = 0.25 %
+    h_limit = waves.peak_wavelength(4.0) * waves.LINEAR_STEEPNESS
+    (w,) = waves.envelope_warnings((0.0, h_limit / 0.9975), 4.0)
+    assert "(0.25 % of its sea states are past 1/14)" in w
+
+
+def test_steepness_limits_are_strict():
+    lam = waves.peak_wavelength(4.0)  # the quotients below are exact at tp = 4 s
+    assert waves.envelope_warnings(lam * waves.LINEAR_STEEPNESS, 4.0) == []  # at 1/14: linear
+    (w,) = waves.envelope_warnings(lam * waves.BREAKING_STEEPNESS, 4.0)  # at 1/7: not breaking
+    assert "past the 1/14 limit" in w and "steeper than breaking" not in w
+
+
+def test_small_and_short_seas_are_checked_too():
+    # no threshold of 1 m or 1 s: a 0.1 m sea of 0.9 s is as steep as it looks
+    assert "past the 1/14 limit" in waves.envelope_warnings(0.1, 0.9)[0]
+    assert "steeper than breaking" in waves.envelope_warnings(0.9, 2.0)[0]
+    (w,) = waves.envelope_warnings(1.0, 10.0, origin_depth=0.2)  # hs / 2 = 0.5 m > 0.2 m
+    assert w.startswith("waves: origin_depth 0.2 m is less than hs / 2 = 0.5 m")
+
+
+def test_steep_share_only_for_ranges_that_are_ranges():
+    # a range of zero width is one sea state: no share; a width of 1 (m or s) is a range
+    (w,) = waves.envelope_warnings((3.0, 3.0), (4.0, 4.0))
+    assert "sea states" not in w and w.startswith("waves: hs 3 m with tp 4 s")
+    assert "of its sea states are past 1/14" in waves.envelope_warnings((2.0, 3.0), 4.0)[0]
+    assert "of its sea states are past 1/14" in waves.envelope_warnings(3.0, (4.0, 5.0))[0]
+
+
+def _normalisation_by_quad(gamma):
+    """I(gamma) = int_0^inf 1.25 exp(-1.25 u) gamma^r(u^(-1/4)) du by adaptive quadrature,
+    split at the kink u = 1 and where the peak enhancement varies (independent of the module's
+    fixed Gauss-Legendre panels)."""
+
+    def f(u):
+        x = u**-0.25
+        s = 0.07 if x <= 1.0 else 0.09
+        return 1.25 * math.exp(
+            -1.25 * u + math.exp(-((x - 1.0) ** 2) / (2 * s * s)) * math.log(gamma)
+        )
+
+    edges = [1e-300, 0.3, 0.5, 0.7, 0.85, 1.0, 1.15, 1.3, 1.5, 2.0, 3.0, 6.0, 10.0, 20.0, 60.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # quad's round-off note at 1e-14
+        return sum(
+            quad(f, a, b, epsabs=1e-16, epsrel=1e-14, limit=200)[0]
+            for a, b in zip(edges[:-1], edges[1:], strict=True)
+        )
+
+
+@pytest.mark.parametrize("gamma", [3.3, 7.0, 20.0])
+def test_jonswap_normalisation_to_quadrature_accuracy(gamma):
+    # the panels' rule agrees with adaptive quadrature to ~2e-14: a moved panel edge near the
+    # peak (1e-12 .. 1e-9) shows
+    assert float(waves.jonswap_normalisation(gamma)) == pytest.approx(
+        _normalisation_by_quad(gamma), rel=5e-13
+    )
