@@ -78,3 +78,9 @@ def test_jonswap_normalisation_to_quadrature_accuracy(gamma):
     assert float(waves.jonswap_normalisation(gamma)) == pytest.approx(
         _normalisation_by_quad(gamma), rel=5e-13
     )
+
+
+def test_a_whole_range_past_linear_theory_reads_as_100_percent():
+    # every sea state of hs 10-12 m, tp 4-5 s is past 1/14: "100 %", never "1e+02 %"
+    (w,) = waves.envelope_warnings((10.0, 12.0), (4.0, 5.0))
+    assert "(100 % of its sea states are past 1/14)" in w, w

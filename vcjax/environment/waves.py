@@ -225,9 +225,8 @@ def _steep_share(hs, tp) -> str | None:
     hh = h.min() + np.ptp(h) * q
     tt = t.min() + np.ptp(t) * q
     steep = hh[:, None] / (GRAVITY * tt[None, :] ** 2 / (2.0 * math.pi))
-    return (
-        f"{100.0 * float(np.mean(steep > LINEAR_STEEPNESS)):.2g} % of its sea states are past 1/14"
-    )
+    pct = float(f"{100.0 * float(np.mean(steep > LINEAR_STEEPNESS)):.2g}")  # 2 digits, no 1e+02
+    return f"{pct:g} % of its sea states are past 1/14"
 
 
 def envelope_warnings(hs, tp, origin_depth=None, components: int | None = None) -> list[str]:
