@@ -507,9 +507,12 @@ def test_example_tuning_configs_are_valid():
 
     from tuning.config import load_config
 
-    files = sorted((Path(__file__).parents[1] / "examples" / "tuning").glob("*.toml"))
+    root = Path(__file__).parents[1]
+    files = sorted((root / "examples" / "tuning").glob("*.toml"))
     assert {"sim2.toml", "arm.toml", "puck.toml", "quick.toml"} <= {f.name for f in files}
-    for f in files:
+    study = sorted((root / "benchmarks" / "configs").glob("tuners_*.toml"))  # the tuner study's
+    assert len(study) == 3
+    for f in files + study:
         cfg = load_config(f)
         assert cfg.problem.variant and cfg.scenario.vehicle and cfg["scenario"]["vehicle"]
 
