@@ -688,11 +688,13 @@ FIT_PARAMS = ("X_uu", "Y_uv", "Y_ur", "N_uv", "N_ur", "Y_uudr", "N_uudr", "cf_co
 #: the tuner study's measurement log quotes its result files
 TUNERS_STORE = ("docs/development/tuners.md", "benchmarks/results/tuners_remus100_store.json")
 TUNERS_SIM2 = ("docs/development/tuners.md", "benchmarks/results/tuners_sim2_store.json")
+TUNERS_SEAS = ("docs/development/tuners.md", "benchmarks/results/tuners_remus100_waves_store.json")
 QUOTES = [
     (*TUNERS_STORE, "summary.target", "| {:.4f} |"),
     (*TUNERS_STORE, "summary.ratios_wall_s_to_1%.warm: lbfgs/cmaes at 1%", "**{:.2f}**"),
     (*TUNERS_STORE, "summary.ratios_wall_s_to_1%.cold: lbfgs/cmaes at 1%", "| {:.2f} |"),
     (*TUNERS_SIM2, "summary.ratios_wall_s_to_1%.warm: lbfgs/cmaes at 1%", "**{:.2f}**"),
+    (*TUNERS_SEAS, "summary.ratios_wall_s_to_1%.warm: lbfgs/cmaes at 1%", "**{:.2f}**"),
     (*SWEEP, "variants.vcm.metrics.ss_abs_e.p50", "{:.2f} m"),
     (*SWEEP, "variants.ilos.metrics.ss_abs_e.p50", "{:.3f} m"),
     (*SWEEP, "variants.los_pid.metrics.ss_abs_e.p50", "{:.2f} m"),
