@@ -199,6 +199,7 @@ def test_the_new_disturbance_is_swept_with_its_own_section(tmp_path):
     assert not (tmp_path / "bad" / "summary.json").exists()
 
 
+@pytest.mark.slow  # 7 s; test_the_new_disturbance_is_tuned_from_its_own_section tunes it too
 def test_the_new_disturbance_is_tuned():
     loop = loops.make_loop("puck", "vcm")
     problem = TuningProblem(space=GainSpace(loop=loop), num_steps=40, timing="sampled")
