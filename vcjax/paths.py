@@ -283,6 +283,32 @@ def _pose_tower(path: Path, order: int):
     return tower
 
 
+def _path_samples(path: Path, coeffs, w0, w1, num: int):
+    """``(ws, p, dp)``: ``num`` parameters from ``w0`` to ``w1``, the path's points (num, 3) and
+    tangents (num, 3) there."""
+    ws = jnp.linspace(w0, w1, num)
+
+    def tangent(w_):
+        return jax.jvp(lambda a: path_point(path, coeffs, a), (w_,), (jnp.ones_like(w_),))
+
+    return (ws, *jax.vmap(tangent)(ws))
+
+
+# ``_path_samples`` as one program per path kind and coefficient shapes: op by op, the first
+# check of a process compiled some fifty one-operation kernels (a second of a cold start)
+_path_samples_jit = jax.jit(_path_samples, static_argnums=(0, 4))
+
+
+def _samples(path: Path, coeffs, w0, w1, num: int):
+    """``_path_samples``, jitted where it can be: a path that is no
+    static argument (its function cannot be hashed), or whose function needs its coefficients
+    as Python values (branches on them, strings), is evaluated op by op, as before."""
+    try:
+        return _path_samples_jit(path, coeffs, w0, w1, num)
+    except Exception:  # the op-by-op evaluation raises what it raises (as before)
+        return _path_samples(path, coeffs, w0, w1, num)
+
+
 def validate_path(path: Path, coeffs, w_range=(-50.0, 50.0), num: int = 401) -> None:
     """Eagerly check a path: finite values and a non-vanishing horizontal tangent on ``w_range``.
 
@@ -293,16 +319,11 @@ def validate_path(path: Path, coeffs, w_range=(-50.0, 50.0), num: int = 401) -> 
     w0, w1 = (float(x) for x in w_range)
     if not (np.isfinite(w0) and np.isfinite(w1) and w1 > w0):
         raise ValueError(f"path {path.name!r}: w_range must be finite with w0 < w1, got {w_range}")
-    ws = jnp.linspace(w0, w1, num)
-
-    def tangent(w_):
-        return jax.jvp(lambda a: path_point(path, coeffs, a), (w_,), (jnp.ones_like(w_),))
-
     try:
-        p, dp = jax.vmap(tangent)(ws)
+        ws, p, dp = _samples(path, coeffs, w0, w1, num)
     except (TypeError, ValueError) as err:
         raise ValueError(f"path {path.name!r}: cannot evaluate p_p(w): {err}") from None
-    p, dp = np.asarray(p), np.asarray(dp)
+    ws, p, dp = np.asarray(ws), np.asarray(p), np.asarray(dp)
     bad = ~np.all(np.isfinite(p), axis=1) | ~np.all(np.isfinite(dp), axis=1)
     if np.any(bad):
         w_bad = float(ws[int(np.argmax(bad))])

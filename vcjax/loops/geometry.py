@@ -27,10 +27,7 @@ def _search_range(path: paths.Path, coeffs, w_range):
     return w_range
 
 
-def path_polyline(path: paths.Path, coeffs, points=None, num: int = 400):
-    """(num, 3) points of the path for figures: one turn of a circle, two of a helix, the
-    waypoints' or survey's span; a line over the projections of ``points`` (M, 2 or 3) ±10 m
-    (default ``[-50, 50]``)."""
+def _polyline(path: paths.Path, coeffs, points, num: int):
     if isinstance(coeffs, paths.LineCoeffs) and points is not None:
         pts = jnp.asarray(points)
         pts = jnp.concatenate([pts, jnp.zeros(pts.shape[:-1] + (3 - pts.shape[-1],))], axis=-1)
@@ -40,6 +37,21 @@ def path_polyline(path: paths.Path, coeffs, points=None, num: int = 400):
         lo, hi = _search_range(path, coeffs, (-50.0, 50.0))
     w = lo + (hi - lo) * jnp.linspace(0.0, 1.0, num)
     return jax.vmap(lambda w_: paths.path_point(path, coeffs, w_))(w)
+
+
+# one program per path kind, shapes and ``num`` (op by op: some thirty one-operation kernels
+# compiled at the first figure of a process)
+_polyline_jit = jax.jit(_polyline, static_argnums=(0, 3))
+
+
+def path_polyline(path: paths.Path, coeffs, points=None, num: int = 400):
+    """(num, 3) points of the path for figures: one turn of a circle, two of a helix, the
+    waypoints' or survey's span; a line over the projections of ``points`` (M, 2 or 3) ±10 m
+    (default ``[-50, 50]``)."""
+    try:
+        return _polyline_jit(path, coeffs, points, num)
+    except Exception:  # a path that is no static argument, or needs Python coefficients
+        return _polyline(path, coeffs, points, num)
 
 
 def start_parameter(path: paths.Path, coeffs, point, w_range=(-50.0, 50.0), num: int = 512):

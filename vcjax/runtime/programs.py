@@ -281,8 +281,17 @@ def environment() -> tuple:
 
 def _leaf_spec(leaf) -> tuple:
     sharding = getattr(leaf, "sharding", None)
-    return (tuple(np.shape(leaf)), str(np.asarray(leaf).dtype if sharding is None else leaf.dtype),
-            str(sharding), bool(getattr(leaf, "weak_type", False)))  # fmt: skip
+    dtype = leaf.dtype if hasattr(leaf, "dtype") else np.asarray(leaf).dtype
+    return (tuple(np.shape(leaf)), str(dtype), str(sharding),
+            bool(getattr(leaf, "weak_type", False)))  # fmt: skip
+
+
+def _committed(leaf) -> bool:
+    """Whether ``leaf``'s placement is part of the program: a committed array, or a
+    ``jax.ShapeDtypeStruct`` that names a sharding (it stands for one)."""
+    if isinstance(leaf, jax.ShapeDtypeStruct):
+        return leaf.sharding is not None
+    return bool(getattr(leaf, "committed", False))
 
 
 def argument_spec(args) -> tuple:
@@ -308,7 +317,8 @@ def build(name: str, fn, static, args: tuple, *, record: bool = True):
     the key) and return ``(call, info)``: ``call(*args)`` runs the compiled program on new values
     of the same shapes and returns what ``fn`` returns (any pytree of arrays); ``info`` is this
     program's [`report`][vcjax.runtime.programs.report] entry (``record=False``: not added to
-    it).
+    it). A leaf of ``args`` may be a ``jax.ShapeDtypeStruct`` (with a sharding: it stands for an
+    array committed there), so a program can be built before its inputs exist.
 
     With the store on, the program is loaded from it when an identical one was stored (no
     tracing), else exported, stored and loaded back; either way compiled from the exported
@@ -360,7 +370,7 @@ def _export_and_store(folder: Path, key: str, fn, treedef, leaves):
 
     # a committed array's placement is part of the program; an uncommitted one (a new array on
     # the default device) goes where the others are, as with jax.jit
-    shardings = tuple(x.sharding if getattr(x, "committed", False) else None for x in leaves)
+    shardings = tuple(x.sharding if _committed(x) else None for x in leaves)
     if all(s is None for s in shardings):
         jitted = jax.jit(flat)
     else:

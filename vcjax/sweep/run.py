@@ -370,16 +370,59 @@ class _Chunks:
         diverge_e = jnp.asarray(spec.diverge_e, self.dtype)
         if n_dev == 1 and devices[0] == jax.devices()[0]:
             self.put_batch = put_repl = lambda tree: tree  # no sharding: run_batch's program
+            self.batch_sharding = None
         else:
             mesh = _mesh(devices)
-            batch_sh = NamedSharding(mesh, PartitionSpec("scenarios"))
+            self.batch_sharding = batch_sh = NamedSharding(mesh, PartitionSpec("scenarios"))
             repl = NamedSharding(mesh, PartitionSpec())
-            self.put_batch = lambda tree: jax.device_put(tree, batch_sh)
+            # from the host: split on the device, each field's shape compiled a slicing kernel
+            self.put_batch = lambda tree: jax.device_put(jax.device_get(tree), batch_sh)
             put_repl = lambda tree: jax.device_put(tree, repl)
         self.replicated = put_repl((gains_of, nom, dt, diverge_e))
         self.compiled: dict = {}
         self.compile_s = dict.fromkeys(spec.variants, 0.0)
         self.run_s = dict.fromkeys(spec.variants, 0.0)
+
+    def _draw(self, idx) -> MCScenario:
+        loop0 = self.loops[self.spec.variants[0]]
+        return sample_scenarios(self.spec.scenario, self.spec.seed, idx, self.dtype, loop=loop0)
+
+    def _build(self, idx) -> MCScenario:
+        """Every variant's program, built concurrently, once (timed apart), from the batch's
+        shapes and placement alone, while the batch ``idx`` is drawn (its sampler compiles
+        beside them: one process; several build in the same order, one after another);
+        returns the batch."""
+        spec = self.spec
+        shapes = jax.eval_shape(lambda: self._draw(idx))
+        sh = self.batch_sharding  # put_batch places host copies (strong types) there
+
+        def like(a):
+            weak = a.weak_type if sh is None else False
+            return jax.ShapeDtypeStruct(a.shape, a.dtype, sharding=sh, weak_type=weak)
+
+        batch = jax.tree_util.tree_map(like, shapes)
+        gains_d, nom_d, dt_d, div_d = self.replicated
+        jobs = [
+            (
+                f"sweep:{v}",
+                _batch_program(self.loops[v], self.config),
+                (self.loops[v], self.config),
+                (gains_d[v], nom_d, batch, dt_d, div_d),
+            )
+            for v in spec.variants
+        ]
+        if jax.process_count() > 1:
+            sc, built = self._draw(idx), programs.build_all(jobs)
+        else:
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(max_workers=1, thread_name_prefix="vcjax-sample") as pool:
+                drawn = pool.submit(self._draw, idx)
+                built = programs.build_all(jobs)
+                sc = drawn.result()
+        for v, (call, info) in zip(spec.variants, built, strict=True):
+            self.compiled[v], self.compile_s[v] = call, info["build_s"]
+        return sc
 
     def run(self, c: int, parts: _Parts, bar) -> None:
         """Chunk ``c`` (padded with copies of its last scenario) through every variant."""
@@ -388,24 +431,11 @@ class _Chunks:
         n_valid = min(chunk, spec.num_scenarios - lo)
         idx = np.arange(lo, lo + chunk)
         idx[n_valid:] = lo + n_valid - 1  # pad with copies of the last scenario
-        loop0 = self.loops[spec.variants[0]]
-        sc = sample_scenarios(spec.scenario, spec.seed, idx, self.dtype, loop=loop0)
+        sc = self._draw(idx) if self.compiled else self._build(idx)
         sc_d = self.put_batch(sc)
         parts.add_scenarios(idx, sc, n_valid)
         gains_d, nom_d, dt_d, div_d = self.replicated
         dyns = {v: (gains_d[v], nom_d, sc_d, dt_d, div_d) for v in spec.variants}
-        if not self.compiled:  # every variant's program, built concurrently, once (timed apart)
-            jobs = [
-                (
-                    f"sweep:{v}",
-                    _batch_program(self.loops[v], self.config),
-                    (self.loops[v], self.config),
-                    dyns[v],
-                )
-                for v in spec.variants
-            ]
-            for v, (call, info) in zip(spec.variants, programs.build_all(jobs), strict=True):
-                self.compiled[v], self.compile_s[v] = call, info["build_s"]
         for v in spec.variants:
             t0 = time.perf_counter()
             m, tr = jax.device_get(self.compiled[v](*dyns[v]))
