@@ -478,3 +478,43 @@ def test_variants_without_a_paper_style_get_a_full_line_style():
     for v in ("vcm3d_ilos", "alos3d", "decoupled"):
         assert v not in STYLE
         assert keys <= set(sweep_plots._style(v))
+
+
+# one loop per class that declares ``act_signals`` (the cheapest law of each): what it declares
+# is what its signals report (the names a sweep otherwise learns by tracing the controller).
+# slow: eager scenarios of four vehicles, ~10 s each on the loaded 2-core machine; in the
+# default run every streamed sweep checks the same at trace time (check_act_names)
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "vehicle, law", [("infante", "vcm"), ("odin", "vcm"), ("remus100", "alos3d"), ("arm", "vcm")]
+)
+def test_declared_actuator_signals_are_what_the_signals_report(vehicle, law):
+    from vcjax.sweep.run import _declared_act_names, _traced_act_names
+
+    loop = loops.make_loop(vehicle, law)
+    declared = _declared_act_names(loop)
+    assert declared is not None
+    s = loops.make_scenario(loop)
+    traced = _traced_act_names(loop, loop.default_gains(), s)
+    assert declared == traced
+
+
+def test_act_signals_of_a_subclass_that_reports_others_are_traced_or_refused():
+    from vcjax.sweep.run import _declared_act_names, check_act_names
+
+    base = loops.make_loop("arm", "vcm")
+    cls = type(base)
+
+    class Own(cls):  # overrides signals without declaring: traced, not the base's names
+        def signals(self, traj, sc):
+            return super().signals(traj, sc)
+
+    class Wrong(cls):  # declares names its signals do not report: refused at trace time
+        act_signals = ("nope",)
+
+    assert _declared_act_names(Own(base.controller, base.path)) is None
+    wrong = Wrong(base.controller, base.path)
+    assert _declared_act_names(wrong) == ("nope",)
+    sig = type("S", (), {"act": {"torque": 0.0}})()
+    with pytest.raises(ValueError, match=r"Wrong.act_signals: declared \['nope'\]"):
+        check_act_names(wrong, sig, _declared_act_names(wrong))

@@ -202,6 +202,8 @@ class EngineLaw(Law):
 class EngineLoop(Loop):
     """A mechanical system held on a path by the generic engine (module docstring)."""
 
+    act_signals: ClassVar[tuple[str, ...] | None] = ("torque",)
+
     laws: ClassVar[dict[str, Law]] = {"vcm": EngineLaw()}
     default_controller: ClassVar[str] = "vcm"
     feels: ClassVar[dict[str, bool | str]] = {

@@ -201,6 +201,8 @@ class InfanteLoop(VCMLoopOptions, Loop):
     ([`VCMLoopOptions`][vcjax.control.vcm.VCMLoopOptions]).
     """
 
+    act_signals: ClassVar[tuple[str, ...] | None] = ("tau_u", "rudder_deg")
+
     vehicle: ClassVar[str] = "infante"
     #: the columns of ``Signals.cmd_ratio``
     actuator_names: ClassVar[tuple[str, ...]] = ("thrust", "rudder")

@@ -67,6 +67,11 @@ class Loop:
     #: [`Scenario.disturbance`][vcjax.loops.loop.Scenario.disturbance]. Sensor noise
     #: (``"noise"``) is felt by a loop with ``noise_channels`` (and ``measure``).
     feels: ClassVar[Mapping[str, bool | str]] = {}
+    #: the keys of ``signals(...).act`` (the actuator signals whose maxima the metrics report as
+    #: ``max_abs_<key>``), declared by a loop that defines ``signals`` so that a sweep need not
+    #: trace the controller to learn them; None: learnt by tracing (a subclass that overrides
+    #: ``signals`` without declaring them again is traced too)
+    act_signals: ClassVar[tuple[str, ...] | None] = None
 
     @classmethod
     def can_feel(cls, kind: str) -> bool:

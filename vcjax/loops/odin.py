@@ -253,6 +253,8 @@ class OdinLoop(VCMLoopOptions, Loop):
         [`vcjax.allocation`][vcjax.allocation]).
     """
 
+    act_signals: ClassVar[tuple[str, ...] | None] = ("thrust",)
+
     integral: bool = True
     polish: int = 50
 

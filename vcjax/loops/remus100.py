@@ -271,6 +271,8 @@ class Remus100Loop(VCMLoopOptions, Loop):
     ``decoupled``'s 2-D VCM law).
     """
 
+    act_signals: ClassVar[tuple[str, ...] | None] = ("rudder_deg", "stern_deg", "rpm")
+
     vehicle: ClassVar[str] = "remus100"
     laws: ClassVar[dict[str, Law]] = REMUS_LAWS
     default_controller: ClassVar[str] = "vcm3d_ilos"

@@ -21,7 +21,7 @@ from vcjax.metrics import metric_names, metrics_finalize, metrics_init, metrics_
 from vcjax.rollout import Reduction
 from vcjax.runtime.interrupts import stop_requested
 from vcjax.search.envelope import Envelope, Setting, make_setting, scenario_from
-from vcjax.sweep.run import _act_names, simulate_scenario
+from vcjax.sweep.run import _act_names, check_act_names, simulate_scenario
 
 __all__ = [
     "ALIASES",
@@ -118,6 +118,7 @@ def _metrics(x, index, gains, env: Envelope, setting: Setting, metric, sharpness
         def update(acc, seg, ks):
             macc, soft, healthy, cacc = acc
             sig = loop.signals(seg, s)
+            check_act_names(loop, sig, names)
             macc = metrics_update(macc, sig, seg.finite, ks, k0)
             if custom:
                 cacc = metric.update(cacc, seg, sig, ks)
