@@ -9,7 +9,9 @@ checkout first on the path):
 
 Wall time is measured around the process (start-up and imports included), the best and the
 median of the runs are reported, with the 1-minute load average at each run (the machine may be
-shared: compare runs of one invocation). Outputs go to a temporary folder.
+shared: compare runs of one invocation). Each run also records ``cpu_s``, the process's CPU
+time (user + system, all its threads): on a loaded machine the wall time follows the share of
+the cores a run got, its CPU time much less so. Outputs go to a temporary folder.
 
     python -m benchmarks.perf.cli_times --runs 3 --json benchmarks/results/cli_times.json
     python -m benchmarks.perf.cli_times --commands "tune examples/tuning/remus100.toml" --runs 1
@@ -29,6 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import shlex
 import statistics
 import subprocess
@@ -68,24 +71,33 @@ def parse_args(argv=None):
 
 
 def run_once(command: str, cache: Path, out: Path, root: Path = ROOT) -> dict:
-    """One ``vcjax`` process of the tree ``root``; ``{"wall_s", "load", "rc"}``."""
+    """One ``vcjax`` process of the tree ``root``; ``{"wall_s", "cpu_s", "load", "rc"}``."""
     env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "VCJAX_CPU_DEVICES")}
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")]))
     env["VCJAX_CACHE_DIR"] = str(cache)
     cmd = [sys.executable, "-m", "vcjax.cli", *shlex.split(command), "--out", str(out)]
     cmd += ["--overwrite"]
     load = C.load_average()
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     res = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
     if res.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed ({res.returncode}):\n{res.stderr[-3000:]}")
-    return {"wall_s": wall, "load": load, "rc": res.returncode}
+    return {"wall_s": wall, "cpu_s": round(cpu, 3), "load": load, "rc": res.returncode}
 
 
 def _stats(runs: list[dict]) -> dict:
-    walls = [r["wall_s"] for r in runs]
-    return {"min_s": min(walls), "median_s": statistics.median(walls), "runs": runs}
+    walls, cpus = [r["wall_s"] for r in runs], [r["cpu_s"] for r in runs]
+    return {
+        "min_s": min(walls),
+        "median_s": statistics.median(walls),
+        "min_cpu_s": min(cpus),
+        "median_cpu_s": statistics.median(cpus),
+        "runs": runs,
+    }
 
 
 def before_after(args, doc: dict) -> dict:
@@ -120,7 +132,8 @@ def before_after(args, doc: dict) -> dict:
                 loads = ", ".join(f"{r['load']:.1f}" for s in (b, a) for r in s["runs"])
                 print(
                     f"vcjax {command}: {kind} before {b['min_s']:.1f} s, after {a['min_s']:.1f} s "
-                    f"({b['min_s'] / a['min_s']:.2f}x; load {loads})",
+                    f"({b['min_s'] / a['min_s']:.2f}x; CPU time, median: before "
+                    f"{b['median_cpu_s']:.1f} s, after {a['median_cpu_s']:.1f} s; load {loads})",
                     flush=True,
                 )
     return doc
@@ -155,7 +168,8 @@ def main(argv=None) -> dict:
                 loads = ", ".join(f"{r['load']:.1f}" for r in s["runs"])
                 print(
                     f"vcjax {command}: {kind} min {s['min_s']:.1f} s, median "
-                    f"{s['median_s']:.1f} s over {len(s['runs'])} runs (load {loads})",
+                    f"{s['median_s']:.1f} s over {len(s['runs'])} runs (CPU time, median "
+                    f"{s['median_cpu_s']:.1f} s; load {loads})",
                     flush=True,
                 )
     doc["machine"]["load_average_1min_at_end"] = C.load_average()
