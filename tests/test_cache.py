@@ -365,6 +365,31 @@ def test_a_program_built_ahead_falls_back_for_other_arguments(store):
     assert jnp.array_equal(run(jnp.ones(5)), jnp.arange(1.0, 6.0))  # another shape: the fallback
 
 
+def test_a_program_builds_from_shapes_alone(store):
+    """``jax.ShapeDtypeStruct`` arguments (a sweep builds its programs while drawing the batch):
+    with a sharding they stand for arrays committed there (the key of the arrays: a run built
+    from them finds it), without one for arrays not placed yet; the program runs on the
+    arrays."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+    from vcjax.runtime import programs
+
+    f = lambda x, k: {"y": jnp.sin(x) * k}  # noqa: E731
+    sh = NamedSharding(Mesh(np.asarray(jax.devices()[:1]), ("b",)), PartitionSpec("b"))
+    x, k = jax.device_put(jnp.linspace(0.0, 1.0, 4), sh), jnp.asarray(2.0)
+    shape = jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=sh)
+    assert programs.program_key("s", "s", (shape, k)) == programs.program_key("s", "s", (x, k))
+    call, info = programs.build("s", f, "s", (shape, k))
+    assert not info["reused"] and jnp.array_equal(call(x, k)["y"], jax.jit(f)(x, k)["y"])
+    free = jax.ShapeDtypeStruct(x.shape, x.dtype)
+    call, info = programs.build("u", f, "u", (free, k))
+    y = jnp.linspace(0.0, 1.0, 4)
+    assert info["key"] is not None and jnp.array_equal(call(y, k)["y"], jax.jit(f)(y, k)["y"])
+
+
 def test_a_damaged_file_is_rebuilt(store):
     import jax.numpy as jnp
 

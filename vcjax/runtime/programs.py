@@ -96,6 +96,11 @@ _STORE: list[Path | None] = [None]
 _REPORT: list[dict] = []
 _OFF_REASON: list[str] = []
 _LOCK = threading.Lock()
+#: held while a program is traced, exported or loaded and lowered (Python's part, which holds
+#: the GIL), not while XLA compiles it: [`build_all`][vcjax.runtime.programs.build_all]'s
+#: threads trace one after another, so the first program's compile (on its own core) starts
+#: when its own trace ends instead of when every trace, interleaved, has ended
+_TRACING = threading.RLock()
 
 
 class Unstable(Exception):
@@ -328,23 +333,27 @@ def build(name: str, fn, static, args: tuple, *, record: bool = True):
     # one process only: a multi-process run's arguments are global arrays (not exported here)
     folder = store_dir() if jax.process_count() == 1 else None
     key = None
-    if folder is not None:
-        try:
-            key = program_key(name, static, args)
-        except Unstable:
+    with _TRACING:  # Python's part, one program at a time (see _TRACING); compiled outside
+        if folder is not None:
+            try:
+                key = program_key(name, static, args)
+            except Unstable:
+                key = None
+        leaves, treedef = jax.tree_util.tree_flatten(args)
+        loaded = None if key is None else _load(folder, key)
+        reused = loaded is not None
+        if key is not None and loaded is None:
+            loaded = _export_and_store(folder, key, fn, treedef, leaves)
+        if loaded is None:  # not storable (a static input, or the outputs' structure)
             key = None
-    leaves, treedef = jax.tree_util.tree_flatten(args)
-    loaded = None if key is None else _load(folder, key)
-    reused = loaded is not None
-    if key is not None and loaded is None:
-        loaded = _export_and_store(folder, key, fn, treedef, leaves)
-    if loaded is None:  # not storable (a static input, or the outputs' structure)
-        key = None
-        compiled = jax.jit(fn).lower(*args).compile()
+            lowered, out_tree = jax.jit(fn).lower(*args), None
+        else:
+            exp, out_tree = loaded
+            lowered = jax.jit(exp.call).lower(*leaves)
+    compiled = lowered.compile()
+    if out_tree is None:
         call = compiled
     else:
-        exp, out_tree = loaded
-        compiled = jax.jit(exp.call).lower(*leaves).compile()
 
         def call(*a):
             return jax.tree_util.tree_unflatten(out_tree, compiled(*jax.tree_util.tree_leaves(a)))
