@@ -97,9 +97,10 @@ _REPORT: list[dict] = []
 _OFF_REASON: list[str] = []
 _LOCK = threading.Lock()
 #: held while a program is traced, exported or loaded and lowered (Python's part, which holds
-#: the GIL), not while XLA compiles it: [`build_all`][vcjax.runtime.programs.build_all]'s
-#: threads trace one after another, so the first program's compile (on its own core) starts
-#: when its own trace ends instead of when every trace, interleaved, has ended
+#: the GIL), not while XLA compiles it (outside the GIL, on threads of its own):
+#: [`build_all`][vcjax.runtime.programs.build_all]'s threads trace one after another, so the
+#: first program's compile starts when its own trace ends (on the cores the tracing leaves
+#: free) instead of when every trace, interleaved, has ended
 _TRACING = threading.RLock()
 
 
