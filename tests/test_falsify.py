@@ -234,7 +234,7 @@ def test_cli_writes_worst_summary_figures_and_replays_them(tmp_path, capsys):
     ("old", "new", "args", "match"),
     [
         ("starts = 3", "starts = 0", [], "[falsify] starts"),
-        ("keep = 12", "bogus = 1", [], "unknown key [falsify] 'bogus'"),
+        ("keep = 12", "bogus = 1", [], "[falsify] bogus: unknown key"),
         ("", "", ["--metric", "max_speed"], "unknown metric 'max_speed'"),
         ("speed = [0.0, 0.5]", "speed = [0.5, 0.1]", [], "speed"),
         ("y = [-5.0, 5.0]", "bogus = [0.0, 1.0]", [], "bogus"),

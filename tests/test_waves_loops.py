@@ -298,7 +298,7 @@ def test_sweep_and_tune_configs_with_waves_for_a_loop_without_them_are_refused(t
         ("hs = 1.0\ntp = 8.0\nspectrum = 'swell'\n", r"\[waves\] spectrum: expected one of"),
         ("hs = 1.0\ntp = 8.0\ngamma = 0.5\n", r"\[waves\] gamma: expected a value >= 1"),
         ("hs = 1.0\ntp = 8.0\ncomponents = 0\n", r"\[waves\] components"),
-        ("hs = 1.0\ntp = 8.0\nheight = 2.0\n", r"unknown key \[waves\] 'height'"),
+        ("hs = 1.0\ntp = 8.0\nheight = 2.0\n", r"\[waves\] height: unknown key"),
         ("hs = [2.0, 1.0]\ntp = 8.0\n", r"\[waves\] hs: expected finite lo <= hi"),
     ],
 )

@@ -143,6 +143,7 @@ from vcjax.config import (
     closest,
     parse_section,
     read_toml,
+    unknown_key,
 )
 from vcjax.config.aliases import moved_values, note_old_spellings, take_moved
 from vcjax.config.frozen import freeze
@@ -283,10 +284,8 @@ def _vehicle_keys(raw: dict, sec: dict, loop, current: Current, waves, env) -> d
     init = {}
     for k, v in raw.get("initial", {}).items():
         if k not in loop.initial_keys:
-            raise ConfigError(
-                f"[initial] {k}: unknown key for vehicle {loop.vehicle!r}"
-                f"{closest(k, loop.initial_keys)}; expected one of {list(loop.initial_keys)}"
-            )
+            note = f"for vehicle {loop.vehicle!r}"
+            raise ConfigError(unknown_key("initial", k, loop.initial_keys, note))
         init[k] = as_range(f"[initial] {k}", v)
     try:  # a current, a sea or a component the loop cannot take is refused, never ignored
         loops.check_disturbances(loop, max(current.speed) > 0, False, waves=waves is not None)

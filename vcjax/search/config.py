@@ -35,7 +35,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from vcjax.config import ConfigError, as_int, as_number, read_toml
+from vcjax.config import ConfigError, as_int, as_number, read_toml, unknown_key
 from vcjax.search.core import FalsifyOptions, evaluate, falsify, metric_name
 from vcjax.search.envelope import Envelope, envelope_from_spec, setting_from_spec
 
@@ -76,9 +76,7 @@ def _falsify_section(fal, where: str, metric: str | None, bound: float | None) -
         raise ConfigError(f"{where}: [falsify]: expected a table")
     unknown = sorted(set(fal) - set(FALSIFY_KEYS))
     if unknown:
-        raise ConfigError(
-            f"{where}: unknown key [falsify] {unknown[0]!r}; expected one of {list(FALSIFY_KEYS)}"
-        )
+        raise ConfigError(f"{where}: {unknown_key('falsify', unknown[0], FALSIFY_KEYS)}")
     opts = {**FALSIFY_KEYS, **fal}
     if metric is not None:
         opts["metric"] = metric

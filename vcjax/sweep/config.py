@@ -27,6 +27,7 @@ from vcjax.config import (
     parse_section,
     read_toml,
     resolve_file,
+    unknown_key,
 )
 from vcjax.config.aliases import note_old_spellings, take_moved
 from vcjax.config.scenario import parse_scenario
@@ -143,10 +144,8 @@ def _check_tables(raw: dict, cls, where: str) -> dict:
     for sec, valid in (("initial", tuple(cls.initial_keys)), ("sensor_noise", cls.noise_channels)):
         for key in raw.get(sec, {}):
             if key not in valid:
-                raise ConfigError(
-                    f"{where}: unknown key [{sec}] {key!r} for vehicle {cls.vehicle!r}; "
-                    f"expected one of {list(valid)}"
-                )
+                note = f"for vehicle {cls.vehicle!r}"
+                raise ConfigError(f"{where}: {unknown_key(sec, key, valid, note)}")
     if "num_scenarios" not in raw.get("sweep", {}):
         raise ConfigError(f"{where}: [sweep] num_scenarios is required")
     return {n: parse_section(c, raw.get(n), n, where) for n, c in added.items()}
