@@ -128,7 +128,10 @@ def test_fit_config_goes_through_the_one_validator(tmp_path):
     base = f'[data]\nfiles = ["{log}"]\n[model]\nvehicle = "remus100"\nstep = "pvs"\n'
     f = tmp_path / "f.toml"
     for fit, message in (
-        ("params = ['CD_0']\nsegment_step = 3", r"\[fit\] segment_step: unknown key \(did you mean"),
+        (
+            "params = ['CD_0']\nsegment_step = 3",
+            r"\[fit\] segment_step: unknown key \(did you mean",
+        ),
         ("params = ['CD_0', 'CD_0']", r"\[fit\] params: duplicate names"),
         ("params = ['CD_0']\nsegment_steps = 1", r"\[fit\] segment_steps: .*>= 2"),
         ("params = ['CD_0']\ninitial_scale = 0", r"\[fit\] initial_scale: expected a value > 0"),

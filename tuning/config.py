@@ -150,7 +150,7 @@ from vcjax.config.frozen import freeze
 from vcjax.config.scenario import loop_options, parse_scenario
 from vcjax.config.schema import registered
 from vcjax.environment import lookup
-from vcjax.sweep.config import check_waves, environment_sections, refusal
+from vcjax.sweep.config import environment_sections, refusal
 from vcjax.sweep.spec import check_wave_step
 
 __all__ = [
@@ -236,7 +236,6 @@ def _current_and_waves(raw: dict, sec: dict) -> tuple[Current, Waves | None]:
         cur = dataclasses.replace(cur, speed=(0.0, m), direction_deg=(0.0, 360.0))
     if "waves" not in raw:
         return cur, None
-    check_waves(raw["waves"])
     wav = parse_section(Waves, raw["waves"], "waves")
     check_wave_step(wav.tp[0], sec["problem"].dt, "[waves] tp")
     return cur, wav

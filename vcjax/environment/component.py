@@ -177,7 +177,8 @@ def check_section(section: str, schema: Mapping[str, Key], raw: Mapping | None) 
     for name, spec in schema.items():
         x = raw.get(name, spec.default)
         if x is None:
-            raise ConfigError(f"[{section}] {name}: required")
+            form = " (a number or [lo, hi])" if spec.kind == "sampled" else ""
+            raise ConfigError(f"[{section}] {name}: required{form}")
         if name not in raw and not isinstance(x, str):  # a default is the declaration's own
             out[name] = tuple(x) if isinstance(x, list) else x
             continue

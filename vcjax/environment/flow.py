@@ -102,9 +102,14 @@ class ConstantCurrent(Component):
         direction = draw_unit(u[1], _radians(section["direction_deg"]), u.dtype)
         return speed, direction
 
+    def velocity(self, speed, direction, section):
+        """(3,) the mean water velocity in NED [m/s] of a drawn ``speed`` and ``direction``
+        (horizontal)."""
+        return current_ned(speed, direction)
+
     def sample(self, key, section):
         u = jax.random.uniform(key, (2,), jnp.asarray(0.0).dtype)
-        return CurrentParams(current_ned(*self.from_unit(u, section)))
+        return CurrentParams(self.velocity(*self.from_unit(u, section), section))
 
     def water(self, params, held, t, p_ned, current):
         v = params.velocity
@@ -141,7 +146,8 @@ class GaussMarkov(Component):
     def sample(self, key, section):
         k_unit, k_proc = jax.random.split(key)
         u = jax.random.uniform(k_unit, (2,), jnp.asarray(0.0).dtype)
-        mean = current_ned(*ConstantCurrent().from_unit(u, section))
+        current = ConstantCurrent()
+        mean = current.velocity(*current.from_unit(u, section), section)
         f = lambda name: jnp.asarray(section[name], mean.dtype)
         gm = GaussMarkovCurrent(mean[:2], f("sigma"), f("tau"), f("max_speed"))
         return GaussMarkovParams(gm, mean[2:], k_proc)

@@ -39,7 +39,7 @@ from vcjax.sweep.spec import SECTIONS, ScenarioSpec, SweepSpec
 #: the sections a ScenarioSpec holds as they are parsed
 SCENARIO_SECTIONS = tuple(SECTIONS)
 
-__all__ = ["SCHEMA", "load_config", "run_sweep_config", "check_waves", "refusal"]
+__all__ = ["SCHEMA", "load_config", "run_sweep_config", "refusal"]
 
 #: section -> keys ([initial] and [sensor_noise] keys depend on the vehicle); a key of
 #: [sweep], [simulation], [metrics] or [output] that is a field of SweepSpec is that field
@@ -69,14 +69,6 @@ def _toml_name(msg: str) -> str:
     return msg
 
 
-def check_waves(table) -> None:
-    """A ``[waves]`` table gives the two keys without a default (``ConfigError`` naming the
-    missing one)."""
-    for k in ("hs", "tp"):
-        if isinstance(table, dict) and k not in table:
-            raise ConfigError(f"[waves] {k} is required (a number or [lo, hi])")
-
-
 def refusal(err: ValueError) -> str:
     """[`vcjax.loops.check_disturbances`][vcjax.loops.scenario.check_disturbances]'s message with
     its TOML section first."""
@@ -93,8 +85,6 @@ def _sections(raw: dict) -> dict:
     out = {"waves": None}
     for sec, cls in SECTIONS.items():
         if sec != "waves" or "waves" in raw:
-            if sec == "waves":
-                check_waves(raw["waves"])
             out[sec] = parse_section(cls, raw.get(sec), sec)
     sim = {k: v for k, v in raw.get("simulation", {}).items() if k != "gains"}
     out["simulation"] = parse_section(Simulation, sim, "simulation")

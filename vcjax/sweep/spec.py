@@ -43,7 +43,6 @@ from vcjax.config.scenario import ScenarioChoice, loop_options
 from vcjax.config.schema import check_value
 from vcjax.environment import ConstantCurrent, draw_unit, freeze, waves
 from vcjax.environment import Waves as WavesComponent
-from vcjax.environment.current import current_ned
 
 __all__ = [
     "ScenarioSpec",
@@ -229,13 +228,8 @@ class ScenarioSpec:
             raise ConfigError(str(err)) from None
         if self.u_d is not None:
             s(self, "u_d", check_value("u_d", self.u_d, _U_D.metadata))
-        if self.waves is not None:
-            if self.waves.hs is None or self.waves.tp is None:
-                raise ConfigError("[waves] hs and tp are required (a number or [lo, hi] each)")
-            try:  # the NED origin must lie below the mean surface
-                waves.check_origin_depth(self.waves.origin_depth, "[waves] origin_depth")
-            except ValueError as err:
-                raise ConfigError(str(err)) from None
+        if self.waves is not None:  # a section built in Python: the component's own check
+            _WAVES.check({k: v for k, v in _checked(self.waves).items() if v is not None})
 
     def without_waves(self) -> ScenarioSpec:
         """The same distribution in calm water."""
@@ -487,7 +481,8 @@ def _sample_one(loop, spec: ScenarioSpec, dtype, seed, index) -> MCScenario:
     ks = jax.random.split(key, 9)
     n_init = len(loop.initial_keys)
     u = jax.random.uniform(ks[0], (3 + n_init,), dtype)
-    speed, direction = _CURRENT.from_unit(u[:2], _checked(spec.current))
+    current = _checked(spec.current)
+    speed, direction = _CURRENT.from_unit(u[:2], current)
     given = dict(spec.initial.values)
     init = {}
     for i, (k, default) in enumerate(loop.initial_keys.items()):
@@ -514,7 +509,7 @@ def _sample_one(loop, spec: ScenarioSpec, dtype, seed, index) -> MCScenario:
         u_d=u_d,
         current_speed=speed,
         current_direction=direction,
-        current=current_ned(speed, direction),
+        current=_CURRENT.velocity(speed, direction, current),
         current_sigma=f(cur.sigma),
         current_tau=f(cur.tau),
         current_max_speed=f(cur.max_speed),
