@@ -95,21 +95,20 @@ class ConstantCurrent(Component):
     def resolve(self, section):
         return GaussMarkov() if section.get("model") == "gauss_markov" else self
 
-    def from_unit(self, u, section):
-        """``(speed, direction)``: the mean speed [m/s] and direction [rad] of one run from two
-        uniform numbers ``u`` (2,) in [0, 1) (``lo + (hi - lo) u``: a fixed value is exact)."""
+    def draw_mean(self, u, key, section):
+        """``(speed, direction, velocity)`` of one run: the mean speed [m/s] and direction [rad]
+        from two uniform numbers ``u`` (2,) in [0, 1) (``lo + (hi - lo) u``: a fixed value is
+        exact; a sweep hands over the first two numbers of its scenario's stream), and the (3,)
+        mean water velocity in NED [m/s] they make. ``key``: the component's own PRNG key for
+        any further draw of a key of its section (the built-in keys need none)."""
         speed = draw_unit(u[0], section["speed"], u.dtype)
         direction = draw_unit(u[1], _radians(section["direction_deg"]), u.dtype)
-        return speed, direction
-
-    def velocity(self, speed, direction, section):
-        """(3,) the mean water velocity in NED [m/s] of a drawn ``speed`` and ``direction``
-        (horizontal)."""
-        return current_ned(speed, direction)
+        return speed, direction, current_ned(speed, direction)
 
     def sample(self, key, section):
-        u = jax.random.uniform(key, (2,), jnp.asarray(0.0).dtype)
-        return CurrentParams(self.velocity(*self.from_unit(u, section), section))
+        k_unit, k_more = jax.random.split(key)
+        u = jax.random.uniform(k_unit, (2,), jnp.asarray(0.0).dtype)
+        return CurrentParams(self.draw_mean(u, k_more, section)[2])
 
     def water(self, params, held, t, p_ned, current):
         v = params.velocity
@@ -144,10 +143,9 @@ class GaussMarkov(Component):
     schema = {k: v for k, v in CURRENT_SCHEMA.items() if k != "model"}
 
     def sample(self, key, section):
-        k_unit, k_proc = jax.random.split(key)
+        k_unit, k_more, k_proc = jax.random.split(key, 3)
         u = jax.random.uniform(k_unit, (2,), jnp.asarray(0.0).dtype)
-        current = ConstantCurrent()
-        mean = current.velocity(*current.from_unit(u, section), section)
+        mean = ConstantCurrent().draw_mean(u, k_more, section)[2]
         f = lambda name: jnp.asarray(section[name], mean.dtype)
         gm = GaussMarkovCurrent(mean[:2], f("sigma"), f("tau"), f("max_speed"))
         return GaussMarkovParams(gm, mean[2:], k_proc)

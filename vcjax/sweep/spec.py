@@ -475,14 +475,15 @@ def _sample_one(loop, spec: ScenarioSpec, dtype, seed, index) -> MCScenario:
 
     The scenario's first stream holds one uniform number per sampled start value: the current's
     speed and direction (drawn by the ``[current]`` component), each initial key, the desired
-    speed; the others hold the model error, the process key, the disturbance and the sea (drawn
-    by the ``[waves]`` component)."""
+    speed; the others hold the model error, the process key, the disturbance, the sea (drawn
+    by the ``[waves]`` component) and the current component's own key (further keys of
+    ``[current]``)."""
     key = jax.random.fold_in(jax.random.PRNGKey(seed), index)
     ks = jax.random.split(key, 9)
     n_init = len(loop.initial_keys)
     u = jax.random.uniform(ks[0], (3 + n_init,), dtype)
     current = _checked(spec.current)
-    speed, direction = _CURRENT.from_unit(u[:2], current)
+    speed, direction, velocity = _CURRENT.draw_mean(u[:2], ks[5], current)
     given = dict(spec.initial.values)
     init = {}
     for i, (k, default) in enumerate(loop.initial_keys.items()):
@@ -509,7 +510,7 @@ def _sample_one(loop, spec: ScenarioSpec, dtype, seed, index) -> MCScenario:
         u_d=u_d,
         current_speed=speed,
         current_direction=direction,
-        current=_CURRENT.velocity(speed, direction, current),
+        current=velocity,
         current_sigma=f(cur.sigma),
         current_tau=f(cur.tau),
         current_max_speed=f(cur.max_speed),
