@@ -81,6 +81,31 @@ def test_gradient_in_sea_state_and_depth_matches_finite_differences():
     _fd_check(loop, env, setting, "rms_depth_err", x0)
 
 
+def test_forward_and_reverse_mode_give_the_same_ascent_gradient():
+    """The search's two ways of differentiating (one tangent per searched parameter, or the
+    reverse pass) agree, and leave the fixed parameters' entries at zero."""
+    from vcjax.search.core import _key, _value_and_grad, gradient_mode
+
+    loop, env, setting = _infante()
+    gains = loop.default_gains()
+    rng = np.random.default_rng(0)
+    width = (np.asarray(env.hi) > np.asarray(env.lo)).astype(float)
+    z = jnp.asarray(rng.random((2, len(env.names))) * width)
+    axes = tuple(int(i) for i in np.flatnonzero(width))
+    kw = dict(env=env, setting=_key(setting), metric="rms_cross_track_e", sharpness=16.0)
+    out = {
+        mode: _value_and_grad(z, jnp.arange(2), gains, setting.nominal, axes=axes, mode=mode, **kw)
+        for mode in ("forward", "reverse")
+    }
+    (mf, gf), (mr, gr) = out["forward"], out["reverse"]
+    np.testing.assert_allclose(np.asarray(gf), np.asarray(gr), rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(np.asarray(mf["rms_cross_track_e"]), mr["rms_cross_track_e"])
+    assert np.all(np.asarray(gf)[:, width == 0] == 0) and np.all(np.abs(np.asarray(gf)).max(1) > 0)
+    assert gradient_mode("auto", 4) == "forward" and gradient_mode("auto", 40) == "reverse"
+    with pytest.raises(ValueError, match="gradient: expected"):
+        gradient_mode("backward", 4)
+
+
 def test_projection_onto_the_envelope():
     loop, env, _ = _infante()
     lo, hi = np.asarray(env.lo), np.asarray(env.hi)
@@ -235,6 +260,7 @@ def test_cli_writes_worst_summary_figures_and_replays_them(tmp_path, capsys):
     [
         ("starts = 3", "starts = 0", [], "[falsify] starts"),
         ("keep = 12", "bogus = 1", [], "[falsify] bogus: unknown key"),
+        ("keep = 12", "gradient = 'backward'", [], "[falsify] gradient: expected one of"),
         ("", "", ["--metric", "max_speed"], "unknown metric 'max_speed'"),
         ("speed = [0.0, 0.5]", "speed = [0.5, 0.1]", [], "speed"),
         ("y = [-5.0, 5.0]", "bogus = [0.0, 1.0]", [], "bogus"),
