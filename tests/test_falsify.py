@@ -236,6 +236,15 @@ def test_cli_writes_worst_summary_figures_and_replays_them(tmp_path, capsys):
         or vals[0] == (summary["random_worst"])
     )
     assert vals[0] == max(summary["worst"], summary["random_worst"])
+    # when the search first beat random sampling's worst: a step of its curve, or never
+    curve = dict(summary["curve"])
+    if summary["worst"] > summary["random_worst"]:
+        n = summary["beat_random_rollouts"]
+        assert curve[n] > summary["random_worst"] and 0 < summary["beat_random_s"] <= summary["wall_s"]
+        assert all(w <= summary["random_worst"] for r, w in summary["curve"] if r < n)
+    else:
+        assert summary["beat_random_s"] is None and summary["beat_random_rollouts"] is None
+    assert summary["gradient"] == "forward"
     for f in ("falsify_worst.png", "falsify_curve.png", "run.json"):
         assert (out / f).is_file()
     # the replay runs the same scenarios again: the same metric

@@ -223,6 +223,8 @@ def run_falsify_config(cfg: dict, out_dir, progress=None) -> dict:
         "wall_s": res.wall_s,
         "random_wall_s": res.random_wall_s,
         "first_step_s": res.first_step_s,
+        "beat_random_s": None if res.beat_random is None else res.beat_random[1],
+        "beat_random_rollouts": None if res.beat_random is None else res.beat_random[0],
         "bound": res.bound,
         "falsified": res.falsified,
         "random_falsified": res.random_falsified,

@@ -238,9 +238,12 @@ class FalsifyResult:
         metric: the metric's name; envelope: the [`Envelope`][vcjax.search.envelope.Envelope].
         x: (S, P) each start's worst parameters found (config units); index: (S,) their random
             draws' scenario numbers; value: (S,) their metric; diverged: (S,) flags.
-        curve: (rollouts, worst so far) after each ascent step (rollouts = starts x steps).
+        curve: (rollouts, worst so far) after each ascent step (rollouts = starts x steps);
+            curve_s: the seconds since the search began at each of them (compilation
+            included).
         random_x, random_index, random_value, random_diverged: the random baseline's samples.
-        random_curve: the same curve for the random samples (one point per rollout).
+        random_curve: the same curve for the random samples (one point per rollout);
+            random_curve_s: ``(rollouts, seconds)`` after each of its batches.
         rollouts, random_rollouts: rollouts run; wall_s, random_wall_s: seconds, compilation
             included; first_step_s: the first ascent step (compilation included, unless a
             call of the same shapes compiled it before).
@@ -268,6 +271,21 @@ class FalsifyResult:
     falsified: bool = False
     random_falsified: bool = False
     interrupted: bool = False
+    curve_s: list = dataclasses.field(default_factory=list)
+    random_curve_s: list = dataclasses.field(default_factory=list)
+
+    @property
+    def beat_random(self) -> tuple[int, float] | None:
+        """``(rollouts, seconds)`` at the first ascent step whose worst exceeded the random
+        baseline's worst (seconds since the search began, compilation included), or ``None``:
+        the gradient search never found a worse scenario than random sampling."""
+        if not self.random_value.size:
+            return None
+        target = float(np.max(_rank(self.random_value)))
+        for (n, w), t in zip(self.curve, self.curve_s, strict=False):
+            if w > target:
+                return int(n), float(t)
+        return None
 
     @property
     def worst(self) -> float:
@@ -376,7 +394,8 @@ def _ascent(c: _Search) -> dict:
     m1, m2 = jnp.zeros_like(z), jnp.zeros_like(z)
     best_v, best_val = np.full(starts, -np.inf), np.full(starts, np.nan)
     best_z, best_div = np.asarray(z), np.zeros(starts, bool)
-    out = {"curve": [], "falsified": False, "interrupted": False, "first_s": None, "done": 0}
+    out = {"curve": [], "curve_s": [], "falsified": False, "interrupted": False}
+    out |= {"first_s": None, "done": 0}
     t0 = time.perf_counter()
     axes = tuple(int(i) for i in np.flatnonzero(np.asarray(c.width) > 0))
     compiled = functools.partial(
@@ -405,6 +424,7 @@ def _ascent(c: _Search) -> dict:
         out["done"] += starts
         worst = float(np.max(best_v))
         out["curve"].append((out["done"], worst))
+        out["curve_s"].append(time.perf_counter() - t0)
         c.say(f"gradient step {k + 1}/{o.steps}: {out['done']} rollouts, worst {name} {worst:.4g}")
         if o.bound is not None and worst > o.bound:
             out["falsified"] = True
@@ -429,7 +449,7 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
     t1 = time.perf_counter()
     i0 = int(o.first_index)
     rng = np.random.default_rng([c.setting.seed, 2] + ([i0] if i0 else []))
-    rx, ri, rv, rd, rcurve = [], [], [], [], []
+    rx, ri, rv, rd, rcurve, rtimes = [], [], [], [], [], []
     rworst, rfals = -np.inf, False
     fwd = None
     batch = max(starts, -(-n_rand // max(1, -(-n_rand // o.random_batch)))) if n_rand else starts
@@ -453,6 +473,7 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
             rworst = max(rworst, float(r))
             rcurve.append((j + k + 1, rworst))
         j += nb
+        rtimes.append((j, time.perf_counter() - t1))
         c.say(f"random: {j}/{n_rand} rollouts, worst {name} {rworst:.4g}")
         if o.bound is not None and rworst > o.bound:
             rfals = True
@@ -464,6 +485,7 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
         "random_value": cat(rv, (0,)),
         "random_diverged": cat(rd, (0,)).astype(bool),
         "random_curve": rcurve,
+        "random_curve_s": rtimes,
         "random_rollouts": j,
         "random_wall_s": time.perf_counter() - t1,
         "random_falsified": rfals,
@@ -536,6 +558,7 @@ def falsify(
         value=a["value"],
         diverged=a["diverged"],
         curve=a["curve"],
+        curve_s=a["curve_s"],
         rollouts=a["done"],
         wall_s=a["wall_s"],
         first_step_s=a["first_s"],
