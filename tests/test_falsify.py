@@ -240,7 +240,9 @@ def test_cli_writes_worst_summary_figures_and_replays_them(tmp_path, capsys):
     curve = dict(summary["curve"])
     if summary["worst"] > summary["random_worst"]:
         n = summary["beat_random_rollouts"]
-        assert curve[n] > summary["random_worst"] and 0 < summary["beat_random_s"] <= summary["wall_s"]
+        assert (
+            curve[n] > summary["random_worst"] and 0 < summary["beat_random_s"] <= summary["wall_s"]
+        )
         assert all(w <= summary["random_worst"] for r, w in summary["curve"] if r < n)
     else:
         assert summary["beat_random_s"] is None and summary["beat_random_rollouts"] is None
