@@ -84,7 +84,7 @@ def test_gradient_in_sea_state_and_depth_matches_finite_differences():
 def test_forward_and_reverse_mode_give_the_same_ascent_gradient():
     """The search's two ways of differentiating (one tangent per searched parameter, or the
     reverse pass) agree, and leave the fixed parameters' entries at zero."""
-    from vcjax.search.core import _key, _value_and_grad, gradient_mode
+    from vcjax.search.core import AscentSpec, _key, _value_and_grad, gradient_mode
 
     loop, env, setting = _infante()
     gains = loop.default_gains()
@@ -92,9 +92,16 @@ def test_forward_and_reverse_mode_give_the_same_ascent_gradient():
     width = (np.asarray(env.hi) > np.asarray(env.lo)).astype(float)
     z = jnp.asarray(rng.random((2, len(env.names))) * width)
     axes = tuple(int(i) for i in np.flatnonzero(width))
-    kw = dict(env=env, setting=_key(setting), metric="rms_cross_track_e", sharpness=16.0)
+    kw = dict(env=env, setting=_key(setting))
     out = {
-        mode: _value_and_grad(z, jnp.arange(2), gains, setting.nominal, axes=axes, mode=mode, **kw)
+        mode: _value_and_grad(
+            z,
+            jnp.arange(2),
+            gains,
+            setting.nominal,
+            how=AscentSpec("rms_cross_track_e", 16.0, axes, mode),
+            **kw,
+        )
         for mode in ("forward", "reverse")
     }
     (mf, gf), (mr, gr) = out["forward"], out["reverse"]

@@ -32,6 +32,7 @@ __all__ = [
     "evaluate",
     "gradient_mode",
     "FORWARD_MAX",
+    "AscentSpec",
     "metric_name",
     "soft_metric",
 ]
@@ -172,24 +173,37 @@ def gradient_mode(mode: str, searched: int) -> str:
     return mode
 
 
-@functools.partial(
-    jax.jit, static_argnames=("env", "setting", "metric", "sharpness", "axes", "mode")
-)
-def _value_and_grad(z, index, gains, nom, env, setting, metric, sharpness, axes, mode):
-    """Batched: the surrogate's gradient in unit coordinates along ``axes`` (the searched
-    parameters; zeros elsewhere) and the true metrics, in forward or reverse ``mode``."""
+class AscentSpec(NamedTuple):
+    """What the ascent differentiates, and how (static: part of the program's key).
+
+    Attributes:
+        metric: the metric (a name or a [`SegmentMetric`][vcjax.search.core.SegmentMetric]);
+        sharpness: power of a max metric's power-mean surrogate;
+        axes: the searched parameters' indices (the others' gradient entries are zeros);
+        mode: ``"forward"`` or ``"reverse"`` ([`gradient_mode`][vcjax.search.core.gradient_mode]).
+    """
+
+    metric: Any
+    sharpness: float
+    axes: tuple[int, ...]
+    mode: str
+
+
+@functools.partial(jax.jit, static_argnames=("env", "setting", "how"))
+def _value_and_grad(z, index, gains, nom, env, setting, how: AscentSpec):
+    """Batched: the surrogate's gradient in unit coordinates along ``how.axes`` (zeros
+    elsewhere) and the true metrics, in forward or reverse mode."""
     setting = dataclasses.replace(setting, nominal=nom)
-    searched = bool(axes)
-    axes = jnp.asarray(axes, jnp.int32)
+    axes = jnp.asarray(how.axes, jnp.int32)
 
     def one(z1, i):
         def f(zs):  # the searched coordinates only
             zz = z1.at[axes].set(zs)
-            return _metrics(env.from_unit(zz), i, gains, env, setting, metric, sharpness)
+            return _metrics(env.from_unit(zz), i, gains, env, setting, how.metric, how.sharpness)
 
-        if not searched:  # a point envelope: nothing to differentiate
+        if not how.axes:  # a point envelope: nothing to differentiate
             return f(z1[axes])[1], jnp.zeros_like(z1)
-        if mode == "forward":
+        if how.mode == "forward":
             gs, m = jax.jacfwd(f, has_aux=True)(z1[axes])
         else:
             (_, m), gs = jax.value_and_grad(f, has_aux=True)(z1[axes])
@@ -398,15 +412,8 @@ def _ascent(c: _Search) -> dict:
     out |= {"first_s": None, "done": 0}
     t0 = time.perf_counter()
     axes = tuple(int(i) for i in np.flatnonzero(np.asarray(c.width) > 0))
-    compiled = functools.partial(
-        _value_and_grad,
-        env=c.envelope,
-        setting=c.key,
-        metric=metric,
-        sharpness=float(o.sharpness),
-        axes=axes,
-        mode=gradient_mode(o.gradient, len(axes)),
-    )
+    how = AscentSpec(metric, float(o.sharpness), axes, gradient_mode(o.gradient, len(axes)))
+    compiled = functools.partial(_value_and_grad, env=c.envelope, setting=c.key, how=how)
     b1, b2 = 0.9, 0.999
     for k in range(o.steps):
         if k and c.stop():
