@@ -397,6 +397,13 @@ class _Search(NamedTuple):
     stop: Callable[[], bool]
 
 
+def _from_unit(env: Envelope, z, dtype) -> np.ndarray:
+    """Unit-box coordinates (B, P) to config units on the host, in ``dtype``
+    ([`Envelope.from_unit`][vcjax.search.envelope.Envelope.from_unit]'s arithmetic)."""
+    lo, hi = np.asarray(env.lo, dtype), np.asarray(env.hi, dtype)
+    return lo + (hi - lo) * np.asarray(z, dtype)
+
+
 def _ascent(c: _Search) -> dict:
     """Multi-start projected gradient ascent (Adam in the unit box): each start's worst point,
     its metric and divergence flag, the curve, and how the ascent ended."""
@@ -404,15 +411,19 @@ def _ascent(c: _Search) -> dict:
     name = _name(metric)
     i0 = int(o.first_index)
     rng = np.random.default_rng([c.setting.seed, 1] + ([i0] if i0 else []))
-    z = jnp.asarray(rng.random((starts, len(c.envelope.names))), c.dtype) * c.width
-    index = jnp.arange(i0, i0 + starts, dtype=jnp.int32)
-    m1, m2 = jnp.zeros_like(z), jnp.zeros_like(z)
+    # the ascent's own arithmetic runs on the host (NumPy, the setting's dtype): (starts, P)
+    # arrays, where eager JAX would compile a kernel for each new operation on the first step
+    ftype = np.dtype(c.dtype)
+    width = np.asarray(c.width, ftype)
+    z = rng.random((starts, len(c.envelope.names))).astype(ftype) * width
+    index = jnp.asarray(np.arange(i0, i0 + starts, dtype=np.int32))
+    m1, m2 = np.zeros_like(z), np.zeros_like(z)
     best_v, best_val = np.full(starts, -np.inf), np.full(starts, np.nan)
-    best_z, best_div = np.asarray(z), np.zeros(starts, bool)
+    best_z, best_div = z, np.zeros(starts, bool)
     out = {"curve": [], "curve_s": [], "falsified": False, "interrupted": False}
     out |= {"first_s": None, "done": 0}
     t0 = time.perf_counter()
-    axes = tuple(int(i) for i in np.flatnonzero(np.asarray(c.width) > 0))
+    axes = tuple(int(i) for i in np.flatnonzero(width > 0))
     how = AscentSpec(metric, float(o.sharpness), axes, gradient_mode(o.gradient, len(axes)))
     compiled = functools.partial(_value_and_grad, env=c.envelope, setting=c.key, how=how)
     b1, b2 = 0.9, 0.999
@@ -420,14 +431,14 @@ def _ascent(c: _Search) -> dict:
         if k and c.stop():
             out["interrupted"] = True
             break
-        m, g = compiled(z, index, c.gains, c.setting.nominal)
+        m, g = jax.device_get(compiled(jnp.asarray(z), index, c.gains, c.setting.nominal))
         v = np.asarray(m[name])
         out["first_s"] = time.perf_counter() - t0 if out["first_s"] is None else out["first_s"]
         r = _rank(v)
         better = r > best_v
         best_v = np.where(better, r, best_v)
         best_val = np.where(better, v, best_val)
-        best_z = np.where(better[:, None], np.asarray(z), best_z)
+        best_z = np.where(better[:, None], z, best_z)
         best_div = np.where(better, np.asarray(m["diverged"]), best_div)
         out["done"] += starts
         worst = float(np.max(best_v))
@@ -437,14 +448,14 @@ def _ascent(c: _Search) -> dict:
         if o.bound is not None and worst > o.bound:
             out["falsified"] = True
             break
-        g = jnp.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0) * c.width
+        g = np.nan_to_num(np.asarray(g, ftype), nan=0.0, posinf=0.0, neginf=0.0) * width
         m1 = b1 * m1 + (1 - b1) * g
         m2 = b2 * m2 + (1 - b2) * g * g
         mh = m1 / (1 - b1 ** (k + 1))
         vh = m2 / (1 - b2 ** (k + 1))
-        z = jnp.clip(z + o.step_size * mh / (jnp.sqrt(vh) + 1e-8), 0.0, 1.0) * c.width
+        z = (np.clip(z + o.step_size * mh / (np.sqrt(vh) + 1e-8), 0.0, 1.0) * width).astype(ftype)
     out["wall_s"] = time.perf_counter() - t0
-    x = np.asarray(c.envelope.from_unit(jnp.asarray(best_z, c.dtype)))
+    x = _from_unit(c.envelope, best_z, c.dtype)
     out.update(x=x, index=np.asarray(index), value=best_val, diverged=best_div.astype(bool))
     return out
 
@@ -467,7 +478,7 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
             interrupted = True
             break
         zb = rng.random((batch, P)) * np.asarray(c.width)
-        xb = np.asarray(c.envelope.from_unit(jnp.asarray(zb, c.dtype)))
+        xb = _from_unit(c.envelope, zb, c.dtype)
         ib = np.arange(i0 + starts + j, i0 + starts + j + batch, dtype=np.int32)
         if fwd is None:
             fwd = functools.partial(_forward, env=c.envelope, setting=c.key, metric=metric)
