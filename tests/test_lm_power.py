@@ -101,12 +101,12 @@ def test_without_ftol_a_run_ends_on_the_parameter_step_at_the_optimum():
 
 
 def test_with_a_large_residual_the_parameter_step_test_still_waits_for_xtol():
-    """A large residual the parameters cannot remove (1e4 along a direction orthogonal to
+    """A large residual the parameters cannot remove (100 along a direction orthogonal to
     the columns): a relative decrease of 1e-6 of the cost is reached while the parameters are
     still far off, so only the step test (``max |dz| < xtol``, 1e-8) ends the run, at the
     optimum."""
     q = np.linalg.qr(_A, mode="complete")[0][:, -1]  # orthogonal to the range of A
-    lin, res = _linear(_A, _B + 1e4 * q)
+    lin, res = _linear(_A, _B + 100.0 * q)
     out, _ = _run(lin, res, [30.0, -20.0], ftol=0.0, lam0=100.0)
     assert out.converged and out.reason == "parameter step below xtol"
     z_opt = np.linalg.lstsq(_A, _B, rcond=None)[0]
