@@ -4,6 +4,9 @@ waves``) found untested. Eager checks and short computations (milliseconds each)
 import math
 import warnings
 
+import jax
+import jax.numpy as jnp
+import numpy as np
 import pytest
 from scipy.integrate import quad
 
@@ -84,3 +87,49 @@ def test_a_whole_range_past_linear_theory_reads_as_100_percent():
     # every sea state of hs 10-12 m, tp 4-5 s is past 1/14: "100 %", never "1e+02 %"
     (w,) = waves.envelope_warnings((10.0, 12.0), (4.0, 5.0))
     assert "(100 % of its sea states are past 1/14)" in w, w
+
+
+def test_pierson_moskowitz_is_exactly_zero_at_and_below_its_cut_with_zero_gradient():
+    # "0 and negative give 0": below 0.05 omega_p the spectrum is 0 (not the formula's value at a
+    # negative frequency, not NaN at 0), and so is its derivative (the cut's branch is NaN-free)
+    omega = jnp.array([-3.0, -0.5, 0.0, 0.01])  # omega_p = 0.785 rad/s at tp 8 s
+    assert np.array_equal(waves.pierson_moskowitz(omega, 2.0, 8.0), np.zeros(4))
+    grad = jax.grad(lambda w: jnp.sum(waves.pierson_moskowitz(w, 2.0, 8.0)))(omega)
+    assert np.array_equal(grad, np.zeros(4))
+
+
+def test_defaults_of_the_spectrum_and_the_sea_are_the_documented_ones():
+    omega = jnp.linspace(0.3, 2.0, 7)
+    assert np.array_equal(waves.jonswap(omega, 2.0, 8.0), waves.jonswap(omega, 2.0, 8.0, 3.3))
+    key = jax.random.key(3)
+    shape = jax.eval_shape(lambda k: waves.sea_state(k, 2.0, 8.0, 0.4), key).omega.shape
+    assert shape == (64,)
+    sea = waves.sea_state(key, hs=2.0, tp=8.0, direction=0.4, components=4)  # keywords: a contract
+    assert np.array_equal(sea.direction, np.full(4, 0.4))  # spreading 0: long-crested
+    same = waves.sea_state(key, 2.0, 8.0, 0.4, spectrum="jonswap", gamma=3.3, components=4)
+    assert all(np.array_equal(x, y) for x, y in zip(sea, same, strict=True))
+    with pytest.raises(TypeError):  # the options are keyword-only
+        waves.sea_state(key, 2.0, 8.0, 0.4, "pm")
+
+
+def test_calm_sea_is_one_component_on_the_dispersion_relation():
+    sea = waves.calm_sea()
+    assert sea.omega.shape == (1,)
+    assert np.array_equal(sea.wavenumber, sea.omega**2 / waves.GRAVITY)
+    # deep below, e^{-k d} of a wrong (negative) k would overflow: exactly zero water motion
+    v, a = waves.water_kinematics(sea, 0.0, jnp.array([0.0, 0.0, 500.0]))
+    assert np.array_equal(v, np.zeros(3)) and np.array_equal(a, np.zeros(3))
+
+
+def test_one_component_and_gamma_one_are_accepted_and_gamma_below_one_is_not():
+    key = jax.random.key(0)
+    assert waves.sea_state(key, 1.0, 8.0, 0.0, components=1).omega.shape == (1,)
+    for gamma in (1.0, 1.5):  # 1: Pierson-Moskowitz
+        waves.sea_state(key, 1.0, 8.0, 0.0, gamma=gamma, components=4)
+    with pytest.raises(ValueError, match="^gamma"):
+        waves.sea_state(key, 1.0, 8.0, 0.0, gamma=0.5, components=4)
+
+
+def test_an_integer_array_hs_gives_a_float_sea():
+    sea = waves.sea_state(jax.random.key(0), jnp.asarray(2), 8.0, 0.0, components=4)
+    assert all(jnp.issubdtype(x.dtype, jnp.floating) for x in sea)
