@@ -133,3 +133,16 @@ def test_one_component_and_gamma_one_are_accepted_and_gamma_below_one_is_not():
 def test_an_integer_array_hs_gives_a_float_sea():
     sea = waves.sea_state(jax.random.key(0), jnp.asarray(2), 8.0, 0.0, components=4)
     assert all(jnp.issubdtype(x.dtype, jnp.floating) for x in sea)
+
+
+def test_a_positive_spreading_spreads_the_directions():
+    sea = waves.sea_state(jax.random.key(1), 1.0, 8.0, 0.3, spreading=2.5, components=8)
+    beta = np.asarray(sea.direction)
+    assert np.all(np.abs(beta - 0.3) <= math.pi / 2) and np.ptp(beta) > 0.1
+
+
+def test_phases_are_drawn_on_a_whole_turn():
+    # uniform on [0, 2 pi): of 256 draws the largest is within 0.8 rad of 2 pi (a shorter or
+    # longer interval shows at once)
+    phase = np.asarray(waves.sea_state(jax.random.key(2), 1.0, 8.0, 0.0, components=256).phase)
+    assert phase.min() >= 0.0 and 2 * math.pi - 0.8 < phase.max() < 2 * math.pi
