@@ -155,3 +155,21 @@ def test_phases_are_drawn_on_a_whole_turn():
     # longer interval shows at once)
     phase = np.asarray(waves.sea_state(jax.random.key(2), 1.0, 8.0, 0.0, components=256).phase)
     assert phase.min() >= 0.0 and 2 * math.pi - 0.8 < phase.max() < 2 * math.pi
+
+
+@pytest.mark.parametrize("dtype, tol", [(jnp.float64, 2e-15), (jnp.float32, 8e-7)])
+def test_the_kinematics_sin_and_cos_have_the_documented_accuracy(dtype, tol):
+    # one unit component at the origin: theta = -t exactly, so the elevation is cos(t) and the
+    # down velocity at the surface sin(t), as the shared reduction and polynomials give them
+    # (module docstring of _sincos: 1e-15 absolute in float64, 6e-7 in float32; measured 1.0e-15
+    # and 5.7e-7 on [-10, 10])
+    one, zero = jnp.ones(1, dtype), jnp.zeros(1, dtype)
+    sea = waves.Sea(one, one, one / waves.GRAVITY, zero, zero)
+    t = jnp.linspace(-10.0, 10.0, 2001, dtype=dtype)
+    p = jnp.zeros(3, dtype)
+    zeta, u = jax.jit(
+        jax.vmap(lambda t: (waves.elevation(sea, t, p[0], p[1]), waves.orbital_velocity(sea, t, p)))
+    )(t)
+    t64 = np.asarray(t, np.float64)
+    np.testing.assert_allclose(zeta, np.cos(t64), rtol=0, atol=tol)
+    np.testing.assert_allclose(u[:, 2], np.sin(t64), rtol=0, atol=tol)
