@@ -295,7 +295,7 @@ def test_engine_loop_sweep_without_current_says_its_meaning_changed(tmp_path):
 def test_unknown_key_suggests_the_closest():
     from vcjax import config
 
-    with pytest.raises(ConfigError, match=r"unknown key \[current\] 'sped' \(did you mean 'speed'"):
+    with pytest.raises(ConfigError, match=r"\[current\] sped: unknown key \(did you mean 'speed'"):
         config.parse_section(config.Current, {"sped": 1.0}, "current")
 
 

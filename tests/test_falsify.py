@@ -81,6 +81,38 @@ def test_gradient_in_sea_state_and_depth_matches_finite_differences():
     _fd_check(loop, env, setting, "rms_depth_err", x0)
 
 
+def test_forward_and_reverse_mode_give_the_same_ascent_gradient():
+    """The search's two ways of differentiating (one tangent per searched parameter, or the
+    reverse pass) agree, and leave the fixed parameters' entries at zero."""
+    from vcjax.search.core import AscentSpec, _key, _value_and_grad, gradient_mode
+
+    loop, env, setting = _infante()
+    gains = loop.default_gains()
+    rng = np.random.default_rng(0)
+    width = (np.asarray(env.hi) > np.asarray(env.lo)).astype(float)
+    z = jnp.asarray(rng.random((2, len(env.names))) * width)
+    axes = tuple(int(i) for i in np.flatnonzero(width))
+    kw = dict(env=env, setting=_key(setting))
+    out = {
+        mode: _value_and_grad(
+            z,
+            jnp.arange(2),
+            gains,
+            setting.nominal,
+            how=AscentSpec("rms_cross_track_e", 16.0, axes, mode),
+            **kw,
+        )
+        for mode in ("forward", "reverse")
+    }
+    (mf, gf), (mr, gr) = out["forward"], out["reverse"]
+    np.testing.assert_allclose(np.asarray(gf), np.asarray(gr), rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(np.asarray(mf["rms_cross_track_e"]), mr["rms_cross_track_e"])
+    assert np.all(np.asarray(gf)[:, width == 0] == 0) and np.all(np.abs(np.asarray(gf)).max(1) > 0)
+    assert gradient_mode("auto", 4) == "forward" and gradient_mode("auto", 40) == "reverse"
+    with pytest.raises(ValueError, match="gradient: expected"):
+        gradient_mode("backward", 4)
+
+
 def test_projection_onto_the_envelope():
     loop, env, _ = _infante()
     lo, hi = np.asarray(env.lo), np.asarray(env.hi)
@@ -211,6 +243,17 @@ def test_cli_writes_worst_summary_figures_and_replays_them(tmp_path, capsys):
         or vals[0] == (summary["random_worst"])
     )
     assert vals[0] == max(summary["worst"], summary["random_worst"])
+    # when the search first beat random sampling's worst: a step of its curve, or never
+    curve = dict(summary["curve"])
+    if summary["worst"] > summary["random_worst"]:
+        n = summary["beat_random_rollouts"]
+        assert (
+            curve[n] > summary["random_worst"] and 0 < summary["beat_random_s"] <= summary["wall_s"]
+        )
+        assert all(w <= summary["random_worst"] for r, w in summary["curve"] if r < n)
+    else:
+        assert summary["beat_random_s"] is None and summary["beat_random_rollouts"] is None
+    assert summary["gradient"] == "forward"
     for f in ("falsify_worst.png", "falsify_curve.png", "run.json"):
         assert (out / f).is_file()
     # the replay runs the same scenarios again: the same metric
@@ -234,7 +277,8 @@ def test_cli_writes_worst_summary_figures_and_replays_them(tmp_path, capsys):
     ("old", "new", "args", "match"),
     [
         ("starts = 3", "starts = 0", [], "[falsify] starts"),
-        ("keep = 12", "bogus = 1", [], "unknown key [falsify] 'bogus'"),
+        ("keep = 12", "bogus = 1", [], "[falsify] bogus: unknown key"),
+        ("keep = 12", "gradient = 'backward'", [], "[falsify] gradient: expected one of"),
         ("", "", ["--metric", "max_speed"], "unknown metric 'max_speed'"),
         ("speed = [0.0, 0.5]", "speed = [0.5, 0.1]", [], "speed"),
         ("y = [-5.0, 5.0]", "bogus = [0.0, 1.0]", [], "bogus"),

@@ -357,7 +357,7 @@ def test_unknown_parameter_named(tmp_path, capsys):
 @pytest.mark.parametrize(
     "extra, expect",
     [
-        ("segment_step = 10\n", "unknown key [fit] 'segment_step'"),
+        ("segment_step = 10\n", "[fit] segment_step: unknown key"),
         ("max_iters = 0\n", "[fit] max_iters"),
         ("initial_scale = -1.0\n", "[fit] initial_scale"),
         ("fit_current = 1\n", "[fit] fit_current: expected true or false"),

@@ -175,7 +175,7 @@ def test_scenario_section_errors_name_the_key(tmp_path):
         parse_scenario({"vehicle": "arm", "controller": "ilos"}, "c.toml", cfg)
     with pytest.raises(ConfigError, match=r"\[scenario.path\] kind"):
         parse_scenario({"path": {"kind": "spiral"}}, "c.toml", cfg)
-    with pytest.raises(ConfigError, match=r"unknown key \[scenario.path\] 'radius' for kind"):
+    with pytest.raises(ConfigError, match=r"\[scenario.path\] radius: unknown key for kind"):
         parse_scenario({"path": {"kind": "line", "radius": 3.0}}, "c.toml", cfg)
     with pytest.raises(ConfigError, match=r"\[scenario.path\].*radius"):
         parse_scenario({"path": {"kind": "circle", "radius": -3.0}}, "c.toml", cfg)

@@ -82,7 +82,7 @@ def test_the_new_disturbance_is_listed_and_its_section_checked():
     assert environment.lookup("tide") == Tidal()
     with pytest.raises(ValueError, match=r"\[tide\] sped: unknown key \(did you mean 'speed'\?\)"):
         environment.freeze("tide", {"sped": 1.0})
-    with pytest.raises(ValueError, match=r"\[tide\] period: 0.0 is outside \(0.0, inf\]"):
+    with pytest.raises(ValueError, match=r"\[tide\] period: values must be > 0, got \[0.0, 0.0\]"):
         environment.freeze("tide", {"period": 0.0})
 
     @dataclasses.dataclass(frozen=True)

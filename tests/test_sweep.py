@@ -276,7 +276,7 @@ def write(tmp_path, text, name="c.toml"):
     "text, match",
     [
         ("[sweep]\nnum_scenarios = 4\n[bogus]\na = 1\n", r"unknown section \[bogus\]"),
-        ("[sweep]\nnum_scenarios = 4\nnum_scenario = 3\n", r"unknown key \[sweep\] 'num_scenario'"),
+        ("[sweep]\nnum_scenarios = 4\nnum_scenario = 3\n", r"\[sweep\] num_scenario: unknown key"),
         ("[sweep]\nseed = 1\n", r"num_scenarios is required"),
         ("[sweep]\nnum_scenarios = -4\n", r"\[sweep\] num_scenarios: expected an integer >= 1"),
         ("[sweep]\nnum_scenarios = 4.0\n", r"\[sweep\] num_scenarios: expected an integer"),

@@ -324,7 +324,7 @@ def test_blackbox_drivers_on_a_jax_objective():
     ("raw", "match"),
     [
         ({"problme": {}}, r"unknown section \[problme\] \(did you mean 'problem'\?\)"),
-        ({"problem": {"horizn": 1.0}}, r"unknown key \[problem\] 'horizn' \(did you mean"),
+        ({"problem": {"horizn": 1.0}}, r"\[problem\] horizn: unknown key \(did you mean"),
         ({"problem": {"horizon": -1.0}}, r"\[problem\] horizon"),
         ({"problem": {"dt": "0.1"}}, r"\[problem\] dt: expected a finite number"),
         ({"problem": {"variant": "pid"}}, r"\[problem\] variant"),

@@ -143,13 +143,14 @@ from vcjax.config import (
     closest,
     parse_section,
     read_toml,
+    unknown_key,
 )
 from vcjax.config.aliases import moved_values, note_old_spellings, take_moved
 from vcjax.config.frozen import freeze
 from vcjax.config.scenario import loop_options, parse_scenario
 from vcjax.config.schema import registered
 from vcjax.environment import lookup
-from vcjax.sweep.config import check_waves, environment_sections, refusal
+from vcjax.sweep.config import environment_sections, refusal
 from vcjax.sweep.spec import check_wave_step
 
 __all__ = [
@@ -235,7 +236,6 @@ def _current_and_waves(raw: dict, sec: dict) -> tuple[Current, Waves | None]:
         cur = dataclasses.replace(cur, speed=(0.0, m), direction_deg=(0.0, 360.0))
     if "waves" not in raw:
         return cur, None
-    check_waves(raw["waves"])
     wav = parse_section(Waves, raw["waves"], "waves")
     check_wave_step(wav.tp[0], sec["problem"].dt, "[waves] tp")
     return cur, wav
@@ -283,10 +283,8 @@ def _vehicle_keys(raw: dict, sec: dict, loop, current: Current, waves, env) -> d
     init = {}
     for k, v in raw.get("initial", {}).items():
         if k not in loop.initial_keys:
-            raise ConfigError(
-                f"[initial] {k}: unknown key for vehicle {loop.vehicle!r}"
-                f"{closest(k, loop.initial_keys)}; expected one of {list(loop.initial_keys)}"
-            )
+            note = f"for vehicle {loop.vehicle!r}"
+            raise ConfigError(unknown_key("initial", k, loop.initial_keys, note))
         init[k] = as_range(f"[initial] {k}", v)
     try:  # a current, a sea or a component the loop cannot take is refused, never ignored
         loops.check_disturbances(loop, max(current.speed) > 0, False, waves=waves is not None)

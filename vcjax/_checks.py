@@ -7,12 +7,29 @@ are tracers and the checks are skipped (health is then reported as data by the r
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Sequence
+from typing import Any
 
 import jax.numpy as jnp
 import numpy as np
 
 __all__ = [
+    "ConfigError",
+    "SEED_MAX",
+    "key",
+    "check_value",
+    "as_range",
+    "as_number",
+    "as_int",
+    "as_seed",
+    "as_choice",
+    "as_bool",
+    "as_str",
+    "as_str_list",
+    "closest",
+    "unknown_key",
     "is_concrete",
     "check_array",
     "check_finite",
@@ -162,3 +179,162 @@ def with_options(cls, options, kwargs: dict, fn: str):
     if not isinstance(options, cls):
         raise TypeError(f"{fn}(): options must be a {cls.__name__}, got {type(options).__name__}")
     return dataclasses.replace(options, **kwargs) if kwargs else options
+
+
+# -- values of a config: the one validator of every TOML key (sections of vcjax.config and the
+# -- environment components' sections alike)
+
+#: the largest seed of a study: the scenario sampler
+#: ([`vcjax.sweep.sample_scenarios`][vcjax.sweep.spec.sample_scenarios])
+#: builds its JAX PRNG key from ``jnp.uint32(seed)``, in float64 and float32 mode alike, so
+#: every seed of a config or of the Python API lies in ``0 .. SEED_MAX`` (checked by
+#: [`as_seed`][vcjax.config.values.as_seed], here and in the sampler: one bound)
+SEED_MAX = 2**32 - 1
+
+
+class ConfigError(ValueError):
+    """An invalid configuration (the message names the file, section and key)."""
+
+
+def as_range(name, v, lo_min=None, positive=False) -> tuple[float, float]:
+    """A number (fixed) or ``[lo, hi]`` (sampled uniformly) as ``(lo, hi)``."""
+    if isinstance(v, bool) or not isinstance(v, int | float | tuple | list):
+        raise ConfigError(f"{name}: expected a number or [lo, hi], got {v!r}")
+    if isinstance(v, int | float):
+        v = (v, v)
+    if len(v) != 2 or any(isinstance(a, bool) or not isinstance(a, int | float) for a in v):
+        raise ConfigError(f"{name}: expected a number or a list [lo, hi], got {list(v)!r}")
+    lo, hi = float(v[0]), float(v[1])
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+        raise ConfigError(f"{name}: expected finite lo <= hi, got [{lo}, {hi}]")
+    if lo_min is not None and lo < lo_min:
+        raise ConfigError(f"{name}: values must be >= {lo_min}, got [{lo}, {hi}]")
+    if positive and lo <= 0:
+        raise ConfigError(f"{name}: values must be > 0, got [{lo}, {hi}]")
+    return lo, hi
+
+
+def as_number(name, v, lo=None, lo_open=False, hi=None, hi_open=False) -> float:
+    """A finite number within the given bounds."""
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise ConfigError(f"{name}: expected a finite number, got {v!r}")
+    v = float(v)
+    if lo is not None and (v <= lo if lo_open else v < lo):
+        raise ConfigError(f"{name}: expected a value {'>' if lo_open else '>='} {lo}, got {v}")
+    if hi is not None and (v >= hi if hi_open else v > hi):
+        raise ConfigError(f"{name}: expected a value {'<' if hi_open else '<='} {hi}, got {v}")
+    return v
+
+
+def as_int(name, v, lo) -> int:
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise ConfigError(f"{name}: expected an integer, got {v!r}")
+    if v < lo:
+        raise ConfigError(f"{name}: expected an integer >= {lo}, got {v}")
+    return v
+
+
+def as_seed(name, v) -> int:
+    """An integer seed in ``0 .. SEED_MAX`` (what the sampler's ``jnp.uint32`` key takes)."""
+    if isinstance(v, bool) or not hasattr(v, "__index__"):
+        raise ConfigError(f"{name}: expected an integer seed, got {v!r}")
+    v = int(v.__index__())
+    if not 0 <= v <= SEED_MAX:
+        raise ConfigError(
+            f"{name}: {v} is outside the seed range 0 .. {SEED_MAX} (2**32 - 1: the scenario "
+            "sampler's PRNG key is a 32-bit unsigned integer)"
+        )
+    return v
+
+
+def closest(key: str, valid) -> str:
+    """`` (did you mean 'x'?)`` for the valid key closest to a mistyped ``key`` (difflib), or
+    ``""``."""
+    import difflib
+
+    near = difflib.get_close_matches(str(key), [str(v) for v in valid], n=1, cutoff=0.6)
+    return f" (did you mean {near[0]!r}?)" if near else ""
+
+
+def unknown_key(section: str, key, valid, note: str = "") -> str:
+    """The one message of an unknown key: ``[section] key: unknown key (did you mean 'x'?);
+    expected one of [...]`` (``note``: what the valid keys depend on, e.g. ``"for kind
+    'line'"``)."""
+    valid = list(valid)
+    extra = f" {note}" if note else ""
+    return f"[{section}] {key}: unknown key{extra}{closest(key, valid)}; expected one of {valid}"
+
+
+def as_choice(name, v, choices) -> str:
+    if v not in choices:
+        raise ConfigError(f"{name}: expected one of {list(choices)}, got {v!r}")
+    return v
+
+
+def as_bool(name, v) -> bool:
+    if not isinstance(v, bool):
+        raise ConfigError(f"{name}: expected true or false, got {v!r}")
+    return v
+
+
+def as_str(name, v) -> str:
+    if not isinstance(v, str):
+        raise ConfigError(f"{name}: expected a string, got {type(v).__name__} {v!r}")
+    return v
+
+
+def as_str_list(name, v) -> tuple[str, ...]:
+    if not isinstance(v, list | tuple) or not all(isinstance(a, str) for a in v):
+        raise ConfigError(f"{name}: expected a list of strings, got {v!r}")
+    return tuple(v)
+
+
+def key(default, type_: str, unit: str = "", doc: str = "", **meta):
+    """A section field with its metadata (``choices``, ``lo``/``lo_open``/``hi``/``hi_open``,
+    ``aliases``)."""
+    return dataclasses.field(
+        default=default, metadata={"type": type_, "unit": unit, "doc": doc, **meta}
+    )
+
+
+def check_value(name: str, v, meta) -> Any:
+    """``v`` checked against a key's metadata (``ConfigError`` naming ``name``): THE validator of
+    every key of every config, the sections of [`vcjax.config`][vcjax.config] (declared with
+    [`key`][vcjax._checks.key]) and the environment components' sections (declared with
+    [`Key`][vcjax.environment.component.Key]) alike.
+
+    ``meta["type"]``: ``"float"``, ``"int"``, ``"bool"``, ``"str"`` (``choices``), ``"range"``
+    (a number or ``[lo, hi]``, as ``(lo, hi)``), ``"sampled"`` (the same, a number kept as a
+    number), ``"seed"``, ``"str_list"``, ``"range_list"``; bounds ``lo``/``lo_open``/``hi``/
+    ``hi_open`` (a range's ends both within them)."""
+    t = meta["type"]
+    bounds = {k: meta[k] for k in ("lo", "lo_open", "hi", "hi_open") if k in meta}
+    if t == "float":
+        return as_number(name, v, **bounds)
+    if t == "int":
+        return as_int(name, v, meta.get("lo", 0))
+    if t == "bool":
+        return as_bool(name, v)
+    if t == "str":
+        v = as_str(name, v)
+        return as_choice(name, v, meta["choices"]) if meta.get("choices") else v
+    if t in ("range", "sampled"):
+        positive = meta.get("positive", False) or (meta.get("lo") == 0 and meta.get("lo_open"))
+        lo_min = None if positive and meta.get("lo") == 0 else meta.get("lo")
+        r = as_range(name, v, lo_min=lo_min, positive=positive)
+        if "hi" in meta and r[1] > meta["hi"]:
+            raise ConfigError(f"{name}: values must be <= {meta['hi']}, got [{r[0]}, {r[1]}]")
+        # "sampled" (a component's key): a number stays a number, a list is a (lo, hi) range
+        return r[0] if t == "sampled" and isinstance(v, int | float) else r
+    if t == "seed":
+        return as_seed(name, v)
+    if t == "str_list":
+        v = as_str_list(name, v)
+        if meta.get("unique") and len(set(v)) != len(v):
+            raise ConfigError(f"{name}: duplicate names in {list(v)}")
+        return v
+    if t == "range_list":
+        if not isinstance(v, list | tuple):
+            raise ConfigError(f"{name}: expected a list, got {v!r}")
+        return tuple(as_range(name, r) for r in v)
+    raise AssertionError(t)  # pragma: no cover

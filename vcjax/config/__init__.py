@@ -78,6 +78,7 @@ from vcjax.config.values import (
     note,
     read_toml,
     resolve_file,
+    unknown_key,
 )
 
 __all__ = [
@@ -97,6 +98,7 @@ __all__ = [
     "as_str",
     "as_str_list",
     "resolve_file",
+    "unknown_key",
     "DEFAULT_SCENARIO",
     "SECTIONS",
     "Simulation",

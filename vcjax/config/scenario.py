@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from vcjax import loops, paths
+from vcjax._checks import unknown_key
 from vcjax.config.schema import DEFAULT_SCENARIO, key
 from vcjax.config.values import (
     ConfigError,
@@ -208,8 +209,7 @@ def path_spec(d: dict, where: str) -> PathSpec:
     for k in d:
         if k != "kind" and k not in allowed:
             raise ConfigError(
-                f"{where}: unknown key [scenario.path] {k!r} for kind {kind!r}; "
-                f"expected one of {list(allowed)}"
+                f"{where}: {unknown_key('scenario.path', k, allowed, f'for kind {kind!r}')}"
             )
     spec = PathSpec(kind, tuple((k, _freeze(d[k])) for k in allowed if k in d))
     try:
@@ -368,9 +368,7 @@ def parse_scenario(
         if k not in SCENARIO_KEYS and k != "path" and k not in opts:
             if any(k in loop_options(loops.loop_class(v)) for v in loops.vehicles()):
                 raise ConfigError(f"{where}: [scenario] {k}: not an option of the {vehicle} loop")
-            raise ConfigError(
-                f"{where}: unknown key [scenario] {k!r}; expected one of {[*SCENARIO_KEYS, *opts]}"
-            )
+            raise ConfigError(f"{where}: {unknown_key('scenario', k, [*SCENARIO_KEYS, *opts])}")
     controller = raw.get("controller")
     if controller is not None and controller not in cls.controllers:
         raise ConfigError(

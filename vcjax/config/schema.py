@@ -20,19 +20,14 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+from vcjax._checks import check_value, key, unknown_key
 from vcjax.config.frozen import FrozenSection
 from vcjax.config.values import (
     ConfigError,
-    as_bool,
-    as_choice,
-    as_int,
-    as_number,
-    as_range,
-    as_seed,
-    as_str,
-    as_str_list,
-    closest,
 )
+from vcjax.environment.flow import ConstantCurrent
+from vcjax.environment.sea import MIN_SPREADING as _MIN_SPREADING
+from vcjax.environment.sea import Waves as WavesComponent
 
 __all__ = [
     "DEFAULT_SCENARIO",
@@ -52,14 +47,6 @@ __all__ = [
 #: the scenario of a config without ``[scenario]``: Simulation 1 of the paper (the
 #: INFANTE-class craft on the line ``[10, w]``, its default controller)
 DEFAULT_SCENARIO: dict[str, Any] = {"vehicle": "infante", "controller": None, "path": None}
-
-
-def key(default, type_: str, unit: str = "", doc: str = "", **meta):
-    """A section field with its metadata (``choices``, ``lo``/``lo_open``/``hi``/``hi_open``,
-    ``aliases``)."""
-    return dataclasses.field(
-        default=default, metadata={"type": type_, "unit": unit, "doc": doc, **meta}
-    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,8 +89,35 @@ class Simulation:
     )
 
 
-@dataclasses.dataclass(frozen=True)
-class Current:
+def component_section(comp, name: str, doc: str) -> type:
+    """The frozen section dataclass of an environment component's section, built from the
+    component's own declaration (``comp.schema``: default, bounds, unit, meaning, older
+    spellings), so that the section is declared once. A sampled key is held as ``(lo, hi)`` (a
+    number ``x`` as ``(x, x)``). [`parse_section`][vcjax.config.schema.parse_section] checks such
+    a section with the component's ``check`` (the one validator, and the component's own
+    refusals of keys that do not apply)."""
+    fields = []
+    for k, spec in comp.schema.items():
+        meta = spec.meta()
+        default = spec.default
+        if meta["type"] == "sampled":
+            meta["type"] = "range"
+            if default is not None and not isinstance(default, tuple):
+                default = (float(default), float(default))
+        typ = {"str": str, "int": int, "float": float}.get(meta["type"], tuple)
+        fields.append((k, typ, dataclasses.field(default=default, metadata=meta)))
+    cls = dataclasses.make_dataclass(name, fields, frozen=True, namespace={"__doc__": doc})
+    cls.__module__ = __name__
+    cls.component = comp
+    return cls
+
+
+#: ``[current]``: the ocean current of every scenario, declared by the
+#: [`ConstantCurrent`][vcjax.environment.flow.ConstantCurrent] component
+#: ([`CURRENT_SCHEMA`][vcjax.environment.flow.CURRENT_SCHEMA])
+Current = component_section(
+    ConstantCurrent(),
+    "Current",
     """``[current]``: the ocean current of every scenario (NED; the direction is the one the
     water flows towards, clockwise from north).
 
@@ -112,23 +126,9 @@ class Current:
     would be ignored). In tune configs ``[scenarios] current_max = m`` is the older spelling of
     ``speed = [0, m]``, ``direction_deg = [0, 360]`` (the tune's current without ``speed`` and
     ``direction_deg``); giving either key uses ``[current]``, the other key at its default.
-    """
-
-    model: str = key("constant", "str", "", "current model", choices=("constant", "gauss_markov"))
-    speed: tuple[float, float] = key(
-        (0.5, 0.5),
-        "range",
-        "m/s",
-        "mean current speed",
-        lo=0.0,
-        aliases=("[scenarios] current_max",),
-    )
-    direction_deg: tuple[float, float] = key(
-        (90.0, 90.0), "range", "deg", "direction the water flows towards"
-    )
-    sigma: float = key(0.05, "float", "m/s", "Gauss-Markov speed standard deviation", lo=0.0)
-    tau: float = key(300.0, "float", "s", "Gauss-Markov time constant", lo=0.0, lo_open=True)
-    max_speed: float = key(2.0, "float", "m/s", "Gauss-Markov speed bound", lo=0.0, lo_open=True)
+    The keys are declared once, by the component
+    ([`CURRENT_SCHEMA`][vcjax.environment.flow.CURRENT_SCHEMA]).""",
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -190,47 +190,21 @@ class Disturbance(FrozenSection):
     )
 
 
-@dataclasses.dataclass(frozen=True)
-class Waves:
+#: ``[waves]``: a random sea in every scenario, declared by the
+#: [`Waves`][vcjax.environment.sea.Waves] component
+Waves = component_section(
+    WavesComponent(),
+    "Waves",
     """``[waves]``: a random sea in every scenario (linear Airy waves in deep water,
     [`vcjax.environment.waves`][vcjax.environment.waves]; NED, depth positive down). Each scenario
-    draws its ``hs``,
-    ``tp``, ``direction_deg`` and ``origin_depth`` from the ranges and its sea (frequencies, phases,
-    directions) from its own key, so a scenario's sea is the same whatever the chunk size or
-    device count. ``hs`` and ``tp`` are required; ``hs = 0`` is a calm sea (the run is then
-    exactly the run without waves). The integration step must resolve the shortest component
-    (``tp / 4``) with 10 steps: ``tp >= 40 dt``. Loops whose plant cannot feel a sea refuse the
-    section."""
-
-    spectrum: str = key(
-        "jonswap", "str", "", "wave spectrum (pm: Pierson-Moskowitz)", choices=("jonswap", "pm")
-    )
-    hs: tuple[float, float] | None = key(
-        None, "range", "m", "significant wave height (required)", lo=0.0
-    )
-    tp: tuple[float, float] | None = key(
-        None, "range", "s", "peak period (required)", positive=True
-    )
-    direction_deg: tuple[float, float] = key(
-        (0.0, 0.0), "range", "deg", "direction the waves travel towards, clockwise from north"
-    )
-    gamma: float = key(3.3, "float", "", "JONSWAP peak enhancement (1: Pierson-Moskowitz)", lo=1.0)
-    spreading: float = key(
-        0.0,
-        "float",
-        "",
-        "s of the cos^2s directional spreading: 0 = long-crested (every component towards "
-        "direction_deg), else s >= 1 (1: cos^2, the widest; larger s: narrower)",
-        lo=0.0,
-    )
-    components: int = key(64, "int", "", "regular components of each sea", lo=1)
-    origin_depth: tuple[float, float] = key(
-        (0.0, 0.0),
-        "range",
-        "m",
-        "depth of the NED origin below the mean free surface: the vehicle feels the sea at "
-        "depth origin_depth + z (the same mission at another depth)",
-    )
+    draws its ``hs``, ``tp``, ``direction_deg`` and ``origin_depth`` from the ranges and its sea
+    (frequencies, phases, directions) from its own key, so a scenario's sea is the same whatever
+    the chunk size or device count. ``hs`` and ``tp`` are required; ``hs = 0`` is a calm sea
+    (the run is then exactly the run without waves). The integration step must resolve the
+    shortest component (``tp / 4``) with 10 steps: ``tp >= 40 dt``. Loops whose plant cannot
+    feel a sea refuse the section. The keys are declared once, by the component
+    ([`vcjax.environment.sea.Waves`][vcjax.environment.sea.Waves]).""",
+)
 
 
 #: TOML section name -> section class (``[scenario]``:
@@ -246,66 +220,8 @@ SECTIONS: dict[str, type] = {
 }
 
 
-def check_value(name: str, v, meta) -> Any:
-    """``v`` checked against a field's metadata (``ConfigError`` naming ``name``)."""
-    t = meta["type"]
-    bounds = {k: meta[k] for k in ("lo", "lo_open", "hi", "hi_open") if k in meta}
-    if t == "float":
-        return as_number(name, v, **bounds)
-    if t == "int":
-        return as_int(name, v, meta.get("lo", 0))
-    if t == "bool":
-        return as_bool(name, v)
-    if t == "str":
-        v = as_str(name, v)
-        return as_choice(name, v, meta["choices"]) if meta.get("choices") else v
-    if t == "range":
-        return as_range(name, v, lo_min=meta.get("lo"), positive=meta.get("positive", False))
-    if t == "seed":
-        return as_seed(name, v)
-    if t == "str_list":
-        v = as_str_list(name, v)
-        if meta.get("unique") and len(set(v)) != len(v):
-            raise ConfigError(f"{name}: duplicate names in {list(v)}")
-        return v
-    if t == "range_list":
-        if not isinstance(v, list | tuple):
-            raise ConfigError(f"{name}: expected a list, got {v!r}")
-        return tuple(as_range(name, r) for r in v)
-    raise AssertionError(t)  # pragma: no cover
-
-
-#: the smallest positive ``[waves] spreading``: ``s -> 0+`` tends to a uniform spread over the
-#: whole +-90 deg half-plane (the widest), while ``s = 0`` is long-crested (one direction), so a
-#: tiny positive ``s`` would silently mean the opposite of what 0 means
-MIN_SPREADING = 1.0
-
-
-def _current_applies(cur: Current, table: dict, name) -> None:
-    """The Gauss-Markov keys are refused with a constant current (they would be ignored)."""
-    if cur.model == "constant":
-        for k in ("sigma", "tau", "max_speed"):
-            if k in table:
-                raise ConfigError(
-                    f"{name(k)}: applies to model = 'gauss_markov' only; with the constant "
-                    "current (model = 'constant', the default) it would be ignored"
-                )
-
-
-def _waves_apply(wav: Waves, table: dict, name) -> None:
-    """``gamma`` is JONSWAP's; a positive ``spreading`` is at least
-    [`MIN_SPREADING`][vcjax.config.schema.MIN_SPREADING]."""
-    if wav.spectrum == "pm" and "gamma" in table:
-        raise ConfigError(
-            f"{name('gamma')}: the peak enhancement of the JONSWAP spectrum; spectrum = 'pm' "
-            "(Pierson-Moskowitz) has none and would ignore it"
-        )
-    if 0.0 < wav.spreading < MIN_SPREADING:
-        raise ConfigError(
-            f"{name('spreading')}: 0 is long-crested (one direction) and s >= {MIN_SPREADING:g} "
-            f"spreads as cos^2s (1 the widest); got {wav.spreading:g}, which would spread the "
-            "components over the whole +-90 deg half-plane"
-        )
+#: the smallest positive ``[waves] spreading`` (declared with the waves component)
+MIN_SPREADING = _MIN_SPREADING
 
 
 def _model_error_applies(err: ModelError, table: dict, name) -> None:
@@ -320,7 +236,7 @@ def _model_error_applies(err: ModelError, table: dict, name) -> None:
 
 #: section class -> check of the keys that depend on each other (a key that does not apply
 #: to the values of the others is refused, never silently ignored)
-CROSS_CHECKS = {Current: _current_applies, Waves: _waves_apply, ModelError: _model_error_applies}
+CROSS_CHECKS = {ModelError: _model_error_applies}
 
 
 def registered() -> dict[str, type]:
@@ -363,6 +279,14 @@ def register_section(name: str, cls: type, check=None, replace: bool = False) ->
     return cls
 
 
+def _held(v, meta):
+    """A component's checked value as its config section holds it (a sampled number ``x`` as
+    the range ``(x, x)``)."""
+    if meta["type"] == "range" and v is not None and not isinstance(v, tuple):
+        return (float(v), float(v))
+    return v
+
+
 def parse_section(cls: type, table: dict | None, section: str, where: str = ""):
     """The section object of one TOML table (missing keys: defaults).
 
@@ -380,13 +304,17 @@ def parse_section(cls: type, table: dict | None, section: str, where: str = ""):
             (k, check_value(f"{pre}[{section}] {k}", v, f.metadata)) for k, v in table.items()
         )
         return cls(**{f.name: vals})
+    comp = getattr(cls, "component", None)
+    if comp is not None:  # an environment component's section: its own check
+        try:
+            checked = comp.check(table)
+        except ConfigError as err:
+            raise ConfigError(f"{pre}{err}") from None
+        return cls(**{k: _held(checked[k], fields[k].metadata) for k in fields})
     kw = {}
     for k, v in table.items():
         if k not in fields:
-            raise ConfigError(
-                f"{pre}unknown key [{section}] {k!r}{closest(k, fields)}; "
-                f"expected one of {list(fields)}"
-            )
+            raise ConfigError(f"{pre}{unknown_key(section, k, fields)}")
         kw[k] = check_value(f"{pre}[{section}] {k}", v, fields[k].metadata)
     obj = cls(**kw)
     if cls in CROSS_CHECKS:

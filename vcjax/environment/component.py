@@ -46,7 +46,7 @@ from typing import Any, ClassVar, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from vcjax._checks import as_float_array, float_dtype
+from vcjax._checks import ConfigError, as_float_array, check_value, float_dtype, unknown_key
 
 __all__ = [
     "KINDS",
@@ -58,6 +58,7 @@ __all__ = [
     "components",
     "lookup",
     "draw",
+    "draw_unit",
     "freeze",
     "register",
     "unregister",
@@ -121,15 +122,23 @@ def water_motion(velocity=None, acceleration=None, dtype=None) -> WaterMotion:
 
 
 class Key(NamedTuple):
-    """One key of a component's section.
+    """One key of a component's section (its declaration: the one place its default, bounds,
+    unit and meaning are written; [`vcjax.config`][vcjax.config] reads the built-in sections'
+    keys from here).
 
     Attributes:
         default: the value when the key is absent (a number, a string, or a ``(lo, hi)``
             range); ``None``: required.
-        doc: meaning and unit, one line.
+        doc: meaning, one line.
         lo, hi: bounds every value (and both ends of a range) must respect.
         choices: the allowed strings of a string key (static options), else empty.
         strict_lo: ``lo`` itself is excluded (``> lo`` instead of ``>= lo``).
+        unit: the unit, for the configuration reference (e.g. ``"m/s"``).
+        kind: ``"sampled"`` (a number, or a ``[lo, hi]`` range drawn per run: the default),
+            ``"float"`` (one number, a static option), ``"int"`` or ``"str"`` (with
+            ``choices``).
+        aliases: older spellings still accepted, as ``"[section] key"``
+            ([`vcjax.config.aliases`][vcjax.config.aliases]).
     """
 
     default: Any
@@ -138,61 +147,63 @@ class Key(NamedTuple):
     hi: float = math.inf
     choices: tuple = ()
     strict_lo: bool = False
+    unit: str = ""
+    kind: str = "sampled"
+    aliases: tuple = ()
 
-
-def _bad(section: str, key: str, msg: str) -> ValueError:
-    return ValueError(f"[{section}] {key}: {msg}")
-
-
-def _check_number(section, name, spec: Key, x):
-    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
-        raise _bad(section, name, f"expected a finite number, got {x!r}")
-    if x < spec.lo or (spec.strict_lo and x == spec.lo) or x > spec.hi:
-        lo = "(" if spec.strict_lo else "["
-        raise _bad(section, name, f"{x!r} is outside {lo}{spec.lo}, {spec.hi}]")
-    return float(x)
+    def meta(self) -> dict:
+        """The key as the metadata [`check_value`][vcjax._checks.check_value] reads."""
+        kind = "str" if self.choices else self.kind
+        m = {"type": kind, "unit": self.unit, "doc": self.doc, "aliases": self.aliases}
+        if self.choices:
+            m["choices"] = tuple(self.choices)
+        if math.isfinite(self.lo):
+            m["lo"], m["lo_open"] = self.lo, self.strict_lo
+        if math.isfinite(self.hi):
+            m["hi"] = self.hi
+        return m
 
 
 def check_section(section: str, schema: Mapping[str, Key], raw: Mapping | None) -> dict:
-    """``raw`` (a TOML table) checked against ``schema``: unknown keys (with the closest
-    valid one), types and bounds; absent keys take their defaults. Numbers come back as
-    floats, ranges as ``(lo, hi)`` tuples. ``ValueError`` ``[section] key: message``."""
+    """``raw`` (a TOML table) checked against ``schema`` by the one validator,
+    [`check_value`][vcjax._checks.check_value]: unknown keys (with the closest valid one), types
+    and bounds; absent keys take their defaults. Sampled keys come back as floats (a number) or
+    ``(lo, hi)`` tuples (a range). ``ValueError`` (a ``ConfigError``) ``[section] key: message``."""
     raw = dict(raw or {})
     unknown = sorted(set(raw) - set(schema))
     if unknown:
-        import difflib
-
-        near = difflib.get_close_matches(unknown[0], list(schema), n=1)
-        hint = f" (did you mean {near[0]!r}?)" if near else f"; valid: {sorted(schema)}"
-        raise _bad(section, unknown[0], f"unknown key{hint}")
+        raise ConfigError(unknown_key(section, unknown[0], schema))
     out = {}
     for name, spec in schema.items():
         x = raw.get(name, spec.default)
         if x is None:
-            raise _bad(section, name, "required")
-        if spec.choices:
-            if x not in spec.choices:
-                raise _bad(section, name, f"expected one of {list(spec.choices)}, got {x!r}")
-            out[name] = x
-        elif isinstance(x, (list, tuple)):
-            if len(x) != 2:
-                raise _bad(section, name, f"expected a number or a [lo, hi] range, got {x!r}")
-            lo, hi = (_check_number(section, name, spec, v) for v in x)
-            if lo > hi:
-                raise _bad(section, name, f"range [{lo}, {hi}] has lo > hi")
-            out[name] = (lo, hi)
-        else:
-            out[name] = _check_number(section, name, spec, x)
+            form = " (a number or [lo, hi])" if spec.kind == "sampled" else ""
+            raise ConfigError(f"[{section}] {name}: required{form}")
+        if name not in raw and not isinstance(x, str):  # a default is the declaration's own
+            out[name] = tuple(x) if isinstance(x, list) else x
+            continue
+        out[name] = check_value(f"[{section}] {name}", x, spec.meta())
     return out
+
+
+def draw_unit(u, value, dtype=None):
+    """() a traced value of one section key from a uniform number ``u`` in [0, 1): the number
+    itself, or ``lo + (hi - lo) u`` for a ``(lo, hi)`` range (reparameterised: differentiable
+    in both ends; ``lo == hi`` gives ``lo`` exactly)."""
+    dtype = jnp.asarray(u).dtype if dtype is None else dtype
+    if isinstance(value, tuple):
+        lo, hi = (jnp.asarray(v, dtype) for v in value)
+        return lo + (hi - lo) * u
+    return jnp.asarray(value, dtype)
 
 
 def draw(key, value, dtype=None):
     """() a traced value of one section key: the number itself, or a uniform draw from a
-    ``(lo, hi)`` range (reparameterised, ``lo + (hi - lo) U``: differentiable in both ends)."""
+    ``(lo, hi)`` range ([`draw_unit`][vcjax.environment.component.draw_unit] of
+    ``uniform(key)``)."""
     dtype = jnp.asarray(0.0).dtype if dtype is None else dtype
     if isinstance(value, tuple):
-        lo, hi = (jnp.asarray(v, dtype) for v in value)
-        return lo + (hi - lo) * jax.random.uniform(key, (), dtype)
+        return draw_unit(jax.random.uniform(key, (), dtype), value, dtype)
     return jnp.asarray(value, dtype)
 
 
@@ -223,6 +234,12 @@ class Component:
     def check(self, raw: Mapping | None) -> dict:
         """The section checked against ``schema`` (eager; defaults filled in)."""
         return check_section(self.section, self.schema, raw)
+
+    def resolve(self, section: Mapping) -> Component:
+        """The component that simulates the checked ``section``: default ``self``; a section
+        whose static options choose another model returns that model's component (e.g.
+        ``[current] model = "gauss_markov"``)."""
+        return self
 
     def sample(self, key, section: Mapping):
         """Traced parameters of one run from the checked ``section`` and a PRNG ``key``."""
@@ -371,7 +388,9 @@ def sample(key, sections: Mapping[str, Mapping], loop=None, comps: Mapping | Non
     found, params = [], []
     for i, (name, raw) in enumerate(sections.items()):
         c = (comps or {}).get(name) or lookup(name)
+        checked = c.check(raw)
+        c = c.resolve(checked)
         c = c if loop is None else c.bind(loop)
         found.append(c)
-        params.append(c.sample(jax.random.fold_in(key, i), c.check(raw)))
+        params.append(c.sample(jax.random.fold_in(key, i), checked))
     return Environment(found, params)

@@ -8,18 +8,66 @@ clockwise from north."""
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Mapping
 from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 
-from vcjax.environment.component import Component, Key, draw
+from vcjax._checks import ConfigError
+from vcjax.environment.component import Component, Key, draw_unit
 from vcjax.environment.current import GaussMarkovCurrent, current_ned, gm_init, gm_step, gm_value
 
-__all__ = ["ConstantCurrent", "CurrentParams", "GaussMarkov", "GaussMarkovParams"]
+__all__ = [
+    "CURRENT_SCHEMA",
+    "ConstantCurrent",
+    "CurrentParams",
+    "GaussMarkov",
+    "GaussMarkovParams",
+    "check_current",
+]
 
-_SPEED = Key(0.0, "speed [m/s] (or a [lo, hi] range)", lo=0.0)
-_DIRECTION = Key(90.0, "direction the water flows towards [deg, clockwise from north]")
+#: ``[current]``: THE declaration of the section's keys (sweep, tune and the Python API read it
+#: from here; [`vcjax.config.schema.Current`][vcjax.config.schema.Current] is built from it).
+#: The defaults are the paper's Simulation 1: 0.5 m/s towards east, constant.
+CURRENT_SCHEMA = {
+    "model": Key("constant", "current model", choices=("constant", "gauss_markov"), kind="str"),
+    "speed": Key(
+        0.5,
+        "mean current speed",
+        lo=0.0,
+        unit="m/s",
+        aliases=("[scenarios] current_max",),
+    ),
+    "direction_deg": Key(90.0, "direction the water flows towards", unit="deg"),
+    "sigma": Key(0.05, "Gauss-Markov speed standard deviation", lo=0.0, unit="m/s", kind="float"),
+    "tau": Key(300.0, "Gauss-Markov time constant", lo=0.0, strict_lo=True, unit="s", kind="float"),
+    "max_speed": Key(
+        2.0, "Gauss-Markov speed bound", lo=0.0, strict_lo=True, unit="m/s", kind="float"
+    ),
+}
+#: the keys that only the Gauss-Markov model reads
+GAUSS_MARKOV_KEYS = ("sigma", "tau", "max_speed")
+_DEG = math.pi / 180.0
+
+
+def _radians(value):
+    """A direction [deg] (a number or a ``(lo, hi)`` range) in radians, converted before the
+    draw (plain Python float64, the order of operations every sampled direction has had)."""
+    return tuple(a * _DEG for a in value) if isinstance(value, tuple) else value * _DEG
+
+
+def check_current(section: Mapping, given: Mapping) -> None:
+    """The Gauss-Markov keys are refused with a constant current (they would be ignored; written
+    at their defaults they mean what omitting them means); ``given``: the table as written."""
+    if section["model"] == "constant":
+        for k in GAUSS_MARKOV_KEYS:
+            if k in given and section[k] != CURRENT_SCHEMA[k].default:
+                raise ConfigError(
+                    f"[current] {k}: applies to model = 'gauss_markov' only; with the constant "
+                    "current (model = 'constant', the default) it would be ignored"
+                )
 
 
 class CurrentParams(NamedTuple):
@@ -30,17 +78,37 @@ class CurrentParams(NamedTuple):
 
 @dataclasses.dataclass(frozen=True)
 class ConstantCurrent(Component):
-    """A uniform, constant current of a sampled speed and direction."""
+    """``[current]``: a uniform current of a sampled speed and direction; constant, or with
+    ``model = "gauss_markov"`` wandering about that mean
+    ([`GaussMarkov`][vcjax.environment.flow.GaussMarkov],
+    [`resolve`][vcjax.environment.component.Component.resolve])."""
 
     section = "current"
     kind = "current"
-    schema = {"speed": _SPEED, "direction_deg": _DIRECTION}
+    schema = CURRENT_SCHEMA
+
+    def check(self, raw):
+        out = super().check(raw)
+        check_current(out, dict(raw or {}))
+        return out
+
+    def resolve(self, section):
+        return GaussMarkov() if section.get("model") == "gauss_markov" else self
+
+    def draw_mean(self, u, key, section):
+        """``(speed, direction, velocity)`` of one run: the mean speed [m/s] and direction [rad]
+        from two uniform numbers ``u`` (2,) in [0, 1) (``lo + (hi - lo) u``: a fixed value is
+        exact; a sweep hands over the first two numbers of its scenario's stream), and the (3,)
+        mean water velocity in NED [m/s] they make. ``key``: the component's own PRNG key for
+        any further draw of a key of its section (the built-in keys need none)."""
+        speed = draw_unit(u[0], section["speed"], u.dtype)
+        direction = draw_unit(u[1], _radians(section["direction_deg"]), u.dtype)
+        return speed, direction, current_ned(speed, direction)
 
     def sample(self, key, section):
-        k1, k2 = jax.random.split(key)
-        speed = draw(k1, section["speed"])
-        beta = jnp.deg2rad(draw(k2, section["direction_deg"]))
-        return CurrentParams(current_ned(speed, beta))
+        k_unit, k_more = jax.random.split(key)
+        u = jax.random.uniform(k_unit, (2,), jnp.asarray(0.0).dtype)
+        return CurrentParams(self.draw_mean(u, k_more, section)[2])
 
     def water(self, params, held, t, p_ned, current):
         v = params.velocity
@@ -72,20 +140,12 @@ class GaussMarkov(Component):
     section = "gauss_markov"
     kind = "varying_current"
     process = True
-    schema = {
-        "speed": _SPEED,
-        "direction_deg": _DIRECTION,
-        "sigma": Key(0.05, "stationary standard deviation per component [m/s]", lo=0.0),
-        "tau": Key(300.0, "correlation time [s]", lo=0.0, strict_lo=True),
-        "max_speed": Key(
-            2.0, "bound on the speed handed to the plant [m/s]", lo=0.0, strict_lo=True
-        ),
-    }
+    schema = {k: v for k, v in CURRENT_SCHEMA.items() if k != "model"}
 
     def sample(self, key, section):
-        k_speed, k_dir, k_proc = jax.random.split(key, 3)
-        beta = jnp.deg2rad(draw(k_dir, section["direction_deg"]))
-        mean = current_ned(draw(k_speed, section["speed"]), beta)
+        k_unit, k_more, k_proc = jax.random.split(key, 3)
+        u = jax.random.uniform(k_unit, (2,), jnp.asarray(0.0).dtype)
+        mean = ConstantCurrent().draw_mean(u, k_more, section)[2]
         f = lambda name: jnp.asarray(section[name], mean.dtype)
         gm = GaussMarkovCurrent(mean[:2], f("sigma"), f("tau"), f("max_speed"))
         return GaussMarkovParams(gm, mean[2:], k_proc)

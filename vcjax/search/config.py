@@ -18,6 +18,7 @@ fixed, with a ``[falsify]`` section instead of ``[sweep]``::
     seed = 0                  # int >= 0: starts and the scenarios' random draws
     keep = 10                 # int >= 1: scenarios written to worst.json
     controller = "vcm"        # optional: the controller ([scenario] controller otherwise)
+    gradient = "auto"         # "forward", "reverse" or "auto" (forward up to 16 searched)
 
 ``--metric`` and ``--bound`` on the command line override the file's. ``metric = "loss"``
 (or ``"tuning_loss"``) searches the tuning loss of one scenario (``vcjax tune``'s, with the
@@ -35,8 +36,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from vcjax.config import ConfigError, as_int, as_number, read_toml
-from vcjax.search.core import FalsifyOptions, evaluate, falsify, metric_name
+from vcjax.config import ConfigError, as_choice, as_int, as_number, read_toml, unknown_key
+from vcjax.search.core import FalsifyOptions, evaluate, falsify, gradient_mode, metric_name
 from vcjax.search.envelope import Envelope, envelope_from_spec, setting_from_spec
 
 __all__ = ["FALSIFY_KEYS", "KEY_DOCS", "load_config", "run_falsify_config", "replay_worst"]
@@ -52,6 +53,7 @@ FALSIFY_KEYS = {
     "seed": 0,
     "keep": 10,
     "controller": None,
+    "gradient": "auto",
 }
 
 #: (section, key) -> (unit, description): the configuration reference is generated from it (the
@@ -65,6 +67,11 @@ KEY_DOCS: dict[tuple[str, str], tuple[str, str]] = {
     ("falsify", "random_rollouts"): ("", "random baseline rollouts (default starts x steps)"),
     ("falsify", "seed"): ("", "seed of the starts and of the scenarios' random draws"),
     ("falsify", "keep"): ("", "scenarios written to worst.json (int >= 1)"),
+    ("falsify", "gradient"): (
+        "",
+        "how the ascent differentiates: forward (one tangent per searched parameter: compiles "
+        "fast), reverse, or auto (forward up to 16 searched parameters)",
+    ),
     ("falsify", "controller"): ("", "the controller searched ([scenario] controller otherwise)"),
 }
 
@@ -76,9 +83,7 @@ def _falsify_section(fal, where: str, metric: str | None, bound: float | None) -
         raise ConfigError(f"{where}: [falsify]: expected a table")
     unknown = sorted(set(fal) - set(FALSIFY_KEYS))
     if unknown:
-        raise ConfigError(
-            f"{where}: unknown key [falsify] {unknown[0]!r}; expected one of {list(FALSIFY_KEYS)}"
-        )
+        raise ConfigError(f"{where}: {unknown_key('falsify', unknown[0], FALSIFY_KEYS)}")
     opts = {**FALSIFY_KEYS, **fal}
     if metric is not None:
         opts["metric"] = metric
@@ -97,6 +102,9 @@ def _falsify_section(fal, where: str, metric: str | None, bound: float | None) -
             opts["bound"] = as_number("[falsify] bound (--bound)", opts["bound"])
             if not math.isfinite(opts["bound"]):
                 raise ConfigError(f"[falsify] bound (--bound): not finite: {opts['bound']}")
+        opts["gradient"] = as_choice(
+            "[falsify] gradient", opts["gradient"], ("auto", "forward", "reverse")
+        )
         if not isinstance(opts["metric"], str):
             raise ConfigError(f"[falsify] metric: expected a string, got {opts['metric']!r}")
     except ConfigError as err:
@@ -202,6 +210,7 @@ def run_falsify_config(cfg: dict, out_dir, progress=None) -> dict:
         random_rollouts=o["random_rollouts"],
         bound=cfg["bound"],
         progress=progress,
+        gradient=o["gradient"],
     )
     res = falsify(cfg["loop"], cfg["gains"], cfg["envelope"], cfg["metric"], cfg["setting"], search)
     files = [write_worst(res, cfg, out / "worst.json", o["keep"])]
@@ -214,6 +223,8 @@ def run_falsify_config(cfg: dict, out_dir, progress=None) -> dict:
         "wall_s": res.wall_s,
         "random_wall_s": res.random_wall_s,
         "first_step_s": res.first_step_s,
+        "beat_random_s": None if res.beat_random is None else res.beat_random[1],
+        "beat_random_rollouts": None if res.beat_random is None else res.beat_random[0],
         "bound": res.bound,
         "falsified": res.falsified,
         "random_falsified": res.random_falsified,
@@ -222,6 +233,7 @@ def run_falsify_config(cfg: dict, out_dir, progress=None) -> dict:
         "steps": o["steps"],
         "step_size": o["step_size"],
         "seed": o["seed"],
+        "gradient": gradient_mode(o["gradient"], len(cfg["envelope"].searched)),
         "controller": cfg["spec"].variants[0],
         "vehicle": cfg["loop"].vehicle,
         "envelope": cfg["envelope"].as_dict(),

@@ -30,6 +30,9 @@ __all__ = [
     "SegmentMetric",
     "falsify",
     "evaluate",
+    "gradient_mode",
+    "FORWARD_MAX",
+    "AscentSpec",
     "metric_name",
     "soft_metric",
 ]
@@ -151,15 +154,60 @@ def _metrics(x, index, gains, env: Envelope, setting: Setting, metric, sharpness
     return surrogate, m
 
 
-@functools.partial(jax.jit, static_argnames=("env", "setting", "metric", "sharpness"))
-def _value_and_grad(z, index, gains, nom, env, setting, metric, sharpness):
-    """Batched: the surrogate's gradient in unit coordinates and the true metrics."""
+#: ``mode = "auto"`` differentiates in forward mode up to this many searched parameters
+FORWARD_MAX = 16
+
+
+def gradient_mode(mode: str, searched: int) -> str:
+    """``"forward"`` or ``"reverse"``: the mode that differentiates a search of ``searched``
+    parameters (``mode``: ``"auto"``, ``"forward"`` or ``"reverse"``). Forward mode carries
+    one tangent per searched parameter through the rollout (a program about as large as the
+    forward one: it compiles several times faster than the reverse pass on a CPU, and runs in
+    a few forward rollouts' time for a handful of parameters); reverse mode costs a few
+    rollouts whatever their number, but its program stores the rollout's intermediates and
+    compiles slowly. ``"auto"``: forward up to ``FORWARD_MAX`` searched parameters."""
+    if mode not in ("auto", "forward", "reverse"):
+        raise ValueError(f"gradient: expected 'auto', 'forward' or 'reverse', got {mode!r}")
+    if mode == "auto":
+        return "forward" if searched <= FORWARD_MAX else "reverse"
+    return mode
+
+
+class AscentSpec(NamedTuple):
+    """What the ascent differentiates, and how (static: part of the program's key).
+
+    Attributes:
+        metric: the metric (a name or a [`SegmentMetric`][vcjax.search.core.SegmentMetric]);
+        sharpness: power of a max metric's power-mean surrogate;
+        axes: the searched parameters' indices (the others' gradient entries are zeros);
+        mode: ``"forward"`` or ``"reverse"`` ([`gradient_mode`][vcjax.search.core.gradient_mode]).
+    """
+
+    metric: Any
+    sharpness: float
+    axes: tuple[int, ...]
+    mode: str
+
+
+@functools.partial(jax.jit, static_argnames=("env", "setting", "how"))
+def _value_and_grad(z, index, gains, nom, env, setting, how: AscentSpec):
+    """Batched: the surrogate's gradient in unit coordinates along ``how.axes`` (zeros
+    elsewhere) and the true metrics, in forward or reverse mode."""
     setting = dataclasses.replace(setting, nominal=nom)
+    axes = jnp.asarray(how.axes, jnp.int32)
 
     def one(z1, i):
-        f = lambda zz: _metrics(env.from_unit(zz), i, gains, env, setting, metric, sharpness)
-        (_, m), g = jax.value_and_grad(f, has_aux=True)(z1)
-        return m, g
+        def f(zs):  # the searched coordinates only
+            zz = z1.at[axes].set(zs)
+            return _metrics(env.from_unit(zz), i, gains, env, setting, how.metric, how.sharpness)
+
+        if not how.axes:  # a point envelope: nothing to differentiate
+            return f(z1[axes])[1], jnp.zeros_like(z1)
+        if how.mode == "forward":
+            gs, m = jax.jacfwd(f, has_aux=True)(z1[axes])
+        else:
+            (_, m), gs = jax.value_and_grad(f, has_aux=True)(z1[axes])
+        return m, jnp.zeros_like(z1).at[axes].set(gs)
 
     return jax.vmap(one)(z, index)
 
@@ -204,9 +252,12 @@ class FalsifyResult:
         metric: the metric's name; envelope: the [`Envelope`][vcjax.search.envelope.Envelope].
         x: (S, P) each start's worst parameters found (config units); index: (S,) their random
             draws' scenario numbers; value: (S,) their metric; diverged: (S,) flags.
-        curve: (rollouts, worst so far) after each ascent step (rollouts = starts x steps).
+        curve: (rollouts, worst so far) after each ascent step (rollouts = starts x steps);
+            curve_s: the seconds since the search began at each of them (compilation
+            included).
         random_x, random_index, random_value, random_diverged: the random baseline's samples.
-        random_curve: the same curve for the random samples (one point per rollout).
+        random_curve: the same curve for the random samples (one point per rollout);
+            random_curve_s: ``(rollouts, seconds)`` after each of its batches.
         rollouts, random_rollouts: rollouts run; wall_s, random_wall_s: seconds, compilation
             included; first_step_s: the first ascent step (compilation included, unless a
             call of the same shapes compiled it before).
@@ -234,6 +285,21 @@ class FalsifyResult:
     falsified: bool = False
     random_falsified: bool = False
     interrupted: bool = False
+    curve_s: list = dataclasses.field(default_factory=list)
+    random_curve_s: list = dataclasses.field(default_factory=list)
+
+    @property
+    def beat_random(self) -> tuple[int, float] | None:
+        """``(rollouts, seconds)`` at the first ascent step whose worst exceeded the random
+        baseline's worst (seconds since the search began, compilation included), or ``None``:
+        the gradient search never found a worse scenario than random sampling."""
+        if not self.random_value.size:
+            return None
+        target = float(np.max(_rank(self.random_value)))
+        for (n, w), t in zip(self.curve, self.curve_s, strict=False):
+            if w > target:
+                return int(n), float(t)
+        return None
 
     @property
     def worst(self) -> float:
@@ -293,6 +359,10 @@ class FalsifyOptions:
             ``first_index + 1``, ...: their random draws; the baseline's follow them): another
             set of draws under the same seed without compiling again (the seed is static), as
             robust tuning's rounds do; its starting points are drawn from it too.
+        gradient: how the ascent differentiates: ``"forward"`` (one tangent per searched
+            parameter), ``"reverse"``, or ``"auto"`` (forward up to ``FORWARD_MAX`` searched
+            parameters; [`gradient_mode`][vcjax.search.core.gradient_mode]). The same
+            gradient either way (to rounding); what differs is the time to compile and run.
     """
 
     starts: int = 8
@@ -305,6 +375,7 @@ class FalsifyOptions:
     progress: Callable[[str], Any] | None = None
     stop: Callable[[], bool] | None = None
     first_index: int = 0
+    gradient: str = "auto"
 
 
 _OPTION_FIELDS = frozenset(f.name for f in dataclasses.fields(FalsifyOptions))
@@ -337,11 +408,12 @@ def _ascent(c: _Search) -> dict:
     m1, m2 = jnp.zeros_like(z), jnp.zeros_like(z)
     best_v, best_val = np.full(starts, -np.inf), np.full(starts, np.nan)
     best_z, best_div = np.asarray(z), np.zeros(starts, bool)
-    out = {"curve": [], "falsified": False, "interrupted": False, "first_s": None, "done": 0}
+    out = {"curve": [], "curve_s": [], "falsified": False, "interrupted": False}
+    out |= {"first_s": None, "done": 0}
     t0 = time.perf_counter()
-    compiled = functools.partial(
-        _value_and_grad, env=c.envelope, setting=c.key, metric=metric, sharpness=float(o.sharpness)
-    )
+    axes = tuple(int(i) for i in np.flatnonzero(np.asarray(c.width) > 0))
+    how = AscentSpec(metric, float(o.sharpness), axes, gradient_mode(o.gradient, len(axes)))
+    compiled = functools.partial(_value_and_grad, env=c.envelope, setting=c.key, how=how)
     b1, b2 = 0.9, 0.999
     for k in range(o.steps):
         if k and c.stop():
@@ -359,6 +431,7 @@ def _ascent(c: _Search) -> dict:
         out["done"] += starts
         worst = float(np.max(best_v))
         out["curve"].append((out["done"], worst))
+        out["curve_s"].append(time.perf_counter() - t0)
         c.say(f"gradient step {k + 1}/{o.steps}: {out['done']} rollouts, worst {name} {worst:.4g}")
         if o.bound is not None and worst > o.bound:
             out["falsified"] = True
@@ -383,7 +456,7 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
     t1 = time.perf_counter()
     i0 = int(o.first_index)
     rng = np.random.default_rng([c.setting.seed, 2] + ([i0] if i0 else []))
-    rx, ri, rv, rd, rcurve = [], [], [], [], []
+    rx, ri, rv, rd, rcurve, rtimes = [], [], [], [], [], []
     rworst, rfals = -np.inf, False
     fwd = None
     batch = max(starts, -(-n_rand // max(1, -(-n_rand // o.random_batch)))) if n_rand else starts
@@ -407,6 +480,7 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
             rworst = max(rworst, float(r))
             rcurve.append((j + k + 1, rworst))
         j += nb
+        rtimes.append((j, time.perf_counter() - t1))
         c.say(f"random: {j}/{n_rand} rollouts, worst {name} {rworst:.4g}")
         if o.bound is not None and rworst > o.bound:
             rfals = True
@@ -418,6 +492,7 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
         "random_value": cat(rv, (0,)),
         "random_diverged": cat(rd, (0,)).astype(bool),
         "random_curve": rcurve,
+        "random_curve_s": rtimes,
         "random_rollouts": j,
         "random_wall_s": time.perf_counter() - t1,
         "random_falsified": rfals,
@@ -490,6 +565,7 @@ def falsify(
         value=a["value"],
         diverged=a["diverged"],
         curve=a["curve"],
+        curve_s=a["curve_s"],
         rollouts=a["done"],
         wall_s=a["wall_s"],
         first_step_s=a["first_s"],

@@ -2,8 +2,9 @@
 
 * ``falsify_worst.png``: the worst scenario's track against the path (plan view, east
   horizontal), and its cross-track error and 3-D distance to the path against time;
-* ``falsify_curve.png``: the worst metric found against the rollouts run, gradient search and
-  random sampling (with the ``--bound``, when given).
+* ``falsify_curve.png``: the worst metric found against the rollouts run and against wall
+  time (compilation included; a dashed line where the gradient search first beat random
+  sampling's worst), gradient search and random sampling (with the ``--bound``, when given).
 """
 
 from __future__ import annotations
@@ -69,20 +70,46 @@ def plot_worst(traj, title: str, path) -> Path:
     return save(fig, path)
 
 
+def _time_steps(result):
+    """``(seconds, worst)`` of each search against wall time: the gradient search after each
+    step, random sampling after each batch (the worst of the rollouts done by then)."""
+    grad = [(t, w) for (_, w), t in zip(result.curve, result.curve_s, strict=False)]
+    worst = dict(result.random_curve)
+    rand = [(t, worst[n]) for n, t in result.random_curve_s if n in worst]
+    return grad, rand
+
+
 def plot_curve(result, path) -> Path:
+    """The worst metric found against the rollouts run (left) and against wall time,
+    compilation included (right, when the times were recorded), for both searches."""
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    timed = bool(result.curve_s or result.random_curve_s)
+    fig, axes = plt.subplots(1, 2 if timed else 1, figsize=(11.5 if timed else 6.5, 4.2))
+    axes = list(np.atleast_1d(axes))
+    ax = axes[0]
     if result.curve:
         r, w = np.asarray(result.curve, float).T
         ax.step(r, w, where="post", color="tab:red", label="gradient search")
     if result.random_curve:
         r, w = np.asarray(result.random_curve, float).T
         ax.step(r, w, where="post", color="tab:gray", label="random sampling")
-    if result.bound is not None:
-        ax.axhline(result.bound, color="k", ls=":", lw=1, label="bound")
     ax.set_xscale("log")
     ax.set_xlabel("rollouts")
-    ax.set_ylabel(f"worst {result.metric} found")
-    ax.legend(loc="best", fontsize=8)
-    ax.grid(alpha=0.3)
+    if timed:
+        grad, rand = _time_steps(result)
+        for pts, color, label in ((grad, "tab:red", "gradient search"),
+                                  (rand, "tab:gray", "random sampling")):  # fmt: skip
+            if pts:
+                t, w = np.asarray(pts, float).T
+                axes[1].step(t, w, where="post", color=color, marker=".", label=label)
+        axes[1].set_xlabel("wall time since the search began [s] (compilation included)")
+        beat = result.beat_random
+        if beat is not None:
+            axes[1].axvline(beat[1], color="tab:red", ls="--", lw=0.8)
+    for a in axes:
+        if result.bound is not None:
+            a.axhline(result.bound, color="k", ls=":", lw=1, label="bound")
+        a.set_ylabel(f"worst {result.metric} found")
+        a.legend(loc="best", fontsize=8)
+        a.grid(alpha=0.3)
     return save(fig, path)

@@ -27,6 +27,7 @@ from vcjax.config import (
     parse_section,
     read_toml,
     resolve_file,
+    unknown_key,
 )
 from vcjax.config.aliases import note_old_spellings, take_moved
 from vcjax.config.scenario import parse_scenario
@@ -38,7 +39,7 @@ from vcjax.sweep.spec import SECTIONS, ScenarioSpec, SweepSpec
 #: the sections a ScenarioSpec holds as they are parsed
 SCENARIO_SECTIONS = tuple(SECTIONS)
 
-__all__ = ["SCHEMA", "load_config", "run_sweep_config", "check_waves", "refusal"]
+__all__ = ["SCHEMA", "load_config", "run_sweep_config", "refusal"]
 
 #: section -> keys ([initial] and [sensor_noise] keys depend on the vehicle); a key of
 #: [sweep], [simulation], [metrics] or [output] that is a field of SweepSpec is that field
@@ -68,14 +69,6 @@ def _toml_name(msg: str) -> str:
     return msg
 
 
-def check_waves(table) -> None:
-    """A ``[waves]`` table gives the two keys without a default (``ConfigError`` naming the
-    missing one)."""
-    for k in ("hs", "tp"):
-        if isinstance(table, dict) and k not in table:
-            raise ConfigError(f"[waves] {k} is required (a number or [lo, hi])")
-
-
 def refusal(err: ValueError) -> str:
     """[`vcjax.loops.check_disturbances`][vcjax.loops.scenario.check_disturbances]'s message with
     its TOML section first."""
@@ -92,8 +85,6 @@ def _sections(raw: dict) -> dict:
     out = {"waves": None}
     for sec, cls in SECTIONS.items():
         if sec != "waves" or "waves" in raw:
-            if sec == "waves":
-                check_waves(raw["waves"])
             out[sec] = parse_section(cls, raw.get(sec), sec)
     sim = {k: v for k, v in raw.get("simulation", {}).items() if k != "gains"}
     out["simulation"] = parse_section(Simulation, sim, "simulation")
@@ -143,10 +134,8 @@ def _check_tables(raw: dict, cls, where: str) -> dict:
     for sec, valid in (("initial", tuple(cls.initial_keys)), ("sensor_noise", cls.noise_channels)):
         for key in raw.get(sec, {}):
             if key not in valid:
-                raise ConfigError(
-                    f"{where}: unknown key [{sec}] {key!r} for vehicle {cls.vehicle!r}; "
-                    f"expected one of {list(valid)}"
-                )
+                note = f"for vehicle {cls.vehicle!r}"
+                raise ConfigError(f"{where}: {unknown_key(sec, key, valid, note)}")
     if "num_scenarios" not in raw.get("sweep", {}):
         raise ConfigError(f"{where}: [sweep] num_scenarios is required")
     return {n: parse_section(c, raw.get(n), n, where) for n, c in added.items()}

@@ -36,12 +36,13 @@ from vcjax.config import (
     as_number,
     as_seed,
     parse_section,
+    unknown_key,
 )
 from vcjax.config.aliases import moved_values
 from vcjax.config.scenario import ScenarioChoice, loop_options
 from vcjax.config.schema import check_value
-from vcjax.environment import freeze, waves
-from vcjax.environment.current import current_ned
+from vcjax.environment import ConstantCurrent, draw_unit, freeze, waves
+from vcjax.environment import Waves as WavesComponent
 
 __all__ = [
     "ScenarioSpec",
@@ -227,13 +228,8 @@ class ScenarioSpec:
             raise ConfigError(str(err)) from None
         if self.u_d is not None:
             s(self, "u_d", check_value("u_d", self.u_d, _U_D.metadata))
-        if self.waves is not None:
-            if self.waves.hs is None or self.waves.tp is None:
-                raise ConfigError("[waves] hs and tp are required (a number or [lo, hi] each)")
-            try:  # the NED origin must lie below the mean surface
-                waves.check_origin_depth(self.waves.origin_depth, "[waves] origin_depth")
-            except ValueError as err:
-                raise ConfigError(str(err)) from None
+        if self.waves is not None:  # a section built in Python: the component's own check
+            _WAVES.check({k: v for k, v in _checked(self.waves).items() if v is not None})
 
     def without_waves(self) -> ScenarioSpec:
         """The same distribution in calm water."""
@@ -250,10 +246,8 @@ class ScenarioSpec:
         valid ones)."""
         for k, _ in self.initial.values:
             if k not in loop.initial_keys:
-                raise ConfigError(
-                    f"[initial]: unknown key {k!r} for vehicle {loop.vehicle!r}; "
-                    f"expected {list(loop.initial_keys)}"
-                )
+                note = f"for vehicle {loop.vehicle!r}"
+                raise ConfigError(unknown_key("initial", k, loop.initial_keys, note))
         valid = loop.param_names()
         bad = [f for f in self.model_error.fields or () if f not in valid]
         if bad:
@@ -263,10 +257,8 @@ class ScenarioSpec:
             )
         for k, _ in self.sensor_noise.values:
             if k not in loop.noise_channels:
-                raise ConfigError(
-                    f"[sensor_noise]: unknown channel {k!r} for vehicle {loop.vehicle!r}; "
-                    f"expected {list(loop.noise_channels)}"
-                )
+                note = f"(channel) for vehicle {loop.vehicle!r}"
+                raise ConfigError(unknown_key("sensor_noise", k, loop.noise_channels, note))
         if self.waves:
             try:
                 loops.check_disturbances(loop, False, False, waves=True)
@@ -468,74 +460,49 @@ class MCScenario(NamedTuple):
     sea: Any = None
 
 
-def _spec_arrays(spec: ScenarioSpec, loop: loops.Loop, dtype):
-    """The continuous part of ``spec`` as arrays (traced: new values do not recompile)."""
-    deg = math.pi / 180.0
-    cur, sea = spec.current, spec.waves or Waves(**_FLAT_WAVES)
-    init = dict(spec.initial.values)
-    ranges = [cur.speed, tuple(a * deg for a in cur.direction_deg)]
-    for k, default in loop.initial_keys.items():
-        r = init.get(k, (default, default))
-        ranges.append(tuple(a * deg for a in r) if k.endswith("_deg") else r)
-    ranges.append(spec.u_d or (loop.default_speed,) * 2)
-    f = lambda x: jnp.asarray(np.asarray(x, dtype=np.float64), dtype)
-    gm = (cur.sigma, cur.tau, cur.max_speed)
-    n_nu = int(np.shape(loop.initial_from(_zeros(loop))[1])[0])
-    dist = spec.disturbance.force or ((0.0, 0.0),) * n_nu
-    wave = (sea.hs, sea.tp, sea.direction_deg, sea.origin_depth)
-    return (
-        f(ranges),
-        f(spec.model_error.relative),
-        f(gm),
-        f(spec.noise_std(loop)),
-        f(np.asarray(dist).reshape(-1, 2)),
-        f(wave),
-    )
+#: the components that draw a scenario's current and sea (their sections are declared there)
+_CURRENT = ConstantCurrent()
+_WAVES = WavesComponent()
 
 
-def _wave_static(spec: ScenarioSpec):
-    """The static part of a spec's sea (spectrum, components, gamma, spreading), or None."""
-    w = spec.waves
-    return None if w is None else (w.spectrum, w.components, w.gamma, w.spreading)
+def _checked(section) -> dict:
+    """A parsed section as the checked table its component samples from."""
+    return {f.name: getattr(section, f.name) for f in dataclasses.fields(section)}
 
 
-def _draw_sea(wave_static, wave_ranges, key):
-    """``(hs, tp, direction_deg, origin_depth, sea)`` of one scenario from its own key."""
-    spectrum, components, gamma, spreading = wave_static
-    k_par, k_sea = jax.random.split(key)
-    u = jax.random.uniform(k_par, (4,), wave_ranges.dtype)
-    hs, tp, direction_deg, origin_depth = (
-        wave_ranges[:, 0] + (wave_ranges[:, 1] - wave_ranges[:, 0]) * u
-    )  # lo == hi: exactly lo
-    sea = waves.sea_state(
-        k_sea,
-        hs,
-        tp,
-        direction_deg * (math.pi / 180.0),
-        spectrum=spectrum,
-        gamma=gamma,
-        spreading=spreading,
-        components=components,
-    )
-    return hs, tp, direction_deg, origin_depth, sea
+def _sample_one(loop, spec: ScenarioSpec, dtype, seed, index) -> MCScenario:
+    """One scenario of ``spec``: every draw from ``fold_in(PRNGKey(seed), index)``.
 
-
-def _sample_one(loop, arrays, seed, index, nf: int, wave_static=None) -> MCScenario:
-    ranges, model_error, gm, noise_std, dist, wave_ranges = arrays
-    dtype = ranges.dtype
+    The scenario's first stream holds one uniform number per sampled start value: the current's
+    speed and direction (drawn by the ``[current]`` component), each initial key, the desired
+    speed; the others hold the model error, the process key, the disturbance, the sea (drawn
+    by the ``[waves]`` component) and the current component's own key (further keys of
+    ``[current]``)."""
     key = jax.random.fold_in(jax.random.PRNGKey(seed), index)
     ks = jax.random.split(key, 9)
-    u = jax.random.uniform(ks[0], (ranges.shape[0],), dtype)
-    vals = ranges[:, 0] + (ranges[:, 1] - ranges[:, 0]) * u  # lo == hi: exactly lo
-    speed, direction = vals[0], vals[1]
-    init = {k: vals[2 + i] for i, k in enumerate(loop.initial_keys)}
-    u_d = vals[-1]
+    n_init = len(loop.initial_keys)
+    u = jax.random.uniform(ks[0], (3 + n_init,), dtype)
+    current = _checked(spec.current)
+    speed, direction, velocity = _CURRENT.draw_mean(u[:2], ks[5], current)
+    given = dict(spec.initial.values)
+    init = {}
+    for i, (k, default) in enumerate(loop.initial_keys.items()):
+        r = given.get(k, (default, default))
+        r = tuple(a * (math.pi / 180.0) for a in r) if k.endswith("_deg") else tuple(r)
+        init[k] = draw_unit(u[2 + i], r, dtype)
+    u_d = draw_unit(u[-1], tuple(spec.u_d or (loop.default_speed,) * 2), dtype)
     eta0, nu0 = loop.initial_from(init)
-    factors = 1.0 + model_error * jax.random.uniform(ks[1], (nf,), dtype, -1.0, 1.0)
+    nf = len(spec.fields_for(loop))
+    relative = jnp.asarray(spec.model_error.relative, dtype)
+    factors = 1.0 + relative * jax.random.uniform(ks[1], (nf,), dtype, -1.0, 1.0)
+    n_nu = int(np.shape(nu0)[0])
+    dist = jnp.asarray(np.asarray(spec.disturbance.force or ((0.0, 0.0),) * n_nu), dtype)
     ud = jax.random.uniform(ks[3], (dist.shape[0],), dtype)
-    wave = (None,) * 5
-    if wave_static is not None:
-        wave = _draw_sea(wave_static, wave_ranges, ks[4])
+    sea = None
+    if spec.waves is not None:
+        sea = _WAVES.sample(ks[4], _checked(spec.waves), dtype)
+    f = lambda x: jnp.asarray(x, dtype)
+    cur = spec.current
     return MCScenario(
         index=jnp.asarray(index, jnp.int32),
         eta0=eta0,
@@ -543,25 +510,25 @@ def _sample_one(loop, arrays, seed, index, nf: int, wave_static=None) -> MCScena
         u_d=u_d,
         current_speed=speed,
         current_direction=direction,
-        current=current_ned(speed, direction),
-        current_sigma=gm[0],
-        current_tau=gm[1],
-        current_max_speed=gm[2],
+        current=velocity,
+        current_sigma=f(cur.sigma),
+        current_tau=f(cur.tau),
+        current_max_speed=f(cur.max_speed),
         model_factors=factors,
-        noise_std=noise_std,
+        noise_std=f(spec.noise_std(loop)),
         disturbance=dist[:, 0] + (dist[:, 1] - dist[:, 0]) * ud,
         key=ks[2],
-        wave_hs=wave[0],
-        wave_tp=wave[1],
-        wave_direction_deg=wave[2],
-        wave_origin_depth=wave[3],
-        sea=wave[4],
+        wave_hs=None if sea is None else sea.hs,
+        wave_tp=None if sea is None else sea.tp,
+        wave_direction_deg=None if sea is None else sea.direction_deg,
+        wave_origin_depth=None if sea is None else sea.origin_depth,
+        sea=None if sea is None else sea.sea,
     )
 
 
-@functools.partial(jax.jit, static_argnames=("loop", "nf", "wave_static"))
-def _sample(loop, arrays, seed, indices, nf, wave_static):
-    return jax.vmap(lambda i: _sample_one(loop, arrays, seed, i, nf, wave_static))(indices)
+@functools.partial(jax.jit, static_argnames=("loop", "spec", "dtype"))
+def _sample(loop, spec, dtype, seed, indices):
+    return jax.vmap(lambda i: _sample_one(loop, spec, jnp.dtype(dtype), seed, i))(indices)
 
 
 def sample_scenarios(
@@ -582,10 +549,8 @@ def sample_scenarios(
     spec.check_for(loop)
     dtype = jnp.asarray(0.0).dtype if dtype is None else jnp.dtype(dtype)
     indices = jnp.asarray(indices, dtype=jnp.int32)
-    arrays = _spec_arrays(spec, loop, dtype)
-    nf = len(spec.fields_for(loop))
     seed = jnp.asarray(as_seed("seed", seed), jnp.uint32)  # the one seed bound (SEED_MAX)
-    return _sample(loop, arrays, seed, indices, nf, _wave_static(spec))
+    return _sample(loop, spec, dtype.name, seed, indices)
 
 
 def _thaw(v):
