@@ -173,3 +173,24 @@ def test_the_kinematics_sin_and_cos_have_the_documented_accuracy(dtype, tol):
     t64 = np.asarray(t, np.float64)
     np.testing.assert_allclose(zeta, np.cos(t64), rtol=0, atol=tol)
     np.testing.assert_allclose(u[:, 2], np.sin(t64), rtol=0, atol=tol)
+
+
+def test_just_below_the_surface_the_kinematics_are_attenuated_and_have_depth_columns():
+    # 0.5 m down is below the mean surface: e^{-k d} applies and the d/d(depth) column is live
+    one, zero = jnp.ones(1), jnp.zeros(1)
+    k = 1.0 / waves.GRAVITY
+    sea = waves.Sea(one, one, one * k, zero, zero)  # theta = -t at north = east = 0
+    p = jnp.array([0.0, 0.0, 0.5])
+    u = waves.orbital_velocity(sea, 0.0, p)
+    np.testing.assert_allclose(u, [math.exp(-0.5 * k), 0.0, 0.0], atol=1e-15)
+    grad = waves.orbital_velocity_gradient(sea, 0.0, p)
+    np.testing.assert_allclose(grad[0, 2], -k * math.exp(-0.5 * k), rtol=1e-14)
+
+
+@pytest.mark.parametrize("shape", [(4,), (3, 1)])
+def test_a_current_that_is_not_3_is_refused(shape):
+    sea, p = waves.calm_sea(), jnp.zeros(3)
+    with pytest.raises(ValueError, match="^current: expected a"):
+        waves.water_kinematics(sea, 0.0, p, jnp.zeros(shape))
+    with pytest.raises(ValueError, match="^current_dot: expected a"):
+        waves.water_kinematics(sea, 0.0, p, jnp.zeros(3), jnp.zeros(shape))
