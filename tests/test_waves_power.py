@@ -96,6 +96,9 @@ def test_pierson_moskowitz_is_exactly_zero_at_and_below_its_cut_with_zero_gradie
     assert np.array_equal(waves.pierson_moskowitz(omega, 2.0, 8.0), np.zeros(4))
     grad = jax.grad(lambda w: jnp.sum(waves.pierson_moskowitz(w, 2.0, 8.0)))(omega)
     assert np.array_equal(grad, np.zeros(4))
+    omega = jnp.array([-0.5, 0.0, 0.8])  # and the derivative in tp is finite there too
+    d_tp = jax.grad(lambda tp: jnp.sum(waves.pierson_moskowitz(omega, 2.0, tp)))(8.0)
+    assert np.isfinite(d_tp) and d_tp != 0.0
 
 
 def test_defaults_of_the_spectrum_and_the_sea_are_the_documented_ones():
@@ -126,8 +129,18 @@ def test_one_component_and_gamma_one_are_accepted_and_gamma_below_one_is_not():
     assert waves.sea_state(key, 1.0, 8.0, 0.0, components=1).omega.shape == (1,)
     for gamma in (1.0, 1.5):  # 1: Pierson-Moskowitz
         waves.sea_state(key, 1.0, 8.0, 0.0, gamma=gamma, components=4)
-    with pytest.raises(ValueError, match="^gamma"):
-        waves.sea_state(key, 1.0, 8.0, 0.0, gamma=0.5, components=4)
+    for spectrum in ("jonswap", "pm"):  # refused whatever the spectrum
+        with pytest.raises(ValueError, match="^gamma"):
+            waves.sea_state(key, 1.0, 8.0, 0.0, spectrum=spectrum, gamma=0.5, components=4)
+
+
+def test_a_concrete_positive_spreading_draws_directions():
+    # decided in Python: spreading 0 broadcasts the mean direction, a positive one draws
+    # (traced only: the two programs differ)
+    draw = lambda s: jax.make_jaxpr(
+        lambda key: waves.sea_state(key, 1.0, 8.0, 0.3, spreading=s, components=4)
+    )(jax.random.key(0))
+    assert str(draw(0.0)) != str(draw(2.5))
 
 
 def test_an_integer_array_hs_gives_a_float_sea():
