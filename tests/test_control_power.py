@@ -8,6 +8,7 @@ from _craft import CRAFT, K_RUDDER
 from vcjax import paths
 from vcjax.control.attitude import roll_pitch_pd
 from vcjax.control.baselines import (
+    MAX_CRAB,
     BaselineConfig,
     baseline_gains,
     baseline_law,
@@ -37,3 +38,43 @@ def test_ilos_integral_rate_is_equation_40():
     assert abs(e) > 0.5
     big_e = e + 0.7 * 2.5
     np.testing.assert_allclose(z_dot.e_int, 4.0 * e / (big_e**2 + 16.0), rtol=1e-13)
+
+
+_PATH, _COEFFS = paths.paper_line()
+_ETA, _NU = jnp.array([3.0, 1.0, 1.4]), jnp.array([1.8, 0.1, 0.05])
+
+
+def _los_pid(e_int0, **gains):
+    params = baseline_params(baseline_gains(**gains), CRAFT, _COEFFS, u_d=2.0, k_rudder=K_RUDDER)
+    z = baseline_state(varpi0=0.1, e_int0=e_int0)
+    cfg = BaselineConfig(path=_PATH, kind="los_pid")
+    return baseline_law(cfg, params, 0.0, _ETA, _NU, z)
+
+
+def test_defaults_are_the_documented_ones_and_the_config_is_hashable():
+    g = baseline_gains()
+    assert [float(x) for x in g] == [5.0, 0.5, 1.0, 2.0, 3.0, 0.02, 0.1, 0.005, 0.4, 0.016]
+    assert float(g.gamma) == float(g.sigma_i / g.Delta**2)  # ALOS shares ILOS's linearisation
+    assert all(float(x) == 0.0 for x in baseline_state())
+    cfg = BaselineConfig(path=_PATH, kind="ilos")
+    assert hash(cfg) == hash(BaselineConfig(path=_PATH, kind="ilos"))  # a static argument
+
+
+def test_los_pid_anti_windup_clamps_the_integral_to_a_crab_angle_of_max_crab():
+    # k_ei e_int / k_psi_p <= MAX_CRAB (pi/4): beyond, back-calculation pulls e_int back
+    _, z_dot, aux = _los_pid(1e4, k_ei=0.01, k_psi_p=2.0)
+    lim = 2.0 * MAX_CRAB / 0.01
+    assert MAX_CRAB == np.pi / 4
+    np.testing.assert_allclose(z_dot.e_int, aux.eps[1] - (1e4 - lim), rtol=1e-13)
+    _, z_dot, aux = _los_pid(-60.0, k_ei=0.0)  # no integral gain: int_limit (50) clamps
+    np.testing.assert_allclose(z_dot.e_int, aux.eps[1] - (-60.0 + 50.0), rtol=1e-13)
+
+
+def test_los_pid_cross_track_terms_enter_the_yaw_moment_as_equation_39():
+    # tau_r = ... - m33 (k_ed e_dot + k_ep e + k_ei e_int): each gain's share, by differences
+    base = dict(k_ep=0.0, k_ed=0.0, k_ei=0.0)
+    tau0, _, aux = _los_pid(3.0, **base)
+    e, e_dot = float(aux.eps[1]), float(aux.eps_dot[1])
+    for name, signal in (("k_ep", e), ("k_ed", e_dot)):
+        tau, _, _ = _los_pid(3.0, **(base | {name: 0.3}))
+        np.testing.assert_allclose(tau[2] - tau0[2], -CRAFT.m33 * 0.3 * signal, rtol=1e-10)
