@@ -1,6 +1,7 @@
 """Edge cases of :mod:`vcjax.control` that the mutation run (``tools/mutation.py control``)
 found untested. Eager checks on single numbers (milliseconds each)."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from _craft import CRAFT, K_RUDDER
@@ -78,3 +79,16 @@ def test_los_pid_cross_track_terms_enter_the_yaw_moment_as_equation_39():
     for name, signal in (("k_ep", e), ("k_ed", e_dot)):
         tau, _, _ = _los_pid(3.0, **(base | {name: 0.3}))
         np.testing.assert_allclose(tau[2] - tau0[2], -CRAFT.m33 * 0.3 * signal, rtol=1e-10)
+
+
+def test_los_pid_without_an_integral_gain_has_finite_gradients():
+    # k_ei = 0: int_limit clamps, and the crab-angle branch (a division by k_ei) stays NaN-free
+    params = baseline_params(baseline_gains(k_ei=0.0), CRAFT, _COEFFS, u_d=2.0, k_rudder=K_RUDDER)
+    cfg = BaselineConfig(path=_PATH, kind="los_pid")
+
+    def out(k_ei):
+        p = params._replace(gains=params.gains._replace(k_ei=k_ei))
+        tau, z_dot, _ = baseline_law(cfg, p, 0.0, _ETA, _NU, baseline_state(0.1, -60.0))
+        return tau[2] + z_dot.e_int
+
+    assert np.isfinite(jax.grad(out)(0.0))
