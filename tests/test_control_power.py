@@ -92,3 +92,22 @@ def test_los_pid_without_an_integral_gain_has_finite_gradients():
         return tau[2] + z_dot.e_int
 
     assert np.isfinite(jax.grad(out)(0.0))
+
+
+def test_ilos_heading_rate_feedback_is_the_derivative_of_equation_40():
+    # on the straight line (psi_p constant) the yaw moment's k_psi_d share is
+    # -m33 k_psi_d (r - psi_r_dot), psi_r_dot = -Delta E_dot / (Delta^2 + E^2),
+    # E = e + sigma_i e_int, E_dot = e_dot + sigma_i e_int_dot
+    def law(k_psi_d):
+        gains = baseline_gains(Delta=4.0, sigma_i=0.7, k_psi_d=k_psi_d)
+        params = baseline_params(gains, CRAFT, _COEFFS, u_d=2.0, k_rudder=K_RUDDER)
+        cfg = BaselineConfig(path=_PATH, kind="ilos")
+        return baseline_law(cfg, params, 0.0, _ETA, _NU, baseline_state(0.1, 2.5))
+
+    tau1, z_dot, aux = law(1.0)
+    tau2, _, _ = law(3.0)
+    e, e_dot = float(aux.eps[1]), float(aux.eps_dot[1])
+    big_e, big_e_dot = e + 0.7 * 2.5, e_dot + 0.7 * float(z_dot.e_int)
+    psi_r_dot = -4.0 * big_e_dot / (16.0 + big_e**2)
+    expected = -CRAFT.m33 * 2.0 * (float(_NU[2]) - psi_r_dot)
+    np.testing.assert_allclose(tau2[2] - tau1[2], expected, rtol=1e-10)
