@@ -111,3 +111,8 @@ def test_ilos_heading_rate_feedback_is_the_derivative_of_equation_40():
     psi_r_dot = -4.0 * big_e_dot / (16.0 + big_e**2)
     expected = -CRAFT.m33 * 2.0 * (float(_NU[2]) - psi_r_dot)
     np.testing.assert_allclose(tau2[2] - tau1[2], expected, rtol=1e-10)
+
+
+def test_law_params_defaults_are_the_documented_ones():
+    p = baseline_params(baseline_gains(), CRAFT, _COEFFS)  # u_d 2 m/s, no rudder, clamp 50 m s
+    assert (float(p.u_d), float(p.k_rudder), float(p.int_limit)) == (2.0, 0.0, 50.0)
