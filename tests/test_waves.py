@@ -263,6 +263,21 @@ def test_orbital_velocity_variance_at_depth():
     assert abs(float(np.mean(var_seas)) - ref) < 4 * sig_bins / math.sqrt(SEAS)
 
 
+def test_spread_directions_have_the_cos2s_moments():
+    """The default run's check of spreading (the draw program of the tests below, 16 seas of 64
+    components): ``sin(beta - beta_0) = 2 B - 1``, ``B ~ Beta(s + 1/2, s + 1/2)``, has mean 0 and
+    mean square ``1 / (2 s + 2)``; standard errors 0.013 and 0.006 with 1024 draws."""
+    s, beta0 = 2.0, 0.3
+    dev = np.concatenate([
+        np.asarray(_draw(key, 2.0, 7.0, beta0, spreading=s).direction) - beta0
+        for key in jax.random.split(jax.random.key(4), 16)
+    ])  # fmt: skip
+    x = np.sin(dev)
+    assert np.all(np.abs(dev) <= np.pi / 2)
+    assert abs(np.mean(x)) < 0.05
+    assert abs(np.mean(x**2) - 1 / (2 * s + 2)) < 0.024
+
+
 @pytest.mark.slow  # 7 s
 def test_spreading_draws_cos2s_directions_and_draws_are_the_same_in_and_out_of_vmap():
     """The spread directions follow cos^2s (65 536 draws), and every draw of a batch is the draw
