@@ -303,3 +303,18 @@ def test_a_component_the_loop_cannot_feel_is_refused_before_any_work():
     assert not loops.loop_class("puck").can_feel("noise")
     assert "no noise_channels" in loops.loop_class("puck").refusal("noise")
     assert loops.loop_class("infante").can_feel("noise")
+
+
+def test_a_key_that_does_not_apply_is_refused_when_written_even_at_its_default():
+    """``gamma`` with the PM spectrum and a Gauss-Markov key with a constant current are
+    refused whenever a table writes them (their default included), while a frozen table,
+    whose defaults were filled in by the check, checks again as itself."""
+    for section, table, key in (
+        ("waves", {"spectrum": "pm", "hs": 1.0, "tp": 8.0, "gamma": 3.3}, "gamma"),
+        ("current", {"sigma": 0.05}, "sigma"),
+    ):
+        with pytest.raises(ValueError, match=rf"\[{section}\] {key}: "):
+            environment.freeze(section, table)
+        table = {k: v for k, v in table.items() if k != key}
+        f = environment.freeze(section, table)
+        assert dict(f[1])[key] is not None and environment.freeze(*f) == f

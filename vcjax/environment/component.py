@@ -60,6 +60,7 @@ __all__ = [
     "draw",
     "draw_unit",
     "freeze",
+    "written",
     "register",
     "unregister",
     "REGISTRY",
@@ -184,6 +185,16 @@ def check_section(section: str, schema: Mapping[str, Key], raw: Mapping | None) 
             continue
         out[name] = check_value(f"[{section}] {name}", x, spec.meta())
     return out
+
+
+def written(raw, schema: Mapping[str, Key]) -> dict:
+    """The keys a table wrote: a mapping as it is; a frozen table (a tuple of ``(key, value)``
+    pairs, checked, its defaults filled in: [`freeze`][vcjax.environment.component.freeze]) only
+    the keys whose value is not the default. What a component's refusals of keys that do not
+    apply look at: a key the user wrote is refused, a default filled in is not."""
+    if isinstance(raw, tuple):
+        return {k: v for k, v in raw if k not in schema or v != schema[k].default}
+    return dict(raw or {})
 
 
 def draw_unit(u, value, dtype=None):
@@ -366,11 +377,11 @@ class Environment:
 def freeze(section: str, raw: Mapping | None) -> tuple:
     """``(section, ((key, value), ...))``: the registered component's checked table in a
     hashable form (for static configs); ``ValueError`` ``[section] key: message``."""
-    if isinstance(raw, tuple):  # already frozen: ((key, value), ...)
-        raw = dict(raw)
-    if raw is not None and not isinstance(raw, Mapping):
+    if raw is not None and not isinstance(raw, Mapping | tuple):
         raise ValueError(f"[{section}]: expected a table, got {raw!r}")
-    return section, tuple(sorted(lookup(section).check(dict(raw or {})).items()))
+    if not isinstance(raw, tuple):  # a tuple: already frozen, ((key, value), ...)
+        raw = dict(raw or {})
+    return section, tuple(sorted(lookup(section).check(raw).items()))
 
 
 def sample(key, sections: Mapping[str, Mapping], loop=None, comps: Mapping | None = None):

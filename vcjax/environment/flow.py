@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 
 from vcjax._checks import ConfigError
-from vcjax.environment.component import Component, Key, draw_unit
+from vcjax.environment.component import Component, Key, draw_unit, written
 from vcjax.environment.current import GaussMarkovCurrent, current_ned, gm_init, gm_step, gm_value
 
 __all__ = [
@@ -59,11 +59,11 @@ def _radians(value):
 
 
 def check_current(section: Mapping, given: Mapping) -> None:
-    """The Gauss-Markov keys are refused with a constant current (they would be ignored; written
-    at their defaults they mean what omitting them means); ``given``: the table as written."""
+    """The Gauss-Markov keys are refused with a constant current (they would be ignored);
+    ``given``: the keys the table wrote ([`written`][vcjax.environment.component.written])."""
     if section["model"] == "constant":
         for k in GAUSS_MARKOV_KEYS:
-            if k in given and section[k] != CURRENT_SCHEMA[k].default:
+            if k in given:
                 raise ConfigError(
                     f"[current] {k}: applies to model = 'gauss_markov' only; with the constant "
                     "current (model = 'constant', the default) it would be ignored"
@@ -89,7 +89,7 @@ class ConstantCurrent(Component):
 
     def check(self, raw):
         out = super().check(raw)
-        check_current(out, dict(raw or {}))
+        check_current(out, written(raw, self.schema))
         return out
 
     def resolve(self, section):

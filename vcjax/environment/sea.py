@@ -15,7 +15,7 @@ import jax.numpy as jnp
 
 from vcjax._checks import ConfigError
 from vcjax.environment import waves
-from vcjax.environment.component import Component, Key, draw_unit
+from vcjax.environment.component import Component, Key, draw_unit, written
 
 __all__ = ["Waves", "SeaParams", "SAMPLED", "MIN_SPREADING", "check_waves"]
 
@@ -47,11 +47,11 @@ MIN_SPREADING = 1.0
 
 
 def check_waves(section: Mapping, given: Mapping) -> None:
-    """Keys that do not apply to the others' values are refused: ``gamma`` is JONSWAP's (written
-    at its default it means what omitting it means); a
+    """Keys that do not apply to the others' values are refused: ``gamma`` is JONSWAP's; a
     positive ``spreading`` is at least ``MIN_SPREADING``; the NED origin lies below the mean
-    surface (``origin_depth >= 0``). ``given``: the table as written."""
-    if section["spectrum"] == "pm" and "gamma" in given and section["gamma"] != 3.3:
+    surface (``origin_depth >= 0``). ``given``: the keys the table wrote
+    ([`written`][vcjax.environment.component.written])."""
+    if section["spectrum"] == "pm" and "gamma" in given:
         raise ConfigError(
             "[waves] gamma: the peak enhancement of the JONSWAP spectrum; spectrum = 'pm' "
             "(Pierson-Moskowitz) has none and would ignore it"
@@ -106,7 +106,7 @@ class Waves(Component):
 
     def check(self, raw):
         out = super().check(raw)
-        check_waves(out, dict(raw or {}))
+        check_waves(out, written(raw, self.schema))
         return out
 
     def sample(self, key, section, dtype=None):

@@ -229,7 +229,7 @@ class ScenarioSpec:
         if self.u_d is not None:
             s(self, "u_d", check_value("u_d", self.u_d, _U_D.metadata))
         if self.waves is not None:  # a section built in Python: the component's own check
-            _WAVES.check({k: v for k, v in _checked(self.waves).items() if v is not None})
+            _WAVES.check(tuple((k, v) for k, v in _checked(self.waves).items() if v is not None))
 
     def without_waves(self) -> ScenarioSpec:
         """The same distribution in calm water."""
