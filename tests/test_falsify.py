@@ -14,16 +14,17 @@ from vcjax.search.core import _metrics
 jax.config.update("jax_enable_x64", True)
 
 
-def _fd_check(loop, env, setting, metric, x0, rel=1e-5, h=1e-5):
-    """Reverse-mode gradient of ``metric`` (its surrogate for a max) at ``x0`` vs central
-    differences in every searched parameter, one step ``h`` relative to the box width."""
+def _fd_check(loop, env, setting, metric, x0, rel=1e-5, h=1e-5, mode="forward"):
+    """Gradient of ``metric`` (its surrogate for a max) at ``x0`` in ``mode`` (forward, the
+    search's default for a few parameters, or reverse) vs central differences in every
+    searched parameter, one step ``h`` relative to the box width."""
     gains = loop.default_gains()
 
     def f(x):
         return _metrics(x, 3, gains, env, setting, metric, 16.0)[0]
 
     x0 = jnp.asarray(x0, jnp.float64)
-    g = np.asarray(jax.jit(jax.grad(f))(x0))
+    g = np.asarray(jax.jit(jax.jacfwd(f) if mode == "forward" else jax.grad(f))(x0))
     idx = [env.names.index(n) for n in env.searched]
     steps = np.zeros((len(idx), x0.size))
     for j, i in enumerate(idx):
@@ -78,9 +79,10 @@ def test_gradient_in_sea_state_and_depth_matches_finite_differences():
     )
     setting = make_setting(loop, env, horizon=1.5, dt=0.05, components=8, seed=2)
     x0 = np.asarray(env.lo) + 0.41 * (np.asarray(env.hi) - np.asarray(env.lo))
-    _fd_check(loop, env, setting, "rms_depth_err", x0)
+    _fd_check(loop, env, setting, "rms_depth_err", x0, mode="reverse")
 
 
+@pytest.mark.slow  # 6 s: compiles the reverse pass; the default run checks forward mode vs FD
 def test_forward_and_reverse_mode_give_the_same_ascent_gradient():
     """The search's two ways of differentiating (one tangent per searched parameter, or the
     reverse pass) agree, and leave the fixed parameters' entries at zero."""
