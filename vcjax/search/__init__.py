@@ -23,6 +23,7 @@ from vcjax.search.core import (
     SegmentMetric,
     evaluate,
     falsify,
+    gradient_mode,
     metric_name,
 )
 from vcjax.search.envelope import (
@@ -40,6 +41,7 @@ __all__ = [
     "ALIASES",
     "Envelope",
     "FalsifyOptions",
+    "gradient_mode",
     "FalsifyResult",
     "SegmentMetric",
     "Setting",
