@@ -318,3 +318,13 @@ def test_a_key_that_does_not_apply_is_refused_when_written_even_at_its_default()
         table = {k: v for k, v in table.items() if k != key}
         f = environment.freeze(section, table)
         assert dict(f[1])[key] is not None and environment.freeze(*f) == f
+
+
+def test_a_strict_lower_bound_above_zero_holds_for_numbers_and_ranges():
+    """``strict_lo`` at a bound other than 0 (a user's component): the bound itself is
+    refused, for a number and for either end of a range."""
+    schema = {"ratio": Key(2.0, "", lo=1.0, strict_lo=True)}
+    assert check_section("x", schema, {"ratio": [1.5, 3.0]}) == {"ratio": (1.5, 3.0)}
+    for bad in (1.0, [1.0, 2.0], 0.5):
+        with pytest.raises(ValueError, match=r"^\[x\] ratio: values must be "):
+            check_section("x", schema, {"ratio": bad})

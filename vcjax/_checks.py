@@ -319,9 +319,11 @@ def check_value(name: str, v, meta) -> Any:
         v = as_str(name, v)
         return as_choice(name, v, meta["choices"]) if meta.get("choices") else v
     if t in ("range", "sampled"):
-        positive = meta.get("positive", False) or (meta.get("lo") == 0 and meta.get("lo_open"))
-        lo_min = None if positive and meta.get("lo") == 0 else meta.get("lo")
-        r = as_range(name, v, lo_min=lo_min, positive=positive)
+        lo, lo_open = meta.get("lo"), meta.get("lo_open", False)
+        positive = meta.get("positive", False) or (lo == 0 and lo_open)
+        r = as_range(name, v, lo_min=None if positive and lo == 0 else lo, positive=positive)
+        if lo_open and lo is not None and lo != 0 and r[0] <= lo:  # ``> 0`` is as_range's
+            raise ConfigError(f"{name}: values must be > {lo}, got [{r[0]}, {r[1]}]")
         if "hi" in meta and r[1] > meta["hi"]:
             raise ConfigError(f"{name}: values must be <= {meta['hi']}, got [{r[0]}, {r[1]}]")
         # "sampled" (a component's key): a number stays a number, a list is a (lo, hi) range
