@@ -89,6 +89,14 @@ class Simulation:
     )
 
 
+def _held(v, meta):
+    """A component's checked value as its config section holds it (a sampled number ``x`` as
+    the range ``(x, x)``)."""
+    if meta["type"] == "range" and v is not None and not isinstance(v, tuple):
+        return (float(v), float(v))
+    return v
+
+
 def component_section(comp, name: str, doc: str) -> type:
     """The frozen section dataclass of an environment component's section, built from the
     component's own declaration (``comp.schema``: default, bounds, unit, meaning, older
@@ -99,11 +107,9 @@ def component_section(comp, name: str, doc: str) -> type:
     fields = []
     for k, spec in comp.schema.items():
         meta = spec.meta()
-        default = spec.default
         if meta["type"] == "sampled":
             meta["type"] = "range"
-            if default is not None and not isinstance(default, tuple):
-                default = (float(default), float(default))
+        default = _held(spec.default, meta)
         typ = {"str": str, "int": int, "float": float}.get(meta["type"], tuple)
         fields.append((k, typ, dataclasses.field(default=default, metadata=meta)))
     cls = dataclasses.make_dataclass(name, fields, frozen=True, namespace={"__doc__": doc})
@@ -277,14 +283,6 @@ def register_section(name: str, cls: type, check=None, replace: bool = False) ->
     if check is not None:
         CROSS_CHECKS[cls] = check
     return cls
-
-
-def _held(v, meta):
-    """A component's checked value as its config section holds it (a sampled number ``x`` as
-    the range ``(x, x)``)."""
-    if meta["type"] == "range" and v is not None and not isinstance(v, tuple):
-        return (float(v), float(v))
-    return v
 
 
 def parse_section(cls: type, table: dict | None, section: str, where: str = ""):
