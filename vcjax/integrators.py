@@ -107,8 +107,9 @@ def heun(f: Callable, t, y, dt, args):
 
 def rk4_unrolled(f: Callable, t, y, dt, args):
     """Classical RK4 with the four stages written out (``f`` traced four times). The rollout
-    uses it when only the plant is in the vector field (``timing="sampled"``): plants are
-    small, and XLA fuses the unrolled stages of a batch better than a loop over them."""
+    uses it when only a small plant is in the vector field (a sampled controller and a 3-DOF
+    plant: [`RolloutConfig`][vcjax.rollout.RolloutConfig] ``stages``), where XLA fuses the
+    unrolled stages of a batch better than a loop over them."""
     half = 0.5 * dt
     k1, aux = f(t, y, args)
     k2, _ = f(t + half, _axpy(half, k1, y), args)
