@@ -25,6 +25,7 @@ from vcjax.control.baselines3d import (
     decoupled_state,
 )
 from vcjax.control.vcm import VCMConfig, pm_gains, vcm_law, vcm_params, vcm_state
+from vcjax.control.vcm3d import VCM3DConfig, vcm3d_state
 
 
 def _curve(w):
@@ -206,3 +207,19 @@ def test_decoupled_law_is_vcm_plus_the_ilos_depth_loop(with_bias):
         with pytest.raises(ValueError, match="design"):
             decoupled_law(cfg, _params(horizontal=_HP), 0.0, Q, QD, NU5, _Z)
     assert all(float(x) == 0.0 for x in decoupled_state(_ZH)[1:])
+
+
+# --- vcm3d.py: the state's defaults and validation, the static config's defaults ---
+
+
+def test_vcm3d_state_defaults_and_validation():
+    z = vcm3d_state()
+    assert all(np.all(np.asarray(x) == 0.0) for x in z) and np.shape(z.zeta) == (3,)
+    for name in ("varpi0", "v_d0", "w_d0", "e_int0", "h_int0"):
+        with pytest.raises(ValueError, match=name):
+            vcm3d_state(**{name: (0.0, 0.0)})
+    with pytest.raises(ValueError, match="zeta0"):
+        vcm3d_state(zeta0=(0.0, 0.0))
+    cfg = VCM3DConfig(path=PATH, system=None, kinematics=None, tied_rows=None)
+    assert (cfg.actuation, cfg.integral, cfg.guidance) == ("underactuated", False, "los")
+    assert cfg.kinematics_inverse is None
