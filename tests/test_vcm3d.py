@@ -223,3 +223,5 @@ def test_heading_and_pitch_rows_decay_exactly_from_any_state(guidance, integral)
     np.testing.assert_allclose(psit, exact, atol=1e-7)
     # and the vehicle converges to the path
     assert float(traj.aux.dist[-1]) < 0.3 * float(traj.aux.dist[0])
+    if guidance == "los":  # the paper angles: the ILOS states stay as they were (zero)
+        assert not np.any(np.asarray(traj.z.e_int)) and not np.any(np.asarray(traj.z.h_int))
