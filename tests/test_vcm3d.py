@@ -116,6 +116,12 @@ def test_errors_angles_and_state_rates_by_hand():
     # zeta' = eps, less the excess beyond int_limit = 2 (zeta[1] = -3 is 1 beyond)
     np.testing.assert_allclose(z_dot.zeta, eps - np.array([0.0, -1.0, 0.0]), atol=1e-12)
     assert float(z_dot.v_d) == 0.0 and float(z_dot.w_d) == 0.0  # full actuation
+    # the position rows of Phi = G' + P_G G with the integral: G = eps + k_I zeta, and on the
+    # line eps' = R_p^T (p' - d varpi')
+    eps_dot = (Rz @ Ry).T @ (np.asarray(qd[:3]) - d * (1.5 + 0.35 * eps[0]))
+    k_int, zeta_dot = np.array([0.02, 0.03, 0.05]), np.asarray(z_dot.zeta)
+    G_pos = eps + k_int * zeta
+    np.testing.assert_allclose(aux.Phi[5:], eps_dot + k_int * zeta_dot + 0.3 * G_pos, atol=1e-12)
 
 
 def test_defaults_are_the_documented_ones():
