@@ -122,6 +122,11 @@ def test_errors_angles_and_state_rates_by_hand():
     k_int, zeta_dot = np.array([0.02, 0.03, 0.05]), np.asarray(z_dot.zeta)
     G_pos = eps + k_int * zeta
     np.testing.assert_allclose(aux.Phi[5:], eps_dot + k_int * zeta_dot + 0.3 * G_pos, atol=1e-12)
+    # the commanded body acceleration J^-1 (q'' - J' nu) is what the design model's body
+    # equations give for tau (full actuation, a perfect model)
+    nu = jnp.linalg.solve(rd.kinematics5(q), qd)
+    nu_dot = jnp.linalg.solve(rd.mass_matrix5(DM), aux.tau - rd.body_bias5(DM, q, nu))
+    np.testing.assert_allclose(aux.nu_dot_cmd, nu_dot, rtol=1e-9, atol=1e-12)
 
 
 def test_defaults_are_the_documented_ones():
