@@ -100,3 +100,49 @@ def test_dense_tangent_is_the_identity_in_value_and_derivatives():
     # differentiating the marked value itself: the identity's Jacobian
     g = jax.jacrev(lambda a: dense_tangent(a, p))(x[0])
     np.testing.assert_array_equal(g, np.eye(2))
+
+
+def test_sampled_rk4_stages_loop_or_unrolled_match_the_exact_discrete_map():
+    """A sampled (zero-order-hold) rollout of a linear 12-state plant, x' = A x + B u with
+    u = -K x held over each step: RK4's discrete map is x+ = T(hA) x + h S(hA) B u with
+    T = sum_{i<=4} (hA)^i / i!, S = sum_{i<=3} (hA)^i / (i+1)!. The stage loop and the
+    unrolled stages both follow it to round-off; ``"auto"`` picks the loop for 12 states and
+    the unrolled stages for 6 (and always the loop with a continuous controller)."""
+    import math
+
+    import numpy as np
+
+    from vcjax.rollout import LOOP_STATE, RolloutConfig, _rk4_loop, rollout
+
+    rng = np.random.default_rng(3)
+    n, h, steps = LOOP_STATE, 0.05, 40
+    A = rng.normal(size=(n, n)) * 0.3 - np.eye(n)
+    B = rng.normal(size=(n, 2))
+    K = rng.normal(size=(2, n)) * 0.2
+    x0 = rng.normal(size=n)
+
+    def plant(t, x, u, p):
+        return p[0] @ x + p[1] @ u
+
+    def controller(t, x, z, k):
+        return -k @ x, jnp.zeros(0), ()
+
+    hA = h * A
+    T = sum(np.linalg.matrix_power(hA, i) / math.factorial(i) for i in range(5))
+    S = sum(np.linalg.matrix_power(hA, i) / math.factorial(i + 1) for i in range(4))
+    x, want = x0, [x0]
+    for _ in range(steps):
+        x = T @ x + h * S @ B @ (-K @ x)
+        want.append(x)
+    got = {}
+    for stages in ("loop", "unrolled"):
+        cfg = RolloutConfig(num_steps=steps, timing="sampled", stages=stages)
+        tr = rollout(plant, controller, cfg, (A, B), K, jnp.asarray(x0), jnp.zeros(0), h)
+        got[stages] = np.asarray(tr.x)
+        np.testing.assert_allclose(got[stages], np.asarray(want), rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(got["loop"], got["unrolled"], rtol=1e-14, atol=1e-15)
+    sampled = RolloutConfig(num_steps=1, timing="sampled")
+    assert _rk4_loop(sampled, jnp.zeros(n)) and not _rk4_loop(sampled, jnp.zeros(6))
+    assert _rk4_loop(RolloutConfig(num_steps=1), jnp.zeros(6))
+    with pytest.raises(ValueError, match="stages"):
+        RolloutConfig(num_steps=1, stages="fused")

@@ -64,11 +64,16 @@ __all__ = [
     "controller_ok",
     "first_unhealthy_step",
     "DEFAULT_BOUND",
+    "LOOP_STATE",
 ]
 
 #: Default divergence bound of [`rollout`][vcjax.rollout.rollout]: any state entry beyond it flags
 #: divergence.
 DEFAULT_BOUND = 1e9
+
+#: ``stages="auto"`` with a sampled controller runs RK4's stages as a loop on plants with at
+#: least this many state entries (a 6-DOF vehicle's pose and velocities)
+LOOP_STATE = 12
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,6 +90,16 @@ class RolloutConfig:
             ~ N/K x carry + K x one step's intermediates, minimal near
             ``K = sqrt(N x carry / intermediates)``, typically 5-20), for one extra forward
             pass either way.
+        unroll: steps per iteration of the rollout's scan.
+        stages: how RK4 evaluates its four stages: ``"loop"`` (one ``lax.scan`` over the
+            tableau: the vector field is traced and compiled once, the program is smaller and
+            builds faster), ``"unrolled"`` (four traced copies, which XLA fuses better when
+            the field is small) or ``"auto"``: the loop with a continuous controller (the whole
+            law is in the field) and with a sampled one on plants of
+            [`LOOP_STATE`][vcjax.rollout.LOOP_STATE] state entries or more (6-DOF vehicles,
+            whose plant dominates a step: REMUS 100's sweep program compiles about a quarter
+            faster at the same throughput), else unrolled (a 3-DOF plant's batch runs 15-20 %
+            faster unrolled). The two forms agree to round-off (same arithmetic, same order).
     """
 
     num_steps: int
@@ -93,6 +108,7 @@ class RolloutConfig:
     checkpoint: bool = False
     checkpoint_every: int = 1
     unroll: int = 1
+    stages: Literal["auto", "loop", "unrolled"] = "auto"
 
     def __post_init__(self):
         if not isinstance(self.num_steps, int) or self.num_steps < 1:
@@ -106,6 +122,8 @@ class RolloutConfig:
         get_integrator(self.integrator)
         if self.timing not in ("continuous", "sampled"):
             raise ValueError(f"timing: expected 'continuous' or 'sampled', got {self.timing!r}")
+        if self.stages not in ("auto", "loop", "unrolled"):
+            raise ValueError(f"stages: expected 'auto', 'loop' or 'unrolled', got {self.stages!r}")
 
 
 class Trajectory(NamedTuple):
@@ -248,12 +266,23 @@ def _check_args(dt, bound) -> None:
         raise ValueError(f"bound: expected a divergence bound > 0, got {bound}")
 
 
+def _rk4_loop(config: RolloutConfig, x0) -> bool:
+    """Whether RK4's stages run as a loop (``config.stages``; see
+    [`RolloutConfig`][vcjax.rollout.RolloutConfig])."""
+    if config.stages != "auto":
+        return config.stages == "loop"
+    if config.timing == "continuous":
+        return True
+    size = sum(int(jnp.size(a)) for a in jax.tree_util.tree_leaves(x0))
+    return size >= LOOP_STATE
+
+
 def _stepper(plant, controller, config, plant_params, ctrl_params, x0, dt, t0, exogenous, bound):
     """The scan body of a rollout: ``step(carry, k) -> (carry, (y_next, u, aux, (ok,
     diverged)))`` with ``carry = ((x, z), s)``, and the dtype-converted ``(t0, dt)``."""
     step_fn = get_integrator(config.integrator)
-    if step_fn is rk4 and config.timing == "sampled":
-        step_fn = rk4_unrolled  # only the (small) plant in the stages: keep XLA's fusion
+    if step_fn is rk4 and not _rk4_loop(config, x0):
+        step_fn = rk4_unrolled
     dtype = jnp.result_type(*jax.tree_util.tree_leaves(x0))
     dt = jnp.asarray(dt, dtype=dtype)
     bound = jnp.asarray(bound, dtype=dtype)
