@@ -116,6 +116,17 @@ def test_errors_angles_and_state_rates_by_hand():
     # zeta' = eps, less the excess beyond int_limit = 2 (zeta[1] = -3 is 1 beyond)
     np.testing.assert_allclose(z_dot.zeta, eps - np.array([0.0, -1.0, 0.0]), atol=1e-12)
     assert float(z_dot.v_d) == 0.0 and float(z_dot.w_d) == 0.0  # full actuation
+    # the position rows of Phi = G' + P_G G with the integral: G = eps + k_I zeta, and on the
+    # line eps' = R_p^T (p' - d varpi')
+    eps_dot = (Rz @ Ry).T @ (np.asarray(qd[:3]) - d * (1.5 + 0.35 * eps[0]))
+    k_int, zeta_dot = np.array([0.02, 0.03, 0.05]), np.asarray(z_dot.zeta)
+    G_pos = eps + k_int * zeta
+    np.testing.assert_allclose(aux.Phi[5:], eps_dot + k_int * zeta_dot + 0.3 * G_pos, atol=1e-12)
+    # the commanded body acceleration J^-1 (q'' - J' nu) is what the design model's body
+    # equations give for tau (full actuation, a perfect model)
+    nu = jnp.linalg.solve(rd.kinematics5(q), qd)
+    nu_dot = jnp.linalg.solve(rd.mass_matrix5(DM), aux.tau - rd.body_bias5(DM, q, nu))
+    np.testing.assert_allclose(aux.nu_dot_cmd, nu_dot, rtol=1e-9, atol=1e-12)
 
 
 def test_defaults_are_the_documented_ones():
@@ -223,3 +234,5 @@ def test_heading_and_pitch_rows_decay_exactly_from_any_state(guidance, integral)
     np.testing.assert_allclose(psit, exact, atol=1e-7)
     # and the vehicle converges to the path
     assert float(traj.aux.dist[-1]) < 0.3 * float(traj.aux.dist[0])
+    if guidance == "los":  # the paper angles: the ILOS states stay as they were (zero)
+        assert not np.any(np.asarray(traj.z.e_int)) and not np.any(np.asarray(traj.z.h_int))

@@ -70,7 +70,7 @@ MODULES = {
         "vcjax/control",
         "tests/test_baselines.py tests/test_baselines3d.py tests/test_vcm.py tests/test_vcm3d.py"
         " tests/test_underactuation.py tests/test_remus100_channels.py tests/test_guidance.py"
-        " tests/test_loops_params.py",
+        " tests/test_loops_params.py tests/test_control_power.py tests/test_control3d_power.py",
     ),
     "identify": (
         "vcjax/identify",
