@@ -1,0 +1,238 @@
+"""The log and trust checks of ``vcjax fit`` (``vcjax.identify.checks``) at their bounds, on
+tiny hand-made logs and models (numpy only: nothing is compiled). Exact bounds use numbers
+whose arithmetic is exact in binary floating point, so that "within a factor" is tested on
+the factor itself. Written for the survivors of the mutation run of
+``vcjax/identify/checks.py`` (``docs/development/testing.md``)."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from vcjax.identify.checks import check_logs
+
+
+def _model(cols, units, commands=(), limits=None):
+    """What the checks read of a fit model: columns, units, actuator limits."""
+    return SimpleNamespace(
+        state_columns=tuple(cols),
+        units=tuple(units),
+        command_columns=tuple(commands),
+        actuator_limits=None if limits is None else (lambda params: limits),
+        nominal=lambda dtype: None,
+    )
+
+
+def _log(t, x, u=None, name="a.csv"):
+    t = np.asarray(t, np.float64)
+    x = np.asarray(x, np.float64).reshape(t.size, -1)
+    u = np.zeros((t.size, 0)) if u is None else np.asarray(u, np.float64).reshape(t.size, -1)
+    return SimpleNamespace(name=name, t=t, x=x, u=u)
+
+
+# ------------------------------------------------------------------ time against the motion
+
+PLANE = _model(("x", "y", "u", "v"), ("m", "m", "m/s", "m/s"))
+
+
+def _line(slope, speed=1.0, n=41, dt=0.25):
+    """A straight run along x, the positions ``x = slope t``, the logged speed ``speed``
+    (exact in binary for the numbers used)."""
+    t = dt * np.arange(n)
+    x = np.zeros((n, 4))
+    x[:, 0] = slope * t
+    x[:, 2] = speed
+    return _log(t, x)
+
+
+@pytest.mark.parametrize(
+    "slope, speed, hint",
+    [
+        (3.0, 1.0, None),  # exactly the factor: accepted
+        (1.0, 3.0, None),  # speed 3, positions at 1 m/s: exactly 1/3, accepted
+        (3.25, 1.0, ""),
+        (0.25, 1.0, ""),  # a quarter of the distance: refused too
+        (25.0, 1.0, ""),  # below 60 / 2: no unit named
+        (30.0, 1.0, ""),  # exactly 60 / 2: not "within a factor 2" of 60
+        (100.0, 1.0, "minutes"),
+        (120.0, 1.0, ""),  # exactly 2 x 60
+        (150.0, 1.0, ""),
+        (3600.0, 1.0, "hours"),
+        (1e-3, 1.0, "milliseconds"),
+    ],
+)
+def test_time_against_motion_at_its_bounds_and_its_unit_hints(slope, speed, hint):
+    """Refused beyond ``MAX_MOTION_RATIO`` (3) either way, the ratio in the message; the unit
+    named where the ratio is within a factor 2 of 60, 3600 or 1/1000 (bounds excluded)."""
+    log = _line(slope, speed)
+    ratio = slope / speed
+    if hint is None:
+        check_logs(PLANE, [log])
+        return
+    with pytest.raises(ValueError, match="t must be in seconds") as e:
+        check_logs(PLANE, [log])
+    msg = str(e.value)
+    assert f"cover {ratio:.3g} x the distance the logged speed ['u', 'v']" in msg, msg
+    assert "positions ['x', 'y']" in msg
+    if hint:
+        k = {"minutes": 60, "hours": 3600, "milliseconds": 0.001}[hint]
+        assert f"(a factor {k:g}: t looks like {hint})" in msg, msg
+    assert msg.count("looks like") == bool(hint), msg
+
+
+def test_time_against_motion_needs_every_column_of_one_set():
+    """Positions and velocities of one set (3-D, else the plane); without one complete set
+    (here no ``v``) there is nothing to compare and a log in minutes passes."""
+    model = _model(("x", "y", "z", "u", "v", "w"), ("m",) * 3 + ("m/s",) * 3)
+    t = 0.25 * np.arange(41)
+    x = np.zeros((41, 6))
+    x[:, 1], x[:, 4] = 100.0 * t, 1.0  # along y: the 3-D set (and the plane's) sees it
+    with pytest.raises(ValueError, match=r"positions \['x', 'y', 'z'\] cover 100 x"):
+        check_logs(model, [_log(t, x)])
+    partial = _model(("x", "y", "u"), ("m", "m", "m/s"))
+    check_logs(partial, [_log(t, np.stack([100.0 * t, 0 * t, 1 + 0 * t], axis=1))])
+
+
+# ------------------------------------------------------------------ sampling, angles, actuators
+
+
+def _one(column, unit, values, dt=1.0, limits=None):
+    """A model of one column and a log of it (no pair, no motion: only the check at hand)."""
+    values = np.asarray(values, np.float64)
+    model = _model((column,), (unit,), limits=limits)
+    return model, _log(dt * np.arange(values.size), values)
+
+
+def test_median_step_bound_and_the_milliseconds_it_suggests():
+    model, log = _one("u", "m/s", np.zeros(9), dt=2.0)
+    check_logs(model, [log])  # exactly MAX_STEP_S: seconds
+    model, log = _one("u", "m/s", np.zeros(9), dt=2.5)
+    with pytest.raises(ValueError, match=r"median time step is 2\.5 s, .* \(a step of 0\.0025 s\)"):
+        check_logs(model, [log])
+
+
+def test_sampling_tolerance_is_inclusive():
+    """Steps of 1000/1024 s; one step longer by exactly ``SAMPLING_RTOL`` (1e-3) of it,
+    1/1024 s (exact in binary, as 1e-3 x 1000/1024 rounds to it), is uniform; by 2/1024 not."""
+    steps = np.full(10, 1000.0)
+    steps[5] = 1001.0
+    t = np.concatenate([[0.0], np.cumsum(steps)]) / 1024.0
+    model = _model(("u",), ("m/s",))
+    check_logs(model, [_log(t, np.zeros(11))])
+    steps[5] = 1002.0
+    t = np.concatenate([[0.0], np.cumsum(steps)]) / 1024.0
+    with pytest.raises(ValueError, match=r"1 step\(s\) differ, the first from sample 5 to 6 "):
+        check_logs(model, [_log(t, np.zeros(11))])
+
+
+@pytest.mark.parametrize(
+    "column, unit, bound", [("theta", "rad", math.pi), ("q", "rad/s", math.pi)]
+)
+def test_an_angle_or_rate_of_exactly_pi_is_radians(column, unit, bound):
+    values = np.zeros(9)
+    values[4] = -bound
+    model, log = _one(column, unit, values)
+    check_logs(model, [log])
+    log.x[4] = -np.nextafter(bound, 4.0)
+    with pytest.raises(ValueError, match=f"column '{column}' reaches -3.142 at sample 4"):
+        check_logs(model, [log])
+
+
+def test_a_heading_turning_exactly_pi_per_second_is_radians():
+    """Half a turn in 1 s (wrapped to -pi exactly): the bound, accepted."""
+    model, log = _one("psi", "rad", np.where(np.arange(9) < 4, 0.0, math.pi))
+    check_logs(model, [log])
+    model, log = _one("psi", "rad", np.where(np.arange(9) < 4, 0.0, -3.0), dt=0.5)
+    with pytest.raises(ValueError, match=r"'psi' turns by 3 rad in 0\.5 s at sample 3 \(6 rad/s\)"):
+        check_logs(model, [log])
+
+
+def test_an_actuator_at_exactly_its_margin_is_radians():
+    """``ACTUATOR_MARGIN`` (1.05) x a limit of 1 rad: accepted; the next number refused."""
+    x = np.zeros(9)
+    x[3] = -1.05
+    model, log = _one("delta", "rad", x, limits={"delta": 1.0})
+    check_logs(model, [log])
+    log.x[3] = -np.nextafter(1.05, 2.0)
+    with pytest.raises(
+        ValueError, match=r"'delta' reaches -1\.05 at sample 3, beyond the .* 1 rad"
+    ):
+        check_logs(model, [log])
+
+
+@pytest.mark.parametrize("other", ["0.csv", "z.csv", "a.csv"])
+def test_a_copy_is_named_a_copy_whatever_its_name(other):
+    """A copy under a name before or after the original's is "the same data"; the same name
+    "listed twice" (entries counted from 1)."""
+    model = _model(("u",), ("m/s",))
+    log = _log(np.arange(5.0), np.arange(5.0), name="a.csv")
+    copy = _log(np.arange(5.0), np.arange(5.0), name=other)
+    same = "is listed twice" if other == "a.csv" else "holds the same data as a.csv"
+    with pytest.raises(ValueError, match=f"{other} \\(entry 3\\) {same} \\(entry 2\\)"):
+        check_logs(model, [_log(np.arange(5.0), np.ones(5)), log, copy])
+
+
+# ------------------------------------------------------------------ pairs: a factor 180/pi
+
+_DEG = 180.0 / math.pi
+SERVO = _model(("delta",), ("rad",), commands=("delta_cmd",))
+
+
+def _servo(delta, cmd):
+    """The actuator follows the previous sample's command: ``delta[1:]`` against
+    ``cmd[:-1]``."""
+    return _log(np.arange(float(len(delta))), delta, cmd)
+
+
+@pytest.mark.parametrize(
+    "k, flagged", [(_DEG / 2.0, False), (np.nextafter(_DEG / 2.0, 99.0), True), (_DEG * 2.0, False)]
+)
+def test_an_actuator_pair_at_the_bounds_of_the_degree_factor(k, flagged):
+    """A command exactly ``k`` x its actuator (one moving sample: the regression is exact):
+    within a factor 2 of 180/pi, bounds excluded, the command is named in degrees."""
+    log = _servo([0.0, 1.0, 0.0, 0.0], [k, 0.0, 0.0, 0.0])
+    if not flagged:
+        check_logs(SERVO, [log])
+        return
+    with pytest.raises(ValueError, match=r"column 'delta_cmd' is 28\.6 x 'delta' \(180/pi"):
+        check_logs(SERVO, [log])
+
+
+def test_a_pair_correlated_exactly_at_the_threshold_is_judged():
+    """Correlation exactly ``MIN_PAIR_CORRELATION`` (0.9; 27.606359975757595 makes it so in
+    binary): the pair is compared, and the factor 57 names the command in degrees."""
+    log = _servo([0.0, 1.0, 0.0, 0.0], [57.0, 27.606359975757595, 0.0, 0.0])
+    xa, xb = log.x[1:, 0], log.u[:-1, 0]
+    assert float(np.dot(xa, xb) / np.sqrt(np.dot(xa, xa) * np.dot(xb, xb))) == 0.9
+    with pytest.raises(ValueError, match=r"column 'delta_cmd' is 57 x 'delta' \(180/pi = 57\.3\)"):
+        check_logs(SERVO, [log])
+
+
+HEADING = _model(("psi", "r"), ("rad", "rad/s"))
+
+
+def test_a_rate_pair_is_compared_over_half_a_second_of_a_noisy_wrapping_heading():
+    """A heading near +-pi (wrapping) swinging with a 1.5 s period plus 1 mrad of sensor noise,
+    its rate logged in deg/s: over 0.5 s the two agree (correlation ~0.99) and ``r`` is named;
+    one-sample differences would be noise (~0.07 rad/s against ~0.03), and differences over
+    a whole period (1.5 s) nothing but noise."""
+    t = 0.02 * np.arange(301)
+    w = 2 * np.pi / 1.5
+    noise = 1e-3 * np.random.default_rng(5).standard_normal(t.size)
+    psi = (math.pi - 0.003 + 0.01 * np.sin(w * t) + noise + np.pi) % (2 * np.pi) - np.pi
+    assert psi.max() > 3.0 and psi.min() < -3.0  # it wraps
+    x = np.stack([psi, _DEG * 0.01 * w * np.cos(w * t)], axis=1)
+    with pytest.raises(ValueError, match=r"column 'r' is 5\d\.\d x the rate of 'psi' \(180/pi"):
+        check_logs(HEADING, [_log(t, x)])
+
+
+def test_a_three_sample_log_is_compared_over_its_whole_span():
+    """Half a second is more than the log: the difference over its two steps (a heading in
+    degrees turning 0.05 rad/s, its rate in rad/s)."""
+    t = 0.02 * np.arange(3)
+    x = np.stack([_DEG * 0.05 * t, np.full(3, 0.05)], axis=1)
+    with pytest.raises(ValueError, match=r"the rate of column 'psi' is 57\.3 x 'r' .* 'psi' is in"):
+        check_logs(HEADING, [_log(t, x)])
