@@ -7,12 +7,19 @@ the factor itself. Written for the survivors of the mutation run of
 from __future__ import annotations
 
 import math
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from vcjax.identify.checks import check_logs
+from vcjax.identify.checks import (
+    check_excitation,
+    check_logs,
+    conditioning_before_fit,
+    sensitivities,
+    trust_warnings,
+)
 
 
 def _model(cols, units, commands=(), limits=None):
@@ -236,3 +243,166 @@ def test_a_three_sample_log_is_compared_over_its_whole_span():
     x = np.stack([_DEG * 0.05 * t, np.full(3, 0.05)], axis=1)
     with pytest.raises(ValueError, match=r"the rate of column 'psi' is 57\.3 x 'r' .* 'psi' is in"):
         check_logs(HEADING, [_log(t, x)])
+
+
+# ------------------------------------------------------------------ excitation and trust
+
+
+def test_sensitivities_clip_negative_information_and_divide_by_at_least_one_residual():
+    info = np.diag([4.0, -1.0, 9.0])
+    np.testing.assert_array_equal(sensitivities(info, 4), [1.0, 0.0, 1.5])
+    np.testing.assert_array_equal(sensitivities(info, 0.5), [2.0, 0.0, 3.0])  # m < 1: as 1
+
+
+@pytest.mark.parametrize(
+    "b, low",
+    [
+        (1e-6, False),  # exactly MIN_RELATIVE_SENSITIVITY x the largest (1): excited
+        (np.nextafter(1e-6, 0.0), True),
+    ],
+)
+def test_excitation_relative_bound_is_inclusive(b, low):
+    """``sqrt(fl(s^2)) == s`` in binary floating point: the sensitivities are exactly 1 and
+    ``b``."""
+    info = np.diag([1.0, b * b, 0.25])
+    if not low:
+        np.testing.assert_array_equal(check_excitation(["a", "b", "c"], info, 1), [1.0, b, 0.5])
+        return
+    with pytest.raises(ValueError, match=r"do not excite b \(1e-06\): .*, largest 1;"):
+        check_excitation(["a", "b", "c"], info, 1)
+
+
+def test_excitation_absolute_bound_is_inclusive():
+    """Every sensitivity tiny but alike (no relative gap): exactly ``MIN_SENSITIVITY``
+    (1e-9) is excited, the next number down is not."""
+    s = 1e-9
+    np.testing.assert_array_equal(check_excitation(["a"], np.diag([s * s]), 1), [s])
+    low = np.nextafter(s, 0.0)
+    with pytest.raises(ValueError, match=r"do not excite a \(1e-09\)"):
+        check_excitation(["a"], np.diag([low * low]), 1)
+    assert check_excitation([], np.zeros((0, 0)), 5).size == 0  # nothing fitted: nothing to say
+
+
+def test_a_non_finite_sensitivity_names_only_its_parameter():
+    with pytest.raises(ValueError, match=r"non-finite sensitivity of the residuals to \['b'\] at"):
+        check_excitation(["a", "b", "c"], np.diag([1.0, np.inf, 1.0]), 10)
+
+
+def _strict(f, *args, **kw):
+    """``f`` with every numpy warning an error (no division by zero on the way)."""
+    with warnings.catch_warnings(), np.errstate(all="raise"):
+        warnings.simplefilter("error")
+        return f(*args, **kw)
+
+
+@pytest.mark.parametrize(
+    "std, bad",
+    [({"a": 0.1, "b": 0.2}, None), ({"a": 0.1}, "b: standard error None"),
+     ({"a": 0.1, "b": math.nan}, "b: standard error nan"),
+     ({"a": 0.1, "b": math.inf}, "b: standard error inf"),
+     ({"a": 0.0, "b": 0.2}, "a: standard error 0.0: zero or non-finite")],
+)  # fmt: skip
+def test_trust_warnings_for_standard_errors(std, bad):
+    est = nom = {"a": 1.0, "b": 2.0}
+    w = _strict(trust_warnings, ["a", "b"], est, nom, std, np.eye(2))
+    assert w == ([] if bad is None else [w[0]]), w
+    assert bad is None or w[0].startswith(bad), w
+
+
+@pytest.mark.parametrize(
+    "ratio, actuator, warned",
+    [
+        (100.0, False, False),  # the bounds are inside the plausible range
+        (0.01, False, False),
+        (np.nextafter(100.0, 200.0), False, True),
+        (np.nextafter(0.01, 0.0), False, True),
+        (10.0, True, False),
+        (0.1, True, False),
+        (np.nextafter(10.0, 20.0), True, True),
+        (np.nextafter(0.1, 0.0), True, True),
+        (-50.0, False, False),  # the magnitude counts
+        (20.0, False, False),
+    ],
+)
+def test_plausible_range_bounds(ratio, actuator, warned):
+    names = ["k", "current_speed"]
+    est, nom = {"k": ratio, "current_speed": 1e6}, {"k": 1.0, "current_speed": 1.0}
+    coeffs = ("k",) if actuator else ()
+    w = _strict(trust_warnings, names, est, nom, {"k": 1.0, "current_speed": 1.0}, np.eye(2),
+                actuator_coeffs=coeffs)  # fmt: skip
+    assert bool(w) is warned, w  # the current is not on a log scale: never bounded
+    if warned:
+        assert len(w) == 1 and w[0].startswith(f"k: estimate {ratio:.4g} is {abs(ratio):.3g} x")
+        assert ("an actuator's coefficient" in w[0]) is actuator
+    scaled = _strict(trust_warnings, names, est, nom, {"k": 1.0, "current_speed": 1.0},
+                     np.eye(2), scale_names=names, actuator_coeffs=coeffs)  # fmt: skip
+    assert scaled[-1].startswith("current_speed: estimate 1e+06 is 1e+06 x")
+
+
+def test_estimates_without_a_nominal_or_finite_value_are_not_bounded():
+    names = ["a", "b", "c", "d"]
+    est = {"a": 1e9, "b": math.inf, "c": 1e9}
+    nom = {"a": 0.0, "b": 1.0, "c": None, "d": 1.0}
+    std = dict.fromkeys(names, 1.0)
+    assert _strict(trust_warnings, names, est, nom, std, np.eye(4)) == []
+
+
+@pytest.mark.parametrize(
+    "info, warned",
+    [
+        (np.zeros((0, 0)), None),
+        (np.eye(2), None),
+        (np.diag([1.0, 0.0]), "poorly conditioned (condition number inf > 1e+10)"),
+        (np.diag([1.0, -1.0]), "poorly conditioned (condition number inf > 1e+10)"),
+        (np.diag([1e10, 1.0]), None),  # exactly MAX_CONDITION: trusted
+        (np.diag([np.nextafter(1e10, 2e10), 1.0]), "poorly conditioned (condition number 1e+10"),
+        (np.array([[1.0, np.nan], [np.nan, 1.0]]), "not finite: no standard errors"),
+    ],
+)
+def test_trust_warnings_for_the_information_matrix(info, warned):
+    n = ["a", "b"]
+    w = _strict(trust_warnings, n, {}, {}, dict.fromkeys(n, 1.0), info)
+    assert w == ([] if warned is None else [w[0]]) and (warned is None or warned in w[0]), w
+
+
+def _pair(rho, scale=(2.0, 3.0)):
+    """An information matrix ``S C S``: unit-diagonal ``C`` with correlation ``rho``."""
+    s = np.diag(scale)
+    return s @ np.array([[1.0, rho], [rho, 1.0]]) @ s
+
+
+@pytest.mark.parametrize(
+    "info, names, combo",
+    [
+        (_pair(1 - 1e-12), ["a", "b"], "1 a - 1 b"),
+        (_pair(-(1 - 1e-12)), ["a", "b"], "1 a + 1 b"),
+        (_pair(1 - 1e-12, (1e-3, 5e4)), ["a", "b"], "1 a - 1 b"),
+        # a third, independent parameter first: not named, and the first named is positive
+        (np.block([[np.eye(1), np.zeros((1, 2))], [np.zeros((2, 1)), _pair(1 - 1e-12)]]),
+         ["c", "a", "b"], "1 a - 1 b"),
+    ],
+)  # fmt: skip
+def test_conditioning_before_fit_names_the_weak_combination(info, names, combo):
+    w = _strict(conditioning_before_fit, names, info)
+    assert "(condition number 2e+12 > 1e+10): the logs hardly determine the combination " in w
+    assert f"the combination {combo} of the relative changes" in w, w
+
+
+@pytest.mark.parametrize(
+    "info",
+    [
+        np.eye(1) * 1e-30,  # one parameter: no combination
+        _pair(0.5),
+        np.diag([1e10, 1.0]),  # exactly MAX_CONDITION
+        np.diag([1.0, 0.0]),  # not excited (the excitation check reports it)
+        np.array([[1.0, np.inf], [np.inf, 1.0]]),
+    ],
+)
+def test_conditioning_before_fit_is_silent(info):
+    assert _strict(conditioning_before_fit, ["a", "b"][: info.shape[0]], info) is None
+
+
+def test_conditioning_before_fit_of_a_singular_matrix():
+    """Exactly singular (two identical columns): an infinite condition number."""
+    w = _strict(conditioning_before_fit, ["a", "b"], np.ones((2, 2)))
+    assert "(condition number inf > 1e+10)" in w and "combination 1 a - 1 b " in w, w
