@@ -90,6 +90,19 @@ def test_time_against_motion_at_its_bounds_and_its_unit_hints(slope, speed, hint
     assert msg.count("looks like") == bool(hint), msg
 
 
+@pytest.mark.parametrize("n", [11, 39, 41])
+def test_time_against_motion_compares_chords_over_a_twentieth_of_the_log(n):
+    """A vehicle circling at 1 rad/s, its positions 60 x too far apart (t in minutes): the
+    distance is the chord between samples ``max(1, n // 20)`` apart, the travel the arc, so
+    the ratio is 60 x sin(theta / 2) / (theta / 2), theta the turn over that stride."""
+    t = 0.25 * np.arange(n)
+    x = np.stack([60.0 * np.sin(t), 60.0 * (1.0 - np.cos(t)), np.ones(n), np.zeros(n)], axis=1)
+    half = 0.25 * max(1, n // 20) / 2.0
+    with pytest.raises(ValueError, match="t looks like minutes") as e:
+        check_logs(PLANE, [_log(t, x)])
+    assert f"cover {60.0 * np.sin(half) / half:.3g} x" in str(e.value), e.value
+
+
 def test_time_against_motion_needs_every_column_of_one_set():
     """Positions and velocities of one set (3-D, else the plane); without one complete set
     (here no ``v``) there is nothing to compare and a log in minutes passes."""
