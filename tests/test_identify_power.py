@@ -103,6 +103,29 @@ def test_time_against_motion_compares_chords_over_a_twentieth_of_the_log(n):
     assert f"cover {60.0 * np.sin(half) / half:.3g} x" in str(e.value), e.value
 
 
+def _plane(t, x, speed):
+    n = np.size(t)
+    x = np.asarray(x, np.float64)
+    return _log(t, np.stack([x, np.zeros(n), np.broadcast_to(speed, n), np.zeros(n)], axis=1))
+
+
+def test_time_against_motion_without_evidence():
+    """No evidence, accepted: positions that never move (not logged), a vehicle at rest by its
+    speed (a travel of at most 1e-9 m between compared samples; here exactly 1e-9), and
+    position noise while at rest (only the samples that travel are compared)."""
+    check_logs(PLANE, [_plane(0.25 * np.arange(41), np.zeros(41), 1.0)])
+    check_logs(PLANE, [_plane(np.arange(3.0), [0.0, 1.0, 2.0], 1e-9)])
+    t = 0.25 * np.arange(81)
+    x = np.where(t < 10.0, 2.0 * np.random.default_rng(1).standard_normal(81), t - 10.0)
+    check_logs(PLANE, [_plane(t, x, np.where(t < 10.0, 0.0, 1.0))])
+
+
+def test_time_against_motion_judges_from_a_micrometre():
+    """Positions covering exactly 1e-6 m in all (against 0.5 m of travel) are evidence."""
+    with pytest.raises(ValueError, match=r"cover 2e-06 x the distance"):
+        check_logs(PLANE, [_plane(0.25 * np.arange(3), [0.0, 1e-6, 1e-6], 1.0)])
+
+
 def test_time_against_motion_needs_every_column_of_one_set():
     """Positions and velocities of one set (3-D, else the plane); without one complete set
     (here no ``v``) there is nothing to compare and a log in minutes passes."""
