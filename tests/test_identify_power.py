@@ -218,6 +218,19 @@ def test_a_copy_is_named_a_copy_whatever_its_name(other):
         check_logs(model, [_log(np.arange(5.0), np.ones(5)), log, copy])
 
 
+def test_only_actuator_angles_are_judged_against_their_limits():
+    """Degrees are the misreading the limit catches: an actuator in another unit (a thrust in
+    N, a propeller in rpm) beyond its limit is the plant's business, not refused here."""
+    limits = {"thrust": 1.0, "n": 1.0, "delta": 1.0}
+    model = _model(("thrust", "n", "delta"), ("N", "rpm", "rad"), limits=limits)
+    x = np.zeros((9, 3))
+    x[4] = [5.0, 5.0, 0.5]
+    check_logs(model, [_log(np.arange(9.0), x)])
+    x[4, 2] = 5.0
+    with pytest.raises(ValueError, match="column 'delta' reaches 5 at sample 4"):
+        check_logs(model, [_log(np.arange(9.0), x)])
+
+
 # ------------------------------------------------------------------ pairs: a factor 180/pi
 
 _DEG = 180.0 / math.pi
@@ -442,3 +455,21 @@ def test_conditioning_before_fit_of_a_singular_matrix():
     """Exactly singular (two identical columns): an infinite condition number."""
     w = _strict(conditioning_before_fit, ["a", "b"], np.ones((2, 2)))
     assert "(condition number inf > 1e+10)" in w and "combination 1 a - 1 b " in w, w
+
+
+def test_a_two_sample_log_is_compared_over_its_one_step():
+    t = 0.02 * np.arange(2)
+    x = np.stack([_DEG * 0.05 * t, np.full(2, 0.05)], axis=1)
+    with pytest.raises(ValueError, match=r"the rate of column 'psi' is 57\.3 x 'r' "):
+        check_logs(HEADING, [_log(t, x)])
+
+
+def test_a_slow_log_is_compared_sample_to_sample():
+    """Samples 1 s apart (half a second is less than a step): differences over one step. The
+    heading in degrees turns as ``0.005 t^3`` rad; the trapezoid average of its rate over each
+    step is 1.5 and 7.5 x 0.005 against true averages 1 and 7: the factor reads
+    180/pi x 50/54 = 53.1 (over both steps at once it would read 180/pi / 1.125 = 50.9)."""
+    t = np.arange(3.0)
+    x = np.stack([_DEG * 0.005 * t**3, 3 * 0.005 * t**2], axis=1)
+    with pytest.raises(ValueError, match=r"the rate of column 'psi' is 53\.1 x 'r' "):
+        check_logs(HEADING, [_log(t, x)])
