@@ -64,11 +64,13 @@ def _line(slope, speed=1.0, n=41, dt=0.25):
         (0.25, 1.0, ""),  # a quarter of the distance: refused too
         (25.0, 1.0, ""),  # below 60 / 2: no unit named
         (30.0, 1.0, ""),  # exactly 60 / 2: not "within a factor 2" of 60
+        (40.0, 1.0, "minutes"),
         (100.0, 1.0, "minutes"),
         (120.0, 1.0, ""),  # exactly 2 x 60
         (150.0, 1.0, ""),
         (3600.0, 1.0, "hours"),
         (1e-3, 1.0, "milliseconds"),
+        (1e-4, 1.0, ""),
     ],
 )
 def test_time_against_motion_at_its_bounds_and_its_unit_hints(slope, speed, hint):
@@ -194,14 +196,14 @@ def test_a_heading_turning_exactly_pi_per_second_is_radians():
 
 
 def test_an_actuator_at_exactly_its_margin_is_radians():
-    """``ACTUATOR_MARGIN`` (1.05) x a limit of 1 rad: accepted; the next number refused."""
+    """``ACTUATOR_MARGIN`` (1.05) x a limit of 0.5 rad: accepted; the next number refused."""
     x = np.zeros(9)
-    x[3] = -1.05
-    model, log = _one("delta", "rad", x, limits={"delta": 1.0})
+    x[3] = -1.05 * 0.5
+    model, log = _one("delta", "rad", x, limits={"delta": 0.5})
     check_logs(model, [log])
-    log.x[3] = -np.nextafter(1.05, 2.0)
+    log.x[3] = -np.nextafter(1.05 * 0.5, 2.0)
     with pytest.raises(
-        ValueError, match=r"'delta' reaches -1\.05 at sample 3, beyond the .* 1 rad"
+        ValueError, match=r"'delta' reaches -0\.525 at sample 3, beyond .* 0\.5 rad"
     ):
         check_logs(model, [log])
 
@@ -286,12 +288,14 @@ def test_a_rate_pair_is_compared_over_half_a_second_of_a_noisy_wrapping_heading(
 
 
 def test_a_three_sample_log_is_compared_over_its_whole_span():
-    """Half a second is more than the log: the difference over its two steps (a heading in
-    degrees turning 0.05 rad/s, its rate in rad/s)."""
-    t = 0.02 * np.arange(3)
-    x = np.stack([_DEG * 0.05 * t, np.full(3, 0.05)], axis=1)
-    with pytest.raises(ValueError, match=r"the rate of column 'psi' is 57\.3 x 'r' .* 'psi' is in"):
-        check_logs(HEADING, [_log(t, x)])
+    """Half a second is more than the log: the difference over its two steps. The heading in
+    degrees turns as ``1e-4 i^3`` rad at sample ``i`` (0.02 s apart); the trapezoid average of
+    its rate over both steps is 1.125 x the true one: the factor reads 180/pi / 1.125 = 50.9
+    (step by step it would read 180/pi x 50/54 = 53.1)."""
+    i = np.arange(3.0)
+    x = np.stack([_DEG * 1e-4 * i**3, 3e-4 * i**2 / 0.02], axis=1)
+    with pytest.raises(ValueError, match=r"the rate of column 'psi' is 50\.9 x 'r' .* 'psi' is in"):
+        check_logs(HEADING, [_log(0.02 * i, x)])
 
 
 # ------------------------------------------------------------------ excitation and trust
