@@ -477,3 +477,12 @@ def test_a_slow_log_is_compared_sample_to_sample():
     x = np.stack([_DEG * 0.005 * t**3, 3 * 0.005 * t**2], axis=1)
     with pytest.raises(ValueError, match=r"the rate of column 'psi' is 53\.1 x 'r' "):
         check_logs(HEADING, [_log(t, x)])
+
+
+@pytest.mark.parametrize(
+    "delta, cmd", [(-1e-10, -5.7e-9), (-5.7e-9, -1e-10)], ids=["actuator", "command"]
+)
+def test_a_pair_one_of_which_hardly_moves_is_not_judged(delta, cmd):
+    """One of the pair at 1e-10 (RMS below 1e-9: not moving), the other 57 x it: no evidence
+    either way, accepted."""
+    check_logs(SERVO, [_servo([0.0, delta, delta, delta], [cmd, cmd, cmd, 0.0])])
