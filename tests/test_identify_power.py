@@ -486,3 +486,15 @@ def test_a_pair_one_of_which_hardly_moves_is_not_judged(delta, cmd):
     """One of the pair at 1e-10 (RMS below 1e-9: not moving), the other 57 x it: no evidence
     either way, accepted."""
     check_logs(SERVO, [_servo([0.0, delta, delta, delta], [cmd, cmd, cmd, 0.0])])
+
+
+@pytest.mark.parametrize(
+    "delta, cmd, named",
+    [(1e-9, 57e-9, "column 'delta_cmd' is 57 x 'delta'"),
+     (57e-9, 1e-9, "column 'delta' is 57 x 'delta_cmd'")],
+)  # fmt: skip
+def test_a_pair_moving_by_exactly_1e_9_is_judged(delta, cmd, named):
+    """One compared sample: the smaller of the pair has an RMS of exactly 1e-9 (the bound of
+    "hardly moves", excluded): judged, and the factor 57 names the one in degrees."""
+    with pytest.raises(ValueError, match=named):
+        check_logs(SERVO, [_servo([0.0, delta], [cmd, 0.0])])
