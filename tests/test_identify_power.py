@@ -498,3 +498,13 @@ def test_a_pair_moving_by_exactly_1e_9_is_judged(delta, cmd, named):
     "hardly moves", excluded): judged, and the factor 57 names the one in degrees."""
     with pytest.raises(ValueError, match=named):
         check_logs(SERVO, [_servo([0.0, delta], [cmd, 0.0])])
+
+
+def test_every_pair_is_judged_after_one_without_evidence():
+    """A heading and rate that never move (no evidence), then a rudder whose command is in
+    degrees: still named."""
+    model = _model(("psi", "r", "delta"), ("rad", "rad/s", "rad"), commands=("delta_cmd",))
+    x = np.zeros((4, 3))
+    x[1, 2] = 0.1
+    with pytest.raises(ValueError, match="column 'delta_cmd' is 57 x 'delta'"):
+        check_logs(model, [_log(np.arange(4.0), x, [5.7, 0.0, 0.0, 0.0])])
