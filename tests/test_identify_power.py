@@ -161,15 +161,16 @@ def test_median_step_bound_and_the_milliseconds_it_suggests():
 
 def test_sampling_tolerance_is_inclusive():
     """Steps of 1000/1024 s; one step longer by exactly ``SAMPLING_RTOL`` (1e-3) of it,
-    1/1024 s (exact in binary, as 1e-3 x 1000/1024 rounds to it), is uniform; by 2/1024 not."""
+    1/1024 s (exact in binary, as 1e-3 x 1000/1024 rounds to it), is uniform; by 2/1024 not
+    (two such steps: the first is named)."""
     steps = np.full(10, 1000.0)
     steps[5] = 1001.0
     t = np.concatenate([[0.0], np.cumsum(steps)]) / 1024.0
     model = _model(("u",), ("m/s",))
     check_logs(model, [_log(t, np.zeros(11))])
-    steps[5] = 1002.0
+    steps[5] = steps[8] = 1002.0
     t = np.concatenate([[0.0], np.cumsum(steps)]) / 1024.0
-    with pytest.raises(ValueError, match=r"1 step\(s\) differ, the first from sample 5 to 6 "):
+    with pytest.raises(ValueError, match=r"2 step\(s\) differ, the first from sample 5 to 6 "):
         check_logs(model, [_log(t, np.zeros(11))])
 
 
@@ -508,3 +509,18 @@ def test_every_pair_is_judged_after_one_without_evidence():
     x[1, 2] = 0.1
     with pytest.raises(ValueError, match="column 'delta_cmd' is 57 x 'delta'"):
         check_logs(model, [_log(np.arange(4.0), x, [5.7, 0.0, 0.0, 0.0])])
+
+
+@pytest.mark.parametrize("angle, rate", [("theta", "q"), ("phi", "p")])
+def test_an_angle_in_degrees_is_named_against_its_rate(angle, rate):
+    """The angle in degrees (its name sorts after its rate's): "the rate of column <angle> is
+    57.3 x <rate>", the angle in degrees and the rate in radians."""
+    model = _model((angle, rate), ("rad", "rad/s"))
+    t = 0.02 * np.arange(3)
+    x = np.stack([_DEG * 0.05 * t, np.full(3, 0.05)], axis=1)
+    with pytest.raises(ValueError) as e:
+        check_logs(model, [_log(t, x)])
+    assert f"a.csv: the rate of column '{angle}' is 57.3 x '{rate}' (180/pi = 57.3): " in str(
+        e.value
+    )
+    assert f"'{angle}' is in degrees, '{rate}' in radians" in str(e.value)
