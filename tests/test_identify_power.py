@@ -524,3 +524,19 @@ def test_an_angle_in_degrees_is_named_against_its_rate(angle, rate):
         e.value
     )
     assert f"'{angle}' is in degrees, '{rate}' in radians" in str(e.value)
+
+
+@pytest.mark.parametrize("unit", ["deg", "turn"])
+def test_a_heading_in_another_declared_unit_is_not_judged_as_radians(unit):
+    """The heading check is about ``rad`` columns: a model declaring its heading in other
+    units (here turning 90 per second) is taken at its word."""
+    model, log = _one("psi", unit, 90.0 * np.arange(9) % 360.0)
+    check_logs(model, [log])
+    model, log = _one("psi", "rad", 1.6 * np.arange(9))
+    with pytest.raises(ValueError, match="'psi' turns by 1.6 rad in 1 s at sample 0"):
+        check_logs(model, [log])
+
+
+def test_a_model_whose_units_do_not_match_its_columns_is_an_error():
+    with pytest.raises(ValueError, match="zip"):
+        check_logs(_model(("u", "v"), ("m/s",)), [_log(np.arange(3.0), np.zeros((3, 2)))])
