@@ -529,11 +529,12 @@ def test_an_angle_in_degrees_is_named_against_its_rate(angle, rate):
 @pytest.mark.parametrize("unit", ["deg", "turn"])
 def test_a_heading_in_another_declared_unit_is_not_judged_as_radians(unit):
     """The heading check is about ``rad`` columns: a model declaring its heading in other
-    units (here turning 90 per second) is taken at its word."""
+    units (here turning 90 per second) is taken at its word; in ``rad`` the same kind of
+    turn (1.6 rad in 0.5 s) is refused."""
     model, log = _one("psi", unit, 90.0 * np.arange(9) % 360.0)
     check_logs(model, [log])
-    model, log = _one("psi", "rad", 1.6 * np.arange(9))
-    with pytest.raises(ValueError, match="'psi' turns by 1.6 rad in 1 s at sample 0"):
+    model, log = _one("psi", "rad", 1.6 * np.arange(9), dt=0.5)
+    with pytest.raises(ValueError, match="'psi' turns by 1.6 rad in 0.5 s at sample 0"):
         check_logs(model, [log])
 
 
