@@ -534,7 +534,7 @@ def test_a_heading_in_another_declared_unit_is_not_judged_as_radians(unit):
     model, log = _one("psi", unit, 90.0 * np.arange(9) % 360.0)
     check_logs(model, [log])
     model, log = _one("psi", "rad", 1.6 * np.arange(9), dt=0.5)
-    with pytest.raises(ValueError, match="'psi' turns by 1.6 rad in 0.5 s at sample 0"):
+    with pytest.raises(ValueError, match="'psi' turns by 1.6 rad in 0.5 s"):
         check_logs(model, [log])
 
 
