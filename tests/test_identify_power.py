@@ -311,19 +311,27 @@ def test_sensitivities_clip_negative_information_and_divide_by_at_least_one_resi
 @pytest.mark.parametrize(
     "b, low",
     [
-        (1e-6, False),  # exactly MIN_RELATIVE_SENSITIVITY x the largest (1): excited
-        (np.nextafter(1e-6, 0.0), True),
+        (1e-6 * 2.0, False),  # exactly MIN_RELATIVE_SENSITIVITY x the largest (2): excited
+        (np.nextafter(1e-6 * 2.0, 0.0), True),
     ],
 )
 def test_excitation_relative_bound_is_inclusive(b, low):
-    """``sqrt(fl(s^2)) == s`` in binary floating point: the sensitivities are exactly 1 and
+    """``sqrt(fl(s^2)) == s`` in binary floating point: the sensitivities are exactly 2 and
     ``b``."""
-    info = np.diag([1.0, b * b, 0.25])
+    info = np.diag([4.0, b * b, 0.25])
     if not low:
-        np.testing.assert_array_equal(check_excitation(["a", "b", "c"], info, 1), [1.0, b, 0.5])
+        np.testing.assert_array_equal(check_excitation(["a", "b", "c"], info, 1), [2.0, b, 0.5])
         return
-    with pytest.raises(ValueError, match=r"do not excite b \(1e-06\): .*, largest 1;"):
+    with pytest.raises(ValueError, match=r"do not excite b \(2e-06\): .*, largest 2;"):
         check_excitation(["a", "b", "c"], info, 1)
+
+
+def test_excitation_names_must_match_the_information():
+    """One name for a 2 x 2 information matrix: an error, finite or not."""
+    with pytest.raises(ValueError, match="zip"):
+        check_excitation(["a"], np.eye(2), 1)
+    with pytest.raises(ValueError, match="zip"):
+        check_excitation(["a"], np.diag([1.0, np.inf]), 1)
 
 
 def test_excitation_absolute_bound_is_inclusive():
