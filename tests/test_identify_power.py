@@ -537,9 +537,9 @@ def test_an_angle_in_degrees_is_named_against_its_rate(angle, rate):
 @pytest.mark.parametrize("unit", ["deg", "turn"])
 def test_a_heading_in_another_declared_unit_is_not_judged_as_radians(unit):
     """The heading check is about ``rad`` columns: a model declaring its heading in other
-    units (here turning 90 per second) is taken at its word; in ``rad`` the same kind of
+    units (here turning 90 per half second) is taken at its word; in ``rad`` the same kind of
     turn (1.6 rad in 0.5 s) is refused."""
-    model, log = _one("psi", unit, 90.0 * np.arange(9) % 360.0)
+    model, log = _one("psi", unit, 90.0 * np.arange(9) % 360.0, dt=0.5)
     check_logs(model, [log])
     model, log = _one("psi", "rad", 1.6 * np.arange(9), dt=0.5)
     with pytest.raises(ValueError, match="'psi' turns by 1.6 rad in 0.5 s"):
@@ -549,3 +549,9 @@ def test_a_heading_in_another_declared_unit_is_not_judged_as_radians(unit):
 def test_a_model_whose_units_do_not_match_its_columns_is_an_error():
     with pytest.raises(ValueError, match="zip"):
         check_logs(_model(("u", "v"), ("m/s",)), [_log(np.arange(3.0), np.zeros((3, 2)))])
+
+
+@pytest.mark.parametrize("k", [1.0, 2.0, 0.5])
+def test_a_pair_far_from_the_degree_factor_is_accepted(k):
+    """A command equal to its actuator, or geared by 2 either way: radians both."""
+    check_logs(SERVO, [_servo([0.0, 0.1, 0.2, 0.0], [0.1 * k, 0.2 * k, 0.0, 0.0])])
