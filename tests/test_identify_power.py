@@ -455,7 +455,7 @@ def test_conditioning_before_fit_names_the_weak_combination(info, names, combo):
     [
         np.eye(1) * 1e-30,  # one parameter: no combination
         _pair(0.5),
-        np.diag([1e10, 1.0]),  # exactly MAX_CONDITION
+        np.diag([1e10, 1.0]),  # condition 1 once normalised to unit diagonal
         np.diag([1.0, 0.0]),  # not excited (the excitation check reports it)
         np.array([[1.0, np.inf], [np.inf, 1.0]]),
     ],
@@ -555,3 +555,19 @@ def test_a_model_whose_units_do_not_match_its_columns_is_an_error():
 def test_a_pair_far_from_the_degree_factor_is_accepted(k):
     """A command equal to its actuator, or geared by 2 either way: radians both."""
     check_logs(SERVO, [_servo([0.0, 0.1, 0.2, 0.0], [0.1 * k, 0.2 * k, 0.0, 0.0])])
+
+
+def test_conditioning_before_fit_names_signed_components_of_the_null_direction():
+    """``C = I - u u^T`` (unit ``u``) is singular; normalised to unit diagonal
+    (``D = diag(1 - u_i^2)``), its null vector is ``D^(1/2) u``. With ``u`` along
+    (-0.1, 1, -0.5) that is (-0.089, 0.405, -0.399) = 0.405 x (-0.22, 1, -0.99): ``a`` below
+    0.3 is not named, ``b`` (the first named) positive, ``c`` negative."""
+    u = np.array([-0.1, 1.0, -0.5])
+    u /= np.linalg.norm(u)
+    w = u * np.sqrt(1.0 - u**2)
+    np.testing.assert_allclose(w / w[1], [-0.219, 1.0, -0.986], atol=1e-3)
+    msg = _strict(conditioning_before_fit, ["a", "b", "c"], np.eye(3) - np.outer(u, u))
+    assert "the combination 1 b - 0.99 c of the relative changes" in msg, msg
+    assert "-1 b" not in msg and "+ 0.99 c" not in msg  # a's sign does not decide
+    with pytest.raises(ValueError, match="zip"):  # one name short
+        conditioning_before_fit(["a", "b"], np.eye(3) - np.outer(u, u))
