@@ -402,11 +402,13 @@ def test_plausible_range_bounds(ratio, actuator, warned):
 
 
 def test_estimates_without_a_nominal_or_finite_value_are_not_bounded():
-    names = ["a", "b", "c", "d"]
-    est = {"a": 1e9, "b": math.inf, "c": 1e9}
-    nom = {"a": 0.0, "b": 1.0, "c": None, "d": 1.0}
+    """Skipped, and the next parameter still judged."""
+    names = ["a", "b", "c", "d", "e"]
+    est = {"a": 1e9, "b": math.inf, "c": 1e9, "e": 1e3}
+    nom = {"a": 0.0, "b": 1.0, "c": None, "d": 1.0, "e": 1.0}
     std = dict.fromkeys(names, 1.0)
-    assert _strict(trust_warnings, names, est, nom, std, np.eye(4)) == []
+    w = _strict(trust_warnings, names, est, nom, std, np.eye(5))
+    assert len(w) == 1 and w[0].startswith("e: estimate 1000 is 1e+03 x its nominal value 1,"), w
 
 
 @pytest.mark.parametrize(
