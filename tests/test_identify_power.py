@@ -396,6 +396,7 @@ def test_plausible_range_bounds(ratio, actuator, warned):
     if warned:
         assert len(w) == 1 and w[0].startswith(f"k: estimate {ratio:.4g} is {abs(ratio):.3g} x")
         assert ("an actuator's coefficient" in w[0]) is actuator
+        assert ("(a factor pi/180 = 0.01745 on the angle): check their units" in w[0]) is actuator
     scaled = _strict(trust_warnings, names, est, nom, {"k": 1.0, "current_speed": 1.0},
                      np.eye(2), scale_names=names, actuator_coeffs=coeffs)  # fmt: skip
     assert scaled[-1].startswith("current_speed: estimate 1e+06 is 1e+06 x")
