@@ -554,9 +554,10 @@ def test_a_model_whose_units_do_not_match_its_columns_is_an_error():
         check_logs(_model(("u", "v"), ("m/s",)), [_log(np.arange(3.0), np.zeros((3, 2)))])
 
 
-@pytest.mark.parametrize("k", [1.0, 2.0, 0.5])
+@pytest.mark.parametrize("k", [1.0, 2.0, 0.5, 300.0, 1.0 / 300.0])
 def test_a_pair_far_from_the_degree_factor_is_accepted(k):
-    """A command equal to its actuator, or geared by 2 either way: radians both."""
+    """A command equal to its actuator, geared by 2 either way, or 300 x apart (beyond a
+    factor 2 of 180/pi): not a pair in degrees and radians."""
     check_logs(SERVO, [_servo([0.0, 0.1, 0.2, 0.0], [0.1 * k, 0.2 * k, 0.0, 0.0])])
 
 
@@ -574,3 +575,11 @@ def test_conditioning_before_fit_names_signed_components_of_the_null_direction()
     assert "-1 b" not in msg and "+ 0.99 c" not in msg  # a's sign does not decide
     with pytest.raises(ValueError, match="zip"):  # one name short
         conditioning_before_fit(["a", "b"], np.eye(3) - np.outer(u, u))
+
+
+def test_conditioning_before_fit_of_a_rounding_negative_diagonal_is_silent():
+    """A profiled information's diagonal may come out a rounding error below zero: no
+    sensitivity at all there (the excitation check's business), no warning."""
+    info = np.array([[1.0, 0.5], [0.5, -1e-17]])
+    with np.errstate(invalid="ignore"):
+        assert conditioning_before_fit(["a", "b"], info) is None
