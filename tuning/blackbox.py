@@ -42,7 +42,7 @@ def batch_objective(loss_fn: Callable, args: tuple = (), static=None) -> Callabl
 
     Non-finite values come back as ``inf``. ``static``: a plain description of everything that
     fixes ``loss_fn`` (e.g. the tuning config); with it, and the program store on
-    ([`vcjax.runtime.programs`][vcjax.runtime.programs]), the batch program is keyed in the
+    (`vcjax.runtime.programs`), the batch program is keyed in the
     store, so a warm run loads it instead of tracing (as the gradient tuner's step does).
     """
     from vcjax.runtime import programs

@@ -278,7 +278,7 @@ def _prepare(cfg: TuneConfig, say) -> _Tune:
 
 def _prebuild(t: _Tune, theta0) -> None:
     """Build the held-out evaluation and the figures' trajectories now, concurrently
-    ([`programs.build_all`][vcjax.runtime.programs.build_all], while the training step builds in
+    (`programs.build_all`, while the training step builds in
     its thread; a warm run loads them from the program store instead of tracing them):
     ``t.eval_fn`` and ``t.trajectories`` then run them (their jitted forms for arguments of
     other shapes or placements). One process only (``vcjax launch``: as before)."""

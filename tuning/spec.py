@@ -227,8 +227,8 @@ class TuneConfig(FrozenSection):
 
     Attributes are the sections (``cfg.problem.horizon``; ``cfg["problem"]["horizon"]`` reads
     the same); the shared ones as they are parsed: ``current``
-    ([`Current`][vcjax.config.schema.Current], the ``[scenarios] current_max`` shorthand written
-    out), ``waves`` ([`Waves`][vcjax.config.schema.Waves] or ``None``), ``disturbance``,
+    (`Current`, the ``[scenarios] current_max`` shorthand written
+    out), ``waves`` (`Waves` or ``None``), ``disturbance``,
     ``model_error``; ``initial`` the ``[initial]`` ranges as ``(key, range)`` pairs,
     ``environment`` the sections of [`vcjax.environment`][vcjax.environment] components
     (``((section, table), ...)``, as a sweep's) and ``scenario`` the parsed ``[scenario]``

@@ -572,8 +572,11 @@ def underactuated_reaction_force(
     With r = 1 on the 3-DOF design model this is the paper's (38) with Remark 4.
 
     Args:
-        as [`reaction_force`][vcjax.mechanics.reaction_force], plus ``under``; ``z`` (n_z,) is
-        required (a flat array).
+        system, cons, gains, q, qd, t, tau, args, method: as
+            [`reaction_force`][vcjax.mechanics.reaction_force].
+        under: the [`Underactuation`][vcjax.mechanics.Underactuation] (unactuated rows and free
+            rates).
+        z: (n_z,) the auxiliary state, required (a flat array).
 
     Returns:
         ``(tau_c, qdd, mu, diagnostics)``: (n,) control force, (n,) acceleration on the design

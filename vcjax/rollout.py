@@ -71,9 +71,9 @@ __all__ = [
 #: divergence.
 DEFAULT_BOUND = 1e9
 
-#: ``stages="auto"`` with a sampled controller runs RK4's stages as a loop on plants with at
-#: least this many state entries (a 6-DOF vehicle's pose and velocities)
 LOOP_STATE = 12
+"""``RolloutConfig(stages="auto")`` with a sampled controller runs RK4's stages as a loop on
+plants with at least this many state entries (a 6-DOF vehicle's pose and velocities)."""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -21,7 +21,7 @@ key with its
   the one validator; keys that do not apply to the others' values are refused there
   (``CROSS_CHECKS``). [`register_section`][vcjax.config.schema.register_section] adds a section (an
   environment component's) to the one table of added sections,
-  [`vcjax.environment.REGISTRY`][vcjax.environment.component.REGISTRY], where
+  `vcjax.environment.REGISTRY`, where
   [`vcjax.environment.register`][vcjax.environment.component.register] puts components: sweep and
   tune configs then accept and check it.
 * [`vcjax.config.aliases`][vcjax.config.aliases] -- ``ALIASES``, the older spellings in

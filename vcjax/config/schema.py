@@ -120,7 +120,7 @@ def component_section(comp, name: str, doc: str) -> type:
 
 #: ``[current]``: the ocean current of every scenario, declared by the
 #: [`ConstantCurrent`][vcjax.environment.flow.ConstantCurrent] component
-#: ([`CURRENT_SCHEMA`][vcjax.environment.flow.CURRENT_SCHEMA])
+#: (`CURRENT_SCHEMA`)
 Current = component_section(
     ConstantCurrent(),
     "Current",
@@ -133,7 +133,7 @@ Current = component_section(
     ``speed = [0, m]``, ``direction_deg = [0, 360]`` (the tune's current without ``speed`` and
     ``direction_deg``); giving either key uses ``[current]``, the other key at its default.
     The keys are declared once, by the component
-    ([`CURRENT_SCHEMA`][vcjax.environment.flow.CURRENT_SCHEMA]).""",
+    (`CURRENT_SCHEMA`).""",
 )
 
 
@@ -248,7 +248,7 @@ CROSS_CHECKS = {ModelError: _model_error_applies}
 def registered() -> dict[str, type]:
     """The sections added by [`register_section`][vcjax.config.schema.register_section], beyond the
     built-in ones: the section dataclasses of the one table of added sections
-    ([`vcjax.environment.REGISTRY`][vcjax.environment.component.REGISTRY], which also holds the
+    (`vcjax.environment.REGISTRY`, which also holds the
     environment components)."""
     from vcjax.environment.component import REGISTRY
 
@@ -257,10 +257,10 @@ def registered() -> dict[str, type]:
 
 def register_section(name: str, cls: type, check=None, replace: bool = False) -> type:
     """Add a shared section ``[name]``: ``cls`` is a frozen dataclass whose fields are declared
-    with [`key`][vcjax.config.schema.key] (type, default, unit, doc, bounds);
+    with `key` (type, default, unit, doc, bounds);
     ``check(obj, table, name_of)`` optionally refuses keys that do not apply to the others'
     values (``name_of(key)`` gives ``"[name] key"``). It joins the one table of added sections
-    ([`vcjax.environment.REGISTRY`][vcjax.environment.component.REGISTRY], where
+    (`vcjax.environment.REGISTRY`, where
     [`vcjax.environment.register`][vcjax.environment.component.register] puts a component's); from
     then on ``vcjax sweep`` and ``vcjax tune`` configs accept the section, parse it with
     [`parse_section`][vcjax.config.schema.parse_section] (the one validator)

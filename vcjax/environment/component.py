@@ -153,7 +153,7 @@ class Key(NamedTuple):
     aliases: tuple = ()
 
     def meta(self) -> dict:
-        """The key as the metadata [`check_value`][vcjax._checks.check_value] reads."""
+        """The key as the metadata `check_value` reads."""
         kind = "str" if self.choices else self.kind
         m = {"type": kind, "unit": self.unit, "doc": self.doc, "aliases": self.aliases}
         if self.choices:
@@ -167,7 +167,7 @@ class Key(NamedTuple):
 
 def check_section(section: str, schema: Mapping[str, Key], raw: Mapping | None) -> dict:
     """``raw`` (a TOML table) checked against ``schema`` by the one validator,
-    [`check_value`][vcjax._checks.check_value]: unknown keys (with the closest valid one), types
+    `check_value`: unknown keys (with the closest valid one), types
     and bounds; absent keys take their defaults. Sampled keys come back as floats (a number) or
     ``(lo, hi)`` tuples (a range). ``ValueError`` (a ``ConfigError``) ``[section] key: message``."""
     raw = dict(raw or {})

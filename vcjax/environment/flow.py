@@ -29,7 +29,7 @@ __all__ = [
 ]
 
 #: ``[current]``: THE declaration of the section's keys (sweep, tune and the Python API read it
-#: from here; [`vcjax.config.schema.Current`][vcjax.config.schema.Current] is built from it).
+#: from here; `vcjax.config.schema.Current` is built from it).
 #: The defaults are the paper's Simulation 1: 0.5 m/s towards east, constant.
 CURRENT_SCHEMA = {
     "model": Key("constant", "current model", choices=("constant", "gauss_markov"), kind="str"),

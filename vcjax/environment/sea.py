@@ -76,7 +76,7 @@ class Waves(Component):
 
     section = "waves"
     kind = "waves"
-    #: THE declaration of ``[waves]`` ([`vcjax.config.schema.Waves`][vcjax.config.schema.Waves]
+    #: THE declaration of ``[waves]`` (`vcjax.config.schema.Waves`
     #: is built from it)
     schema = {
         "spectrum": Key(

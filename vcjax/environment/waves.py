@@ -687,8 +687,8 @@ def froude_krylov(R, a_water, m_displaced, r_bb):
 
     Args:
         R: (3, 3) body -> NED rotation; a_water: (3,) water acceleration in NED [m/s^2]
-        ([`water_kinematics`][vcjax.environment.waves.water_kinematics]); m_displaced: () displaced
-        mass ``rho V`` [kg] (``B / g``);
+            ([`water_kinematics`][vcjax.environment.waves.water_kinematics]); m_displaced: ()
+            displaced mass ``rho V`` [kg] (``B / g``);
         r_bb: (3,) centre of buoyancy w.r.t. the body origin, body frame [m].
     """
     ab = R.T @ a_water

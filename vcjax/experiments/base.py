@@ -299,7 +299,7 @@ class Experiment:
 
     def programs(self, setup: Setup, gains: dict, scenarios: dict) -> dict:
         """``{variant: call}``: each variant's rollout ``call(gains, scenario, dt)`` built with
-        [`vcjax.runtime.programs.build_all`][vcjax.runtime.programs.build_all] (loaded from the
+        `vcjax.runtime.programs.build_all` (loaded from the
         program store, not traced, when an identical one was stored; the variants compiled
         concurrently), when the store is on (the command line's default); ``{}`` when it is off
         ([`simulate`][vcjax.experiments.base.Experiment.simulate]'s jitted runner then builds

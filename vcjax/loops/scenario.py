@@ -106,7 +106,7 @@ def make_scenario(
         disturbance: constant generalised disturbance (default zeros).
         varpi0: initial particle (default: the path point nearest to the start).
         sea: a [`vcjax.environment.waves.Sea`][vcjax.environment.waves.Sea] (e.g.
-        [`sea_state`][vcjax.environment.waves.sea_state]) the plant feels,
+            [`sea_state`][vcjax.environment.waves.sea_state]) the plant feels,
             or None (no waves; refused by a loop that cannot take waves).
         origin_depth: depth of the NED origin below the sea's mean free surface [m].
         environment: a [`vcjax.environment.Environment`][vcjax.environment.component.Environment]

@@ -85,7 +85,7 @@ SUFFIX = ".jaxexport"
 #: the environment variable that turns the store off alone (the compilation cache stays on)
 STORE_ENV = "VCJAX_PROGRAM_STORE"
 _OFF = ("off", "none", "0", "false", "no")
-#: the environment variable that caps [`build_all`][vcjax.runtime.programs.build_all]'s threads (1:
+#: the environment variable that caps `build_all`'s threads (1:
 #: serial)
 WORKERS_ENV = "VCJAX_COMPILE_WORKERS"
 _FORMAT = 2  # bump when the key's material or the file layout changes
@@ -98,7 +98,7 @@ _OFF_REASON: list[str] = []
 _LOCK = threading.Lock()
 #: held while a program is traced, exported or loaded and lowered (Python's part, which holds
 #: the GIL), not while XLA compiles it (outside the GIL, on threads of its own):
-#: [`build_all`][vcjax.runtime.programs.build_all]'s threads trace one after another, so the
+#: `build_all`'s threads trace one after another, so the
 #: first program's compile starts when its own trace ends (on the cores the tracing leaves
 #: free) instead of when every trace, interleaved, has ended
 _TRACING = threading.RLock()
@@ -414,7 +414,7 @@ def _unpack(blob: bytes):
 
 
 def for_arguments_like(call, args, fallback):
-    """``call`` (a built program, e.g. from [`build_all`][vcjax.runtime.programs.build_all]) for
+    """``call`` (a built program, e.g. from `build_all`) for
     arguments of the spec of ``args`` ([`argument_spec`][vcjax.runtime.programs.argument_spec]:
     structure, shapes, dtypes, shardings), ``fallback`` (e.g. the jitted function) for any
     other: a program built ahead of time for one batch, still right for another."""

@@ -157,8 +157,8 @@ class ScenarioSpec:
     noise, no sea).
 
     Attributes:
-        current: [`Current`][vcjax.config.schema.Current] (``[current]``).
-        waves: [`Waves`][vcjax.config.schema.Waves] (``[waves]``: every scenario gets a random
+        current: `Current` (``[current]``).
+        waves: `Waves` (``[waves]``: every scenario gets a random
             sea, [`sea_state`][vcjax.environment.waves.sea_state]); ``None``: no waves.
         initial: [`Initial`][vcjax.config.schema.Initial] over the loop's ``initial_keys``
             (missing keys: the loop's defaults).

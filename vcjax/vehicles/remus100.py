@@ -257,7 +257,7 @@ class Remus100Args(NamedTuple):
             orbital motion of waves), goes through the full rotation ``R(Theta)^T``, all three
             components.
         tau_w: (6,) extra body force of the waves
-        ([`current_door_correction`][vcjax.environment.waves.current_door_correction],
+            ([`current_door_correction`][vcjax.environment.waves.current_door_correction],
             the pendulum moment of the CG below the CB) [N, N m], or None.
     """
 
