@@ -20,6 +20,7 @@ from vcjax.identify.checks import (
     sensitivities,
     trust_warnings,
 )
+from vcjax.identify.config import load_fit_config
 
 
 def _model(cols, units, commands=(), limits=None):
@@ -583,3 +584,73 @@ def test_conditioning_before_fit_of_a_rounding_negative_diagonal_is_silent():
     info = np.array([[1.0, 0.5], [0.5, -1e-17]])
     with np.errstate(invalid="ignore"):
         assert conditioning_before_fit(["a", "b"], info) is None
+
+
+# ------------------------------------------------------------------ the [data] [model] [fit] keys
+
+_BASE = {
+    "data": 'files = ["a.csv"]',
+    "model": 'vehicle = "remus100"',
+    "fit": 'params = ["CL_delta_r"]',
+}
+
+
+def _config(tmp_path, **extra):
+    """A ``vcjax fit`` config of the base keys plus ``extra`` lines per section (``None``
+    drops the section's base key)."""
+    text = ""
+    for sec, base in _BASE.items():
+        lines = [] if sec in extra and extra[sec] is None else [base] + list(extra.get(sec, ()))
+        text += f"[{sec}]\n" + "".join(f"{x}\n" for x in lines)
+    path = tmp_path / "fit.toml"
+    path.write_text(text)
+    return path
+
+
+def test_fit_config_defaults(tmp_path):
+    cfg = load_fit_config(_config(tmp_path))
+    assert (cfg.model.step, cfg.model.current_speed, cfg.model.current_direction_deg) == (
+        "rk4", 0.0, 0.0)  # fmt: skip
+    assert (cfg.fit.fit_current, cfg.fit.initial_scale) == (False, 1.0)
+    assert (cfg.fit.segment_steps, cfg.fit.max_iters) == (50, 50)
+
+
+@pytest.mark.parametrize(
+    "section, key", [("data", "files"), ("model", "vehicle"), ("fit", "params")]
+)
+def test_fit_config_required_keys(tmp_path, section, key):
+    with pytest.raises(ValueError, match=rf"\[{section}\] {key}: required key is missing"):
+        load_fit_config(_config(tmp_path, **{section: None}))
+
+
+@pytest.mark.parametrize(
+    "section, line, ok",
+    [
+        ("model", "current_speed = 0.0", True),
+        ("model", "current_speed = -0.5", False),
+        ("fit", "initial_scale = 0.5", True),
+        ("fit", "initial_scale = 0.0", False),
+        ("fit", "initial_scale = -0.5", False),
+        ("fit", "segment_steps = 2", True),
+        ("fit", "segment_steps = 1", False),
+        ("fit", "max_iters = 1", True),
+        ("fit", "max_iters = 0", False),
+    ],
+)
+def test_fit_config_bounds(tmp_path, section, line, ok):
+    path = _config(tmp_path, **{section: [line]})
+    if ok:
+        load_fit_config(path)
+    else:
+        with pytest.raises(ValueError, match=rf"\[{section}\] {line.split()[0]}"):
+            load_fit_config(path)
+
+
+def test_fit_config_params_once_each(tmp_path):
+    path = tmp_path / "fit.toml"
+    path.write_text(
+        '[data]\nfiles = ["a.csv"]\n[model]\nvehicle = "remus100"\n'
+        '[fit]\nparams = ["CL_delta_r", "CL_delta_r"]\n'
+    )
+    with pytest.raises(ValueError, match=r"\[fit\] params"):
+        load_fit_config(path)
