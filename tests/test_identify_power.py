@@ -654,3 +654,39 @@ def test_fit_config_params_once_each(tmp_path):
     )
     with pytest.raises(ValueError, match=r"\[fit\] params"):
         load_fit_config(path)
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        ({"data": ["files = []"]}, r"\[data\] files: expected a non-empty list of file names"),
+        ({"data": ['files = ["a.csv", ""]']}, r"\[data\] files: expected a non-empty list"),
+        ({"model": ['vehicle = "nope"']}, r"\[model\] "),
+        ({"model": ['vehicle = "infante"', 'step = "pvs"'], "fit": ['params = ["Y_uudr"]']},
+         r"\[model\] step: 'pvs' is not available for 'infante'; choose one of"),
+        ({"model": ['step = "pvs"']}, None),
+        ({"fit": ["fit_current = true"]},
+         r"\[model\] current_speed: fit_current = true needs a positive initial guess"),
+        ({"fit": ["fit_current = true"], "model": ["current_speed = 0.1"]}, None),
+        ({"fit": ["params = []"]}, r"\[fit\] params: nothing to fit"),
+        ({"fit": ["params = []", "fit_current = true"], "model": ["current_speed = 0.1"]}, None),
+        ({"fit": ['params = ["CL_delta_r", "nope"]']},
+         r"\[fit\] params: 'nope' is not a scalar parameter of 'remus100' \(choose from "),
+    ],
+)  # fmt: skip
+def test_fit_config_names_and_dependent_keys(tmp_path, extra, message):
+    """Each section's lines replace its base key where they set it (``files``, ``vehicle``,
+    ``params``), else add to it."""
+    text = ""
+    for sec, base in _BASE.items():
+        lines = list(extra.get(sec, ()))
+        if not any(x.split()[0] == base.split()[0] for x in lines):
+            lines.insert(0, base)
+        text += f"[{sec}]\n" + "".join(f"{x}\n" for x in lines)
+    path = tmp_path / "fit.toml"
+    path.write_text(text)
+    if message is None:
+        load_fit_config(path)
+        return
+    with pytest.raises(ValueError, match=message):
+        load_fit_config(path)
