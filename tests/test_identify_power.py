@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -20,7 +21,7 @@ from vcjax.identify.checks import (
     sensitivities,
     trust_warnings,
 )
-from vcjax.identify.config import load_fit_config
+from vcjax.identify.config import load_fit_config, run_fit_config
 
 
 def _model(cols, units, commands=(), limits=None):
@@ -690,3 +691,37 @@ def test_fit_config_names_and_dependent_keys(tmp_path, extra, message):
         return
     with pytest.raises(ValueError, match=message):
         load_fit_config(path)
+
+
+_CSV = Path(__file__).parent / "data" / "remus100_pvs_reference.csv"
+
+
+def _run_config(tmp_path, files):
+    path = tmp_path / "fit.toml"
+    names = ", ".join(f'"{f}"' for f in files)
+    path.write_text(
+        f'[data]\nfiles = [{names}]\n[model]\nvehicle = "remus100"\n'
+        '[fit]\nparams = ["CL_delta_r"]\n'
+    )
+    return path
+
+
+@pytest.mark.parametrize("form", ["path", "parsed", "dict"])
+def test_run_fit_config_refuses_an_out_that_is_a_file(tmp_path, form):
+    """Before fitting (nothing compiled): the config from its path, parsed, or in its dict
+    form (a run.json record) all reach the ``--out`` check."""
+    path = _run_config(tmp_path, [_CSV])
+    (tmp_path / "out").write_text("")
+    cfg = {"path": None, "parsed": load_fit_config(path)}.get(form)
+    cfg = load_fit_config(path).to_dict() if form == "dict" else cfg
+    with pytest.raises(ValueError, match="--out: .* exists and is not a directory"):
+        run_fit_config(path, tmp_path / "out", cfg=cfg)
+
+
+def test_run_fit_config_makes_a_nested_out_before_the_log_checks(tmp_path):
+    """The same log twice is refused by the checks (before anything is compiled), after
+    ``--out`` and its missing parents were made."""
+    path = _run_config(tmp_path, [_CSV, _CSV])
+    with pytest.raises(ValueError, match="is listed twice"):
+        run_fit_config(path, tmp_path / "a" / "b")
+    assert (tmp_path / "a" / "b").is_dir()
