@@ -75,7 +75,7 @@ MODULES = {
     "identify": (
         "vcjax/identify",
         "tests/test_lm.py tests/test_identify.py tests/test_identify_checks.py"
-        " tests/test_lm_power.py"
+        " tests/test_lm_power.py tests/test_identify_power.py"
         " tests/test_bad_inputs_cli.py::test_fit_refuses_logs_it_cannot_trust",
     ),
     "tuning": (
@@ -97,6 +97,7 @@ MODULES = {
     "checks": (
         "vcjax/identify/checks.py",
         "tests/test_identify_checks.py tests/test_identify.py tests/test_bad_inputs_cli.py"
+        " tests/test_identify_power.py"
         " -k 'not infante_rk4 and (not bad_inputs_cli or fit_refuses)'",
     ),
     "remus100": (
