@@ -725,3 +725,24 @@ def test_run_fit_config_makes_a_nested_out_before_the_log_checks(tmp_path):
     with pytest.raises(ValueError, match="is listed twice"):
         run_fit_config(path, tmp_path / "a" / "b")
     assert (tmp_path / "a" / "b").is_dir()
+
+
+@pytest.mark.slow  # a whole fit of two short logs, figures included (compiles the fit: ~10 s)
+def test_run_fit_config_of_two_logs_writes_a_figure_each_and_no_progress(tmp_path, capsys):
+    from vcjax.identify import get_fit_model, load_log, save_log_csv
+
+    model = get_fit_model("remus100")
+    log = load_log(_CSV, model.state_columns, model.command_columns)
+    names = []
+    for name, rows in (("one.csv", slice(0, 40)), ("two.csv", slice(40, 80))):
+        cols = (model.state_columns, model.command_columns)
+        save_log_csv(tmp_path / name, log.t[rows], log.x[rows], log.u[rows], *cols)
+        names.append(name)
+    path = _run_config(tmp_path, names)
+    path.write_text(path.read_text() + "segment_steps = 10\nmax_iters = 2\n")
+    out = run_fit_config(path, tmp_path / "out")
+    assert capsys.readouterr().out == ""  # progress is off unless asked for
+    assert (tmp_path / "out" / "measured_vs_predicted_one.png").is_file()
+    assert (tmp_path / "out" / "measured_vs_predicted_two.png").is_file()
+    assert not (tmp_path / "out" / "measured_vs_predicted.png").exists()
+    assert out["fit"]["files"] == names
