@@ -1,8 +1,9 @@
 """The log and trust checks of ``vcjax fit`` (``vcjax.identify.checks``) at their bounds, on
-tiny hand-made logs and models (numpy only: nothing is compiled). Exact bounds use numbers
+tiny hand-made logs and models (numpy only: nothing is compiled), and the ``[data] [model]
+[fit]`` config's declarations and checks (``vcjax.identify.config``). Exact bounds use numbers
 whose arithmetic is exact in binary floating point, so that "within a factor" is tested on
-the factor itself. Written for the survivors of the mutation run of
-``vcjax/identify/checks.py`` (``docs/development/testing.md``)."""
+the factor itself. Written for the survivors of the mutation runs of
+``vcjax/identify/checks.py`` and ``config.py`` (``docs/development/testing.md``)."""
 
 from __future__ import annotations
 
