@@ -747,3 +747,26 @@ def test_run_fit_config_of_two_logs_writes_a_figure_each_and_no_progress(tmp_pat
     assert (tmp_path / "out" / "measured_vs_predicted_two.png").is_file()
     assert not (tmp_path / "out" / "measured_vs_predicted.png").exists()
     assert out["fit"]["files"] == names
+
+
+# ------------------------------------------------------------------ reading a CSV log
+
+
+def test_csv_provenance_header_and_line_numbers(tmp_path):
+    """The provenance is the first line after its ``#``; a file of only that line has no
+    header; a bad row is named by its line in the file (provenance and header counted)."""
+    from vcjax.identify import load_log
+
+    path = tmp_path / "a.csv"
+    path.write_text("#prov\nt,u,c\n0,1,0\n1,2,0\n")
+    log = load_log(path, ("u",), ("c",))
+    assert log.provenance == "prov" and log.x[:, 0].tolist() == [1.0, 2.0]
+    path.write_text("#prov\n")
+    with pytest.raises(ValueError, match="no header line of column names"):
+        load_log(path, ("u",), ("c",))
+    path.write_text("#prov\nt,u,c\n0,1,0\n1\n")
+    with pytest.raises(ValueError, match="line 4 has 1 fields, the header has 3"):
+        load_log(path, ("u",), ("c",))
+    path.write_text("t,u,c\n0\n")
+    with pytest.raises(ValueError, match="line 2 has 1 fields, the header has 3"):
+        load_log(path, ("u",), ("c",))
