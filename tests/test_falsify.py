@@ -256,6 +256,8 @@ def test_cli_writes_worst_summary_figures_and_replays_them(tmp_path, capsys):
     else:
         assert summary["beat_random_s"] is None and summary["beat_random_rollouts"] is None
     assert summary["gradient"] == "forward"
+    # no sea: no surface to check
+    assert summary["worst_above_surface_fraction"] is None and summary["warnings"] == []
     for f in ("falsify_worst.png", "falsify_curve.png", "run.json"):
         assert (out / f).is_file()
     # the replay runs the same scenarios again: the same metric
@@ -346,3 +348,58 @@ def test_a_scenario_of_the_search_is_the_sweeps_scenario_of_the_same_number():
     m = evaluate(loop, loop.default_gains(), env, setting, "max_abs_e", x, res.index)
     for k in ("max_abs_e", "ss_abs_e", "rms_cross_track_e", "iae_e"):
         np.testing.assert_allclose(m[k], res.metrics["vcm_integral"][k], rtol=1e-10)
+
+
+BROACH_CONFIG = """
+[scenario]
+vehicle = "remus100"
+controller = "vcm3d_ilos"
+[scenario.path]
+kind = "line"
+origin = [0.0, 0.0, 0.0]
+direction = [1.0, 0.0, 0.0]
+
+[falsify]
+metric = "rms_depth_err"
+starts = 2
+steps = 1
+random_rollouts = 2
+seed = 0
+
+[simulation]
+horizon = 12.0
+dt = 0.1
+timing = "sampled"
+
+[current]
+speed = 0.0
+
+[waves]
+hs = 3.0
+tp = [5.0, 6.0]
+direction_deg = 180.0
+components = 8
+origin_depth = 0.6
+"""
+
+
+@pytest.mark.slow  # REMUS 100 in a sea: its search and forward programs compile (a minute loaded)
+def test_a_worst_case_above_the_sea_surface_is_reported(tmp_path, capsys):
+    """A leg 0.6 m under the mean surface in Hs 3 m seas: the troughs uncover the vehicle.
+    The worst scenario's clearance below the local surface (depth below the mean surface plus
+    the elevation above it) goes negative, and the command says so: summary.json's fraction of
+    the run above the surface and least clearance, and a warning naming the submerged model."""
+    import json
+
+    from vcjax import cli
+
+    cfg = tmp_path / "f.toml"
+    cfg.write_text(BROACH_CONFIG)
+    out = tmp_path / "out"
+    assert cli.main(["falsify", str(cfg), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    frac, lowest = summary["worst_above_surface_fraction"], summary["worst_min_clearance_m"]
+    assert 0.0 < frac <= 1.0 and lowest < 0.0
+    assert summary["warnings"] and "above the local sea surface" in summary["warnings"][0]
+    assert "vcjax: warning: falsify:" in err and "submerged model" in err

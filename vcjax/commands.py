@@ -401,6 +401,8 @@ def falsify(args) -> int:
     say = lambda line: print(f"falsify: {line}", file=sys.stderr, flush=True)
     with interruptible():
         result = run_falsify_config(cfg, out, progress=say)
+    for line in result.get("warnings", ()):
+        print(f"vcjax: warning: falsify: {line}", file=sys.stderr)
     s = result["summary"]
     print(
         f"worst {s['metric']}: gradient search {s['worst']} ({s['rollouts']} rollouts, "

@@ -242,10 +242,42 @@ def run_falsify_config(cfg: dict, out_dir, progress=None) -> dict:
         "random_curve": _steps(res.random_curve),
         "devices": jax.device_count(),
     }
+    run, notes = None, []
+    frac = lowest = None
+    # the worst scenario is run again for the figures and, in a sea, to check that the vehicle
+    # stayed under the surface
+    if res.value.size and (cfg["figures"] or cfg["setting"].sea is not None):
+        run, (frac, lowest) = _worst_run(res, cfg)
+    summary["worst_above_surface_fraction"] = frac
+    summary["worst_min_clearance_m"] = lowest
+    if frac:
+        notes.append(
+            f"the worst scenario's vehicle is above the local sea surface for "
+            f"{100 * frac:.3g} % of its run (up to {-lowest:.3g} m): outside the submerged "
+            "model (no free surface), so its metric describes no real vehicle; narrow the "
+            "envelope (deeper origin_depth, lower hs) to search where the model holds"
+        )
+    summary["warnings"] = notes
     files.append(write_json_atomic(out / "summary.json", summary))
-    if cfg["figures"] and res.value.size:
-        files += figures(res, cfg, out)
-    return {"summary": summary, "files": files, "result": res}
+    if cfg["figures"] and run is not None:
+        files += figures(res, cfg, out, run)
+    return {"summary": summary, "files": files, "result": res, "warnings": notes}
+
+
+def _worst_run(res, cfg: dict):
+    """The worst scenario's trajectory (for the figures) and ``(fraction of its run above the
+    local sea surface, its least clearance below it [m])``, both None without a sea."""
+    from vcjax.search.figures import worst_run
+
+    row = res.scenarios(1)[0]
+    x = cfg["envelope"].vector(row["params"])
+    traj, clearance = worst_run(
+        cfg["loop"], cfg["gains"], cfg["envelope"], cfg["setting"], x, row["index"]
+    )
+    if clearance is None:
+        return traj, (None, None)
+    c = clearance[1]
+    return traj, (float(np.mean(c < 0.0)), float(np.min(c)))
 
 
 def _steps(curve) -> list:
@@ -275,14 +307,17 @@ def write_worst(res, cfg: dict, path, keep: int) -> Path:
     return write_json_atomic(path, doc)
 
 
-def figures(res, cfg: dict, out: Path) -> list[Path]:
+def figures(res, cfg: dict, out: Path, traj=None) -> list[Path]:
+    """The worst trajectory and the search curves (``traj``: the worst scenario's
+    [`worst_trajectory`][vcjax.search.figures.worst_trajectory], simulated here if not given)."""
     from vcjax.search.figures import plot_curve, plot_worst, worst_trajectory
 
     rows = res.scenarios(1)
-    x = cfg["envelope"].vector(rows[0]["params"])
-    traj = worst_trajectory(
-        cfg["loop"], cfg["gains"], cfg["envelope"], cfg["setting"], x, rows[0]["index"]
-    )
+    if traj is None:
+        x = cfg["envelope"].vector(rows[0]["params"])
+        traj = worst_trajectory(
+            cfg["loop"], cfg["gains"], cfg["envelope"], cfg["setting"], x, rows[0]["index"]
+        )
     shown = ", ".join(
         f"{k} {v:.3g}" for k, v in rows[0]["params"].items() if k in cfg["envelope"].searched
     )

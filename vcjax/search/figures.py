@@ -21,11 +21,45 @@ from vcjax.rollout import RolloutConfig
 from vcjax.search.envelope import Envelope, Setting, scenario_from
 from vcjax.sweep.run import to_scenario
 
-__all__ = ["worst_trajectory", "plot_worst", "plot_curve"]
+__all__ = ["worst_trajectory", "surface_clearance", "plot_worst", "plot_curve"]
 
 
 def worst_trajectory(loop, gains, env: Envelope, setting: Setting, x, index):
     """``(t (N,), pos (N, 3), e (N,), dist (N,), path (P, 3))`` of one scenario (numpy)."""
+    return worst_run(loop, gains, env, setting, x, index)[0]
+
+
+def surface_clearance(loop, gains, env: Envelope, setting: Setting, x, index):
+    """How far below the local sea surface the vehicle of one scenario runs: ``(t (N,),
+    clearance (N,))`` [s, m] (numpy; negative: above the surface, where the submerged model
+    -- no free surface, no loss of buoyancy or fin lift -- does not describe a vehicle), or
+    None for a scenario without a sea. ``clearance = origin_depth + z + zeta(t, north, east)``:
+    the vehicle's depth below the mean surface plus the elevation of the sea above it."""
+    return worst_run(loop, gains, env, setting, x, index)[1]
+
+
+def worst_run(loop, gains, env: Envelope, setting: Setting, x, index):
+    """[`worst_trajectory`][vcjax.search.figures.worst_trajectory] and
+    [`surface_clearance`][vcjax.search.figures.surface_clearance] of one scenario from one
+    simulation."""
+    traj, sig, _, sc = _simulate(loop, gains, env, setting, x, index)
+    pos = np.asarray(sig.pos)
+    path = np.asarray(loops.path_polyline(loop.path, setting.nominal[2], pos))
+    t = np.asarray(traj.t[1:])
+    e = np.asarray(sig.eps[:, 1])
+    d = np.sqrt(np.sum(np.asarray(sig.p_err) ** 2, axis=1))
+    clearance = None
+    if sc.sea is not None and sc.wave_origin_depth is not None:
+        from vcjax.environment import waves
+
+        tp, p = jnp.asarray(t[: pos.shape[0]]), jnp.asarray(pos)
+        zeta = jax.vmap(lambda tt, q: waves.elevation(sc.sea, tt, q[0], q[1]))(tp, p)
+        clearance = (np.asarray(tp), np.asarray(sc.wave_origin_depth + p[:, 2] + zeta))
+    return (t[: e.size], pos, e, d, path), clearance
+
+
+def _simulate(loop, gains, env: Envelope, setting: Setting, x, index):
+    """``(trajectory, signals, loop scenario, search scenario)`` of one scenario."""
     dtype = jnp.asarray(jax.tree_util.tree_leaves(setting.nominal)[0]).dtype
     sc = scenario_from(jnp.asarray(np.asarray(x, float), dtype), index, env, setting)
     plant, design, coeffs = setting.nominal
@@ -41,13 +75,7 @@ def worst_trajectory(loop, gains, env: Envelope, setting: Setting, x, index):
         key=sc.key,
     )
     traj = jax.jit(lambda g, s_: loops.simulate(loop, g, s_, rcfg, setting.dt, dist, dp))(gains, s)
-    sig = loop.signals(traj, s)
-    pos = np.asarray(sig.pos)
-    path = np.asarray(loops.path_polyline(loop.path, coeffs, pos))
-    t = np.asarray(traj.t[1:])
-    e = np.asarray(sig.eps[:, 1])
-    d = np.sqrt(np.sum(np.asarray(sig.p_err) ** 2, axis=1))
-    return t[: e.size], pos, e, d, path
+    return traj, loop.signals(traj, s), s, sc
 
 
 def plot_worst(traj, title: str, path) -> Path:
