@@ -3,7 +3,8 @@ tiny hand-made logs and models (numpy only: nothing is compiled), and the ``[dat
 [fit]`` config's declarations and checks (``vcjax.identify.config``). Exact bounds use numbers
 whose arithmetic is exact in binary floating point, so that "within a factor" is tested on
 the factor itself. Written for the survivors of the mutation runs of
-``vcjax/identify/checks.py`` and ``config.py`` (``docs/development/testing.md``)."""
+``vcjax/identify/checks.py``, ``config.py`` and ``data.py`` (the log reader's checks and
+messages; ``docs/development/testing.md``)."""
 
 from __future__ import annotations
 
@@ -770,3 +771,81 @@ def test_csv_provenance_header_and_line_numbers(tmp_path):
     path.write_text("t,u,c\n0\n")
     with pytest.raises(ValueError, match="line 2 has 1 fields, the header has 3"):
         load_log(path, ("u",), ("c",))
+
+
+# --------------------------------------------------------------- vcjax/identify/data.py
+
+
+def _load(path):
+    from vcjax.identify import load_log
+
+    return load_log(path, ("u",), ("c",))
+
+
+def _csv(tmp_path, text, name="a.csv"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_a_log_is_frozen_and_a_two_sample_log_is_enough(tmp_path):
+    import dataclasses
+
+    log = _load(_csv(tmp_path, "t,u,c\n0,1,2\n0.5,1,2\n"))
+    assert log.t.tolist() == [0.0, 0.5]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        log.t = None
+    with pytest.raises(ValueError, match="at least 2 samples, got 1"):
+        _load(_csv(tmp_path, "t,u,c\n0,1,2\n", "b.csv"))
+
+
+def test_a_csv_row_with_more_fields_than_the_header_is_named(tmp_path):
+    with pytest.raises(ValueError, match="line 3 has 4 fields, the header has 3"):
+        _load(_csv(tmp_path, "t,u,c\n0,1,2\n1,1,2,9\n"))
+
+
+def test_the_log_suffix_chooses_the_reader(tmp_path):
+    for name in ("a.abc", "a.txt", "a.zzz"):
+        with pytest.raises(ValueError, match=r"expected a \.csv or \.npz log, got '\." + name[2:]):
+            _load(_csv(tmp_path, "t,u,c\n0,1,2\n1,1,2\n", name))
+    with pytest.raises(ValueError, match="got 'no suffix'"):
+        _load(_csv(tmp_path, "t,u,c\n0,1,2\n1,1,2\n", "log"))
+
+
+def test_npz_logs_take_1d_numeric_arrays_only_and_never_unpickle(tmp_path):
+    good = {"t": np.array([0.0, 1.0]), "u": np.array([1.0, 2.0]), "c": np.array([0.0, 0.0])}
+    np.savez(tmp_path / "ok.npz", **good)
+    assert _load(tmp_path / "ok.npz").x[:, 0].tolist() == [1.0, 2.0]
+    for bad in (np.ones((2, 2)), np.float64(1.0), np.array(["a", "b"])):  # 2-D, 0-D, strings
+        np.savez(tmp_path / "b.npz", **{**good, "u": bad})
+        with pytest.raises(ValueError, match="'u' must be a 1-D numeric array"):
+            _load(tmp_path / "b.npz")
+    np.savez(tmp_path / "o.npz", **{**good, "u": np.array([{"x": 1}, None], dtype=object)})
+    with pytest.raises(ValueError, match="allow_pickle"):  # numpy refuses before any unpickling
+        _load(tmp_path / "o.npz")
+    np.savez(tmp_path / "l.npz", **{**good, "u": np.array([1.0, 2.0, 3.0])})
+    with pytest.raises(ValueError, match=r"different lengths \[2, 3\]"):
+        _load(tmp_path / "l.npz")
+
+
+def test_missing_columns_are_named_in_singular_and_plural(tmp_path):
+    with pytest.raises(ValueError, match="missing column 'c' "):
+        _load(_csv(tmp_path, "t,u\n0,1\n1,1\n"))
+    with pytest.raises(ValueError, match="missing columns 'u', 'c' "):
+        _load(_csv(tmp_path, "t\n0\n1\n", "b.csv"))
+
+
+def test_the_first_bad_value_and_the_first_non_increasing_time_are_named(tmp_path):
+    with pytest.raises(ValueError, match="2 NaN/inf or empty value.s., first at line 3"):
+        _load(_csv(tmp_path, "t,u,c\n0,1,2\n1,nan,2\n2,inf,2\n"))
+    # equal times are refused too, and the message names the first step back and its predecessor
+    with pytest.raises(ValueError, match=r"t = 1 at line 4 follows t = 1$"):
+        _load(_csv(tmp_path, "t,u,c\n0,1,2\n1,1,2\n1,1,2\n3,1,2\n2,1,2\n", "b.csv"))
+    with pytest.raises(ValueError, match=r"t = 0.25 at row 2 follows t = 0.5$"):
+        np.savez(
+            tmp_path / "d.npz",
+            t=np.array([0.0, 0.5, 0.25, 1.0, 0.75]),
+            u=np.zeros(5),
+            c=np.zeros(5),
+        )
+        _load(tmp_path / "d.npz")
