@@ -307,17 +307,12 @@ def write_worst(res, cfg: dict, path, keep: int) -> Path:
     return write_json_atomic(path, doc)
 
 
-def figures(res, cfg: dict, out: Path, traj=None) -> list[Path]:
+def figures(res, cfg: dict, out: Path, traj) -> list[Path]:
     """The worst trajectory and the search curves (``traj``: the worst scenario's
-    [`worst_trajectory`][vcjax.search.figures.worst_trajectory], simulated here if not given)."""
-    from vcjax.search.figures import plot_curve, plot_worst, worst_trajectory
+    [`worst_trajectory`][vcjax.search.figures.worst_trajectory])."""
+    from vcjax.search.figures import plot_curve, plot_worst
 
     rows = res.scenarios(1)
-    if traj is None:
-        x = cfg["envelope"].vector(rows[0]["params"])
-        traj = worst_trajectory(
-            cfg["loop"], cfg["gains"], cfg["envelope"], cfg["setting"], x, rows[0]["index"]
-        )
     shown = ", ".join(
         f"{k} {v:.3g}" for k, v in rows[0]["params"].items() if k in cfg["envelope"].searched
     )

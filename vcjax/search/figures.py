@@ -21,7 +21,7 @@ from vcjax.rollout import RolloutConfig
 from vcjax.search.envelope import Envelope, Setting, scenario_from
 from vcjax.sweep.run import to_scenario
 
-__all__ = ["worst_trajectory", "surface_clearance", "plot_worst", "plot_curve"]
+__all__ = ["worst_trajectory", "worst_run", "plot_worst", "plot_curve"]
 
 
 def worst_trajectory(loop, gains, env: Envelope, setting: Setting, x, index):
@@ -29,19 +29,14 @@ def worst_trajectory(loop, gains, env: Envelope, setting: Setting, x, index):
     return worst_run(loop, gains, env, setting, x, index)[0]
 
 
-def surface_clearance(loop, gains, env: Envelope, setting: Setting, x, index):
-    """How far below the local sea surface the vehicle of one scenario runs: ``(t (N,),
-    clearance (N,))`` [s, m] (numpy; negative: above the surface, where the submerged model
-    -- no free surface, no loss of buoyancy or fin lift -- does not describe a vehicle), or
-    None for a scenario without a sea. ``clearance = origin_depth + z + zeta(t, north, east)``:
-    the vehicle's depth below the mean surface plus the elevation of the sea above it."""
-    return worst_run(loop, gains, env, setting, x, index)[1]
-
-
 def worst_run(loop, gains, env: Envelope, setting: Setting, x, index):
-    """[`worst_trajectory`][vcjax.search.figures.worst_trajectory] and
-    [`surface_clearance`][vcjax.search.figures.surface_clearance] of one scenario from one
-    simulation."""
+    """``(trajectory, clearance)`` of one scenario from one simulation: its
+    [`worst_trajectory`][vcjax.search.figures.worst_trajectory], and how far below the local
+    sea surface its vehicle runs, ``(t (N,), clearance (N,))`` [s, m] (numpy; negative: above
+    the surface, where the submerged model -- no free surface, no loss of buoyancy or fin
+    lift -- does not describe a vehicle), or None for a scenario without a sea.
+    ``clearance = origin_depth + z + zeta(t, north, east)``: the vehicle's depth below the
+    mean surface plus the elevation of the sea above it."""
     traj, sig, _, sc = _simulate(loop, gains, env, setting, x, index)
     pos = np.asarray(sig.pos)
     path = np.asarray(loops.path_polyline(loop.path, setting.nominal[2], pos))
