@@ -397,13 +397,6 @@ class _Search(NamedTuple):
     stop: Callable[[], bool]
 
 
-def _from_unit(env: Envelope, z, dtype) -> np.ndarray:
-    """Unit-box coordinates (B, P) to config units on the host, in ``dtype``
-    ([`Envelope.from_unit`][vcjax.search.envelope.Envelope.from_unit]'s arithmetic)."""
-    lo, hi = np.asarray(env.lo, dtype), np.asarray(env.hi, dtype)
-    return lo + (hi - lo) * np.asarray(z, dtype)
-
-
 def _ascent(c: _Search) -> dict:
     """Multi-start projected gradient ascent (Adam in the unit box): each start's worst point,
     its metric and divergence flag, the curve, and how the ascent ended."""
@@ -455,7 +448,7 @@ def _ascent(c: _Search) -> dict:
         vh = m2 / (1 - b2 ** (k + 1))
         z = (np.clip(z + o.step_size * mh / (np.sqrt(vh) + 1e-8), 0.0, 1.0) * width).astype(ftype)
     out["wall_s"] = time.perf_counter() - t0
-    x = _from_unit(c.envelope, best_z, c.dtype)
+    x = c.envelope.from_unit(np.asarray(best_z, c.dtype))
     out.update(x=x, index=np.asarray(index), value=best_val, diverged=best_div.astype(bool))
     return out
 
@@ -478,7 +471,7 @@ def _baseline(c: _Search, n_rand: int, interrupted: bool) -> dict:
             interrupted = True
             break
         zb = rng.random((batch, P)) * np.asarray(c.width)
-        xb = _from_unit(c.envelope, zb, c.dtype)
+        xb = c.envelope.from_unit(np.asarray(zb, c.dtype))
         ib = np.arange(i0 + starts + j, i0 + starts + j + batch, dtype=np.int32)
         if fwd is None:
             fwd = functools.partial(_forward, env=c.envelope, setting=c.key, metric=metric)

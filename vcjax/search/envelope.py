@@ -114,10 +114,14 @@ class Envelope:
         return (np.asarray(x) - lo) / w * (hi > lo)
 
     def from_unit(self, z):
-        """``[0, 1]`` coordinates -> config units (jnp; fixed parameters at ``lo``)."""
-        z = jnp.asarray(z)
-        lo = jnp.asarray(self.lo, z.dtype)
-        hi = jnp.asarray(self.hi, z.dtype)
+        """``[0, 1]`` coordinates -> config units in ``z``'s dtype (fixed parameters at
+        ``lo``): a NumPy array stays on the host and is mapped with NumPy (the search's own
+        arithmetic: eager JAX would compile a kernel per operation), anything else with jnp
+        (traced inside the search's program)."""
+        xp = np if isinstance(z, np.ndarray) else jnp
+        z = xp.asarray(z)
+        lo = xp.asarray(self.lo, z.dtype)
+        hi = xp.asarray(self.hi, z.dtype)
         return lo + (hi - lo) * z
 
     def params(self, x) -> dict:
