@@ -50,7 +50,7 @@ from tuning.scenarios import (
 from tuning.spec import TuneConfig
 from vcjax import loops, paths
 from vcjax.config import ConfigError
-from vcjax.runtime import distributed, programs
+from vcjax.runtime import compiler, distributed, programs
 from vcjax.runtime.interrupts import stop_requested_everywhere
 from vcjax.runtime.outputs import write_json_atomic
 
@@ -179,7 +179,7 @@ def _trajectories(problem, gains_list, batch, dt, n, run=None):
     cross-track errors (S, N) of the first ``n`` scenarios of ``batch``: one program (the gains
     are its argument; ``run``: that program built already), compiled once for all of them."""
     fn, sub = _trajectory_program(problem, batch, n)
-    run = jax.jit(fn) if run is None else run
+    run = compiler.jit(fn) if run is None else run
     out = []
     for gains in gains_list:
         t, xy, eps, u_err, psi_err, ratio = jax.device_get(run(gains, sub, dt))
@@ -261,7 +261,7 @@ def _prepare(cfg: TuneConfig, say) -> _Tune:
         f"({o['grad_mode']} mode); training batch on {n_dev} device(s)"
     )
     t = _Tune(cfg, problem, eval_problem, data, train, heldout, n_dev=n_dev)
-    t.eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
+    t.eval_fn = compiler.jit(lambda th, d, s: objective(th, d, s, eval_problem))
     start = data.theta_ref + space.symmetry_break(data.base)
     if cfg.robust is not None:  # [robust]: a first search fills the batch's adversarial slot
         from tuning.robust import attach
@@ -294,7 +294,7 @@ def _prebuild(t: _Tune, theta0) -> None:
     built = programs.build_all(jobs)
     t.eval_fn = programs.for_arguments_like(built[0][0], jobs[0][3], t.eval_fn)
     if n_plot:
-        t.trajectories = programs.for_arguments_like(built[1][0], jobs[1][3], jax.jit(fn))
+        t.trajectories = programs.for_arguments_like(built[1][0], jobs[1][3], compiler.jit(fn))
 
 
 def _say_timing(res, say) -> None:

@@ -18,6 +18,7 @@ import numpy as np
 from vcjax import loops
 from vcjax.plots import pyplot, save
 from vcjax.rollout import RolloutConfig
+from vcjax.runtime import compiler
 from vcjax.search.envelope import Envelope, Setting, scenario_from
 from vcjax.sweep.run import to_scenario
 
@@ -69,7 +70,9 @@ def _simulate(loop, gains, env: Envelope, setting: Setting, x, index):
         noise_std=sc.noise_std,
         key=sc.key,
     )
-    traj = jax.jit(lambda g, s_: loops.simulate(loop, g, s_, rcfg, setting.dt, dist, dp))(gains, s)
+    traj = compiler.jit(lambda g, s_: loops.simulate(loop, g, s_, rcfg, setting.dt, dist, dp))(
+        gains, s
+    )
     return traj, loop.signals(traj, s), s, sc
 
 

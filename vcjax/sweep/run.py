@@ -27,7 +27,7 @@ from vcjax.metrics import (
     window_start,
 )
 from vcjax.rollout import Reduction, RolloutConfig, Trajectory
-from vcjax.runtime import programs
+from vcjax.runtime import compiler, programs
 from vcjax.runtime.interrupts import stop_requested
 from vcjax.runtime.progress import ProgressBar
 from vcjax.sweep.results import SweepResult, run_timing
@@ -302,7 +302,7 @@ def _traced_act_names(loop, gains, s: loops.Scenario) -> tuple[str, ...]:
     return tuple(jax.eval_shape(signals))
 
 
-@functools.partial(jax.jit, static_argnames=("loop", "config"))
+@functools.partial(compiler.jit, static_argnames=("loop", "config"))
 def _run_batch(loop, gains, nominal_params, scenarios, config, dt, diverge_e):
     def one(sc):
         return streamed_metrics(loop, gains, nominal_params, sc, config, dt, diverge_e)
