@@ -38,6 +38,7 @@ from tuning.params import GainSpace
 from tuning.scenarios import SCENARIO_AXES
 from vcjax import loops
 from vcjax.rollout import RolloutConfig
+from vcjax.sweep.run import surface_clearance
 
 __all__ = [
     "TERMS",
@@ -151,6 +152,9 @@ class TuningProblem:
             32 scenarios x 200 steps: 192 -> 140 ms, compile 23 -> 19 s;
             ``docs/performance.md``), and needs the least memory but one.
         checkpoint_every: with ``checkpoint``, the segment length (``RolloutConfig``; default 1).
+        surface: in a sea, add each scenario's ``above_surface_fraction`` and
+            ``min_surface_clearance`` [m] (``vcjax.sweep.run.SURFACE_METRICS``) to its terms
+            (the held-out evaluation of ``vcjax tune``; not part of the loss).
         smooth: tanh actuator saturation in the plant (gradients pass through saturation).
         risk: ``"mean"`` or ``"cvar"`` aggregation over the batch.
         alpha: CVaR level in (0, 1]: the fraction of worst scenarios averaged.
@@ -168,6 +172,7 @@ class TuningProblem:
     timing: str = "continuous"
     checkpoint: bool = True
     checkpoint_every: int = 1
+    surface: bool = False
     smooth: bool = True
     risk: str = "mean"
     alpha: float = 0.2
@@ -251,8 +256,17 @@ def scenario_losses(theta, data: ProblemData, scenarios, problem: TuningProblem)
 
     def one(g, sc):
         traj = loops.simulate(loop, g, sc, cfg, data.dt)
-        terms = rollout_terms(traj, loop.signals(traj, sc), w.sat_width)
-        return weighted_loss(terms, w), terms
+        sig = loop.signals(traj, sc)
+        terms = rollout_terms(traj, sig, w.sat_width)
+        loss = weighted_loss(terms, w)
+        if problem.surface and sc.sea is not None and sc.origin_depth is not None:
+            n = sig.pos.shape[0]  # the samples: the states at the start of each step
+            c = surface_clearance(sc, sig.pos, traj.t[:n])
+            terms = terms | {
+                "above_surface_fraction": jnp.mean((c < 0).astype(c.dtype)),
+                "min_surface_clearance": jnp.min(c),
+            }
+        return loss, terms
 
     if not problem.tile_gains:
         return jax.vmap(one, in_axes=(None, SCENARIO_AXES))(gains, scenarios)
