@@ -15,6 +15,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from vcjax.identify.data import load_log
+from vcjax.identify.manoeuvres import (
+    SENSOR_NOISE,
+    STUDY_PARAMS,
+    infante_logs,
+    perturbed_params,
+    simulate_trial,
+)
 from vcjax.identify.models import FIT_MODELS, get_fit_model, scalar_fields
 
 INFANTE = get_fit_model("infante")
@@ -79,3 +87,124 @@ def test_make_args_water_is_the_current_with_no_vertical(vehicle):
 def test_remus_actuator_limits_are_the_rudder_and_the_stern_plane():
     p = REMUS.nominal(jnp.float64)._replace(act_max=jnp.asarray([0.1, 0.2, 1500.0]))
     assert REMUS.actuator_limits(p) == {"delta_r": 0.1, "delta_s": 0.2}
+
+
+# ------------------------------------------------------------------ manoeuvres
+
+
+def _helm_plant(t, s, u, args):
+    """A toy INFANTE-class plant whose trials can be followed by hand: the heading turns at
+    minus the commanded rudder angle (positive rudder to port), the x position moves at the
+    surge speed (held), y at the water's east velocity, the actuators follow their commands
+    at unit rate."""
+    vel = args.water.velocity
+    eta_dot = jnp.stack([s.nu[0], vel[1], -u[1]])
+    return type(s)(eta=eta_dot, nu=jnp.zeros_like(s.nu), act=u - s.act)
+
+
+@pytest.fixture
+def helm(monkeypatch):
+    """The INFANTE-class model, its plant replaced by :func:`_helm_plant` (one small program
+    per trial)."""
+    monkeypatch.setitem(FIT_MODELS, "infante", dataclasses.replace(INFANTE, plant=_helm_plant))
+    return INFANTE.nominal(jnp.float64)
+
+
+def test_the_zigzag_reverses_the_rudder_at_20_degrees_exactly(helm):
+    """With the heading moving at the rudder angle, +-20 deg is reached at exactly 1 s (dt
+    0.25 s: sums exact in binary): the rudder reverses at that sample, 2 s later at +20 deg
+    again; the thrust command is the trial's, the start straight running at 2.5 m/s."""
+    d20 = np.radians(20.0)
+    t, x, u = simulate_trial(helm, "zigzag", dt=0.25, horizon=4.0, thrust=400.0)
+    np.testing.assert_array_equal(t, 0.25 * np.arange(17))
+    np.testing.assert_array_equal(x[0], [0.0, 0.0, 0.0, 2.5, 0.0, 0.0, 400.0, 0.0])
+    assert x[4, 2] == -d20 and x[12, 2] == d20
+    np.testing.assert_array_equal(u[:, 1], d20 * np.repeat([1.0, -1.0, 1.0], [4, 8, 5]))
+    np.testing.assert_array_equal(u[:, 0], 400.0)
+    np.testing.assert_allclose(x[:, 0], 2.5 * t, rtol=1e-14)
+    np.testing.assert_array_equal(x[:, 1], 0.0)  # no current
+
+
+def test_the_turning_circle_puts_the_rudder_to_25_degrees_at_5_s(helm):
+    t, x, u = simulate_trial(helm, "turning_circle", dt=0.25, horizon=6.0)
+    np.testing.assert_array_equal(u[:, 1], np.where(t >= 5.0, np.radians(25.0), 0.0))
+    np.testing.assert_array_equal(u[:, 0], 600.0)
+    assert u[20, 1] > 0.0 and u[19, 1] == 0.0
+
+
+def test_the_speed_steps_are_a_quarter_of_the_horizon_each(helm):
+    t, x, u = simulate_trial(helm, "speed_steps", dt=0.25, horizon=8.0, thrust=400.0)
+    T = np.repeat([400.0, 600.0, 200.0, 400.0], [8, 8, 8, 9])  # the last sample: level 3 held
+    np.testing.assert_array_equal(u[:, 0], T)
+    np.testing.assert_array_equal(u[:, 1], 0.0)
+    assert t.size == 33
+
+
+@pytest.mark.parametrize("trial", ["spiral", "zigzag_10"])  # before and after "zigzag"
+def test_an_unknown_trial_is_named(trial):
+    with pytest.raises(ValueError, match=f"trial: '{trial}' is not one of"):
+        simulate_trial(INFANTE.nominal(jnp.float64), trial, dt=0.5, horizon=1.0)
+
+
+def test_sensor_noise_is_the_documented_one():
+    """``docs/guides/identification.md``: 0.1 m, 0.2 deg, 2 cm/s, 0.1 deg/s, 5 N, 0.2 deg."""
+    deg = np.radians(1.0)
+    assert SENSOR_NOISE == pytest.approx(
+        {"x": 0.1, "y": 0.1, "psi": 0.2 * deg, "u": 0.02, "v": 0.02, "r": 0.1 * deg,
+         "thrust": 5.0, "delta": 0.2 * deg},
+        rel=1e-15,
+    )  # fmt: skip
+    assert list(SENSOR_NOISE) == list(INFANTE.state_columns)
+
+
+def test_perturbed_params_scale_the_named_fields_by_one_plus_or_minus_frac():
+    base = INFANTE.nominal(jnp.float64)
+    for seed in range(4):
+        p = perturbed_params(base, 0.25, seed=seed)
+        signs = np.random.default_rng(seed).choice([-1.0, 1.0], size=len(STUDY_PARAMS))
+        for name, value in zip(base._fields, base, strict=True):
+            want = (
+                value * (1.0 + 0.25 * signs[STUDY_PARAMS.index(name)])
+                if name in STUDY_PARAMS
+                else value
+            )
+            np.testing.assert_array_equal(getattr(p, name), want, err_msg=name)
+    ratios = {
+        n: float(getattr(perturbed_params(base, 0.5), n) / getattr(base, n)) for n in STUDY_PARAMS
+    }
+    assert set(ratios.values()) == {0.5, 1.5}  # the default seed draws both signs
+    assert ratios == {
+        n: float(getattr(perturbed_params(base, 0.5, seed=0), n) / getattr(base, n))
+        for n in STUDY_PARAMS
+    }
+    assert STUDY_PARAMS == ("X_uu", "Y_uv", "Y_ur", "N_uv", "N_ur", "Y_uudr", "N_uudr", "cf_coeff")
+
+
+def test_infante_logs_defaults_noise_and_provenance(helm, tmp_path):
+    """The defaults: 120 s at 10 Hz, the documented sensor noise drawn from seed 0 (white,
+    Gaussian: ``N(0, 1)`` draws times each channel's deviation); ``noise=None``: none."""
+    (path,) = infante_logs(helm, tmp_path / "a", trials=("turning_circle",))
+    assert path == tmp_path / "a" / "infante_turning_circle.csv"
+    log = load_log(path, INFANTE.state_columns, INFANTE.command_columns)
+    t, x, u = simulate_trial(helm, "turning_circle", 0.1, 120.0)
+    np.testing.assert_allclose(log.t, t, rtol=1e-9)
+    sig = np.array([SENSOR_NOISE[c] for c in INFANTE.state_columns])
+    draws = np.random.default_rng(0).normal(size=x.shape)
+    np.testing.assert_allclose((log.x - x) / sig, draws, rtol=1e-6, atol=1e-6 * abs(x).max())
+    np.testing.assert_allclose(log.u, u, rtol=1e-9)
+    assert log.provenance.startswith("INFANTE-class turning_circle, rk4, dt 0.1 s, sensor noise {")
+    (clean,) = infante_logs(
+        helm, tmp_path / "b", dt=0.5, horizon=2.0, noise=None, trials=("zigzag",)
+    )
+    log = load_log(clean, INFANTE.state_columns, INFANTE.command_columns)
+    np.testing.assert_array_equal(log.x[:, 1], 0.0)  # no noise on y (no current)
+    assert log.provenance == "INFANTE-class zigzag, rk4, dt 0.5 s, sensor noise {}"
+
+
+def test_infante_logs_refuse_a_diverged_plant(monkeypatch, tmp_path):
+    nan_plant = lambda t, s, u, args: jax.tree.map(lambda a: a * jnp.nan, s)  # noqa: E731
+    monkeypatch.setitem(FIT_MODELS, "infante", dataclasses.replace(INFANTE, plant=nan_plant))
+    with pytest.raises(ValueError, match="trial 'zigzag': the plant diverged"):
+        infante_logs(
+            INFANTE.nominal(jnp.float64), tmp_path, dt=0.5, horizon=1.0, trials=("zigzag",)
+        )
