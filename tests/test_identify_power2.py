@@ -8,6 +8,7 @@ the few JAX programs are one step or a few steps of the 8-state INFANTE-class pl
 from __future__ import annotations
 
 import dataclasses
+import json
 from typing import NamedTuple
 
 import jax
@@ -140,7 +141,7 @@ def test_the_speed_steps_are_a_quarter_of_the_horizon_each(helm):
     assert t.size == 33
 
 
-@pytest.mark.parametrize("trial", ["spiral", "zigzag_10"])  # before and after "zigzag"
+@pytest.mark.parametrize("trial", ["circle", "spiral", "zigzag_10"])  # between the names
 def test_an_unknown_trial_is_named(trial):
     with pytest.raises(ValueError, match=f"trial: '{trial}' is not one of"):
         simulate_trial(INFANTE.nominal(jnp.float64), trial, dt=0.5, horizon=1.0)
@@ -183,8 +184,8 @@ def test_perturbed_params_scale_the_named_fields_by_one_plus_or_minus_frac():
 def test_infante_logs_defaults_noise_and_provenance(helm, tmp_path):
     """The defaults: 120 s at 10 Hz, the documented sensor noise drawn from seed 0 (white,
     Gaussian: ``N(0, 1)`` draws times each channel's deviation); ``noise=None``: none."""
-    (path,) = infante_logs(helm, tmp_path / "a", trials=("turning_circle",))
-    assert path == tmp_path / "a" / "infante_turning_circle.csv"
+    (path,) = infante_logs(helm, tmp_path / "a" / "b", trials=("turning_circle",))
+    assert path == tmp_path / "a" / "b" / "infante_turning_circle.csv"
     log = load_log(path, INFANTE.state_columns, INFANTE.command_columns)
     t, x, u = simulate_trial(helm, "turning_circle", 0.1, 120.0)
     np.testing.assert_allclose(log.t, t, rtol=1e-9)
@@ -192,7 +193,9 @@ def test_infante_logs_defaults_noise_and_provenance(helm, tmp_path):
     draws = np.random.default_rng(0).normal(size=x.shape)
     np.testing.assert_allclose((log.x - x) / sig, draws, rtol=1e-6, atol=1e-6 * abs(x).max())
     np.testing.assert_allclose(log.u, u, rtol=1e-9)
-    assert log.provenance.startswith("INFANTE-class turning_circle, rk4, dt 0.1 s, sensor noise {")
+    assert log.provenance == (
+        f"INFANTE-class turning_circle, rk4, dt 0.1 s, sensor noise {json.dumps(SENSOR_NOISE)}"
+    )
     (clean,) = infante_logs(
         helm, tmp_path / "b", dt=0.5, horizon=2.0, noise=None, trials=("zigzag",)
     )
