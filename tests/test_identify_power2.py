@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from types import SimpleNamespace
 from typing import NamedTuple
 
 import jax
@@ -25,6 +26,7 @@ from vcjax.identify.manoeuvres import (
     simulate_trial,
 )
 from vcjax.identify.models import FIT_MODELS, get_fit_model, scalar_fields
+from vcjax.identify.shooting import ShootingProblem, make_segments, seg_count
 
 INFANTE = get_fit_model("infante")
 REMUS = get_fit_model("remus100")
@@ -211,3 +213,171 @@ def test_infante_logs_refuse_a_diverged_plant(monkeypatch, tmp_path):
         infante_logs(
             INFANTE.nominal(jnp.float64), tmp_path, dt=0.5, horizon=1.0, trials=("zigzag",)
         )
+
+
+# ------------------------------------------------------------------ shooting
+
+
+def _log_of(t, x, u, name="a.csv"):
+    return SimpleNamespace(name=name, t=np.asarray(t, float), x=np.asarray(x), u=np.asarray(u))
+
+
+def test_segments_cut_every_log_and_pad_the_last_one():
+    """Two logs of 7 and 4 samples in segments of 3: 3 + 2 segments, the last of each padded
+    with its last sample (and its last command and step), masked out."""
+    x1, u1 = np.arange(7.0)[:, None] * [1.0, 10.0], np.arange(7.0)[:, None] * [-1.0]
+    t1 = np.array([0.0, 1.0, 3.0, 6.0, 10.0, 15.0, 21.0])  # steps 1, 2, ..., 6
+    x2, u2 = 100.0 + np.arange(4.0)[:, None] * [1.0, 10.0], 100.0 + np.arange(4.0)[:, None]
+    logs = [_log_of(t1, x1, u1), _log_of(0.5 * np.arange(4), x2, u2)]
+    assert seg_count(logs, 3) == 5 and seg_count(logs, 7) == 2 and seg_count(logs, 2) == 6
+    seg = make_segments(logs, 3)
+    np.testing.assert_array_equal(
+        seg.y[:, :, 0], [[0, 1, 2], [3, 4, 5], [6, 6, 6], [100, 101, 102], [103, 103, 103]]
+    )
+    np.testing.assert_array_equal(
+        seg.y[:, :, 1], 10.0 * seg.y[:, :, 0] - 900.0 * (seg.y[:, :, 0] >= 100)
+    )
+    np.testing.assert_array_equal(
+        seg.u[:, :, 0], [[0, -1], [-3, -4], [-5, -5], [100, 101], [102, 102]]
+    )
+    np.testing.assert_array_equal(seg.dt, [[1, 2], [4, 5], [6, 6], [0.5, 0.5], [0.5, 0.5]])
+    np.testing.assert_array_equal(seg.mask, [[1, 1, 1], [1, 1, 1], [1, 0, 0], [1, 1, 1], [1, 0, 0]])
+    np.testing.assert_array_equal(seg.log_index, [0, 0, 0, 1, 1])
+    assert seg.mask.dtype == np.float64
+
+
+def _shoot_plant(t, s, u, args):
+    """A toy INFANTE-class plant, linear in two of its coefficients: the x position moves at
+    ``cf_coeff / 100`` times the surge speed plus the current's north velocity, y at its east
+    velocity, the heading at ``N_uudr / 1000`` times the rudder command; the actuators follow
+    their commands at unit rate, the velocities are held."""
+    p, vel = args.vehicle, args.water.velocity
+    eta_dot = jnp.stack([s.nu[0] * p.cf_coeff / 100.0 + vel[0], vel[1], p.N_uudr / 1e3 * u[1]])
+    return type(s)(eta=eta_dot, nu=jnp.zeros_like(s.nu), act=u - s.act)
+
+
+def _shoot_step(x, u, dt, cf, n_uudr, v_c):
+    """One forward-Euler step of :func:`_shoot_plant` in numpy."""
+    f = np.zeros(8)
+    f[0] = x[3] * cf / 100.0 + v_c[0]
+    f[1] = v_c[1]
+    f[2] = n_uudr / 1e3 * u[1]
+    f[6:] = u - x[6:]
+    return x + dt * f
+
+
+SHOOT_BASE = INFANTE.nominal(jnp.float64)
+CF0, N0 = float(SHOOT_BASE.cf_coeff), float(SHOOT_BASE.N_uudr)
+
+
+@pytest.fixture(scope="module")
+def shoot():
+    """The toy problem: two coefficients and the current (0.5 m/s towards 0.3 rad), Euler."""
+    model = dataclasses.replace(INFANTE, plant=_shoot_plant)
+    return ShootingProblem(
+        model, "euler", ["cf_coeff", "N_uudr"], SHOOT_BASE, True, current_speed=0.5,
+        current_direction=0.3,
+    )  # fmt: skip
+
+
+def test_shooting_problem_names_values_and_scaling(shoot):
+    z = np.log([1.25, 0.5, 3.0]).tolist() + [0.25]
+    assert shoot.all_names == ("cf_coeff", "N_uudr", "current_speed", "current_direction_deg")
+    v = shoot.values(z)
+    assert v == pytest.approx(
+        {"cf_coeff": 1.25 * CF0, "N_uudr": 0.5 * N0, "current_speed": 1.5,
+         "current_direction_deg": np.degrees(0.55)}, rel=1e-14,
+    )  # fmt: skip
+    np.testing.assert_allclose(
+        shoot.scale_jacobian(z), [1.25 * CF0, 0.5 * N0, 1.5, np.degrees(1.0)], rtol=1e-14
+    )
+    np.testing.assert_allclose(shoot.z_initial(2.0), [np.log(2.0)] * 2 + [0.0, 0.0], rtol=1e-15)
+    params, v_c = shoot.physical(jnp.asarray(z))
+    assert float(params.cf_coeff) == pytest.approx(1.25 * CF0, rel=1e-14)
+    assert float(params.N_uudr) == pytest.approx(0.5 * N0, rel=1e-14)
+    assert float(params.X_uu) == float(SHOOT_BASE.X_uu)
+    np.testing.assert_allclose(v_c, [1.5 * np.cos(0.55), 1.5 * np.sin(0.55)], rtol=1e-14)
+    plain = ShootingProblem(INFANTE, "euler", ["cf_coeff"], SHOOT_BASE, current_speed=0.5)
+    assert plain.all_names == ("cf_coeff",) and plain.z_initial(0.5).tolist() == [np.log(0.5)]
+    assert plain.values([np.log(2.0)]) == {"cf_coeff": pytest.approx(2.0 * CF0, rel=1e-15)}
+    np.testing.assert_allclose(plain.scale_jacobian([0.0]), [CF0], rtol=1e-15)
+    params, v_c = plain.physical(jnp.asarray([0.0]))
+    np.testing.assert_allclose(v_c, [0.5, 0.0], rtol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "names, kw, message",
+    [
+        (["foo"], {}, "'foo' is not a parameter of vehicle 'infante'; choose from"),
+        (["cf_x"], {}, "'cf_x' is not a scalar parameter of vehicle 'infante'"),
+        (["x_g"], {}, "'x_g' is 0 in the nominal model"),
+        (["X_uu", "N_ur", "X_uu"], {}, "names must be unique"),
+        (
+            ["X_uu"],
+            {"fit_current": True},
+            "fit_current needs a positive initial current speed, got 0.0",
+        ),
+        (["X_uu"], {"fit_current": True, "current_speed": -0.5}, "positive initial current speed"),
+    ],
+)
+def test_shooting_problem_refuses(names, kw, message):
+    with pytest.raises(ValueError, match=message):
+        ShootingProblem(INFANTE, "euler", names, SHOOT_BASE, **kw)
+
+
+def _shoot_logs():
+    rng = np.random.default_rng(3)
+    t1 = 0.25 * np.arange(7)
+    x1 = rng.normal(size=(7, 8))
+    x1[4, 2] += 2 * np.pi  # a heading logged a turn away: the residual wraps
+    x2 = rng.normal(size=(5, 8))
+    return [
+        _log_of(t1, x1, rng.normal(size=(7, 2))),
+        _log_of(0.5 * np.arange(5), x2, rng.normal(size=(5, 2))),
+    ]
+
+
+def test_shooting_residuals_linearisation_cost_and_free_run_by_hand(shoot):
+    """Every residual: the segment simulated from its own start ``s_j`` (Euler, in numpy),
+    minus the measurement, the heading wrapped, weighted per channel, padding masked; the
+    Jacobians against central differences; the free run from each log's first sample."""
+    logs = _shoot_logs()
+    seg = make_segments(logs, 3)
+    z = np.array([np.log(1.25), np.log(0.5), np.log(3.0), 0.25])
+    cf, n_uudr, v_c = 1.25 * CF0, 0.5 * N0, 1.5 * np.array([np.cos(0.55), np.sin(0.55)])
+    s = seg.y[:, 0, :] + 0.125
+    w = np.arange(1.0, 9.0) / 4.0
+    want = np.zeros(seg.y.shape)
+    for j in range(seg.y.shape[0]):
+        x = s[j]
+        for k in range(3):
+            d = x - seg.y[j, k]
+            d[2] -= 2 * np.pi * np.round(d[2] / (2 * np.pi))
+            want[j, k] = d * w * seg.mask[j, k]
+            if k < 2:
+                x = _shoot_step(x, seg.u[j, k], seg.dt[j, k], cf, n_uudr, v_c)
+    r = shoot.residuals(z, s, seg, w)
+    assert r.shape == (5, 24)
+    np.testing.assert_allclose(r, want.reshape(5, 24), rtol=1e-12, atol=1e-12)
+    assert abs(want[1, 1, 2] / w[2]) <= np.pi  # the heading logged a turn away, wrapped
+    assert float(shoot.cost(jnp.asarray(z), jnp.asarray(s), seg, w)) == pytest.approx(
+        0.5 * np.sum(want**2), rel=1e-12
+    )
+    r2, Jz, Js = shoot.linearize(z, s, seg, w)
+    np.testing.assert_allclose(r2, r, rtol=1e-13, atol=1e-13)
+    assert Jz.shape == (5, 24, 4) and Js.shape == (5, 24, 8)
+    h = 1e-6
+    for i in range(4):
+        dz = h * np.eye(4)[i]
+        fd = (shoot.residuals(z + dz, s, seg, w) - shoot.residuals(z - dz, s, seg, w)) / (2 * h)
+        np.testing.assert_allclose(Jz[:, :, i], fd, rtol=1e-6, atol=1e-7)
+    for i in (0, 3, 7):
+        ds = h * np.eye(8)[i]
+        fd = (shoot.residuals(z, s + ds, seg, w) - shoot.residuals(z, s - ds, seg, w)) / (2 * h)
+        np.testing.assert_allclose(Js[:, :, i], fd, rtol=1e-6, atol=1e-7)
+    for log in logs:
+        x, xs = log.x[0], [log.x[0]]
+        for k in range(log.t.size - 1):
+            x = _shoot_step(x, log.u[k], log.t[k + 1] - log.t[k], cf, n_uudr, v_c)
+            xs.append(x)
+        np.testing.assert_allclose(shoot.free_run(z, log), xs, rtol=1e-12, atol=1e-12)
