@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
+import re
 from types import SimpleNamespace
 from typing import NamedTuple
 
@@ -17,7 +19,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from vcjax.identify import fit
 from vcjax.identify.data import load_log
+from vcjax.identify.fit import CORRELATION_WARN, FitSettings
 from vcjax.identify.manoeuvres import (
     SENSOR_NOISE,
     STUDY_PARAMS,
@@ -381,3 +385,158 @@ def test_shooting_residuals_linearisation_cost_and_free_run_by_hand(shoot):
             x = _shoot_step(x, log.u[k], log.t[k + 1] - log.t[k], cf, n_uudr, v_c)
             xs.append(x)
         np.testing.assert_allclose(shoot.free_run(z, log), xs, rtol=1e-12, atol=1e-12)
+
+
+# ------------------------------------------------------------------ fit (its helpers, numpy)
+
+
+def test_non_finite_numbers_become_null_at_any_depth():
+    tree = {"a": [1.0, float("nan"), (float("inf"), 2)], "b": {"c": -float("inf"), "d": 3}}
+    assert fit._finite_or_none(tree) == {"a": [1.0, None, [None, 2]], "b": {"c": None, "d": 3}}
+    assert fit._finite_or_none(float("nan")) is None and fit._finite_or_none(1.5) == 1.5
+
+
+def test_channel_rms_over_the_real_samples_only():
+    phys = np.zeros((2, 3, 2))
+    phys[0, 0] = [3.0, 4.0]
+    phys[1, 2] = [100.0, 100.0]  # padding
+    mask = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    assert fit._channel_rms(phys, mask, ("a", "b")) == {"a": 3.0, "b": 4.0}
+    mask = np.array([[1.0, 1.0, 1.0], [1.0, 0.0, 0.0]])
+    assert fit._channel_rms(phys, mask, ("a", "b")) == {"a": 1.5, "b": 2.0}
+    assert fit._channel_rms(phys, 0.0 * mask, ("a", "b")) == {"a": 0.0, "b": 0.0}
+
+
+@pytest.mark.parametrize("c", [0.995, -0.995])
+def test_a_correlated_pair_is_named_with_its_signed_correlation(c):
+    corr = np.array([[1.0, 0.2, c], [0.2, 1.0, 0.1], [c, 0.1, 1.0]])
+    (w,) = fit._identifiability(("a", "b", "c"), corr, np.diag([1e-12, 1.0, 1.0]))
+    assert w == (
+        f"a and c are not separately identifiable from these data (correlation {c:+.4f}): "
+        "only a combination of them is determined"
+    )
+
+
+def test_a_correlation_of_exactly_the_bound_is_not_named():
+    corr = np.array([[1.0, 0.99], [0.99, 1.0]])
+    assert CORRELATION_WARN == 0.99
+    assert fit._identifiability(("a", "b"), corr, np.eye(2)) == []
+
+
+def test_a_near_null_direction_of_three_or_more_is_named():
+    """Eigenvalue ratio below 1e-10 with no correlated pair: the parameters with an
+    eigenvector component above 0.1 in magnitude, and the condition number."""
+    v = np.array([0.6, -0.8, 0.0])  # the null direction: a and b
+    Q = np.column_stack([v, [0.8, 0.6, 0.0], [0.0, 0.0, 1.0]])
+    for lam0, warned in [(0.5e-10, True), (2e-10, False)]:
+        info = Q @ np.diag([lam0, 1.0, 0.5]) @ Q.T
+        out = fit._identifiability(("a", "b", "c"), np.eye(3), info)
+        assert out == (
+            [
+                "parameters ['a', 'b'] are not separately identifiable from these data "
+                f"(information matrix condition number {1.0 / lam0:.2g})"
+            ]
+            if warned
+            else []
+        )
+    info2 = np.diag([1e-14, 1.0])  # two parameters: the correlation speaks for them
+    assert fit._identifiability(("a", "b"), np.eye(2), info2) == []
+    v = np.array([0.995, 0.0999, 0.0])  # |component| 0.0999: not involved
+    v /= np.linalg.norm(v)
+    u2 = np.array([-v[1], v[0], 0.0])
+    Q = np.column_stack([v, u2, [0.0, 0.0, 1.0]])
+    out = fit._identifiability(("a", "b", "c"), np.eye(3), Q @ np.diag([1e-14, 1.0, 1.0]) @ Q.T)
+    assert out[0].startswith("parameters ['a'] are not")
+    for lam0 in (0.0, -1e-20):  # a singular (or rounding-negative) information: capped
+        out = fit._identifiability(("a", "b", "c"), np.eye(3), np.diag([lam0, 1.0, 2.0]))
+        assert out == [
+            "parameters ['a'] are not separately identifiable from these data "
+            "(information matrix condition number 2e+300)"
+        ]
+
+
+def _inputs(**kw):
+    log = SimpleNamespace(name="a.csv", x=np.zeros((5, 8)), u=np.zeros((5, 2)))
+    args = {"logs": [log], "params": ["X_uu"], "o": FitSettings(), **kw}
+    fit._check_inputs(INFANTE, args["logs"], args["params"], args["o"])
+
+
+@pytest.mark.parametrize(
+    "kw, message",
+    [
+        ({"logs": []}, "files: no logs given"),
+        ({"o": FitSettings(segment_steps=1)}, "segment_steps: expected an int >= 2, got 1"),
+        ({"o": FitSettings(segment_steps=2.0)}, "segment_steps: expected an int >= 2, got 2.0"),
+        ({"o": FitSettings(max_iters=0)}, "max_iters: expected an int >= 1, got 0"),
+        ({"o": FitSettings(max_iters=1.0)}, "max_iters: expected an int >= 1, got 1.0"),
+        ({"o": FitSettings(initial_scale=0.0)}, "initial_scale: expected a finite value > 0"),
+        ({"o": FitSettings(initial_scale=-1.0)}, "initial_scale: expected a finite value > 0"),
+        ({"o": FitSettings(initial_scale=math.inf)}, "initial_scale: expected a finite value"),
+        ({"o": FitSettings(initial_scale=math.nan)}, "initial_scale: expected a finite value"),
+        ({"params": []}, "params: nothing to fit"),
+        ({"logs": [SimpleNamespace(name="b.csv", x=np.zeros((5, 7)), u=np.zeros((5, 2)))]},
+         "b.csv: state/command columns do not match 'infante'"),
+        ({"logs": [SimpleNamespace(name="b.csv", x=np.zeros((5, 8)), u=np.zeros((5, 3)))]},
+         "b.csv: state/command columns do not match 'infante'"),
+    ],
+)  # fmt: skip
+def test_fit_inputs_are_checked_before_the_data(kw, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        _inputs(**kw)
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {},
+        {"o": FitSettings(segment_steps=2, max_iters=1, initial_scale=1e-3)},
+        {"params": [], "o": FitSettings(fit_current=True, current_speed=0.5)},
+    ],
+)
+def test_fit_inputs_at_their_bounds_are_accepted(kw):
+    _inputs(**kw)
+
+
+def test_fit_shots_count_the_degrees_of_freedom_and_the_noise():
+    """Two logs of 5 and 4 samples in segments of 3 (J = 4, 9 real samples): m = 9 n_x
+    residuals for 2 + 4 n_x unknowns; the noise per channel is the RMS of the real physical
+    residuals times the degrees-of-freedom factor's root; a channel constant over every log
+    has spread 1; no degree of freedom left is refused."""
+    logs = [
+        _log_of(np.arange(5.0), np.arange(40.0).reshape(5, 8) ** 2, np.zeros((5, 2))),
+        _log_of(np.arange(4.0), np.ones((4, 8)), np.zeros((4, 2))),
+    ]
+    logs[0].x[:, 5] = 7.0
+    logs[1].x[:, 5] = 7.0
+    sh = fit._shots(INFANTE, logs, FitSettings(segment_steps=3), 2)
+    assert sh.n_real == 9.0 and sh.m == 72.0 and sh.n_par == 2 + 4 * 8
+    assert sh.dof_factor == 72.0 / 38.0
+    spread = np.std(np.concatenate([logs[0].x, logs[1].x]), axis=0)
+    np.testing.assert_array_equal(sh.spread, np.where(np.arange(8) == 5, 1.0, spread))
+    w = np.arange(1.0, 9.0)
+    r = np.ones((4, 3, 8)) * w  # every physical residual 1 ...
+    r[1, 2] = 1e6 * w  # ... but the padding of the first log's last segment (3, 4, pad)
+    r[3, 1:] = 1e6 * w  # ... and of the second's (3, pad, pad)
+    np.testing.assert_allclose(sh.noise(r.reshape(4, 24), w), np.sqrt(72 / 38), rtol=1e-14)
+    one = [_log_of(np.arange(4.0), np.arange(32.0).reshape(4, 8), np.zeros((4, 2)))]
+    with pytest.raises(
+        ValueError,
+        match=re.escape(
+            "segment_steps: 2 leaves no residual degrees of freedom (32 residuals for 32 unknowns)"
+        ),
+    ):
+        fit._shots(INFANTE, one, FitSettings(segment_steps=2), 16)
+    assert fit._shots(INFANTE, one, FitSettings(segment_steps=2), 15).dof_factor == 32.0
+
+
+def test_fit_ending_warnings():
+    res = SimpleNamespace(reason="interrupted", converged=False)
+    assert fit._ending(res, [3, 4], FitSettings()) == [
+        "interrupted after 7 iterations: the estimates are the last accepted iterate, "
+        "not an optimum"
+    ]
+    res = SimpleNamespace(reason="max_iters", converged=False)
+    assert fit._ending(res, [3], FitSettings(max_iters=9)) == [
+        "did not converge in 9 iterations ; raise max_iters"
+    ]
+    assert fit._ending(SimpleNamespace(reason="ftol", converged=True), [3], FitSettings()) == []
