@@ -248,6 +248,8 @@ def test_segments_cut_every_log_and_pad_the_last_one():
     np.testing.assert_array_equal(seg.mask, [[1, 1, 1], [1, 1, 1], [1, 0, 0], [1, 1, 1], [1, 0, 0]])
     np.testing.assert_array_equal(seg.log_index, [0, 0, 0, 1, 1])
     assert seg.mask.dtype == np.float64
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        seg.y = seg.y[:1]
 
 
 def _shoot_plant(t, s, u, args):
