@@ -31,6 +31,7 @@ from vcjax.identify.manoeuvres import (
 )
 from vcjax.identify.models import FIT_MODELS, get_fit_model, scalar_fields
 from vcjax.identify.shooting import ShootingProblem, make_segments, seg_count
+from vcjax.runtime import programs
 
 INFANTE = get_fit_model("infante")
 REMUS = get_fit_model("remus100")
@@ -542,3 +543,28 @@ def test_fit_ending_warnings():
         "did not converge in 9 iterations ; raise max_iters"
     ]
     assert fit._ending(SimpleNamespace(reason="ftol", converged=True), [3], FitSettings()) == []
+
+
+def test_shooting_programs_come_from_the_store_once_per_argument_shape(shoot, tmp_path):
+    """With the program store on (the command line), each of the problem's programs is built
+    through the store once per argument shape and gives what its jitted form gives."""
+    logs = _shoot_logs()
+    seg = make_segments(logs, 3)
+    z, s, w = np.array([0.1, -0.2, 0.3, 0.1]), seg.y[:, 0, :], np.ones(8)
+    want_r, want_free = shoot.residuals(z, s, seg, w), shoot.free_run(z, logs[0])
+    before = programs.store_dir()
+    programs.set_store(tmp_path / "programs")
+    try:
+        if programs.store_dir() is None:
+            pytest.skip(f"the program store is off: {programs.off_reason()}")
+        prob = ShootingProblem(
+            shoot.model, "euler", shoot.names, SHOOT_BASE, True, 0.5, 0.3
+        )  # a problem with no program built yet
+        for _ in range(2):
+            np.testing.assert_array_equal(prob.residuals(z, s, seg, w), want_r)
+            np.testing.assert_array_equal(prob.free_run(z, logs[0]), want_free)
+        prob.free_run(z, logs[1])  # another length: another program
+        names = sorted(e["name"] for e in programs.report())
+        assert names == ["fit:free_run", "fit:free_run", "fit:residuals"]
+    finally:
+        programs.set_store(before)
