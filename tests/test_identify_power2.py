@@ -21,7 +21,7 @@ import pytest
 
 from vcjax.identify import fit
 from vcjax.identify.data import load_log
-from vcjax.identify.fit import CORRELATION_WARN, FitSettings
+from vcjax.identify.fit import CORRELATION_WARN, FitSettings, fit_logs
 from vcjax.identify.manoeuvres import (
     SENSOR_NOISE,
     STUDY_PARAMS,
@@ -568,3 +568,117 @@ def test_shooting_programs_come_from_the_store_once_per_argument_shape(shoot, tm
         assert names == ["fit:free_run", "fit:free_run", "fit:residuals"]
     finally:
         programs.set_store(before)
+
+
+# ------------------------------------------------------------------ fit (a whole toy fit)
+
+TOY_TRUE = {"cf_coeff": 1.25 * CF0, "N_uudr": 0.8 * N0}
+
+
+def _toy_logs():
+    """Two noise-free logs of the toy plant at the true coefficients (numpy), 40 and 25
+    samples at 10 Hz; the second's heading logged a turn away from sample 10 on."""
+    logs = []
+    for n, phase in [(40, 0.0), (25, 1.0)]:
+        k = np.arange(n)
+        u = np.column_stack([np.full(n, 500.0), 0.2 * np.sin(0.3 * k + phase)])
+        x = np.zeros((n, 8))
+        x[0] = [0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 500.0, 0.0]
+        for i in range(n - 1):
+            x[i + 1] = _shoot_step(
+                x[i], u[i], 0.1, TOY_TRUE["cf_coeff"], TOY_TRUE["N_uudr"], (0, 0)
+            )
+        logs.append(_log_of(0.1 * k, x, u, name=f"toy{n}.csv"))
+    logs[1].x[10:, 2] += 2 * np.pi
+    return logs
+
+
+def _toy_run(log, cf, n_uudr):
+    xs = [log.x[0]]
+    for i in range(log.t.size - 1):
+        xs.append(_shoot_step(xs[-1], log.u[i], 0.1, cf, n_uudr, (0, 0)))
+    return np.array(xs)
+
+
+@pytest.fixture(scope="module")
+def toy_fit():
+    model = dataclasses.replace(INFANTE, plant=_shoot_plant)
+    logs = _toy_logs()
+    res = fit_logs(
+        model, logs, ["cf_coeff", "N_uudr"], step="euler", segment_steps=10, base=SHOOT_BASE,
+        initial_scale=1.1, max_iters=20,
+    )  # fmt: skip
+    return logs, res
+
+
+def test_a_noise_free_toy_fit_recovers_the_truth_in_one_stage(toy_fit):
+    logs, res = toy_fit
+    assert res.estimates == pytest.approx(TOY_TRUE, rel=1e-9)
+    assert res.initial == pytest.approx({"cf_coeff": 1.1 * CF0, "N_uudr": 1.1 * N0}, rel=1e-14)
+    assert res.nominal == pytest.approx({"cf_coeff": CF0, "N_uudr": N0}, rel=1e-15)
+    assert (res.samples, res.segments) == (65, 4 + 3)
+    assert len(res.stage_iterations) == 1 and res.iterations == res.stage_iterations[0] >= 1
+    assert len(res.cost_history) == res.iterations + 1
+    assert res.converged is True and res.warnings == [] and res.reason != "interrupted"
+    spread = np.std(np.concatenate([log.x for log in logs]), axis=0)
+    np.testing.assert_array_equal(res.weights, 1.0 / np.where(spread > 0, spread, 1.0))
+    assert res.s.shape == (7, 8) and set(res.sensitivity) == set(TOY_TRUE)
+    assert all(v > 0 for v in res.sensitivity.values())
+    assert max(res.residual_rms_after.values()) < 1e-9
+    assert max(res.free_run_rms_after.values()) < 1e-9  # the heading's turn wrapped away
+    assert max(res.noise_std.values()) < 1e-9
+    assert 0.0 < res.wall_time_s < 600.0
+
+
+def test_the_toy_fits_rms_before_by_hand(toy_fit):
+    """The residual RMS of the segments from the measured samples and the free-run RMS, both
+    at the initial guess, per channel (numpy, the heading wrapped)."""
+    logs, res = toy_fit
+    cf, n_uudr = 1.1 * CF0, 1.1 * N0
+    seg = make_segments(logs, 10)
+    sq = np.zeros(8)
+    for j in range(seg.y.shape[0]):
+        x = seg.y[j, 0]
+        for k in range(10):
+            d = x - seg.y[j, k]
+            d[2] = (d[2] + np.pi) % (2 * np.pi) - np.pi
+            sq += seg.mask[j, k] * d**2
+            if k < 9:
+                x = _shoot_step(x, seg.u[j, k], seg.dt[j, k], cf, n_uudr, (0, 0))
+    cols = INFANTE.state_columns
+    assert res.residual_rms_before == pytest.approx(
+        dict(zip(cols, np.sqrt(sq / 65), strict=True)), rel=1e-9, abs=1e-15
+    )
+    d = np.concatenate([_toy_run(log, cf, n_uudr) - log.x for log in logs])
+    d[:, 2] = (d[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    want = dict(zip(cols, np.sqrt(np.mean(d**2, axis=0)), strict=True))
+    assert res.free_run_rms_before == pytest.approx(want, rel=1e-9, abs=1e-15)
+    assert res.free_run_rms_before["psi"] < 1.0  # not the 2 pi turn
+
+
+def test_the_toy_fits_json(toy_fit):
+    _, res = toy_fit
+    out = res.to_json()
+    assert list(out) == [
+        "vehicle", "step", "estimates", "std", "initial", "nominal", "correlation",
+        "residual_rms", "free_run_rms", "noise_std", "units", "cost_history", "iterations",
+        "stage_iterations", "converged", "reason", "wall_time_s", "segments", "samples",
+        "warnings", "sensitivity",
+    ]  # fmt: skip
+    assert (out["vehicle"], out["step"], out["segments"], out["samples"]) == (
+        "infante",
+        "euler",
+        7,
+        65,
+    )
+    assert out["estimates"] == res.estimates and out["std"] == res.std
+    assert out["correlation"]["names"] == ["cf_coeff", "N_uudr"]
+    np.testing.assert_array_equal(out["correlation"]["matrix"], np.round(res.correlation, 6))
+    assert out["units"] == dict(zip(INFANTE.state_columns, INFANTE.units, strict=True))
+    assert out["residual_rms"] == {
+        "before": res.residual_rms_before,
+        "after": res.residual_rms_after,
+    }
+    assert out["free_run_rms"]["before"] == res.free_run_rms_before
+    assert out["wall_time_s"] == round(res.wall_time_s, 3)
+    assert out["converged"] is True and out["iterations"] == res.iterations
