@@ -11,6 +11,7 @@ import dataclasses
 import json
 import math
 import re
+import textwrap
 from types import SimpleNamespace
 from typing import NamedTuple
 
@@ -21,6 +22,7 @@ import pytest
 
 from vcjax.identify import fit
 from vcjax.identify.data import load_log
+from vcjax.identify.figures import cost_history_figure, prediction_figure
 from vcjax.identify.fit import CORRELATION_WARN, FitSettings, fit_logs
 from vcjax.identify.manoeuvres import (
     SENSOR_NOISE,
@@ -682,3 +684,127 @@ def test_the_toy_fits_json(toy_fit):
     assert out["free_run_rms"]["before"] == res.free_run_rms_before
     assert out["wall_time_s"] == round(res.wall_time_s, 3)
     assert out["converged"] is True and out["iterations"] == res.iterations
+
+
+# ------------------------------------------------------------------ figures (matplotlib only)
+
+
+@pytest.fixture
+def saved(monkeypatch):
+    """The figures' ``savefig_atomic``, recording ``(fig, path, kwargs)`` instead of writing."""
+    from vcjax.runtime import outputs
+
+    out = []
+    monkeypatch.setattr(
+        outputs, "savefig_atomic", lambda fig, path, **kw: out.append((fig, path, kw))
+    )
+    return out
+
+
+def _result(warnings=(), converged=True):
+    return SimpleNamespace(
+        problem=SimpleNamespace(model=INFANTE, step_name="rk4"), warnings=list(warnings),
+        converged=converged, cost_history=[8.0, 4.0, 2.0, 1.0, 0.5, 0.0], stage_iterations=[2, 2],
+        iterations=4, wall_time_s=1.26,
+    )  # fmt: skip
+
+
+def test_the_prediction_figure_shows_every_channel_in_display_units(saved, tmp_path):
+    t = 0.5 * np.arange(4)
+    x = np.arange(32.0).reshape(4, 8)
+    log = SimpleNamespace(name="a.csv", t=t, x=x)
+    path = prediction_figure(_result(), log, 2.0 * x, 3.0 * x, tmp_path / "p.png")
+    assert path == tmp_path / "p.png"
+    ((fig, p, kw),) = saved
+    assert p == tmp_path / "p.png" and kw == {"dpi": 120}
+    np.testing.assert_array_equal(fig.get_size_inches(), [12.0, 2.1 * 3])
+    axes = fig.axes
+    assert len(axes) == 9 and [a.get_visible() for a in axes] == [True] * 8 + [False]
+    assert fig._suptitle.get_text() == (
+        "a.csv: measured vs free simulation from the first sample (infante, step 'rk4')"
+    )
+    labels = ["x [m]", "y [m]", "psi [deg]", "u [m/s]", "v [m/s]", "r [deg/s]", "thrust [N]", "delta [deg]"]  # fmt: skip
+    for i, ax in enumerate(axes[:8]):
+        assert ax.get_ylabel() == labels[i]
+        conv = np.degrees(1.0) if "deg" in labels[i] else 1.0
+        measured, initial, fitted = ax.lines
+        for line, k in [(measured, 1.0), (initial, 2.0), (fitted, 3.0)]:
+            np.testing.assert_array_equal(line.get_xdata(), t)
+            np.testing.assert_allclose(line.get_ydata(), k * x[:, i] * conv, rtol=1e-15)
+        assert (measured.get_label(), initial.get_label(), fitted.get_label()) == (
+            "measured",
+            "initial model",
+            "fitted model",
+        )
+        assert (measured.get_color(), measured.get_linewidth(), measured.get_alpha()) == (
+            "0.5",
+            2.2,
+            0.6,
+        )
+        assert (initial.get_color(), initial.get_linestyle(), initial.get_linewidth()) == (
+            "C3",
+            ":",
+            1.2,
+        )
+        assert (fitted.get_color(), fitted.get_linestyle(), fitted.get_linewidth()) == (
+            "C0",
+            "--",
+            1.2,
+        )
+        assert ax.get_xlabel() == ("t [s]" if i >= 5 else "")  # the bottom of each column
+        assert ax.xaxis.get_gridlines()[0].get_alpha() == 0.3
+    assert [t.get_text() for t in axes[0].get_legend().get_texts()] == [
+        "measured",
+        "initial model",
+        "fitted model",
+    ]
+    assert axes[0].get_legend().get_texts()[0].get_fontsize() == 8
+    assert all(a.get_legend() is None for a in axes[1:])
+    assert all(a.xaxis.get_tick_params()["labelbottom"] for a in axes[5:8])
+    assert fig.texts == [fig._suptitle]  # converged, no warnings
+
+
+def test_the_cost_history_figure_joins_the_two_stages(saved, tmp_path):
+    cost_history_figure(_result(), tmp_path / "c.png")
+    ((fig, _, kw),) = saved
+    (ax,) = fig.axes
+    np.testing.assert_array_equal(fig.get_size_inches(), [7.0, 4.0])
+    s1, s2 = ax.lines
+    np.testing.assert_array_equal(s1.get_xdata(), [0, 1, 2])
+    np.testing.assert_array_equal(s1.get_ydata(), [8.0, 4.0, 2.0])
+    np.testing.assert_array_equal(s2.get_xdata(), [3, 4, 5])
+    np.testing.assert_array_equal(s2.get_ydata(), [1.0, 0.5, 1e-300])  # a zero cost, floored
+    assert (s1.get_marker(), s1.get_linestyle(), s1.get_markersize()) == ("o", "-", 3)
+    assert (
+        s1.get_label() == "stage 1 (spread weights)" and s2.get_label() == "stage 2 (noise weights)"
+    )
+    assert ax.get_yscale() == "log" and ax.get_xlabel() == "iteration (both stages)"
+    assert ax.get_ylabel() == "cost 0.5 |r|^2 (weighted)"
+    assert ax.get_title() == "vcjax fit: cost history (4 iterations, 1.3 s)"
+    assert ax.get_legend().get_texts()[0].get_fontsize() == 8 and kw == {"dpi": 120}
+
+
+@pytest.mark.parametrize("n, converged", [(0, False), (1, True), (5, False), (7, True)])
+def test_the_warnings_are_written_in_red_at_the_bottom(saved, tmp_path, n, converged):
+    warns = [f"warning number {i}:" + " word" * 40 for i in range(n)]
+    cost_history_figure(_result(warns, converged), tmp_path / "c.png")
+    ((fig, _, _),) = saved
+    lines = ([] if converged else ["NOT CONVERGED / NOT TRUSTWORTHY"]) + [
+        f"warning: {w}" for w in warns
+    ]
+    (text,) = fig.texts
+    shown = text.get_text().split("\n")
+    assert len(shown) == min(len(lines), 6)
+    assert shown == [textwrap.shorten(x, 150, placeholder=" ...") for x in lines[:6]]
+    assert max(len(s) for s in shown) == (150 if n else 31)
+    assert (text.get_color(), text.get_fontsize(), text.get_position()) == ("C3", 6, (0.01, 0.005))
+    assert (text.get_va(), text.get_ha()) == ("bottom", "left")
+    bottom = min(0.04 + 0.025 * min(len(lines), 6), 0.3)
+    assert fig.subplotpars.bottom >= bottom  # the axes above the text
+    assert fig.axes[0].get_position().y0 >= bottom
+
+
+def test_figures_without_warnings_use_the_whole_height(saved, tmp_path):
+    cost_history_figure(_result(), tmp_path / "c.png")
+    ((fig, _, _),) = saved
+    assert fig.texts == [] and fig.axes[0].get_position().y0 < 0.15
