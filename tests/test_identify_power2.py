@@ -301,6 +301,7 @@ def test_shooting_problem_names_values_and_scaling(shoot):
         shoot.scale_jacobian(z), [1.25 * CF0, 0.5 * N0, 1.5, np.degrees(1.0)], rtol=1e-14
     )
     np.testing.assert_allclose(shoot.z_initial(2.0), [np.log(2.0)] * 2 + [0.0, 0.0], rtol=1e-15)
+    np.testing.assert_array_equal(shoot.z_initial(), np.zeros(4))  # at the nominal values
     params, v_c = shoot.physical(jnp.asarray(z))
     assert float(params.cf_coeff) == pytest.approx(1.25 * CF0, rel=1e-14)
     assert float(params.N_uudr) == pytest.approx(0.5 * N0, rel=1e-14)
