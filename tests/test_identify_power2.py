@@ -356,6 +356,7 @@ def test_shooting_residuals_linearisation_cost_and_free_run_by_hand(shoot):
     z = np.array([np.log(1.25), np.log(0.5), np.log(3.0), 0.25])
     cf, n_uudr, v_c = 1.25 * CF0, 0.5 * N0, 1.5 * np.array([np.cos(0.55), np.sin(0.55)])
     s = seg.y[:, 0, :] + 0.125
+    s[1, 2] += 2.775  # a heading 2.9 rad off (wrapped: itself, closer to pi than to 0)
     w = np.arange(1.0, 9.0) / 4.0
     want = np.zeros(seg.y.shape)
     for j in range(seg.y.shape[0]):
@@ -370,6 +371,7 @@ def test_shooting_residuals_linearisation_cost_and_free_run_by_hand(shoot):
     assert r.shape == (5, 24)
     np.testing.assert_allclose(r, want.reshape(5, 24), rtol=1e-12, atol=1e-12)
     assert abs(want[1, 1, 2] / w[2]) <= np.pi  # the heading logged a turn away, wrapped
+    assert want[1, 0, 2] / w[2] == pytest.approx(2.9, rel=1e-12)
     assert float(shoot.cost(jnp.asarray(z), jnp.asarray(s), seg, w)) == pytest.approx(
         0.5 * np.sum(want**2), rel=1e-12
     )
