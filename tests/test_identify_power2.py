@@ -633,6 +633,7 @@ def test_a_noise_free_toy_fit_recovers_the_truth_in_one_stage(toy_fit):
     assert max(res.free_run_rms_after.values()) < 1e-9  # the heading's turn wrapped away
     assert max(res.noise_std.values()) < 1e-9
     assert 0.0 < res.wall_time_s < 600.0
+    assert "problem=" not in repr(res) and "estimates=" in repr(res)
 
 
 def test_the_toy_fits_rms_before_by_hand(toy_fit):
