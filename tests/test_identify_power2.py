@@ -447,6 +447,8 @@ def test_a_near_null_direction_of_three_or_more_is_named():
             if warned
             else []
         )
+    exact = np.diag([1e-10, 1.0, 1.0])  # a ratio of exactly 1e-10: not below it
+    assert fit._identifiability(("a", "b", "c"), np.eye(3), exact) == []
     info2 = np.diag([1e-14, 1.0])  # two parameters: the correlation speaks for them
     assert fit._identifiability(("a", "b"), np.eye(2), info2) == []
     v = np.array([0.995, 0.0999, 0.0])  # |component| 0.0999: not involved
