@@ -814,3 +814,13 @@ def test_figures_without_warnings_use_the_whole_height(saved, tmp_path):
     cost_history_figure(_result(), tmp_path / "c.png")
     ((fig, _, _),) = saved
     assert fig.texts == [] and fig.axes[0].get_position().y0 < 0.15
+
+
+def test_fit_settings_defaults_and_frozen():
+    assert dataclasses.asdict(FitSettings()) == {
+        "step": "rk4", "fit_current": False, "current_speed": 0.0, "current_direction": 0.0,
+        "initial_scale": 1.0, "segment_steps": 50, "max_iters": 50, "base": None, "dtype": None,
+        "max_memory_gb": None,
+    }  # fmt: skip
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        FitSettings().max_iters = 3
