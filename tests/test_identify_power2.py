@@ -488,6 +488,10 @@ def _inputs(**kw):
          "b.csv: state/command columns do not match 'infante'"),
         ({"logs": [SimpleNamespace(name="b.csv", x=np.zeros((5, 8)), u=np.zeros((5, 3)))]},
          "b.csv: state/command columns do not match 'infante'"),
+        ({"logs": [SimpleNamespace(name="b.csv", x=np.zeros((5, 9)), u=np.zeros((5, 2)))]},
+         "b.csv: state/command columns do not match 'infante'"),
+        ({"logs": [SimpleNamespace(name="b.csv", x=np.zeros((5, 8)), u=np.zeros((5, 1)))]},
+         "b.csv: state/command columns do not match 'infante'"),
     ],
 )  # fmt: skip
 def test_fit_inputs_are_checked_before_the_data(kw, message):
