@@ -437,7 +437,7 @@ def test_a_near_null_direction_of_three_or_more_is_named():
     v = np.array([0.6, -0.8, 0.0])  # the null direction: a and b
     Q = np.column_stack([v, [0.8, 0.6, 0.0], [0.0, 0.0, 1.0]])
     for lam0, warned in [(0.5e-10, True), (2e-10, False)]:
-        info = Q @ np.diag([lam0, 1.0, 0.5]) @ Q.T
+        info = Q @ np.diag([4 * lam0, 4.0, 2.0]) @ Q.T  # the largest eigenvalue 4, not 1
         out = fit._identifiability(("a", "b", "c"), np.eye(3), info)
         assert out == (
             [
@@ -694,6 +694,10 @@ def test_the_toy_fits_json(toy_fit):
     assert out["free_run_rms"]["before"] == res.free_run_rms_before
     assert out["wall_time_s"] == round(res.wall_time_s, 3)
     assert out["converged"] is True and out["iterations"] == res.iterations
+    corr = np.array([[1.0, -0.123456789], [-0.123456789, 1.0]])
+    out = dataclasses.replace(res, correlation=corr, wall_time_s=12.3456789).to_json()
+    assert out["correlation"]["matrix"] == [[1.0, -0.123457], [-0.123457, 1.0]]
+    assert out["wall_time_s"] == 12.346
 
 
 # ------------------------------------------------------------------ figures (matplotlib only)
