@@ -520,6 +520,8 @@ def test_fit_shots_count_the_degrees_of_freedom_and_the_noise():
     ]
     logs[0].x[:, 5] = 7.0
     logs[1].x[:, 5] = 7.0
+    logs[0].x[:, 4] = [0.0, 0.25, 0.0, 0.25, 0.0]  # a spread below 1: kept
+    logs[1].x[:, 4] = 0.25
     sh = fit._shots(INFANTE, logs, FitSettings(segment_steps=3), 2)
     assert sh.n_real == 9.0 and sh.m == 72.0 and sh.n_par == 2 + 4 * 8
     assert sh.dof_factor == 72.0 / 38.0
@@ -539,6 +541,8 @@ def test_fit_shots_count_the_degrees_of_freedom_and_the_noise():
     ):
         fit._shots(INFANTE, one, FitSettings(segment_steps=2), 16)
     assert fit._shots(INFANTE, one, FitSettings(segment_steps=2), 15).dof_factor == 32.0
+    with pytest.raises(ValueError, match=re.escape("(32 residuals for 33 unknowns)")):
+        fit._shots(INFANTE, one, FitSettings(segment_steps=2), 17)
 
 
 def test_fit_ending_warnings():
@@ -664,6 +668,8 @@ def test_the_toy_fits_rms_before_by_hand(toy_fit):
     want = dict(zip(cols, np.sqrt(np.mean(d**2, axis=0)), strict=True))
     assert res.free_run_rms_before == pytest.approx(want, rel=1e-9, abs=1e-15)
     assert res.free_run_rms_before["psi"] < 1.0  # not the 2 pi turn
+    # the first cost: the spread weights, the segments from the measured samples
+    assert res.cost_history[0] == pytest.approx(0.5 * np.sum(sq * res.weights**2), rel=1e-9)
 
 
 def test_the_toy_fits_json(toy_fit):
@@ -830,3 +836,21 @@ def test_fit_settings_defaults_and_frozen():
     }  # fmt: skip
     with pytest.raises(dataclasses.FrozenInstanceError):
         FitSettings().max_iters = 3
+
+
+def test_a_noisy_toy_fit_reweights_in_a_second_stage():
+    """Noise on the positions: stage 1 (spread weights) leaves residuals well above round-off,
+    so stage 2 runs with the noise weights; the callback hears both stages, in order."""
+    logs = _toy_logs()
+    rng = np.random.default_rng(7)
+    for log in logs:
+        log.x[:, :2] += 0.01 * rng.normal(size=(log.t.size, 2))
+    model = dataclasses.replace(INFANTE, plant=_shoot_plant)
+    stages = []
+    res = fit_logs(
+        model, logs, ["cf_coeff", "N_uudr"], step="euler", segment_steps=10, base=SHOOT_BASE,
+        initial_scale=1.1, max_iters=20, callback=lambda stage, it, c, lam: stages.append(stage),
+    )  # fmt: skip
+    assert len(res.stage_iterations) == 2 and stages == sorted(stages) and set(stages) == {1, 2}
+    assert stages.count(1) == res.stage_iterations[0] and res.reason != "interrupted"
+    assert res.noise_std["x"] == pytest.approx(0.01, rel=0.5)
