@@ -854,3 +854,26 @@ def test_a_noisy_toy_fit_reweights_in_a_second_stage():
     assert len(res.stage_iterations) == 2 and stages == sorted(stages) and set(stages) == {1, 2}
     assert stages.count(1) == res.stage_iterations[0] and res.reason != "interrupted"
     assert res.noise_std["x"] == pytest.approx(0.01, rel=0.5)
+
+
+def test_an_interrupted_toy_fit_stops_after_its_first_stage():
+    """A stop requested during stage 1 (the command line's Ctrl-C) ends the fit there: no
+    second stage, the last accepted iterate, the warning that says so."""
+    from vcjax.runtime import interrupts
+
+    model = dataclasses.replace(INFANTE, plant=_shoot_plant)
+    try:
+        res = fit_logs(
+            model, _toy_logs(), ["cf_coeff", "N_uudr"], step="euler", segment_steps=10,
+            base=SHOOT_BASE, initial_scale=1.1, max_iters=20,
+            callback=lambda stage, it, c, lam: interrupts.request_stop(),
+        )  # fmt: skip
+    finally:
+        interrupts._stop.clear()
+        interrupts._stop_signal.clear()
+    assert res.reason == "interrupted" and res.stage_iterations == [1]
+    assert res.converged is False
+    assert (
+        "interrupted after 1 iterations: the estimates are the last accepted iterate"
+        in res.warnings[-1]
+    )
