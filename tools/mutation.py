@@ -75,7 +75,7 @@ MODULES = {
     "identify": (
         "vcjax/identify",
         "tests/test_lm.py tests/test_identify.py tests/test_identify_checks.py"
-        " tests/test_lm_power.py tests/test_identify_power.py"
+        " tests/test_lm_power.py tests/test_identify_power.py tests/test_identify_power2.py"
         " tests/test_bad_inputs_cli.py::test_fit_refuses_logs_it_cannot_trust",
     ),
     "tuning": (
