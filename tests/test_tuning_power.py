@@ -28,8 +28,9 @@ from tuning.loss import (
     scenario_losses,
     weighted_loss,
 )
-from tuning.params import GainSpace
-from tuning.scenarios import sample_scenarios
+from tuning.params import GainSpace, default_loop
+from tuning.scenarios import SCENARIO_AXES, sample_scenarios, scenario_spec
+from vcjax import loops
 from vcjax.loops import Signals
 
 N_SAMPLE = 512
@@ -279,3 +280,125 @@ def test_an_interrupted_tune_says_so_in_its_summary(tmp_path, monkeypatch):
     assert not list(out.glob("before_after*"))  # no figures that need new compiles
     assert math.isfinite(s["heldout_loss_after"])
     jax.clear_caches()
+
+
+# ------------------------------------------------------------------ the distribution's contract
+
+
+def test_scenario_spec_defaults_keywords_and_refusals():
+    """Kills: a default of ``scenario_spec`` changed (current speed U(0, 1) m/s in any
+    direction, +-5 m, +-pi/4 rad = +-45 deg about Simulation 1's start x = y = 0, 90 deg), its
+    distribution arguments made positional, the check of the three bounds skipped."""
+    loop = default_loop()
+    s = scenario_spec(loop)
+    assert dict(s.initial.values) == {
+        "x": (-5.0, 5.0),
+        "y": (-5.0, 5.0),
+        "heading_deg": pytest.approx((45.0, 135.0), rel=1e-15),
+    }
+    assert s.current.speed == (0.0, 1.0) and s.current.direction_deg == (0.0, 360.0)
+    with pytest.raises(TypeError):
+        scenario_spec(loop, 1.0)  # keyword-only
+    zero = scenario_spec(loop, current_max=0.0, position_offset=0.0, heading_offset=0.0)
+    assert dict(zero.initial.values) == {"x": (0, 0), "y": (0, 0), "heading_deg": (90, 90)}
+    for name in ("current_max", "position_offset", "heading_offset"):
+        for bad in (-0.1, math.inf, math.nan):
+            with pytest.raises(ValueError, match=rf"^{name}: expected a finite value >= 0"):
+                scenario_spec(loop, **{name: bad})
+
+
+def test_every_batched_field_of_a_batch_has_the_leading_axis(batch):
+    """Kills: an entry of ``SCENARIO_AXES`` moved off 0 (the sea's, the origin depth's, the
+    environment's: fields a plain batch leaves at None, so no sampled batch here sees them).
+    The module's contract is a leading batch axis on every field but ``path`` and ``design``:
+    ``scenario_at``, ``concat_batches`` and ``shard_scenarios`` index and split that axis,
+    whatever ``SCENARIO_AXES`` says."""
+    shared = ("path", "design")
+    want = {f: None if f in shared else 0 for f in loops.Scenario._fields}
+    assert SCENARIO_AXES._asdict() == want
+    for f in loops.Scenario._fields:
+        if f not in shared:
+            leaves = jax.tree_util.tree_leaves(getattr(batch, f))
+            assert all(jnp.shape(a)[0] == N_SAMPLE for a in leaves), f
+
+
+# ------------------------------------------------------------------ the loss's arguments
+
+
+def test_loss_weights_defaults_dtype_and_refusals():
+    """Kills: a default weight changed, a check skipped or its bound moved (0 is a valid weight,
+    ``sat_width`` must be > 0), the dtype ignored."""
+    w = loss_weights()
+    assert {k: float(getattr(w, k)) for k in w._fields} == {
+        "eps": 1.0, "u_tilde": 1.0, "psi_tilde": 1.0, "sat_excess": 10.0, "sat_time": 1.0,
+        "effort": 0.0, "unhealthy": 1000.0, "sat_width": 0.05, "depth": 0.0,
+    }  # fmt: skip
+    assert all(getattr(w, k).dtype == jnp.float64 for k in w._fields)
+    w32 = loss_weights(jnp.float32, eps=0.0, depth=2)
+    assert w32.eps.dtype == jnp.float32 and float(w32.eps) == 0.0 and float(w32.depth) == 2.0
+    with pytest.raises(TypeError, match="unexpected keyword argument 'bogus'"):
+        loss_weights(eps=1.0, bogus=1.0)
+    for k in ("eps", "unhealthy", "depth", "sat_width"):
+        for bad in (True, "1", None):
+            with pytest.raises(ValueError, match=rf"^weights\.{k}: expected a number"):
+                loss_weights(**{k: bad})
+        for bad in (-1e-3, math.inf, math.nan):
+            with pytest.raises(ValueError, match=rf"^weights\.{k}: expected a finite value >= 0"):
+                loss_weights(**{k: bad})
+    with pytest.raises(ValueError, match=r"^weights\.sat_width: expected > 0, got 0"):
+        loss_weights(sat_width=0)
+    assert float(loss_weights(sat_width=np.float32(1e-3)).sat_width) == pytest.approx(1e-3)
+
+
+def test_tuning_problem_checks_and_passes_on_its_settings():
+    """Kills: a check of ``TuningProblem`` skipped or its bound moved (alpha in (0, 1]), a
+    setting not passed on to the rollout or the loop (smooth)."""
+    space = GainSpace()
+    for bad in ({"risk": "max"}, {"alpha": 0.0}, {"alpha": 1.5}, {"alpha": -0.2}):
+        with pytest.raises(ValueError, match=f"^{next(iter(bad))}: expected"):
+            TuningProblem(space=space, **bad)
+    assert TuningProblem(space=space, risk="cvar", alpha=1.0).alpha == 1.0
+    with pytest.raises(ValueError, match="num_steps"):
+        TuningProblem(space=space, num_steps=0)
+    p = TuningProblem(space=space, num_steps=7, integrator="heun", timing="sampled",
+                      checkpoint=True, checkpoint_every=3, smooth=False)  # fmt: skip
+    cfg = p.rollout_config()
+    assert (cfg.num_steps, cfg.integrator, cfg.timing) == (7, "heun", "sampled")
+    assert (cfg.checkpoint, cfg.checkpoint_every) == (True, 3)
+    assert p.loop.smooth is False and TuningProblem(space=space).loop.smooth is True
+    assert p.loop.vehicle == space.loop.vehicle
+    d = TuningProblem(space=space)
+    assert (d.num_steps, d.integrator, d.timing, d.risk, d.alpha) == (
+        800, "rk4", "continuous", "mean", 0.2,
+    )  # fmt: skip
+    assert (d.checkpoint, d.checkpoint_every, d.tile_gains) == (False, 10, False)
+
+
+def test_problem_data_defaults_dtype_and_refusals():
+    """Kills: ``problem_data``'s defaults (dt 0.1 s, log_box 3, box weight 10, the loop's
+    default gains, the default weights), its checks, the dtype of the base gains."""
+    problem = TuningProblem(space=GainSpace(), num_steps=5)
+    d = problem_data(problem)
+    assert (float(d.dt), float(d.log_box), float(d.box_weight)) == (0.1, 3.0, 10.0)
+    np.testing.assert_array_equal(
+        d.theta_ref, problem.space.encode(problem.space.loop.default_gains())
+    )
+    assert float(d.weights.sat_excess) == 10.0 and d.dt.dtype == jnp.float64
+    for name in ("dt", "log_box", "box_weight"):
+        for bad in (0.0, -1.0, math.inf, math.nan):
+            with pytest.raises(ValueError, match=f"^{name}: expected a finite value > 0"):
+                problem_data(problem, **{name: bad})
+    base32 = jax.tree_util.tree_map(lambda a: jnp.asarray(a, jnp.float32), d.base)
+    d32 = problem_data(problem, base=base32, dt=0.05)
+    assert d32.dt.dtype == jnp.float32 and d32.log_box.dtype == jnp.float32
+    assert float(d32.dt) == pytest.approx(0.05)
+
+
+def test_cvar_of_a_tiny_alpha_is_the_worst_and_of_alpha_one_the_mean():
+    """Kills: CVaR's count floor of one scenario (a tiny alpha would average none: NaN), its
+    rounding (ceil, the 1e-9 guard against alpha B landing just above an integer)."""
+    losses = jnp.asarray([1.0, 5.0, 2.0, 8.0, 3.0])
+    cvar = lambda a: float(aggregate(losses, TuningProblem(num_steps=5, risk="cvar", alpha=a)))
+    assert cvar(1e-12) == 8.0 and cvar(1.0) == pytest.approx(3.8)
+    assert cvar(0.6) == pytest.approx(16.0 / 3.0) and cvar(0.61) == pytest.approx(4.5)
+    assert cvar(0.2 * 3) == pytest.approx(16.0 / 3.0)  # 0.6000000000000001 * 5: still 3
