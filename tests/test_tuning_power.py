@@ -29,6 +29,7 @@ from tuning.loss import (
     weighted_loss,
 )
 from tuning.params import GainSpace, default_loop
+from tuning.robust import RobustSearch, TuningLossMetric, concat_batches, report
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, scenario_spec
 from vcjax import loops
 from vcjax.loops import Signals
@@ -402,3 +403,158 @@ def test_cvar_of_a_tiny_alpha_is_the_worst_and_of_alpha_one_the_mean():
     assert cvar(1e-12) == 8.0 and cvar(1.0) == pytest.approx(3.8)
     assert cvar(0.6) == pytest.approx(16.0 / 3.0) and cvar(0.61) == pytest.approx(4.5)
     assert cvar(0.2 * 3) == pytest.approx(16.0 / 3.0)  # 0.6000000000000001 * 5: still 3
+
+
+# ------------------------------------------------------------------ robust tuning's bookkeeping
+# (tuning/robust.py without its searches: vcjax.search.falsify replaced by a stand-in; the
+# searches themselves are tests/test_robust.py's, slow)
+
+ROBUST = dict(adversarial_every=3, adversarial_count=2, starts=4, budget=5, step_size=0.25,
+              seed=7, check_starts=6, check_budget=8, check_seed=1007, compare=False)  # fmt: skip
+
+
+def _part(batch, lo, hi):
+    """Scenarios lo..hi-1 of a batch (the shared fields as they are)."""
+    return jax.tree_util.tree_map(
+        lambda ax, a: a if ax is None else jax.tree_util.tree_map(lambda x: x[lo:hi], a),
+        SCENARIO_AXES,
+        batch,
+        is_leaf=lambda x: x is None,
+    )
+
+
+def test_the_tuning_loss_metric_folds_segments_into_the_scenario_loss():
+    """Kills: a segment's terms summed without their length, the average over the wrong count,
+    the weights of another section (``of_table``: the tune's ``[weights]`` defaults, not the
+    Python API's), a bad weight let through."""
+    m = TuningLossMetric.of({"eps": 2.0, "sat_width": W, "depth": 3.0})
+    assert m.name == "tuning_loss" and dict(m.weights)["eps"] == 2.0
+    acc = m.init(jnp.float64)
+    assert sorted(acc) == sorted(TERMS) and all(float(v) == 0.0 for v in acc.values())
+    acc = m.update(acc, _Traj(), _signals(), jnp.arange(4))  # two segments of 4 steps, then
+    acc = m.update(acc, _Traj(), _signals(), jnp.arange(4, 8))  # the mean over the 8 steps
+    one = rollout_terms(_Traj(), _signals(), W)
+    want = float(weighted_loss(one, loss_weights(eps=2.0, sat_width=W, depth=3.0)))
+    assert float(m.value(acc, 8)) == pytest.approx(want, rel=1e-13)
+    half = m.update(m.init(jnp.float64), _Traj(), _signals(), jnp.arange(4))
+    assert float(m.value(half, 8)) == pytest.approx(want / 2, rel=1e-13)
+    tab = dict(TuningLossMetric.of_table({"eps": 2.0}).weights)
+    assert (tab["eps"], tab["sat_excess"], tab["sat_time"]) == (2.0, 1.0, 5.0)
+    with pytest.raises(ValueError, match=r"weights\.eps"):
+        TuningLossMetric.of({"eps": -1.0})
+
+
+def test_concat_batches_puts_b_after_a_and_keeps_a_s_shared_fields(batch):
+    a, b = _part(batch, 0, 3), _part(batch, 3, 5)
+    both = concat_batches(a, b)
+    for f in ("eta0", "nu0", "current", "u_d", "varpi0", "disturbance"):
+        np.testing.assert_array_equal(getattr(both, f), getattr(batch, f)[:5], err_msg=f)
+    assert both.path is a.path and both.design is a.design
+
+
+def _robust_search(section=None, value=(1.0, np.nan, 3.0, 2.0), smooth=False):
+    """A RobustSearch whose falsify answers ``value`` per start (no search run)."""
+    from types import SimpleNamespace as NS
+
+    sec = NS(**(section or ROBUST))
+    env = NS(searched=("current_speed",), as_dict=lambda: {"current_speed": [0.0, 1.0]})
+    setting = NS(loop=NS(smooth=True, name="train"))
+    check = NS(loop=NS(smooth=smooth, name="check"))
+    return RobustSearch(sec, env, setting, check, TuningLossMetric.of({}))
+
+
+def test_a_robust_search_keeps_the_worst_it_found_and_moves_on(monkeypatch):
+    """Kills: the search's arguments (budget, step size, starts, a new first scenario each
+    round), the order of the worst (a NaN value counts as the worst), the slot's size, what a
+    round records."""
+    from types import SimpleNamespace as NS
+
+    import tuning.robust as robust
+
+    calls = []
+    value = np.asarray([1.0, np.nan, 3.0, 2.0])
+
+    def falsify(loop, gains, envelope, metric, setting, **kw):
+        calls.append((loop.name, gains, kw))
+        x = np.arange(8.0).reshape(4, 2)
+        return NS(value=value, x=x, index=np.asarray([10, 11, 12, 13]), rollouts=20)
+
+    monkeypatch.setattr(robust, "falsify", falsify)
+    rs = _robust_search()
+    x, index = rs.search("g", 6)
+    np.testing.assert_array_equal(index, [11, 12])  # NaN first, then 3.0
+    np.testing.assert_array_equal(x, [[2.0, 3.0], [4.0, 5.0]])
+    kw = calls[0][2]
+    assert calls[0][:2] == ("train", "g") and kw["first_index"] == 0
+    assert (kw["starts"], kw["steps"], kw["step_size"]) == (4, 5, 0.25)
+    assert kw["random_rollouts"] == 0 and kw["stop"]() is False
+    assert rs.rounds[0]["step"] == 6 and rs.rounds[0]["first_index"] == 0
+    assert rs.rounds[0]["rollouts"] == 20 and np.isnan(rs.rounds[0]["worst"])
+    assert rs.rounds[0]["values"][1] == 3.0 and len(rs.rounds[0]["values"]) == 2
+    rs.search("g", 9)
+    assert calls[1][2]["first_index"] == 4 and rs.rounds[1]["first_index"] == 4
+    value[:] = [1.0, 5.0, 3.0, 2.0]
+    rs.search("g", 12)
+    assert rs.rounds[2]["worst"] == 5.0 and rs.rounds[2]["values"] == [5.0, 3.0]
+
+
+def test_the_independent_check_searches_the_held_out_plant(monkeypatch):
+    from types import SimpleNamespace as NS
+
+    import tuning.robust as robust
+
+    seen = {}
+
+    def falsify(loop, gains, envelope, metric, setting, **kw):
+        seen.update(kw, loop=loop.name)
+        row = {"tuning_loss": 4.5, "params": {"current_speed": 0.9}, "index": 3}
+        return NS(metric="tuning_loss", rollouts=48, scenarios=lambda k: [row] * k)
+
+    monkeypatch.setattr(robust, "falsify", falsify)
+    got = _robust_search().check("g")
+    assert got == {"worst": 4.5, "params": {"current_speed": 0.9}, "index": 3, "rollouts": 48}
+    assert seen["loop"] == "check" and (seen["starts"], seen["steps"]) == (6, 8)
+    assert seen["step_size"] == 0.25 and seen["random_rollouts"] == 0 and not seen["stop"]()
+
+
+def test_the_refresh_hook_fills_the_slot_every_k_steps_only(batch, monkeypatch):
+    rs = _robust_search()
+    train, slot = _part(batch, 0, 3), _part(batch, 3, 5)
+    asked = []
+
+    def fake_slot(gains, k, progress=None):
+        asked.append((gains, k))
+        return slot
+
+    monkeypatch.setattr(rs, "slot", fake_slot)
+    hook = rs.refresh(train, lambda th: ("gains", th), lambda b: ("placed", b))
+    for k in (0, 1, 2, 4, 5, 7):
+        assert hook(k, "th", ("data", "old", "x")) is None, k
+    new = hook(6, "th", ("data", "old", "x"))
+    assert asked == [(("gains", "th"), 6)] and new[0] == "data" and new[2:] == ("x",)
+    assert new[1][0] == "placed"
+    np.testing.assert_array_equal(new[1][1].eta0, batch.eta0[:5])
+
+
+def test_the_robust_block_reports_relative_changes():
+    rs = _robust_search()
+    mine = {"heldout_mean": 2.0, "worst": 6.0}
+    out = report(rs, mine, None)
+    assert out["robust"] is mine and out["nominal"] is None and "change" not in out
+    s = out["search"]
+    assert s["metric"] == "tuning_loss" and s["searched"] == ["current_speed"]
+    assert s["envelope"] == {"current_speed": [0.0, 1.0]}
+    t = s["training"]
+    assert (t["adversarial_every"], t["adversarial_count"], t["starts"]) == (3, 2, 4)
+    assert (t["budget"], t["step_size"], t["seed"], t["rounds"]) == (5, 0.25, 7, [])
+    c = s["check"]
+    assert (c["starts"], c["budget"], c["seed"]) == (6, 8, 1007)
+    assert c["plant"] == "hard-clipped (as the held-out batch)"
+    assert report(_robust_search(smooth=True), mine, None)["search"]["check"]["plant"] == (
+        "smooth saturation"
+    )
+    change = report(rs, mine, {"heldout_mean": -4.0, "worst": 8.0})["change"]
+    assert change["worst"] == pytest.approx(-0.25) and change["heldout_mean"] == 1.5
+    assert report(rs, mine, {"heldout_mean": 0.0, "worst": 8.0})["change"]["heldout_mean"] is None
+    rs.metric = "max_e"
+    assert report(rs, mine, None)["search"]["metric"] == "max_e"
