@@ -28,7 +28,7 @@ from tuning.loss import (
     scenario_losses,
     weighted_loss,
 )
-from tuning.params import GainSpace, default_loop
+from tuning.params import FRAC_MAX, GainSpace, default_loop, rh_bound
 from tuning.robust import RobustSearch, TuningLossMetric, concat_batches, report
 from tuning.scenarios import SCENARIO_AXES, sample_scenarios, scenario_spec
 from vcjax import loops
@@ -558,3 +558,156 @@ def test_the_robust_block_reports_relative_changes():
     assert report(rs, mine, {"heldout_mean": 0.0, "worst": 8.0})["change"]["heldout_mean"] is None
     rs.metric = "max_e"
     assert report(rs, mine, None)["search"]["metric"] == "max_e"
+
+
+# ------------------------------------------------------------------ the config's declarations
+
+
+def test_the_documented_defaults_are_the_defaults():
+    """Kills: a default of a tune section changed (tuning/spec.py) without its documentation:
+    the TOML example of ``tuning.config``'s docstring (the configuration's own page) names every
+    key of every tune section with its default (``[model_error] fields``, commented out, has
+    none); an empty config takes them."""
+    import tomllib
+
+    import tuning.config as tc
+    from tuning.spec import DEFAULTS
+
+    block = tc.__doc__.split("::\n", 1)[1]
+    documented = tomllib.loads("\n".join(line[4:] for line in block.splitlines()))
+    for section, keys in DEFAULTS.items():
+        want = {k: v for k, v in keys.items() if (section, k) != ("model_error", "fields")}
+        assert documented[section] == want, section
+    cfg = tc.validate_config({}).to_dict()
+    assert cfg["problem"] == DEFAULTS["problem"] | {"variant": "vcm_integral"}  # the vehicle's
+    for section in ("weights", "scenarios", "train", "heldout", "optimizer"):
+        assert cfg[section] == DEFAULTS[section], section
+    assert cfg["report"] == DEFAULTS["report"] and "robust" not in cfg
+
+
+#: (section, key, kind): "pos" > 0, "nonneg" >= 0, "ge1" an int >= 1, "ge0" an int >= 0
+BOUNDS = [
+    *[("problem", k, "pos") for k in ("horizon", "dt", "alpha", "log_box", "box_weight")],
+    ("problem", "checkpoint_every", "ge1"),
+    *[("weights", k, "nonneg") for k in ("eps", "u_tilde", "psi_tilde", "sat_excess")],
+    *[("weights", k, "nonneg") for k in ("sat_time", "effort", "unhealthy", "depth")],
+    ("weights", "sat_width", "pos"),
+    *[("scenarios", k, "nonneg") for k in ("current_max", "position_offset")],
+    ("scenarios", "heading_offset_deg", "nonneg"),
+    ("train", "size", "ge1"),
+    ("heldout", "size", "ge1"),
+    *[("optimizer", k, "ge1") for k in ("steps", "memory_size", "max_linesearch_steps")],
+    ("optimizer", "max_bad_steps", "ge1"),
+    ("optimizer", "learning_rate", "pos"),
+    ("optimizer", "grad_tol", "nonneg"),
+    ("report", "plot_scenarios", "ge0"),
+    *[("robust", k, "ge1") for k in ("adversarial_every", "adversarial_count", "budget")],
+    *[("robust", k, "ge1") for k in ("starts", "check_starts", "check_budget")],
+    ("robust", "step_size", "pos"),
+]
+
+
+def test_each_bounded_key_takes_its_bound_and_refuses_beyond():
+    """Kills: a key's lower bound moved, made closed where it is open (or open where closed),
+    CVaR's alpha allowed above 1 or refused at 1 (parsed by the one validator, as a config file
+    is)."""
+    from tuning.spec import _OPTIONAL, _SECTIONS
+    from vcjax.config import ConfigError, parse_section
+
+    classes = {**_SECTIONS, **_OPTIONAL}
+    takes = {"pos": (1e-3, 0.5), "nonneg": (0.0, 1e-3), "ge1": (1, 2), "ge0": (0, 1)}
+    refuses = {"pos": (0.0, -1e-3), "nonneg": (-1e-3, -1.0), "ge1": (0, -1), "ge0": (-1,)}
+    for section, k, kind in BOUNDS:
+        for v in takes[kind]:
+            assert getattr(parse_section(classes[section], {k: v}, section), k) == v
+        for v in refuses[kind]:
+            with pytest.raises(ConfigError, match=rf"\[{section}\] {k}"):
+                parse_section(classes[section], {k: v}, section)
+    assert parse_section(classes["problem"], {"alpha": 1.0}, "problem").alpha == 1.0
+    with pytest.raises(ConfigError, match=r"\[problem\] alpha"):
+        parse_section(classes["problem"], {"alpha": 1.01}, "problem")
+
+
+def test_a_tune_config_reads_as_a_mapping_and_round_trips():
+    """Kills: the plain-dict fields read as frozen sections, ``robust`` recorded (or dropped)
+    wrongly, ``from_dict`` losing a section."""
+    from tuning.config import validate_config
+    from tuning.spec import TuneConfig
+
+    raw = {
+        "scenario": {"vehicle": "odin", "controller": "vcm"},
+        "waves": {"hs": [0.5, 1.0], "tp": [6.0, 8.0]},
+        "initial": {"x": [-1.0, 1.0]},
+        "current": {"speed": [0.0, 0.3]},
+        "robust": {"seed": 3},
+        "train": {"size": 3},
+    }
+    cfg = validate_config(raw)
+    assert cfg["current"]["speed"] == [0.0, 0.3] and cfg["initial"] == {"x": [-1.0, 1.0]}
+    assert cfg["waves"]["hs"] == [0.5, 1.0] and cfg["scenario"]["vehicle"] == "odin"
+    assert cfg["train"]["size"] == 3 and cfg["problem"]["horizon"] == 80.0
+    assert cfg.to_dict()["robust"]["seed"] == 3
+    assert TuneConfig.from_dict(cfg.to_dict()) == cfg
+    plain = validate_config({})
+    assert plain["waves"] is None and "robust" not in plain.to_dict()
+    assert TuneConfig.from_dict(plain.to_dict()) == plain
+
+
+# ------------------------------------------------------------------ the gain space
+
+
+def test_gain_space_refuses_what_it_cannot_tune():
+    """Kills: a check of ``GainSpace`` skipped (not a loop, a duplicate, nothing to tune, a
+    part of the gains where the whole are needed)."""
+    with pytest.raises(ValueError, match="^loop: expected a vcjax.loops.Loop, got str"):
+        GainSpace(loop="infante")
+    with pytest.raises(ValueError, match=r"^tune: duplicate names in \['Delta', 'Delta'\]"):
+        GainSpace(tune=("Delta", "Delta"))
+    with pytest.raises(ValueError, match="^tune: nothing to tune"):
+        GainSpace(tune=())
+    space = GainSpace(tune=("sigma",))
+    assert space.size == 1 and space.labels() == ["sigma"]
+    full = loops.infante_gains()
+    assert space.check_gains(full) is full
+    with pytest.raises(
+        ValueError, match=r"^where: expected the whole gains of .*\(InfanteGains\), got PMGains"
+    ):
+        space.check_gains(full.vcm, "where")
+    with pytest.raises(ValueError, match="expected the whole gains"):
+        space.encode(full.vcm)
+
+
+def test_encode_clips_zero_and_saturated_gains_to_finite_theta():
+    """Kills: the floors that keep ``encode`` finite (a positive gain of 0 -> log(1e-12), a
+    bounded gain at 0 or at its cap -> 1e-6 inside), the cap FRAC_MAX = 0.95 of the bound."""
+    space = GainSpace(tune=("sigma", "P_int"))
+    full = loops.infante_gains()
+    vcm = full.vcm
+    bound = np.asarray(rh_bound(vcm.P_G, vcm.P_Phi))
+    assert FRAC_MAX == 0.95
+    at_cap = full._replace(vcm=vcm._replace(sigma=jnp.asarray(0.0), P_int=0.95 * bound * 2))
+    th = np.asarray(space.encode(at_cap))
+    logit = lambda f: math.log(f) - math.log1p(-f)  # noqa: E731
+    np.testing.assert_allclose(th, [math.log(1e-12), logit(1 - 1e-6), logit(1 - 1e-6)], rtol=1e-12)
+    zero = full._replace(vcm=vcm._replace(P_int=jnp.zeros(2)))
+    np.testing.assert_allclose(space.encode(zero)[1:], logit(1e-6), rtol=1e-12)
+    half = full._replace(vcm=vcm._replace(P_int=0.95 * bound / 2))
+    np.testing.assert_allclose(space.encode(half)[1:], 0.0, atol=1e-12)
+    g = space.decode(jnp.asarray([0.0, 0.0, 0.0]), full).vcm  # sigmoid(0) = 1/2 of the cap
+    np.testing.assert_allclose(g.P_int, 0.95 * bound / 2, rtol=1e-14)
+    assert float(g.sigma) == 1.0
+
+
+def test_start_is_the_encoding_plus_the_symmetry_break_and_describe_decodes():
+    """Kills: ``start`` without its offset or with another ``eps`` (default 0.1), ``describe``
+    not decoding ``theta``."""
+    space = GainSpace()
+    full = loops.infante_gains()
+    th0 = np.asarray(space.encode(full))
+    off = space.symmetry_break(full)
+    assert sorted(off[off != 0]) == [-0.1, -0.1, 0.1, 0.1]
+    np.testing.assert_array_equal(space.start(full), th0 + off)
+    np.testing.assert_allclose(space.start(full, eps=0.3), th0 + 3 * off, rtol=1e-15, atol=1e-15)
+    d = space.describe(th0 + np.log(2.0) * (np.asarray(space.labels()) == "Delta"), full)
+    assert d["Delta"] == pytest.approx(10.0) and d["sigma"] == pytest.approx(0.5)
+    assert d["P_G"] == pytest.approx([1.0, 0.5, 0.5])
