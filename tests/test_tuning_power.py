@@ -7,6 +7,7 @@ not with the code under test.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -30,7 +31,7 @@ from tuning.loss import (
 )
 from tuning.params import FRAC_MAX, GainSpace, default_loop, rh_bound
 from tuning.robust import RobustSearch, TuningLossMetric, concat_batches, report
-from tuning.scenarios import SCENARIO_AXES, sample_scenarios, scenario_spec
+from tuning.scenarios import SCENARIO_AXES, Nominal, sample_scenarios, scenario_spec
 from vcjax import loops
 from vcjax.loops import Signals
 
@@ -306,6 +307,32 @@ def test_scenario_spec_defaults_keywords_and_refusals():
         for bad in (-0.1, math.inf, math.nan):
             with pytest.raises(ValueError, match=rf"^{name}: expected a finite value >= 0"):
                 scenario_spec(loop, **{name: bad})
+
+
+def test_only_the_horizontal_start_and_heading_are_offset():
+    """Kills: a key other than ``x``, ``y``, ``heading_deg`` offset (one that sorts before
+    ``heading_deg``, as a ``depth`` key would: no registered vehicle has one, so a stand-in
+    loop that has only ``initial_keys``)."""
+    from types import SimpleNamespace
+
+    loop = SimpleNamespace(initial_keys={"depth": 3.0, "heading_deg": 10.0, "x": 1.0, "z": 2.0})
+    got = dict(scenario_spec(loop, position_offset=2.0, heading_offset=math.pi / 2).initial.values)
+    assert got == {"x": (-1.0, 3.0), "heading_deg": pytest.approx((-80.0, 100.0), rel=1e-15)}
+
+
+def test_sample_scenarios_refuses_bad_arguments_before_any_work():
+    """Kills: the batch size's check (a float, zero), ``spec`` given with distribution keywords,
+    the keyword-only ``loop``, ``nominal``, ``dtype``; ``Nominal`` frozen."""
+    for bad in (0, -1, 2.5, "2"):
+        with pytest.raises(ValueError, match=r"^n: expected a positive int"):
+            sample_scenarios(0, bad)
+    spec = scenario_spec(default_loop())
+    with pytest.raises(TypeError, match=r"spec given, and also \['current_max'\]"):
+        sample_scenarios(0, 2, spec, current_max=1.0)
+    with pytest.raises(TypeError):
+        sample_scenarios(0, 2, spec, default_loop())
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        Nominal().plant = 1
 
 
 def test_every_batched_field_of_a_batch_has_the_leading_axis(batch):
