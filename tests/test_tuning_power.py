@@ -335,6 +335,19 @@ def test_sample_scenarios_refuses_bad_arguments_before_any_work():
         Nominal().plant = 1
 
 
+def test_a_model_error_perturbs_each_scenario_s_plant_not_the_design():
+    """Kills: the model fields dropped when the relative error is not 0 (every plant would
+    then be the design). relative 0.2 on the mass only: factors in [0.8, 1.2], one per
+    scenario."""
+    b = sample_scenarios(0, 4, extra={"model_error": 0.2, "model_fields": ("mass",)})
+    nominal = default_loop().default_params()
+    ratio = np.asarray(b.plant.mass) / float(nominal.mass)
+    assert ratio.shape == (4,) and np.all(np.abs(ratio - 1.0) <= 0.2)
+    assert np.ptp(ratio) > 0.05
+    assert float(b.design.mass) == float(nominal.mass)
+    np.testing.assert_array_equal(b.plant.Iz, np.broadcast_to(nominal.Iz, (4,)))
+
+
 def test_every_batched_field_of_a_batch_has_the_leading_axis(batch):
     """Kills: an entry of ``SCENARIO_AXES`` moved off 0 (the sea's, the origin depth's, the
     environment's: fields a plain batch leaves at None, so no sampled batch here sees them).
