@@ -31,7 +31,14 @@ from tuning.loss import (
 )
 from tuning.params import FRAC_MAX, GainSpace, default_loop, rh_bound
 from tuning.robust import RobustSearch, TuningLossMetric, concat_batches, report
-from tuning.scenarios import SCENARIO_AXES, Nominal, sample_scenarios, scenario_spec
+from tuning.scenarios import (
+    SCENARIO_AXES,
+    Nominal,
+    batch_size,
+    sample_scenarios,
+    scenario_spec,
+    shard_scenarios,
+)
 from vcjax import loops
 from vcjax.loops import Signals
 
@@ -361,6 +368,20 @@ def test_every_batched_field_of_a_batch_has_the_leading_axis(batch):
         if f not in shared:
             leaves = jax.tree_util.tree_leaves(getattr(batch, f))
             assert all(jnp.shape(a)[0] == N_SAMPLE for a in leaves), f
+    assert batch_size(batch) == N_SAMPLE
+
+
+def test_a_batch_is_left_on_one_device_unless_it_splits_evenly(batch):
+    """Kills: ``shard_scenarios`` sharding over one device, or a batch whose size is not a
+    multiple of the device count (padding would change the mean), or miscounting the devices
+    it used. (The sharding itself over two devices: tests/test_tuning.py's subprocess tests.)"""
+    (d,) = jax.local_devices()[:1]
+    three = _part(batch, 0, 3)
+    for devices in ([d], [d, d]):
+        same, n = shard_scenarios(three, devices)
+        assert same is three and n == 1
+    same, n = shard_scenarios(batch, [d])
+    assert same is batch and n == 1
 
 
 # ------------------------------------------------------------------ the loss's arguments
