@@ -20,6 +20,7 @@ from tuning import run as tcli
 from tuning.config import load_config
 from tuning.loss import (
     TERMS,
+    LossWeights,
     TuningProblem,
     aggregate,
     box_penalty,
@@ -410,6 +411,7 @@ def test_loss_weights_defaults_dtype_and_refusals():
     with pytest.raises(ValueError, match=r"^weights\.sat_width: expected > 0, got 0"):
         loss_weights(sat_width=0)
     assert float(loss_weights(sat_width=np.float32(1e-3)).sat_width) == pytest.approx(1e-3)
+    assert LossWeights(*[1.0] * 8).depth == 0.0  # built without depth (older code): weight 0
 
 
 def test_tuning_problem_checks_and_passes_on_its_settings():
