@@ -774,3 +774,108 @@ def test_start_is_the_encoding_plus_the_symmetry_break_and_describe_decodes():
     d = space.describe(th0 + np.log(2.0) * (np.asarray(space.labels()) == "Delta"), full)
     assert d["Delta"] == pytest.approx(10.0) and d["sigma"] == pytest.approx(0.5)
     assert d["P_G"] == pytest.approx([1.0, 0.5, 0.5])
+
+
+def _robust_build(metric="loss", spec=None, weights=None):
+    from types import SimpleNamespace as NS
+
+    loop = default_loop()
+    problem = TuningProblem(space=GainSpace(), num_steps=5, integrator="euler", timing="sampled")
+    held = dataclasses.replace(problem, smooth=False)
+    p, coeffs = loop.default_params(), type(loop).default_path()[1]
+    section = NS(metric=metric, seed=7, check_seed=1007)
+    spec = scenario_spec(loop) if spec is None else spec
+    return RobustSearch.build(section, spec, problem, held, (p, p, coeffs), weights or {}, 0.1)
+
+
+def test_a_robust_search_is_built_from_the_tune_s_own_settings():
+    """Kills: the training and held-out settings swapped or not those of the problems (steps,
+    integrator, timing, checkpointed, no sensor noise, no sea without waves, the seeds), the
+    tuning loss not recognised by either name, a sweep metric's name not checked, the refusals
+    (nothing to search, a further environment component)."""
+    from vcjax.config import ConfigError
+
+    rs = _robust_build(weights={"eps": 2.0})
+    assert isinstance(rs.metric, TuningLossMetric) and dict(rs.metric.weights)["eps"] == 2.0
+    assert isinstance(_robust_build("tuning_loss").metric, TuningLossMetric)
+    for s, seed, smooth in ((rs.setting, 7, True), (rs.check_setting, 1007, False)):
+        c = s.config
+        assert (c.num_steps, c.integrator, c.timing, c.checkpoint) == (5, "euler", "sampled", True)
+        assert s.seed == seed and s.loop.smooth is smooth and s.sea is None and s.dt == 0.1
+        assert s.noise_std and set(s.noise_std) == {0.0}
+    assert "initial.heading_deg" in rs.envelope.searched and rs.rounds == []
+    with pytest.raises(
+        ConfigError, match=r"\[robust\] metric: unknown metric 'bogus'.*; or tuning"
+    ):
+        _robust_build("bogus")
+    loop = default_loop()
+    fixed = dict(current_direction_deg=(0.0, 0.0))
+    none = scenario_spec(loop, current_max=0, position_offset=0, heading_offset=0, extra=fixed)
+    with pytest.raises(ConfigError, match="no range to search"):
+        _robust_build(spec=none)
+    force = {"environment": (("force", {"tau_0": [-1.0, 1.0]}),)}
+    with pytest.raises(ConfigError, match="further environment components cannot be searched"):
+        _robust_build(spec=scenario_spec(loop, extra=force))
+
+
+ROBUST_TOML = """
+[robust]
+adversarial_every = 2
+adversarial_count = 2
+starts = 3
+budget = 4
+"""
+
+
+def test_a_robust_tune_attaches_its_slot_refreshes_it_and_reports(tmp_path, batch, monkeypatch):
+    """Kills: the adversarial slot's first search against other gains or at another step, the
+    nominal parameters of the searches (the loop's defaults and default path, as the tune's),
+    the batch not extended by the slot, the hook's announcement, the independent check's block
+    (``compare = false``: no nominal run). ``RobustSearch.slot`` and ``check`` replaced: no
+    search runs."""
+    import tuning.robust as robust
+
+    slots, said = [], []
+
+    def slot(self, gains, step, progress=None):
+        slots.append((gains, step))
+        self.rounds.append({"worst": 2.5 + step})
+        return _part(batch, 0, 2)
+
+    monkeypatch.setattr(robust.RobustSearch, "slot", slot)
+    monkeypatch.setattr(robust.RobustSearch, "check", lambda self, g, progress=None: {"worst": 9})
+    from types import SimpleNamespace
+
+    from tuning.scenarios import config_spec
+
+    path = tmp_path / "r.toml"
+    path.write_text(TUNE.format(train=0, heldout=1001, heldout_size=4, steps=3) + ROBUST_TOML)
+    cfg = load_config(path)
+    problem = TuningProblem(space=GainSpace(), num_steps=10, integrator="euler", timing="sampled")
+    held = dataclasses.replace(problem, smooth=False)
+    data = problem_data(problem)
+    t = SimpleNamespace(cfg=cfg, problem=problem, eval_problem=held, data=data)
+    t.train = _part(batch, 0, 4)
+    t.start = data.theta_ref + problem.space.symmetry_break(data.base)
+    t.robust, train = robust.attach(t, t.start, said.append, config_spec)
+    assert batch_size(train) == 6
+    np.testing.assert_array_equal(train.eta0[:4], batch.eta0[:4])
+    np.testing.assert_array_equal(train.eta0[4:], batch.eta0[:2])
+    want = problem.space.values(problem.space.decode(t.start, data.base))
+    assert problem.space.values(slots[0][0]) == want and slots[0][1] == 0
+    loop = t.problem.space.loop
+    plant, design, coeffs = t.robust.setting.nominal
+    for got, ref in ((plant, loop.default_params()), (design, loop.default_params())):
+        for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(ref), strict=True):
+            np.testing.assert_array_equal(a, b)
+    for a, b in zip(jax.tree.leaves(coeffs), type(loop).default_path()[1], strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert any("every 2 steps, a search (3 starts x 4 steps of tuning_loss over" in m for m in said)
+    assert "puts its 2 worst scenarios" in said[-2] and said[-1] == "robust: worst found 2.5"
+    refresh = robust.hook(t, said.append, tcli.distribute)
+    assert refresh(1, t.start, (data, train)) is None and len(slots) == 1
+    new = refresh(2, t.start, (data, train))
+    assert new[0] is data and batch_size(new[1]) == 6 and slots[1][1] == 2
+    assert said[-1] == "robust: step 2: worst found 4.5"
+    block = robust.summarize(t, "tuned", {"loss": 1.5}, tmp_path, None, said.append, None)
+    assert block["robust"] == {"heldout_mean": 1.5, "worst": 9} and block["nominal"] is None
