@@ -879,3 +879,46 @@ def test_a_robust_tune_attaches_its_slot_refreshes_it_and_reports(tmp_path, batc
     assert said[-1] == "robust: step 2: worst found 4.5"
     block = robust.summarize(t, "tuned", {"loss": 1.5}, tmp_path, None, said.append, None)
     assert block["robust"] == {"heldout_mean": 1.5, "worst": 9} and block["nominal"] is None
+
+
+_SHARD_TWO = """
+import json
+import jax
+jax.config.update("jax_enable_x64", True)
+import numpy as np
+from tuning.scenarios import sample_scenarios, scenario_at, shard_scenarios
+assert jax.device_count() == 2
+b = sample_scenarios(0, 4, current_max=1.0)
+s, n = shard_scenarios(b)
+three, n3 = shard_scenarios(sample_scenarios(0, 3, current_max=1.0))
+out = {
+    "n": n, "n3": n3, "three_devices": len(three.eta0.sharding.device_set),
+    "eta0_devices": len(s.eta0.sharding.device_set),
+    "eta0_shard": [list(x.data.shape) for x in s.eta0.addressable_shards],
+    "path_same": all(a is c for a, c in zip(jax.tree.leaves(s.path), jax.tree.leaves(b.path))),
+    "equal": bool(np.array_equal(np.asarray(s.eta0), np.asarray(b.eta0))),
+}
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.slow  # a fresh process with two host devices (JAX's start, a batch sampled): ~5 s
+def test_a_batch_is_sharded_along_its_scenarios_over_two_devices():
+    """Kills: ``shard_scenarios`` leaving an evenly split batch on one device with two devices,
+    sharding the shared fields (path, design) or not the batched ones."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    flags = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
+    env = {**os.environ, "XLA_FLAGS": flags.strip()}
+    env.pop("VCJAX_CPU_DEVICES", None)
+    cwd = Path(__file__).parents[1]
+    run = subprocess.run([sys.executable, "-c", _SHARD_TWO], env=env, cwd=cwd,
+                         capture_output=True, text=True)  # fmt: skip
+    assert run.returncode == 0, run.stderr[-2000:]
+    out = json.loads(run.stdout.strip().splitlines()[-1])
+    assert out["n"] == 2 and out["eta0_devices"] == 2 and out["equal"] and out["path_same"]
+    assert out["eta0_shard"] == [[2, 3], [2, 3]]
+    assert out["n3"] == 1 and out["three_devices"] == 1
