@@ -492,6 +492,7 @@ def test_the_tuning_loss_metric_folds_segments_into_the_scenario_loss():
     Python API's), a bad weight let through."""
     m = TuningLossMetric.of({"eps": 2.0, "sat_width": W, "depth": 3.0})
     assert m.name == "tuning_loss" and dict(m.weights)["eps"] == 2.0
+    assert hash(m) == hash(TuningLossMetric.of({"depth": 3.0, "eps": 2, "sat_width": W}))  # static
     acc = m.init(jnp.float64)
     assert sorted(acc) == sorted(TERMS) and all(float(v) == 0.0 for v in acc.values())
     acc = m.update(acc, _Traj(), _signals(), jnp.arange(4))  # two segments of 4 steps, then
