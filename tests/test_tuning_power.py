@@ -400,7 +400,7 @@ def test_loss_weights_defaults_dtype_and_refusals():
     w32 = loss_weights(jnp.float32, eps=0.0, depth=2)
     assert w32.eps.dtype == jnp.float32 and float(w32.eps) == 0.0 and float(w32.depth) == 2.0
     with pytest.raises(TypeError, match="unexpected keyword argument 'bogus'"):
-        loss_weights(eps=1.0, bogus=1.0)
+        loss_weights(eps=1.0, zzz=2.0, bogus=1.0)  # the first unknown name, sorted
     for k in ("eps", "unhealthy", "depth", "sat_width"):
         for bad in (True, "1", None):
             with pytest.raises(ValueError, match=rf"^weights\.{k}: expected a number"):
