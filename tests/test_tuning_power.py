@@ -830,11 +830,14 @@ budget = 4
 
 def test_a_robust_tune_attaches_its_slot_refreshes_it_and_reports(tmp_path, batch, monkeypatch):
     """Kills: the adversarial slot's first search against other gains or at another step, the
-    nominal parameters of the searches (the loop's defaults and default path, as the tune's),
-    the batch not extended by the slot, the hook's announcement, the independent check's block
-    (``compare = false``: no nominal run). ``RobustSearch.slot`` and ``check`` replaced: no
-    search runs."""
+    nominal parameters of the searches (the config's design, plant and path, not the loop's
+    defaults), the batch not extended by the slot, the hook's announcements (the latest
+    round's), the independent check's block and, with ``compare``, the nominal run's folder.
+    ``RobustSearch.slot`` and ``check`` and the nominal tune replaced: no search, no tune."""
+    from types import SimpleNamespace
+
     import tuning.robust as robust
+    from tuning.scenarios import config_spec
 
     slots, said = [], []
 
@@ -845,12 +848,13 @@ def test_a_robust_tune_attaches_its_slot_refreshes_it_and_reports(tmp_path, batc
 
     monkeypatch.setattr(robust.RobustSearch, "slot", slot)
     monkeypatch.setattr(robust.RobustSearch, "check", lambda self, g, progress=None: {"worst": 9})
-    from types import SimpleNamespace
-
-    from tuning.scenarios import config_spec
-
+    (tmp_path / "p.json").write_text(json.dumps({"mass": 3000.0}))
+    (tmp_path / "plant.json").write_text(json.dumps({"Iz": 5000.0}))
     path = tmp_path / "r.toml"
-    path.write_text(TUNE.format(train=0, heldout=1001, heldout_size=4, steps=3) + ROBUST_TOML)
+    scenario = '[scenario]\nparams = "p.json"\nplant_params = "plant.json"\n'
+    scenario += '[scenario.path]\nkind = "circle"\nradius = 40.0\n'
+    text = TUNE.format(train=0, heldout=1001, heldout_size=4, steps=3)
+    path.write_text(scenario + text + ROBUST_TOML)
     cfg = load_config(path)
     problem = TuningProblem(space=GainSpace(), num_steps=10, integrator="euler", timing="sampled")
     held = dataclasses.replace(problem, smooth=False)
@@ -864,12 +868,11 @@ def test_a_robust_tune_attaches_its_slot_refreshes_it_and_reports(tmp_path, batc
     np.testing.assert_array_equal(train.eta0[4:], batch.eta0[:2])
     want = problem.space.values(problem.space.decode(t.start, data.base))
     assert problem.space.values(slots[0][0]) == want and slots[0][1] == 0
-    loop = t.problem.space.loop
     plant, design, coeffs = t.robust.setting.nominal
-    for got, ref in ((plant, loop.default_params()), (design, loop.default_params())):
-        for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(ref), strict=True):
-            np.testing.assert_array_equal(a, b)
-    for a, b in zip(jax.tree.leaves(coeffs), type(loop).default_path()[1], strict=True):
+    nominal = problem.space.loop.default_params()
+    assert float(design.mass) == 3000.0 and float(design.Iz) == float(nominal.Iz)
+    assert float(plant.mass) == 3000.0 and float(plant.Iz) == 5000.0
+    for a, b in zip(jax.tree.leaves(coeffs), cfg.scenario.coeffs(), strict=True):
         np.testing.assert_array_equal(a, b)
     assert any("every 2 steps, a search (3 starts x 4 steps of tuning_loss over" in m for m in said)
     assert "puts its 2 worst scenarios" in said[-2] and said[-1] == "robust: worst found 2.5"
@@ -878,8 +881,24 @@ def test_a_robust_tune_attaches_its_slot_refreshes_it_and_reports(tmp_path, batc
     new = refresh(2, t.start, (data, train))
     assert new[0] is data and batch_size(new[1]) == 6 and slots[1][1] == 2
     assert said[-1] == "robust: step 2: worst found 4.5"
+    refresh(4, t.start, (data, train))
+    assert said[-1] == "robust: step 4: worst found 6.5"
     block = robust.summarize(t, "tuned", {"loss": 1.5}, tmp_path, None, said.append, None)
     assert block["robust"] == {"heldout_mean": 1.5, "worst": 9} and block["nominal"] is None
+    ran = []
+
+    def nominal_tune(config_path, out, progress=None, cfg=None):
+        ran.append((out, cfg.robust))
+        out.mkdir()
+        gains = problem.space.loop.gains_to_json(problem.space.loop.default_gains())
+        (out / "gains.json").write_text(json.dumps(gains))
+        return {"summary": {"heldout_loss_after": 3.0}}
+
+    t.robust.section = dataclasses.replace(cfg.robust, compare=True)
+    block = robust.summarize(t, "tuned", {"loss": 1.5}, tmp_path, None, said.append, nominal_tune)
+    assert ran == [(tmp_path / "nominal", None)]
+    assert block["nominal"] == {"heldout_mean": 3.0, "worst": 9}
+    assert block["change"]["heldout_mean"] == -0.5 and block["change"]["worst"] == 0.0
 
 
 _SHARD_TWO = """
