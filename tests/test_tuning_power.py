@@ -436,6 +436,9 @@ def test_tuning_problem_checks_and_passes_on_its_settings():
         800, "rk4", "continuous", "mean", 0.2,
     )  # fmt: skip
     assert (d.checkpoint, d.checkpoint_every, d.tile_gains) == (False, 10, False)
+    assert hash(p) == hash(dataclasses.replace(p))  # static: a jit argument, a cache key
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.num_steps = 8
 
 
 def test_problem_data_defaults_dtype_and_refusals():
