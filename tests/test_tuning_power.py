@@ -902,3 +902,17 @@ def test_a_robust_tune_attaches_its_slot_refreshes_it_and_reports(tmp_path, batc
     assert ran == [(tmp_path / "nominal", None)]
     assert block["nominal"] == {"heldout_mean": 3.0, "worst": 9}
     assert block["change"]["heldout_mean"] == -0.5 and block["change"]["worst"] == 0.0
+
+
+def test_the_objective_adds_the_box_penalty_to_the_batch_loss(monkeypatch):
+    """Kills: the box penalty subtracted (or dropped) from the objective. The scenario losses
+    are replaced by fixed ones: no rollout."""
+    import tuning.loss as tl
+
+    losses, terms = jnp.asarray([1.0, 5.0, 2.0, 8.0, 3.0]), {"eps": jnp.zeros(5)}
+    monkeypatch.setattr(tl, "scenario_losses", lambda th, d, s, p: (losses, terms))
+    problem = TuningProblem(space=GainSpace(), num_steps=5)
+    data = problem_data(problem, log_box=1.0, box_weight=10.0)
+    theta = data.theta_ref.at[2].add(-1.5)  # 0.5 beyond the box
+    loss, (got, t) = tl.objective(theta, data, None, problem)
+    assert float(loss) == pytest.approx(3.8 + 10.0 * 0.25) and got is losses and t is terms
