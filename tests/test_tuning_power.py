@@ -774,6 +774,8 @@ def test_start_is_the_encoding_plus_the_symmetry_break_and_describe_decodes():
     off = space.symmetry_break(full)
     assert sorted(off[off != 0]) == [-0.1, -0.1, 0.1, 0.1]
     np.testing.assert_array_equal(space.start(full), th0 + off)
+    half = GainSpace(tune=("P_G", "Delta"))  # P_G's partner P_Phi not tuned: no offset
+    np.testing.assert_array_equal(half.symmetry_break(full), np.zeros(half.size))
     np.testing.assert_allclose(space.start(full, eps=0.3), th0 + 3 * off, rtol=1e-15, atol=1e-15)
     d = space.describe(th0 + np.log(2.0) * (np.asarray(space.labels()) == "Delta"), full)
     assert d["Delta"] == pytest.approx(10.0) and d["sigma"] == pytest.approx(0.5)
