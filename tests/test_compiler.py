@@ -1,6 +1,8 @@
 """The CLI's choice of XLA CPU code generator (vcjax.runtime.compiler): added to XLA_FLAGS unless the
 user already chose, or turned it off, or the jaxlib predates the flag."""
 
+import functools
+
 import vcjax.runtime.compiler as comp
 from vcjax.runtime.compiler import ENV, FLAG, prefer_fast_compile
 
@@ -110,3 +112,85 @@ def test_fast_compile_respects_the_opt_out():
     )
     assert res.returncode == 0, res.stderr
     assert res.stdout.split() == ["False", "None"]
+
+
+def test_compile_options_follow_the_same_exceptions_as_the_flag(monkeypatch):
+    """vcjax's own programs ask for the generator per program, on CPU, unless XLA_FLAGS already
+    chooses it (either way), VCJAX_FAST_COMPILE is off, or the jaxlib is outside the checked range."""
+    from vcjax.runtime.compiler import OPTION, compile_options
+
+    monkeypatch.setattr(comp, "_jaxlib_version", lambda: (0, 10))
+    assert compile_options({}) == {OPTION: False}  # the tests' backend is the CPU
+    assert compile_options({"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}) == {
+        OPTION: False
+    }
+    assert compile_options({"XLA_FLAGS": FLAG}) == {}  # the process-wide flag already applies
+    assert compile_options({"XLA_FLAGS": "--xla_cpu_use_fusion_emitters=true"}) == {}  # yours
+    for off in ("0", "off", "False", " no "):
+        assert compile_options({ENV: off}) == {}
+    for version in ((0, 5), (0, 11)):
+        monkeypatch.setattr(comp, "_jaxlib_version", lambda v=version: v)
+        assert compile_options({}) == {}
+    monkeypatch.setattr(comp, "_jaxlib_version", lambda: (0, 10))
+    monkeypatch.setattr("jax.default_backend", lambda: "gpu")
+    assert compile_options({}) == {}  # another backend: XLA's own choice
+
+
+def _cumsum(x):
+    import jax.numpy as jnp
+
+    return jnp.cumsum(jnp.sin(x) * 2.0 + x[::-1]) @ jnp.cos(x)
+
+
+def test_vcjax_jit_compiles_with_the_option_and_is_jax_jit_otherwise(monkeypatch):
+    """The option reaches XLA: vcjax.jit's executable is the one jax.jit builds with the option
+    given by hand (XLA's two CPU generators build different executables for a cumulative sum); with
+    VCJAX_FAST_COMPILE off it is plain jax.jit's."""
+    import jax
+    import jax.numpy as jnp
+    import pytest
+
+    import vcjax
+    from vcjax.runtime.compiler import OPTION
+
+    if not comp._FIRST <= comp._jaxlib_version() <= comp.CHECKED:
+        pytest.skip("a jaxlib without the option (vcjax.jit is jax.jit there)")
+    x = jnp.arange(8.0)
+
+    def text(**opts):
+        return jax.jit(_cumsum, compiler_options=opts).lower(x).compile().as_text()
+
+    fast, default = text(**{OPTION: False}), text(**{OPTION: True})
+    if fast == default:
+        pytest.skip("this XLA builds the same executable with either generator")
+    monkeypatch.delenv("XLA_FLAGS", raising=False)  # the conftest's process-wide flag
+    monkeypatch.delenv(ENV, raising=False)
+    made, real = [], jax.jit
+    monkeypatch.setattr(jax, "jit", lambda f, **kw: made.append(kw) or real(f, **kw))
+    jitted = vcjax.jit(_cumsum)
+    assert jitted.lower(x).compile().as_text() == fast
+    assert float(jitted(x)) == pytest.approx(float(_cumsum(x)), rel=1e-12)
+    assert made == [{"compiler_options": {OPTION: False}}]
+    monkeypatch.setenv(ENV, "off")
+    assert float(vcjax.jit(_cumsum)(x)) == pytest.approx(float(_cumsum(x)), rel=1e-12)
+    assert made[1:] == [{}]  # plain jax.jit
+
+
+def test_vcjax_jit_takes_jax_jit_arguments_and_decorates():
+    import jax.numpy as jnp
+
+    import vcjax
+
+    @vcjax.jit
+    def double(x):
+        return 2.0 * x
+
+    @functools.partial(vcjax.jit, static_argnames=("n",))
+    def power(x, n):
+        return x**n
+
+    assert double.__name__ == "double" and float(double(jnp.asarray(1.5))) == 3.0
+    assert float(power(jnp.asarray(2.0), n=3)) == 8.0
+    assert float(power(jnp.asarray(2.0), n=2)) == 4.0
+    assert power._cache_size() == 2  # one program per static value, as jax.jit
+    assert vcjax.jit(static_argnums=(1,))(lambda x, n: x * n)(jnp.asarray(2.0), 3) == 6.0

@@ -413,6 +413,52 @@ def test_a_sweep_with_waves_records_the_wave_columns(tmp_path):
     assert ds["wave_hs"].attrs["units"] == "m" and ds["wave_direction_deg"].attrs["units"] == "deg"
 
 
+def _clearance_by_hand(sea, origin_depth, t, pos):
+    """NumPy: ``origin_depth + z + sum_i a_i cos(k_i (n cos b_i + e sin b_i) - w_i t + phi_i)``."""
+    a, k, w, phi, b = (np.asarray(x, np.float64) for x in (
+        sea.amplitude, sea.wavenumber, sea.omega, sea.phase, sea.direction))  # fmt: skip
+    n, e, z = (np.asarray(pos, np.float64)[:, j, None] for j in range(3))
+    theta = k * (n * np.cos(b) + e * np.sin(b)) - w * np.asarray(t, np.float64)[:, None] + phi
+    return float(origin_depth) + z[:, 0] + np.sum(a * np.cos(theta), axis=1)
+
+
+def test_a_sweep_in_a_sea_reports_the_runs_above_the_surface(tmp_path, capsys):
+    """0.3 m below the mean surface in Hs 3 m seas the drifter is above the local surface for
+    part of its runs: the command warns and counts them; each run's fraction of steps above the
+    surface and least clearance (streamed with the metrics) agree with the sea summed by hand
+    along the run."""
+    from vcjax.sweep import run as sweep_run
+
+    cfg_file = tmp_path / "broach.toml"
+    cfg_file.write_text(
+        '[scenario]\nvehicle = "test_wave_drifter"\n[sweep]\nnum_scenarios = 3\n'
+        'variants = ["vcm"]\n[simulation]\nhorizon = 1.0\ndt = 0.02\n[current]\nspeed = 0.0\n'
+        "[waves]\nhs = 3.0\ntp = 4.0\ncomponents = 16\norigin_depth = 0.3\n"
+    )
+    assert main(["sweep", str(cfg_file), "--out", str(tmp_path / "o")]) == 0
+    err = capsys.readouterr().err
+    assert "vcjax: warning: sweep: vcm: in " in err and "above the local sea surface" in err
+    r = sweep.load_results(tmp_path / "o" / "results.npz")
+    m, spec = r.metrics["vcm"], r.spec
+    got = json.loads((tmp_path / "o" / "summary.json").read_text())["variants"]["vcm"]
+    assert got["n_above_surface"] == int(np.sum(m["above_surface_fraction"] > 0)) >= 1
+    assert np.any(m["above_surface_fraction"] < 1)
+    loop = spec.loop("vcm")
+    scs = sweep.sample_scenarios(spec.scenario, spec.seed, np.arange(3), loop=loop)
+    nom, cfg = sweep_run.nominal(spec), spec.mc_config()
+    one = jax.jit(
+        lambda nom, sc: sweep_run.simulate_scenario(
+            loop, loop.default_gains(), nom, sc, cfg, spec.dt
+        )
+    )
+    for i in range(3):
+        traj, s = one(nom, jax.tree_util.tree_map(lambda x, i=i: x[i], scs))
+        pos = loop.signals(traj, s).pos
+        c = _clearance_by_hand(s.sea, s.origin_depth, traj.t[: pos.shape[0]], pos)
+        assert float(m["above_surface_fraction"][i]) == pytest.approx(np.mean(c < 0), abs=1e-12)
+        assert float(m["min_surface_clearance"][i]) == pytest.approx(c.min(), rel=1e-9, abs=1e-9)
+
+
 def test_a_calm_sea_is_bit_identical_through_the_sweep():
     """The same scenarios (chunks of 2: one padded) with a calm sea and without one: every
     metric and trace equal to the bit; the calm sweep records its (zero) wave heights."""
@@ -420,7 +466,13 @@ def test_a_calm_sea_is_bit_identical_through_the_sweep():
     none = sweep.ScenarioSpec(current_speed=(0.0, 0.0))
     r_calm = sweep.run_sweep(_sweep_spec(calm, 2), progress=False)
     r_none = sweep.run_sweep(_sweep_spec(none, 2), progress=False)
+    surface = {k: r_calm.metrics["vcm"].pop(k) for k in sweep.run.SURFACE_METRICS}
     assert _same(r_calm.metrics, r_none.metrics) and _same(r_calm.traces, r_none.traces)
+    # a calm sea's surface is the mean surface: the drifter stays origin_depth below it
+    np.testing.assert_array_equal(surface["above_surface_fraction"], 0.0)
+    np.testing.assert_allclose(
+        surface["min_surface_clearance"], r_calm.scenarios["wave_origin_depth"]
+    )
     for k in ("wave_hs", "wave_tp", "wave_direction_deg", "wave_origin_depth"):
         assert r_calm.scenarios[k].shape == (3,) and k not in r_none.scenarios
     np.testing.assert_array_equal(r_calm.scenarios["wave_hs"], 0.0)
@@ -458,6 +510,46 @@ def test_a_calm_sea_is_bit_identical_through_the_tuning_loss():
     data = problem_data(problem, dt=0.02)
     f = jax.jit(scenario_losses, static_argnames=("problem",))
     assert _same(f(data.theta_ref, data, plain, problem), f(data.theta_ref, data, calm, problem))
+
+
+def test_the_tuning_evaluation_reports_the_runs_above_the_surface():
+    """The held-out evaluation's problem (``surface=True``) adds each scenario's fraction of
+    steps above the local surface and its least clearance, as the sea summed by hand along the
+    run gives them; the loss is the same as without, and the training problem adds nothing."""
+    import dataclasses
+
+    from tuning.loss import TuningProblem, problem_data, scenario_losses
+    from tuning.params import GainSpace
+    from tuning.scenarios import sample_scenarios, scenario_at
+
+    loop = _drifter()
+    extra = dict(wave_spectrum="jonswap", wave_hs=(3.0, 3.0), wave_tp=(4.0, 4.0))
+    batch = sample_scenarios(
+        3, 2, loop=loop, current_max=0.0, position_offset=0.1, heading_offset=0.1,
+        extra=extra | dict(wave_components=16, wave_origin_depth=(0.3, 0.3)),
+    )  # fmt: skip
+    problem = TuningProblem(space=GainSpace(loop=loop, tune=("P_G",)), num_steps=50)
+    surface = dataclasses.replace(problem, surface=True)
+    data = problem_data(problem, dt=0.02)
+    f = jax.jit(scenario_losses, static_argnames=("problem",))
+    plain, (with_s, terms) = (
+        f(data.theta_ref, data, batch, problem),
+        f(data.theta_ref, data, batch, surface),
+    )
+    assert "above_surface_fraction" not in plain[1]
+    np.testing.assert_array_equal(plain[0], with_s)
+    rolled, gains = surface.loop, surface.space.decode(data.theta_ref, data.base)
+    run = jax.jit(lambda sc: loops.simulate(rolled, gains, sc, surface.rollout_config(), 0.02))
+    for i in range(3):
+        sc = scenario_at(batch, i)
+        traj = run(sc)
+        pos = rolled.signals(traj, sc).pos
+        c = _clearance_by_hand(sc.sea, sc.origin_depth, traj.t[: pos.shape[0]], pos)
+        assert float(terms["above_surface_fraction"][i]) == pytest.approx(np.mean(c < 0), abs=1e-12)
+        assert float(terms["min_surface_clearance"][i]) == pytest.approx(
+            c.min(), rel=1e-9, abs=1e-9
+        )
+    assert np.any(np.asarray(terms["above_surface_fraction"]) > 0)
 
 
 # ------------------------------------------------------------------------ vcjax simulate --waves

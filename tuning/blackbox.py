@@ -22,6 +22,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from vcjax.runtime import compiler
+
 __all__ = [
     "batch_objective",
     "BlackBoxResult",
@@ -48,7 +50,7 @@ def batch_objective(loss_fn: Callable, args: tuple = (), static=None) -> Callabl
     from vcjax.runtime import programs
 
     vf = jax.vmap(loss_fn, in_axes=(0,) + (None,) * len(args))
-    g = jax.jit(vf)
+    g = compiler.jit(vf)
     built: dict = {}
 
     def f(X):

@@ -39,8 +39,9 @@ command) naming the file and the offending ``section.key``::
     integrator = "rk4"
     timing = "continuous"           # or "sampled"
     smooth = true                   # tanh actuator saturation while training (gradients pass)
-    checkpoint = false              # jax.checkpoint (long horizons under reverse mode)
-    checkpoint_every = 10           # with checkpoint: segment length (1 = every step)
+    checkpoint = true               # jax.checkpoint: reverse mode recomputes each segment
+                                    # (faster and smaller; false stores every step's tape)
+    checkpoint_every = 1            # with checkpoint: segment length (1 = every step)
     risk = "mean"                   # or "cvar"
     alpha = 0.2                     # CVaR level (fraction of worst scenarios)
     log_box = 3.0                   # gains kept within e^log_box of the initial ones (penalty)

@@ -38,7 +38,7 @@ import numpy as np
 import optax
 
 from tuning.linesearch import Zoom
-from vcjax.runtime import distributed, programs
+from vcjax.runtime import compiler, distributed, programs
 
 __all__ = [
     "OPTIMIZERS",
@@ -223,7 +223,7 @@ def make_step(
             updates, new_state = opt.update(safe, state, theta)
             return _accept(theta, state, value, grad, scale * updates, new_state, ok, 1)
 
-    return jax.jit(step)
+    return compiler.jit(step)
 
 
 def _accept(theta, state, value, grad, updates, new_state, ok, evals):
@@ -263,7 +263,7 @@ class LBFGSStep:
     ):
         self._f = f
         self._vg_fn = lambda theta, args: jax.value_and_grad(lambda p: f(p, *args))(theta)
-        self._vg = jax.jit(self._vg_fn)
+        self._vg = compiler.jit(self._vg_fn)
         # program_static: what fixes loss_fn (e.g. the tuning config), the key of the batch
         # value_and_grad in vcjax.runtime.programs' store (None: traced every run)
         self._program_static = program_static
@@ -305,9 +305,9 @@ class LBFGSStep:
                 updates = optax.tree.scale(lr, d)
                 return _accept(theta, state, value, grad, updates, new_state, ok, evals)
 
-        self._start = jax.jit(start)
-        self._advance = jax.jit(advance)
-        self._finish = jax.jit(finish)
+        self._start = compiler.jit(start)
+        self._advance = compiler.jit(advance)
+        self._finish = compiler.jit(finish)
 
     def value_and_grad(self, theta, args):
         """The batch loss and its gradient at ``theta`` (the one compiled program)."""
@@ -352,7 +352,7 @@ class LBFGSStep:
         spec = programs.argument_spec((theta, args))
         static = self._program_static if programs.store_dir() is not None else None
         if static is None:
-            self._stored = (spec, jax.jit(self._vg_fn).lower(theta, args).compile())
+            self._stored = (spec, compiler.jit(self._vg_fn).lower(theta, args).compile())
         else:
             call, _ = programs.build("tune:value_and_grad", self._vg_fn, static, (theta, args))
             self._stored = (spec, call)
@@ -630,7 +630,7 @@ def run_gradient_tuner(
         if options.optimizer == "lbfgs":
             run.finish(float(jax.device_get(optax.tree.get(run.state, "value"))))
         else:
-            run.finish(float(jax.device_get(jax.jit(loss_fn)(run.theta, *args))))
+            run.finish(float(jax.device_get(compiler.jit(loss_fn)(run.theta, *args))))
     return TuneResult(
         theta=run.best_theta,
         loss=float(run.best_loss),

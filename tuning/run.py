@@ -10,7 +10,10 @@ is the one command line of the tuner). It writes into ``out_dir``:
 * ``summary.json``: ``heldout_loss_before`` / ``heldout_loss_after`` (default vs tuned gains on
   the held-out batch, evaluated with the hard-clipped plant unless configured otherwise), the
   loss terms of each, the training losses, run statistics; with ``[waves]``, ``waves``: the
-  realised significant height of every training and held-out sea;
+  realised significant height of every training and held-out sea, and
+  ``heldout_surface_before`` / ``_after``: the held-out runs whose vehicle was above the local
+  sea surface (``n_above_surface`` of ``n``, the largest fraction of a run, the least clearance
+  [m]; a warning when there are any: outside the submerged model);
 * ``loss_curve.png``, ``before_after_paths.png``, ``before_after_cross_track.png``,
   ``before_after_loss_terms.png`` (what the loss measures: path, speed and heading errors,
   actuator commands against their limits, and the weighted loss terms, default vs tuned).
@@ -50,7 +53,7 @@ from tuning.scenarios import (
 from tuning.spec import TuneConfig
 from vcjax import loops, paths
 from vcjax.config import ConfigError
-from vcjax.runtime import distributed, programs
+from vcjax.runtime import compiler, distributed, programs
 from vcjax.runtime.interrupts import stop_requested_everywhere
 from vcjax.runtime.outputs import write_json_atomic
 
@@ -90,7 +93,9 @@ def build(cfg: TuneConfig):
         risk=p.risk,
         alpha=p.alpha,
     )
-    eval_problem = dataclasses.replace(problem, smooth=cfg.heldout.smooth, checkpoint=False)
+    eval_problem = dataclasses.replace(
+        problem, smooth=cfg.heldout.smooth, checkpoint=False, surface=True
+    )
     dtype = jnp.asarray(jax.tree_util.tree_leaves(base)[0]).dtype
     weights = make_weights(**cfg.weights, dtype=dtype)
     data = problem_data(problem, base, weights, p.dt, p.log_box, p.box_weight)
@@ -146,12 +151,21 @@ def _training_step(loss_fn, opts: TunerOptions, cfg, problem, start, args):
 def _evaluate(eval_fn, theta, data, batch) -> dict:
     loss, (losses, terms) = jax.device_get(eval_fn(theta, data, batch))
     losses = np.asarray(losses)
-    return {
+    out = {
         "loss": float(loss),
         "terms": {k: float(np.mean(terms[k])) for k in TERMS},
         "scenario_loss_median": float(np.median(losses)),
         "scenario_loss_max": float(np.max(losses)),
     }
+    if "above_surface_fraction" in terms:  # in a sea: the runs whose vehicle broached
+        above = np.asarray(terms["above_surface_fraction"], np.float64)
+        out["surface"] = {
+            "n_above_surface": int(np.sum(above > 0)),
+            "n": int(above.size),
+            "max_above_surface_fraction": float(np.max(above)),
+            "min_surface_clearance_m": float(np.min(terms["min_surface_clearance"])),
+        }
+    return out
 
 
 def _trajectory_program(problem, batch, n):
@@ -179,7 +193,7 @@ def _trajectories(problem, gains_list, batch, dt, n, run=None):
     cross-track errors (S, N) of the first ``n`` scenarios of ``batch``: one program (the gains
     are its argument; ``run``: that program built already), compiled once for all of them."""
     fn, sub = _trajectory_program(problem, batch, n)
-    run = jax.jit(fn) if run is None else run
+    run = compiler.jit(fn) if run is None else run
     out = []
     for gains in gains_list:
         t, xy, eps, u_err, psi_err, ratio = jax.device_get(run(gains, sub, dt))
@@ -261,7 +275,7 @@ def _prepare(cfg: TuneConfig, say) -> _Tune:
         f"({o['grad_mode']} mode); training batch on {n_dev} device(s)"
     )
     t = _Tune(cfg, problem, eval_problem, data, train, heldout, n_dev=n_dev)
-    t.eval_fn = jax.jit(lambda th, d, s: objective(th, d, s, eval_problem))
+    t.eval_fn = compiler.jit(lambda th, d, s: objective(th, d, s, eval_problem))
     start = data.theta_ref + space.symmetry_break(data.base)
     if cfg.robust is not None:  # [robust]: a first search fills the batch's adversarial slot
         from tuning.robust import attach
@@ -294,7 +308,7 @@ def _prebuild(t: _Tune, theta0) -> None:
     built = programs.build_all(jobs)
     t.eval_fn = programs.for_arguments_like(built[0][0], jobs[0][3], t.eval_fn)
     if n_plot:
-        t.trajectories = programs.for_arguments_like(built[1][0], jobs[1][3], jax.jit(fn))
+        t.trajectories = programs.for_arguments_like(built[1][0], jobs[1][3], compiler.jit(fn))
 
 
 def _say_timing(res, say) -> None:
@@ -441,6 +455,9 @@ def _summary(t: _Tune, res, before, after, t_start: float) -> dict:
         "tuning_wall_s": res.history[-1]["wall_s"] if res.history else 0.0,
         "total_wall_s": time.perf_counter() - t_start,
     }
+    if "surface" in after:  # a sea: the held-out runs' vehicle above the local surface
+        summary["heldout_surface_before"] = before["surface"]
+        summary["heldout_surface_after"] = after["surface"]
     if cfg.get("waves") is not None:  # the seas trained on and held out (different keys)
         summary["waves"] = {
             "train_hs": _realised_hs(t.train),
@@ -490,6 +507,17 @@ def run_tune_config(
     say(f"stopped: {res.reason}; evaluating the tuned gains on the held-out batch ...")
     theta = jnp.asarray(np.asarray(res.theta))  # a local copy (replicated in multi-process runs)
     after = _evaluate(t.eval_fn, theta, t.data, t.heldout)
+    for when, ev in (("default", before), ("tuned", after)):
+        s = ev.get("surface")
+        if s and s["n_above_surface"]:
+            say(
+                f"warning: held-out, {when} gains: in {s['n_above_surface']} of {s['n']} runs the "
+                "vehicle was above the local sea surface (up to "
+                f"{100 * s['max_above_surface_fraction']:.0f} % of a run, up to "
+                f"{-s['min_surface_clearance_m']:.2f} m): outside the submerged model, whose "
+                "losses describe no real vehicle there (summary.json heldout_surface_*); start "
+                "the runs deeper"
+            )
     space = t.problem.space
     tuned = space.decode(theta, t.data.base)
     gains_json = space.loop.gains_to_json(tuned)

@@ -52,9 +52,15 @@ class Problem(FrozenSection):
     timing: str = key("continuous", "str", "", _OLD + "timing", choices=("continuous", "sampled"))
     smooth: bool = key(True, "bool", "", _OLD + "smooth")
     checkpoint: bool = key(
-        False, "bool", "", "jax.checkpoint segments of the rollout under reverse mode"
+        True,
+        "bool",
+        "",
+        "jax.checkpoint segments of the rollout under reverse mode (recomputed in the backward "
+        "pass: a faster and smaller gradient)",
     )
-    checkpoint_every: int = key(10, "int", "", "steps per checkpointed segment", lo=1)
+    checkpoint_every: int = key(
+        1, "int", "", "steps per checkpointed segment (1: every step, the fastest)", lo=1
+    )
     risk: str = key(
         "mean",
         "str",

@@ -35,9 +35,11 @@ shooting.
 envelope
   (``vcjax.falsify(loop, gains, envelope, metric, ...)``, imported on first use).
 
-The library never enables float64 and never jits for you. ``vcjax.fast_compile()``, called before
-the first JAX computation, makes XLA's CPU compiles about twice as fast, as the ``vcjax`` command
-line does ([`vcjax.runtime.compiler`][vcjax.runtime.compiler]).
+The library never enables float64 and never jits your functions for you. The programs it compiles
+itself use XLA's faster-compiling CPU kernel generator, as the ``vcjax`` command line does;
+``vcjax.jit`` in place of ``jax.jit`` gives your own functions the same, and
+``vcjax.fast_compile()``, called before the first JAX computation, gives it to every program of
+the process ([`vcjax.runtime.compiler`][vcjax.runtime.compiler]).
 """
 
 from vcjax.integrators import euler, get_integrator, heun, rk4
@@ -54,7 +56,7 @@ from vcjax.mechanics import (
 )
 from vcjax.paths import Path, PathFrame, path_frame
 from vcjax.rollout import RolloutConfig, Trajectory
-from vcjax.runtime.compiler import fast_compile
+from vcjax.runtime.compiler import fast_compile, jit
 
 __all__ = [
     "Diagnostics",
@@ -71,6 +73,7 @@ __all__ = [
     "fast_compile",
     "get_integrator",
     "heun",
+    "jit",
     "path_frame",
     "reaction_force",
     "rk4",

@@ -354,6 +354,18 @@ def sweep(args) -> int:
                     "(left out of the metrics and figures; flagged in results.npz)",
                     file=sys.stderr,
                 )
+            k_up = s.get("n_above_surface", 0)
+            if k_up:
+                up = s["metrics"]["above_surface_fraction"]["max"]
+                least = s["metrics"]["min_surface_clearance"]["min"]
+                print(
+                    f"vcjax: warning: sweep: {variant}: in {k_up} of {n - n_div} runs the vehicle "
+                    f"was above the local sea surface (up to {100 * up:.0f} % of a run, up to "
+                    f"{-least:.2f} m): outside the submerged model, whose numbers describe no "
+                    "real vehicle there (above_surface_fraction, min_surface_clearance in "
+                    "summary.json); start the runs deeper",
+                    file=sys.stderr,
+                )
     for f in result["files"]:
         print(f"wrote {f}")
     from vcjax.sweep.spec import spec_to_dict

@@ -44,6 +44,7 @@ import numpy as np
 from jax.custom_derivatives import SymbolicZero
 
 from vcjax._checks import check_array, check_positive
+from vcjax.runtime import compiler
 
 __all__ = [
     "Path",
@@ -296,7 +297,7 @@ def _path_samples(path: Path, coeffs, w0, w1, num: int):
 
 # ``_path_samples`` as one program per path kind and coefficient shapes: op by op, the first
 # check of a process compiled some fifty one-operation kernels (a second of a cold start)
-_path_samples_jit = jax.jit(_path_samples, static_argnums=(0, 4))
+_path_samples_jit = compiler.jit(_path_samples, static_argnums=(0, 4))
 
 
 def _samples(path: Path, coeffs, w0, w1, num: int):

@@ -18,7 +18,9 @@ program; default ``examples/tuning/remus100.toml``; ``--tune none`` skips it).
     python -m benchmarks.perf.compile_times --loops remus100/vcm3d,infante/vcm_integral --tune none
 
 By default the programs compile with the XLA CPU code generator the ``vcjax`` command line
-uses (:mod:`vcjax.runtime.compiler`); ``--xla-default`` measures XLA's default one.
+uses (:mod:`vcjax.runtime.compiler`); ``--xla-default`` measures XLA's default one (what a Python
+user's own ``jax.jit`` gets); ``--vcjax-jit`` builds every program with ``vcjax.jit`` under XLA's
+default flags (the per-program option vcjax's own programs compile with).
 
 ``--before REV`` measures in one run an older revision against this checkout: each program
 (loop x kind, and the tune step) is built in fresh processes that alternate, before then after,
@@ -99,7 +101,17 @@ def parse_args(argv=None):
         help="XLA's default CPU code generator; by default the one the vcjax command line "
         "uses (vcjax.runtime.compiler: --xla_cpu_use_fusion_emitters=false)",
     )
+    p.add_argument(
+        "--vcjax-jit",
+        action="store_true",
+        help="XLA_FLAGS as a Python user has them (XLA's defaults) and every program built with "
+        "vcjax.jit (the per-program option vcjax's own programs compile with)",
+    )
     args = p.parse_args(argv)
+    if args.vcjax_jit and args.before:
+        p.error("--vcjax-jit: measure it without --before (the older revisions have no vcjax.jit)")
+    if args.vcjax_jit and args.xla_default:
+        p.error("--vcjax-jit and --xla-default: choose one")
     if args.steps < 1:
         p.error("--steps: expected a positive int")
     kinds = [k for k in args.kinds.split(",") if k]
@@ -125,6 +137,7 @@ def machine(args) -> dict:
         "timing": args.timing,
         "load_average_1min_at_start": C.load_average(),
         "xla_flags": os.environ.get("XLA_FLAGS", ""),
+        "vcjax_jit": bool(getattr(args, "vcjax_jit", False)),
     }
 
 
@@ -208,7 +221,7 @@ def main(argv=None) -> dict:
     args = parse_args(argv)
     if args.before:
         return before_after(args)
-    if not args.xla_default:
+    if not (args.xla_default or args.vcjax_jit):
         from vcjax.runtime.compiler import prefer_fast_compile
 
         prefer_fast_compile()  # what the CLI compiles with (before JAX starts)
@@ -236,6 +249,10 @@ def _main(args) -> dict:
     for vehicle, controller in select(args.loops):
         name = f"{vehicle}/{controller}"
         fwd, grad, gains, sc = loop_programs(vehicle, controller, args.steps, args.timing, C.DT)
+        if args.vcjax_jit:
+            from vcjax.runtime.compiler import jit
+
+            fwd, grad = jit(fwd), jit(grad)
         entry = {}
         for kind in args.kinds:
             r = build_times(

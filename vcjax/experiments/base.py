@@ -40,6 +40,7 @@ import jax
 
 from vcjax import loops
 from vcjax.rollout import RolloutConfig
+from vcjax.runtime import compiler
 from vcjax.runtime.outputs import write_json_atomic
 
 __all__ = [
@@ -57,7 +58,7 @@ __all__ = [
 #: [`vcjax.loops.simulate`][vcjax.loops.disturbances.simulate] with the loop and the
 #: rollout configuration static (one compilation per loop and number of steps; gains, scenario
 #: and ``dt`` traced).
-rollout = jax.jit(loops.simulate, static_argnames=("loop", "config"))
+rollout = compiler.jit(loops.simulate, static_argnames=("loop", "config"))
 
 
 def option(default, help: str, metavar=None):

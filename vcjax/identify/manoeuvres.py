@@ -25,6 +25,7 @@ import numpy as np
 
 from vcjax.identify.data import save_log_csv
 from vcjax.identify.models import get_fit_model
+from vcjax.runtime import compiler
 
 __all__ = [
     "STUDY_PARAMS",
@@ -100,7 +101,7 @@ def simulate_trial(params, trial: str, dt: float, horizon: float, thrust: float 
 
     command(0, x0, jnp.asarray(1.0, dtype))  # raises on an unknown trial before tracing the scan
 
-    @jax.jit
+    @compiler.jit
     def run(p):
         def body(carry, k):
             x, sign = carry

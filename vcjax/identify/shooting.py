@@ -44,7 +44,7 @@ import numpy as np
 
 from vcjax.identify.data import Log
 from vcjax.identify.models import FitModel, current_vector, scalar_fields
-from vcjax.runtime import programs
+from vcjax.runtime import compiler, programs
 
 __all__ = ["Segments", "make_segments", "seg_count", "ShootingProblem", "CURRENT_NAMES"]
 
@@ -231,9 +231,9 @@ class ShootingProblem:
             "linearize": jax.vmap(jac, in_axes=axes),
             "free_run": self.simulate,
         }
-        self._res = jax.jit(self._fns["residuals"])
-        self._lin = jax.jit(self._fns["linearize"])
-        self._sim = jax.jit(self._fns["free_run"])
+        self._res = compiler.jit(self._fns["residuals"])
+        self._lin = compiler.jit(self._fns["linearize"])
+        self._sim = compiler.jit(self._fns["free_run"])
         self._built: dict = {}  # (name, argument spec) -> the program from the store
 
     def _static(self) -> tuple:

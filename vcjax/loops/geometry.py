@@ -8,6 +8,7 @@ import jax.numpy as jnp
 
 from vcjax import paths
 from vcjax.linalg import rot2
+from vcjax.runtime import compiler
 
 __all__ = ["start_parameter", "path_polyline", "path_frames", "path_poses", "path_errors"]
 
@@ -41,7 +42,7 @@ def _polyline(path: paths.Path, coeffs, points, num: int):
 
 # one program per path kind, shapes and ``num`` (op by op: some thirty one-operation kernels
 # compiled at the first figure of a process)
-_polyline_jit = jax.jit(_polyline, static_argnums=(0, 3))
+_polyline_jit = compiler.jit(_polyline, static_argnums=(0, 3))
 
 
 def path_polyline(path: paths.Path, coeffs, points=None, num: int = 400):

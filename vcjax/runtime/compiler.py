@@ -20,24 +20,50 @@ creates its backend) adds that flag to ``XLA_FLAGS`` unless
   or is newer than the newest release it was checked with (``CHECKED``): XLA may retire a
   flag, and an unknown flag aborts the process, so an untested jaxlib gets XLA's default.
 
-The library itself never sets it on import (``import vcjax`` changes no JAX or XLA setting); a
-Python program or notebook opts in with one call,
-[`vcjax.fast_compile`][vcjax.runtime.compiler.fast_compile]
-([`fast_compile`][vcjax.runtime.compiler.fast_compile]
-here), before its first JAX computation, or by exporting
-``XLA_FLAGS=--xla_cpu_use_fusion_emitters=false`` before it starts. JAX's persistent
-compilation cache keys its entries by ``XLA_FLAGS``, so programs compiled either way never mix.
+The library itself never sets it on import (``import vcjax`` changes no JAX or XLA setting).
+It asks for the same generator **per program** instead: every program vcjax compiles itself
+(a sweep's batch, the tuner's steps, the falsify search, the fit's residuals, the presets'
+rollouts, the program store's) is compiled with the XLA option
+``xla_cpu_use_fusion_emitters=False`` ([`compile_options`][vcjax.runtime.compiler.compile_options],
+through [`jit`][vcjax.runtime.compiler.jit]), which changes nothing else in the process. The same
+exceptions apply, and a program compiled for another backend than the CPU gets no option.
+
+A Python program or notebook that jits its own functions (``jax.jit(jax.grad(loss))`` around
+``loops.simulate``) gets XLA's default for them. Two ways to the faster generator:
+
+* [`vcjax.jit`][vcjax.runtime.compiler.jit] in place of ``jax.jit``: the same arguments, the
+  option for that program; usable at any time;
+* [`vcjax.fast_compile`][vcjax.runtime.compiler.fast_compile], once, before the first JAX
+  computation: ``XLA_FLAGS`` for every program of the process (JAX's own included), or
+  exporting ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=false`` before it starts.
+
+JAX's persistent compilation cache keys its entries by the compile options and ``XLA_FLAGS``,
+so programs compiled either way never mix.
 """
 
 from __future__ import annotations
 
+import functools
 import os
+import threading
 
-__all__ = ["ENV", "FLAG", "CHECKED", "BackendStartedError", "fast_compile", "prefer_fast_compile"]
+__all__ = [
+    "ENV",
+    "FLAG",
+    "OPTION",
+    "CHECKED",
+    "BackendStartedError",
+    "compile_options",
+    "fast_compile",
+    "jit",
+    "prefer_fast_compile",
+]
 
 ENV = "VCJAX_FAST_COMPILE"
 #: the XLA flag (older, faster-compiling CPU kernel generator)
 FLAG = "--xla_cpu_use_fusion_emitters=false"
+#: the same choice as one program's XLA compile option (``jax.jit(..., compiler_options=...)``)
+OPTION = "xla_cpu_use_fusion_emitters"
 _OFF = ("0", "off", "false", "no")
 _FIRST = (0, 6)  # the first jaxlib whose XLA knows the flag
 #: the newest jaxlib (major, minor) the flag was checked with (raise it after checking a newer one)
@@ -70,17 +96,100 @@ def _jaxlib_version() -> tuple[int, ...]:
     return jaxlib_version(2)
 
 
+def _wanted(env) -> bool | None:
+    """True/False: the faster generator is wanted/refused by ``XLA_FLAGS`` (the user's choice);
+    None: ``XLA_FLAGS`` does not say, and vcjax may choose (unless ``VCJAX_FAST_COMPILE`` is off
+    or the jaxlib is outside the checked range: then False)."""
+    flags = env.get("XLA_FLAGS", "")
+    if OPTION in flags:
+        return FLAG in flags.split()
+    if env.get(ENV, "").strip().lower() in _OFF or not _FIRST <= _jaxlib_version() <= CHECKED:
+        return False
+    return None
+
+
+def compile_options(environ=None) -> dict:
+    """The XLA compile options vcjax compiles its own programs with: ``{OPTION: False}`` (the
+    faster-compiling CPU kernel generator, module docstring) when JAX's default backend is the
+    CPU, else ``{}``.
+
+    ``{}`` too where ``XLA_FLAGS`` already chooses ``--xla_cpu_use_fusion_emitters`` (yours
+    applies to every program, vcjax's included), where ``VCJAX_FAST_COMPILE`` is
+    ``0``/``off``/``false``/``no``, and with a jaxlib the option was not checked with (before 0.6
+    XLA refuses it: "No such compile option"). Asking for the default backend starts JAX's
+    backend: call it where a program is about to be compiled.
+    """
+    env = os.environ if environ is None else environ
+    if _wanted(env) is not None:
+        return {}
+    import jax
+
+    return {OPTION: False} if jax.default_backend() == "cpu" else {}
+
+
+class _Jit:
+    """``jax.jit(fun, **kwargs)`` with [`compile_options`][vcjax.runtime.compiler.compile_options],
+    created at the first call or attribute access (``lower``, ``trace``, ``eval_shape``, ...),
+    when JAX's backend is known."""
+
+    def __init__(self, fun, kwargs):
+        self._fun, self._kwargs = fun, kwargs
+        self._jitted = None
+        self._lock = threading.Lock()
+        functools.update_wrapper(self, fun)
+
+    def _get(self):
+        if self._jitted is None:
+            import jax
+
+            with self._lock:
+                if self._jitted is None:
+                    kwargs = dict(self._kwargs)
+                    options = compile_options()
+                    if options:
+                        kwargs["compiler_options"] = {
+                            **options,
+                            **kwargs.get("compiler_options", {}),
+                        }
+                    self._jitted = jax.jit(self._fun, **kwargs)
+        return self._jitted
+
+    def __call__(self, *args, **kwargs):
+        return self._get()(*args, **kwargs)
+
+    def __getattr__(self, name):
+        if name.startswith("__") or name in ("_fun", "_kwargs", "_jitted", "_lock"):
+            raise AttributeError(name)
+        return getattr(self._get(), name)
+
+
+def jit(fun=None, **kwargs):
+    """``jax.jit`` compiled with XLA's faster-compiling CPU kernel generator: the same arguments
+    (``static_argnames``, ``donate_argnums``, ...; usable as a decorator, bare or with arguments),
+    plus [`compile_options`][vcjax.runtime.compiler.compile_options] for this program only.
+
+    Use it in place of ``jax.jit`` for your own functions of vcjax's loops (a loss and its
+    gradient around ``loops.simulate``): REMUS 100's 250-step gradient compiles in about
+    two-thirds of the time (``docs/performance.md``). Unlike
+    [`fast_compile`][vcjax.runtime.compiler.fast_compile] it can be called at any time, and
+    changes no other program of the process. On GPU or TPU, where ``VCJAX_FAST_COMPILE`` is off,
+    or where ``XLA_FLAGS`` already chooses the generator, it is ``jax.jit``. vcjax compiles its
+    own programs this way.
+    """
+    if fun is None:
+        return functools.partial(jit, **kwargs)
+    return _Jit(fun, kwargs)
+
+
 def prefer_fast_compile(environ=None) -> bool:
     """Add ``FLAG`` to ``XLA_FLAGS`` of ``environ`` (default ``os.environ``) unless the
     module docstring's exceptions apply; returns whether it is in effect for XLA's CPU
     backend. Call it before the first JAX computation (XLA reads its flags once)."""
     env = os.environ if environ is None else environ
-    flags = env.get("XLA_FLAGS", "")
-    if "xla_cpu_use_fusion_emitters" in flags:
-        return FLAG in flags.split()
-    if env.get(ENV, "").strip().lower() in _OFF or not _FIRST <= _jaxlib_version() <= CHECKED:
-        return False
-    env["XLA_FLAGS"] = f"{flags} {FLAG}".strip()
+    wanted = _wanted(env)
+    if wanted is not None:
+        return wanted
+    env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} {FLAG}".strip()
     return True
 
 

@@ -63,6 +63,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from vcjax.runtime import compiler
+
 __all__ = [
     "MAX_BYTES",
     "build",
@@ -347,10 +349,10 @@ def build(name: str, fn, static, args: tuple, *, record: bool = True):
             loaded = _export_and_store(folder, key, fn, treedef, leaves)
         if loaded is None:  # not storable (a static input, or the outputs' structure)
             key = None
-            lowered, out_tree = jax.jit(fn).lower(*args), None
+            lowered, out_tree = compiler.jit(fn).lower(*args), None
         else:
             exp, out_tree = loaded
-            lowered = jax.jit(exp.call).lower(*leaves)
+            lowered = compiler.jit(exp.call).lower(*leaves)
     compiled = lowered.compile()
     if out_tree is None:
         call = compiled

@@ -173,8 +173,8 @@ def tune_estimate(cfg: dict, n_gains: int = 16) -> Estimate:
     per_step = STATE_FLOATS * _F64 * 4
     if o.get("grad_mode", "reverse") == "forward":
         tape = B * per_step * max(1, n_gains)
-    elif p.get("checkpoint"):
-        c = max(1, int(p.get("checkpoint_every", 10)))
+    elif p.get("checkpoint", True):
+        c = max(1, int(p.get("checkpoint_every", 1)))
         tape = B * (n_steps // c + c) * per_step
     else:
         tape = B * n_steps * per_step
@@ -190,8 +190,8 @@ def tune_estimate(cfg: dict, n_gains: int = 16) -> Estimate:
         if o.get("grad_mode", "reverse") == "forward":
             work *= 1 + max(1, n_gains)
             kept = 0
-        elif p.get("checkpoint"):
-            c = max(1, int(p.get("checkpoint_every", 10)))
+        elif p.get("checkpoint", True):
+            c = max(1, int(p.get("checkpoint_every", 1)))
             kept = B * c * 4 * comps * WAVE_TAPE_ARRAYS * _F64
         else:
             kept = B * n_steps * 4 * comps * WAVE_TAPE_ARRAYS * _F64

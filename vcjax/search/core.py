@@ -19,6 +19,7 @@ import numpy as np
 
 from vcjax.metrics import metric_names, metrics_finalize, metrics_init, metrics_update, window_start
 from vcjax.rollout import Reduction
+from vcjax.runtime import compiler
 from vcjax.runtime.interrupts import stop_requested
 from vcjax.search.envelope import Envelope, Setting, make_setting, scenario_from
 from vcjax.sweep.run import _act_names, check_act_names, simulate_scenario
@@ -190,7 +191,7 @@ class AscentSpec(NamedTuple):
     mode: str
 
 
-@functools.partial(jax.jit, static_argnames=("env", "setting", "how"))
+@functools.partial(compiler.jit, static_argnames=("env", "setting", "how"))
 def _value_and_grad(z, index, gains, nom, env, setting, how: AscentSpec):
     """Batched: the surrogate's gradient in unit coordinates along ``how.axes`` (zeros
     elsewhere) and the true metrics, in forward or reverse mode."""
@@ -213,7 +214,7 @@ def _value_and_grad(z, index, gains, nom, env, setting, how: AscentSpec):
     return jax.vmap(one)(z, index)
 
 
-@functools.partial(jax.jit, static_argnames=("env", "setting", "metric"))
+@functools.partial(compiler.jit, static_argnames=("env", "setting", "metric"))
 def _forward(x, index, gains, nom, env, setting, metric):
     setting = dataclasses.replace(setting, nominal=nom)
     return jax.vmap(lambda x1, i: _metrics(x1, i, gains, env, setting, metric, SHARPNESS)[1])(

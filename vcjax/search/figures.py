@@ -18,8 +18,9 @@ import numpy as np
 from vcjax import loops
 from vcjax.plots import pyplot, save
 from vcjax.rollout import RolloutConfig
+from vcjax.runtime import compiler
 from vcjax.search.envelope import Envelope, Setting, scenario_from
-from vcjax.sweep.run import to_scenario
+from vcjax.sweep.run import surface_clearance, to_scenario
 
 __all__ = ["worst_trajectory", "worst_run", "plot_worst", "plot_curve"]
 
@@ -37,19 +38,16 @@ def worst_run(loop, gains, env: Envelope, setting: Setting, x, index):
     lift -- does not describe a vehicle), or None for a scenario without a sea.
     ``clearance = origin_depth + z + zeta(t, north, east)``: the vehicle's depth below the
     mean surface plus the elevation of the sea above it."""
-    traj, sig, _, sc = _simulate(loop, gains, env, setting, x, index)
+    traj, sig, s, _ = _simulate(loop, gains, env, setting, x, index)
     pos = np.asarray(sig.pos)
     path = np.asarray(loops.path_polyline(loop.path, setting.nominal[2], pos))
-    t = np.asarray(traj.t[1:])
+    t = np.asarray(traj.t[: pos.shape[0]])  # the samples: the states at the start of each step
     e = np.asarray(sig.eps[:, 1])
     d = np.sqrt(np.sum(np.asarray(sig.p_err) ** 2, axis=1))
     clearance = None
-    if sc.sea is not None and sc.wave_origin_depth is not None:
-        from vcjax.environment import waves
-
-        tp, p = jnp.asarray(t[: pos.shape[0]]), jnp.asarray(pos)
-        zeta = jax.vmap(lambda tt, q: waves.elevation(sc.sea, tt, q[0], q[1]))(tp, p)
-        clearance = (np.asarray(tp), np.asarray(sc.wave_origin_depth + p[:, 2] + zeta))
+    if s.sea is not None and s.origin_depth is not None:
+        c = surface_clearance(s, jnp.asarray(pos), jnp.asarray(t))
+        clearance = (t, np.asarray(c))
     return (t[: e.size], pos, e, d, path), clearance
 
 
@@ -69,7 +67,9 @@ def _simulate(loop, gains, env: Envelope, setting: Setting, x, index):
         noise_std=sc.noise_std,
         key=sc.key,
     )
-    traj = jax.jit(lambda g, s_: loops.simulate(loop, g, s_, rcfg, setting.dt, dist, dp))(gains, s)
+    traj = compiler.jit(lambda g, s_: loops.simulate(loop, g, s_, rcfg, setting.dt, dist, dp))(
+        gains, s
+    )
     return traj, loop.signals(traj, s), s, sc
 
 

@@ -195,7 +195,9 @@ def wave_table(result: SweepResult, hs_bins: int = 3, depth_bins: int = 3) -> di
 def summarize(result: SweepResult) -> dict:
     """JSON-ready summary: per variant, failure counts and per-metric statistics.
 
-    ``summary["variants"][v]``: ``n``, ``n_diverged``, ``n_nonfinite`` and, for every metric,
+    ``summary["variants"][v]``: ``n``, ``n_diverged``, ``n_nonfinite`` (with ``[waves]`` also
+    ``n_above_surface``: runs kept whose vehicle was above the local sea surface at some step,
+    ``SURFACE_METRICS`` of [`vcjax.sweep.run`][vcjax.sweep.run]) and, for every metric,
     ``mean``, ``std``, ``p5``, ``p50``, ``p95``, ``min``, ``max`` over the runs that did not
     diverge (``None`` where there are none); ``timing``
     ([`run_timing`][vcjax.sweep.results.run_timing]: ``compile_s``,
@@ -217,6 +219,9 @@ def summarize(result: SweepResult) -> dict:
         entry["metrics"] = {
             k: _stats(np.asarray(a, dtype=np.float64)[ok]) for k, a in m.items() if k not in FLAGS
         }
+        if "above_surface_fraction" in m:  # a sea: runs that broached (of those kept)
+            above = np.asarray(m["above_surface_fraction"], np.float64)[ok]
+            entry["n_above_surface"] = int((above > 0).sum())
         if v in result.timing:
             entry["timing"] = result.timing[v]
         out[v] = entry

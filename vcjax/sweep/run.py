@@ -27,7 +27,7 @@ from vcjax.metrics import (
     window_start,
 )
 from vcjax.rollout import Reduction, RolloutConfig, Trajectory
-from vcjax.runtime import programs
+from vcjax.runtime import compiler, programs
 from vcjax.runtime.interrupts import stop_requested
 from vcjax.runtime.progress import ProgressBar
 from vcjax.sweep.results import SweepResult, run_timing
@@ -44,6 +44,8 @@ __all__ = [
     "run_batch",
     "run_sweep",
     "SCENARIO_FIELDS",
+    "SURFACE_METRICS",
+    "surface_clearance",
 ]
 
 #: The sampled fields a [`SweepResult`][vcjax.sweep.results.SweepResult] keeps per scenario (those
@@ -145,6 +147,41 @@ def simulate_scenario(
     return loops.simulate(loop, gains, s, rcfg, dt, dist, dp, reduction=red), s
 
 
+#: the metrics of a run in a sea (``[waves]``): the fraction of its steps with the vehicle above
+#: the local sea surface, and its least depth below that surface [m] (negative: above it), where
+#: the submerged model (no free surface, no loss of buoyancy or fin lift) describes no vehicle
+SURFACE_METRICS = ("above_surface_fraction", "min_surface_clearance")
+
+
+def surface_clearance(s: loops.Scenario, pos, t):
+    """(L,) depth of positions ``pos`` (L, 3) [m, NED from the origin] below the local sea
+    surface at times ``t`` (L,) [s]: ``origin_depth + z + zeta(t, north, east)``, the depth
+    below the mean surface plus the sea's elevation there; negative above the surface."""
+    from vcjax.environment import waves
+
+    zeta = jax.vmap(lambda tt, q: waves.elevation(s.sea, tt, q[0], q[1]))(t, pos)
+    return s.origin_depth + pos[:, 2] + zeta
+
+
+def _in_sea(s: loops.Scenario) -> bool:
+    return s.sea is not None and s.origin_depth is not None
+
+
+def _surface_init(dtype):
+    return jnp.zeros((), dtype), jnp.asarray(jnp.inf, dtype)
+
+
+def _surface_update(acc, s: loops.Scenario, pos, t):
+    above, least = acc
+    c = surface_clearance(s, pos, t)
+    return above + jnp.sum((c < 0).astype(above.dtype)), jnp.minimum(least, jnp.min(c))
+
+
+def _surface_metrics(acc, n: int) -> dict:
+    above, least = acc
+    return {"above_surface_fraction": above / n, "min_surface_clearance": least}
+
+
 def _traces(sig, idx) -> dict:
     return {
         "e": sig.eps[idx, 1].astype(jnp.float32),
@@ -165,6 +202,10 @@ def scenario_metrics(loop, traj: Trajectory, sc: loops.Scenario, config: MCConfi
     m = run_metrics(sig, traj.finite, traj.t[1] - traj.t[0], 1.0 - config.tail, diverge_e)
     # a state that ran away while staying finite (beyond the rollout's bound) diverged too
     m["diverged"] = m["diverged"] | ~traj.healthy
+    if _in_sea(sc):
+        n = sig.pos.shape[0]
+        acc = _surface_update(_surface_init(sig.pos.dtype), sc, sig.pos, traj.t[:n])
+        m |= _surface_metrics(acc, n)
     return m, _traces(sig, config.trace_steps)
 
 
@@ -189,22 +230,29 @@ def streamed_metrics(loop, gains, nominal_params, sc: MCScenario, config: MCConf
     dtype = sc.eta0.dtype
 
     def reduction(s: loops.Scenario) -> Reduction:
+        sea = _in_sea(s)
+
         def update(acc, seg, ks):
             sig = loop.signals(seg, s)
             check_act_names(loop, sig, names)
-            acc, healthy = acc
+            acc, healthy, surface = acc
             acc = metrics_update(acc, sig, seg.finite, ks, k0)
+            if sea:  # the samples are the states at the start of steps ks
+                surface = _surface_update(surface, s, sig.pos, ks.astype(dtype) * dt)
             trace = _traces(sig, 0) if config.record_stride > 0 else None
-            return (acc, healthy & seg.healthy), trace
+            return (acc, healthy & seg.healthy, surface), trace
 
         names = _act_names(loop, gains, s)
-        return Reduction((metrics_init(names, dtype), jnp.array(True)), update, L)
+        surface0 = _surface_init(dtype) if sea else None
+        return Reduction((metrics_init(names, dtype), jnp.array(True), surface0), update, L)
 
-    (acc, healthy), outs = simulate_scenario(
+    (acc, healthy, surface), outs = simulate_scenario(
         loop, gains, nominal_params, sc, config, dt, reduction
     )[0]
     m = metrics_finalize(acc, n, k0, dt, diverge_e)
     m["diverged"] = m["diverged"] | ~healthy
+    if surface is not None:
+        m |= _surface_metrics(surface, n)
     if outs is None:
         z = jnp.zeros((0,), jnp.float32)
         outs = {"e": z, "xy": jnp.zeros((0, 2), jnp.float32)}
@@ -302,7 +350,7 @@ def _traced_act_names(loop, gains, s: loops.Scenario) -> tuple[str, ...]:
     return tuple(jax.eval_shape(signals))
 
 
-@functools.partial(jax.jit, static_argnames=("loop", "config"))
+@functools.partial(compiler.jit, static_argnames=("loop", "config"))
 def _run_batch(loop, gains, nominal_params, scenarios, config, dt, diverge_e):
     def one(sc):
         return streamed_metrics(loop, gains, nominal_params, sc, config, dt, diverge_e)

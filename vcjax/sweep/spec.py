@@ -43,6 +43,7 @@ from vcjax.config.scenario import ScenarioChoice, loop_options
 from vcjax.config.schema import check_value
 from vcjax.environment import ConstantCurrent, draw_unit, freeze, waves
 from vcjax.environment import Waves as WavesComponent
+from vcjax.runtime import compiler
 
 __all__ = [
     "ScenarioSpec",
@@ -526,7 +527,7 @@ def _sample_one(loop, spec: ScenarioSpec, dtype, seed, index) -> MCScenario:
     )
 
 
-@functools.partial(jax.jit, static_argnames=("loop", "spec", "dtype"))
+@functools.partial(compiler.jit, static_argnames=("loop", "spec", "dtype"))
 def _sample(loop, spec, dtype, seed, indices):
     return jax.vmap(lambda i: _sample_one(loop, spec, jnp.dtype(dtype), seed, i))(indices)
 
