@@ -435,7 +435,7 @@ def test_tuning_problem_checks_and_passes_on_its_settings():
     assert (d.num_steps, d.integrator, d.timing, d.risk, d.alpha) == (
         800, "rk4", "continuous", "mean", 0.2,
     )  # fmt: skip
-    assert (d.checkpoint, d.checkpoint_every, d.tile_gains) == (False, 10, False)
+    assert (d.checkpoint, d.checkpoint_every, d.tile_gains, d.surface) == (True, 1, False, False)
     assert hash(p) == hash(dataclasses.replace(p))  # static: a jit argument, a cache key
     with pytest.raises(dataclasses.FrozenInstanceError):
         p.num_steps = 8
