@@ -918,3 +918,30 @@ def test_the_objective_adds_the_box_penalty_to_the_batch_loss(monkeypatch):
     theta = data.theta_ref.at[2].add(-1.5)  # 0.5 beyond the box
     loss, (got, t) = tl.objective(theta, data, None, problem)
     assert float(loss) == pytest.approx(3.8 + 10.0 * 0.25) and got is losses and t is terms
+
+
+def test_simulation_keys_fold_into_the_problem_and_the_checks_that_span_sections():
+    """Kills: ``[simulation]``'s horizon and dt not taken (or ``u_d`` taken as a ``[problem]``
+    key), the one-step horizon refused (horizon = dt is one step), a Gauss-Markov current let
+    through, the wave period checked at its longest instead of its shortest, two disagreeing
+    spellings of the controller let through when the newer one sorts first."""
+    from tuning.config import validate_config
+    from vcjax.config import ConfigError
+
+    cfg = validate_config({"simulation": {"horizon": 0.5, "dt": 0.5, "u_d": [1.0, 1.5]}})
+    assert (cfg.problem.horizon, cfg.problem.dt) == (0.5, 0.5)
+    assert cfg.simulation.u_d == (1.0, 1.5)
+    with pytest.raises(ConfigError, match=r"\[simulation\] dt: also given as \[problem\] dt"):
+        validate_config({"simulation": {"dt": 0.5}, "problem": {"dt": 0.5}})
+    with pytest.raises(ConfigError, match=r"\[simulation\] horizon: must be >= dt \(0.5 s\)"):
+        validate_config({"simulation": {"horizon": 0.4, "dt": 0.5}})
+    with pytest.raises(ConfigError, match=r"\[current\] model: vcjax tune samples constant"):
+        validate_config({"current": {"model": "gauss_markov"}})
+    odin = {"scenario": {"vehicle": "odin"}, "simulation": {"dt": 0.1}}
+    validate_config(odin | {"waves": {"hs": [0.5, 1.0], "tp": [4.0, 10.0]}})
+    with pytest.raises(ConfigError, match=r"\[waves\] tp: the shortest wave period"):
+        validate_config(odin | {"waves": {"hs": [0.5, 1.0], "tp": [3.9, 10.0]}})
+    with pytest.raises(ConfigError, match=r"'vcm' contradicts \[scenario\] controller 'ilos'"):
+        validate_config({"scenario": {"controller": "ilos"}, "problem": {"variant": "vcm"}})
+    same = validate_config({"scenario": {"controller": "ilos"}, "problem": {"variant": "ilos"}})
+    assert same.problem.variant == "ilos" and same.scenario.controller == "ilos"
