@@ -945,3 +945,37 @@ def test_simulation_keys_fold_into_the_problem_and_the_checks_that_span_sections
         validate_config({"scenario": {"controller": "ilos"}, "problem": {"variant": "vcm"}})
     same = validate_config({"scenario": {"controller": "ilos"}, "problem": {"variant": "ilos"}})
     assert same.problem.variant == "ilos" and same.scenario.controller == "ilos"
+
+
+# ------------------------------------------------------------------ the black-box baselines
+
+
+def test_bayes_refuses_bad_arguments_and_keeps_to_its_defaults():
+    """Kills: ``run_bayes``' checks (an empty or non-finite start, a box that is not finite and
+    > 0, no candidate per batch) and its defaults (box 3, batches of 8, 1000 evaluations: 125
+    batches announced); the seed's default (0) reproduces."""
+    pytest.importorskip("optuna")
+    from tuning.bayes import run_bayes
+
+    f = lambda X: np.sum(np.asarray(X) ** 2, axis=1)  # noqa: E731
+    for bad in ([], [0.0, np.nan]):
+        with pytest.raises(ValueError, match="^theta0: expected a non-empty finite vector"):
+            run_bayes(f, bad)
+    for bad in (0.0, -1.0, np.inf, np.nan):
+        with pytest.raises(ValueError, match="^box: expected a finite value > 0"):
+            run_bayes(f, [0.0], box=bad)
+    with pytest.raises(ValueError, match="^popsize: expected >= 1, got 0"):
+        run_bayes(f, [0.0], popsize=0)
+    seen, totals = [], []
+    res = run_bayes(
+        lambda X: seen.append(np.array(X)) or f(X),
+        [1.0, -1.0],
+        n_startup=40,
+        progress=lambda gen, total, rec: totals.append(total),
+        should_stop=lambda: len(seen) >= 4,
+    )
+    X = np.concatenate(seen)
+    assert [s.shape for s in seen] == [(8, 2)] * 4 and set(totals) == {125}
+    assert np.all(np.abs(X - [1.0, -1.0]) <= 3.0) and np.max(np.abs(X - [1.0, -1.0])) > 2.0
+    again = run_bayes(f, [1.0, -1.0], seed=0, max_evals=32, n_startup=40)
+    np.testing.assert_array_equal(res.theta, again.theta)
