@@ -979,3 +979,31 @@ def test_bayes_refuses_bad_arguments_and_keeps_to_its_defaults():
     assert np.all(np.abs(X - [1.0, -1.0]) <= 3.0) and np.max(np.abs(X - [1.0, -1.0])) > 2.0
     again = run_bayes(f, [1.0, -1.0], seed=0, max_evals=32, n_startup=40)
     np.testing.assert_array_equal(res.theta, again.theta)
+
+
+def test_vehicle_and_robust_cross_checks_and_the_gains_file_path(tmp_path):
+    """Kills: a current refused or let through by the wrong bound (any speed above 0 for a
+    loop without currents), ``[robust] starts`` refused at ``adversarial_count`` (equal is
+    enough), an actuator's ``max_abs_<name>`` refused (or an unknown metric let through), the
+    initial gains' path not resolved against the config's folder."""
+    from tuning.config import validate_config
+    from vcjax.config import ConfigError
+
+    arm = {"scenario": {"vehicle": "arm"}}
+    validate_config(arm | {"scenarios": {"current_max": 0.0}})
+    with pytest.raises(ConfigError, match=r"\[current\] the arm loop takes no current"):
+        validate_config(arm | {"scenarios": {"current_max": 0.5}})
+    rob = validate_config({"robust": {"starts": 2, "adversarial_count": 2}}).robust
+    assert (rob.starts, rob.adversarial_count) == (2, 2)
+    assert validate_config({"robust": {"metric": "max_abs_rudder"}}).robust.metric == (
+        "max_abs_rudder"
+    )
+    with pytest.raises(ConfigError, match=r"\[robust\] metric: unknown metric 'bogus'"):
+        validate_config({"robust": {"metric": "bogus"}})
+    (tmp_path / "sub").mkdir()
+    cfg = tmp_path / "sub" / "t.toml"
+    cfg.write_text('[problem]\ninitial_gains = "g.json"\n')
+    assert load_config(cfg).problem.initial_gains == str(tmp_path / "sub" / "g.json")
+    absolute = tmp_path / "g.json"
+    cfg.write_text(f'[problem]\ninitial_gains = "{absolute.as_posix()}"\n')
+    assert load_config(cfg).problem.initial_gains == str(absolute)
