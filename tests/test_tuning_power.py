@@ -979,6 +979,31 @@ def test_bayes_refuses_bad_arguments_and_keeps_to_its_defaults():
     assert np.all(np.abs(X - [1.0, -1.0]) <= 3.0) and np.max(np.abs(X - [1.0, -1.0])) > 2.0
     again = run_bayes(f, [1.0, -1.0], seed=0, max_evals=32, n_startup=40)
     np.testing.assert_array_equal(res.theta, again.theta)
+    one = run_bayes(f, [0.0], box=0.5, popsize=1, max_evals=2)  # the smallest valid ones
+    assert one.evals == 2 and abs(float(one.theta[0])) <= 0.5
+    with pytest.raises(TypeError):
+        run_bayes(f, [0.0], 3.0)  # keyword-only
+    with pytest.raises(ValueError):  # one value per candidate, or the batch is refused
+        run_bayes(lambda X: f(X)[:-1], [0.0], max_evals=8)
+
+
+def test_bayes_asks_optuna_for_a_joint_tpe_with_a_constant_liar(monkeypatch):
+    """Kills: the sampler's settings (``multivariate``: the gains modelled jointly;
+    ``constant_liar``: a batch's candidates spread out; the seed and the number of random
+    start-up trials by default), which the results show only statistically."""
+    optuna = pytest.importorskip("optuna")
+    from tuning.bayes import run_bayes
+
+    made = []
+    real = optuna.samplers.TPESampler
+
+    def sampler(**kw):
+        made.append(kw)
+        return real(**kw)
+
+    monkeypatch.setattr(optuna.samplers, "TPESampler", sampler)
+    run_bayes(lambda X: np.sum(np.asarray(X) ** 2, axis=1), [0.0], max_evals=8)
+    assert made == [dict(seed=0, multivariate=True, constant_liar=True, n_startup_trials=10)]
 
 
 def test_vehicle_and_robust_cross_checks_and_the_gains_file_path(tmp_path):
