@@ -979,6 +979,10 @@ def test_bayes_refuses_bad_arguments_and_keeps_to_its_defaults():
     assert np.all(np.abs(X - [1.0, -1.0]) <= 3.0) and np.max(np.abs(X - [1.0, -1.0])) > 2.0
     again = run_bayes(f, [1.0, -1.0], seed=0, max_evals=32, n_startup=40)
     np.testing.assert_array_equal(res.theta, again.theta)
+    sevens = []  # 1000 evaluations: 142 whole batches of 7 (1001 would make 143)
+    run_bayes(f, [0.0], popsize=7, progress=lambda g, n, r: sevens.append(n),
+              should_stop=lambda: bool(sevens))  # fmt: skip
+    assert sevens == [142]
     one = run_bayes(f, [0.0], box=0.5, popsize=1, max_evals=2)  # the smallest valid ones
     assert one.evals == 2 and abs(float(one.theta[0])) <= 0.5
     with pytest.raises(TypeError):
