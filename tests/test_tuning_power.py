@@ -1,8 +1,12 @@
 """Tests that kill the planted bugs the tuner's own tests let through (issue 31, item 8): its
 scenario sampling (units: degrees vs radians, knots vs m/s; the held-out batch independent of
-the training batch), its loss terms, and its interrupted-run summary. Each test names the bug
-it kills; the expected values are computed here independently (numpy, written-out formulas),
-not with the code under test.
+the training batch), its loss terms, and its interrupted-run summary; then the survivors of a
+mutation run of ``tuning/`` (docs/development/testing.md, "Mutation testing"): the scenario
+distribution's defaults and checks, the loss's arguments, robust tuning's bookkeeping (its
+searches replaced by stand-ins), the gain space's floors, the config's documented defaults and
+bounds, the Bayesian baseline's arguments. Each test names the bugs it kills; the expected
+values are computed here independently (numpy, written-out formulas), not with the code under
+test.
 """
 
 from __future__ import annotations
