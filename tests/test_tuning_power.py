@@ -680,8 +680,8 @@ BOUNDS = [
 
 def test_each_bounded_key_takes_its_bound_and_refuses_beyond():
     """Kills: a key's lower bound moved, made closed where it is open (or open where closed),
-    CVaR's alpha allowed above 1 or refused at 1 (parsed by the one validator, as a config file
-    is)."""
+    CVaR's alpha allowed above 1 or refused at 1, a gain group named twice (parsed by the one
+    validator, as a config file is)."""
     from tuning.spec import _OPTIONAL, _SECTIONS
     from vcjax.config import ConfigError, parse_section
 
@@ -695,6 +695,8 @@ def test_each_bounded_key_takes_its_bound_and_refuses_beyond():
             with pytest.raises(ConfigError, match=rf"\[{section}\] {k}"):
                 parse_section(classes[section], {k: v}, section)
     assert parse_section(classes["problem"], {"alpha": 1.0}, "problem").alpha == 1.0
+    with pytest.raises(ConfigError, match=r"\[problem\] tune: duplicate names"):
+        parse_section(classes["problem"], {"tune": ["P_G", "P_G"]}, "problem")
     with pytest.raises(ConfigError, match=r"\[problem\] alpha"):
         parse_section(classes["problem"], {"alpha": 1.01}, "problem")
 
