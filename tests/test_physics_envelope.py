@@ -179,17 +179,23 @@ def test_the_sea_estimate_is_the_measured_bytes_per_component(tmp_path):
 
 
 def test_tune_counts_the_sea_on_its_gradient_tape(tmp_path):
-    """Reverse mode keeps WAVE_TAPE_ARRAYS (N,) arrays per scenario, step and RK4 stage."""
+    """Reverse mode keeps WAVE_TAPE_ARRAYS (N,) arrays per scenario, RK4 stage and stored step:
+    one step's with the default per-step checkpointing (the backward pass recomputes each step),
+    every step's with ``checkpoint = false``."""
     from tuning.config import load_config
 
-    cfg = load_config(_config(tmp_path, TUNE_WAVES))
-    est = sizing.tune_estimate(cfg)
-    B, H, n = cfg["train"]["size"], cfg["heldout"]["size"], 400  # 40 s / 0.1 s
-    N = 64
-    tape = B * n * 4 * N * sizing.WAVE_TAPE_ARRAYS * 8
-    seas = (B + H) * N * 5 * 8
-    work = max(B, H) * N * sizing.WAVE_WORK_ARRAYS * 8
-    assert est["parts"]["sea"] == tape + seas + work
+    n, N = 400, 64  # 40 s / 0.1 s, 64 components
+    for text, steps in (
+        (TUNE_WAVES, 1),
+        (TUNE_WAVES.replace("[problem]\n", "[problem]\ncheckpoint = false\n"), n),
+    ):
+        cfg = load_config(_config(tmp_path, text))
+        est = sizing.tune_estimate(cfg)
+        B, H = cfg["train"]["size"], cfg["heldout"]["size"]
+        tape = B * steps * 4 * N * sizing.WAVE_TAPE_ARRAYS * 8
+        seas = (B + H) * N * 5 * 8
+        work = max(B, H) * N * sizing.WAVE_WORK_ARRAYS * 8
+        assert est["parts"]["sea"] == tape + seas + work
 
 
 def test_a_tune_with_ten_million_components_is_refused(tmp_path, capsys, monkeypatch):
