@@ -586,7 +586,16 @@ scen = sample_scenarios(0, 4, current_max=1.0)
 theta = data.theta_ref + 0.1 * jnp.arange(12.0) / 12.0
 scen_d, data_d, theta_d = distribute(scen, data, theta)
 assert scen_d is not scen
-out = {}
+from tuning.scenarios import shard_scenarios
+sharded, n = shard_scenarios(scen)  # the held-out batch's placement: over the local devices
+three = scen._replace(eta0=scen.eta0[:3])
+out = {"shard": {
+    "n": n, "devices": len(sharded.eta0.sharding.device_set),
+    "shards": [list(x.data.shape) for x in sharded.eta0.addressable_shards],
+    "equal": bool(np.array_equal(np.asarray(sharded.eta0), np.asarray(scen.eta0))),
+    "path_same": all(a is c for a, c in zip(jax.tree.leaves(sharded.path), jax.tree.leaves(scen.path))),
+    "uneven": shard_scenarios(three)[1] == 1 and shard_scenarios(three)[0] is three,
+}}
 for tile in (False, True):
     p = dataclasses.replace(prob, tile_gains=tile)
     f = jax.jit(jax.value_and_grad(lambda th, d, s: objective(th, d, s, p)[0]))
@@ -608,6 +617,10 @@ def test_tiled_gains_on_a_sharded_batch_reduce_once_with_the_same_gradient():
     when it shards) the loop bodies hold no all-reduce. Loss and gradient are those of one device
     with the gains shared (1e-12)."""
     res = _on_two_devices(_SHARDED_GRAD)
+    # shard_scenarios: an even batch split along its scenarios, the shared fields left alone
+    sh = res.pop("shard")
+    assert sh["n"] == 2 and sh["devices"] == 2 and sh["shards"] == [[2, 3], [2, 3]]
+    assert sh["equal"] and sh["path_same"] and sh["uneven"]
     assert res["False"]["in_loops"] >= 1  # the per-step reduction the tiling removes
     assert res["True"]["in_loops"] == 0
     for k in ("False", "True"):
