@@ -77,8 +77,9 @@ class LossWeights(NamedTuple):
     depth: Any = 0.0
 
 
-#: The default of every weight of [`loss_weights`][tuning.loss.loss_weights] (the ``[weights]``
-#: section's defaults).
+#: The default of every weight of [`loss_weights`][tuning.loss.loss_weights] in Python. Two
+#: differ from the ``[weights]`` section's defaults (``tuning.spec.Weights``, what ``vcjax tune``
+#: uses when the section omits them): ``sat_excess`` 1 there, ``sat_time`` 5 there.
 DEFAULT_WEIGHTS = {
     "eps": 1.0,
     "u_tilde": 1.0,
