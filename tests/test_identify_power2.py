@@ -778,7 +778,7 @@ def test_the_prediction_figure_shows_every_channel_in_display_units(saved, tmp_p
     ]
     assert axes[0].get_legend().get_texts()[0].get_fontsize() == 8
     assert all(a.get_legend() is None for a in axes[1:])
-    assert all(a.xaxis.get_tick_params()["labelbottom"] for a in axes[5:8])
+    assert all(a.xaxis.get_tick_params().get("labelbottom", True) for a in axes[5:8])
     assert fig.texts == [fig._suptitle]  # converged, no warnings
 
 
