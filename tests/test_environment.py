@@ -177,6 +177,10 @@ def test_the_force_binds_to_the_generalised_velocity_size():
     assert c.size == 6 and set(c.schema) == {f"tau_{i}" for i in range(6)}
     p = c.sample(jax.random.PRNGKey(0), c.check({"tau_0": 5.0, "tau_5": [1.0, 1.0]}))
     np.testing.assert_array_equal(c.force(p), [5.0, 0, 0, 0, 0, 1.0])
+    # through environment.sample (the sweep's and the tuner's route): checked for the loop, not
+    # against the unbound 3-force default (a KeyError 'tau_3' before)
+    env = environment.sample(jax.random.PRNGKey(0), {"force": {"tau_0": 5.0, "tau_5": 1.0}}, odin)
+    np.testing.assert_array_equal(env.params[0].tau, [5.0, 0, 0, 0, 0, 1.0])
 
 
 # ------------------------------------------------------------------ registry and pytree

@@ -399,6 +399,8 @@ def sample(key, sections: Mapping[str, Mapping], loop=None, comps: Mapping | Non
     found, params = [], []
     for i, (name, raw) in enumerate(sections.items()):
         c = (comps or {}).get(name) or lookup(name)
+        if loop is not None:  # checked against what it is for this loop (e.g. 6 forces of a 6-DOF)
+            c = c.bind(loop)
         checked = c.check(raw)
         c = c.resolve(checked)
         c = c if loop is None else c.bind(loop)
