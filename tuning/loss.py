@@ -38,7 +38,7 @@ from tuning.params import GainSpace
 from tuning.scenarios import SCENARIO_AXES
 from vcjax import loops
 from vcjax.rollout import RolloutConfig
-from vcjax.sweep.run import surface_clearance
+from vcjax.sweep.run import in_sea, surface_metrics
 
 __all__ = [
     "TERMS",
@@ -260,13 +260,8 @@ def scenario_losses(theta, data: ProblemData, scenarios, problem: TuningProblem)
         sig = loop.signals(traj, sc)
         terms = rollout_terms(traj, sig, w.sat_width)
         loss = weighted_loss(terms, w)
-        if problem.surface and sc.sea is not None and sc.origin_depth is not None:
-            n = sig.pos.shape[0]  # the samples: the states at the start of each step
-            c = surface_clearance(sc, sig.pos, traj.t[:n])
-            terms = terms | {
-                "above_surface_fraction": jnp.mean((c < 0).astype(c.dtype)),
-                "min_surface_clearance": jnp.min(c),
-            }
+        if problem.surface and in_sea(sc):  # the samples: the states at each step's start
+            terms = terms | surface_metrics(sc, sig.pos, traj.t[: sig.pos.shape[0]])
         return loss, terms
 
     if not problem.tile_gains:

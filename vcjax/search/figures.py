@@ -20,7 +20,7 @@ from vcjax.plots import pyplot, save
 from vcjax.rollout import RolloutConfig
 from vcjax.runtime import compiler
 from vcjax.search.envelope import Envelope, Setting, scenario_from
-from vcjax.sweep.run import surface_clearance, to_scenario
+from vcjax.sweep.run import in_sea, surface_clearance, to_scenario
 
 __all__ = ["worst_trajectory", "worst_run", "plot_worst", "plot_curve"]
 
@@ -45,7 +45,7 @@ def worst_run(loop, gains, env: Envelope, setting: Setting, x, index):
     e = np.asarray(sig.eps[:, 1])
     d = np.sqrt(np.sum(np.asarray(sig.p_err) ** 2, axis=1))
     clearance = None
-    if s.sea is not None and s.origin_depth is not None:
+    if in_sea(s):
         c = surface_clearance(s, jnp.asarray(pos), jnp.asarray(t))
         clearance = (t, np.asarray(c))
     return (t[: e.size], pos, e, d, path), clearance

@@ -45,7 +45,9 @@ __all__ = [
     "run_sweep",
     "SCENARIO_FIELDS",
     "SURFACE_METRICS",
+    "in_sea",
     "surface_clearance",
+    "surface_metrics",
 ]
 
 #: The sampled fields a [`SweepResult`][vcjax.sweep.results.SweepResult] keeps per scenario (those
@@ -163,7 +165,8 @@ def surface_clearance(s: loops.Scenario, pos, t):
     return s.origin_depth + pos[:, 2] + zeta
 
 
-def _in_sea(s: loops.Scenario) -> bool:
+def in_sea(s: loops.Scenario) -> bool:
+    """Whether the scenario ``s`` runs in a sea (its ``sea`` and ``origin_depth`` given)."""
     return s.sea is not None and s.origin_depth is not None
 
 
@@ -180,6 +183,13 @@ def _surface_update(acc, s: loops.Scenario, pos, t):
 def _surface_metrics(acc, n: int) -> dict:
     above, least = acc
     return {"above_surface_fraction": above / n, "min_surface_clearance": least}
+
+
+def surface_metrics(s: loops.Scenario, pos, t) -> dict:
+    """``SURFACE_METRICS`` of a whole run in a sea: its positions ``pos`` (N, 3) at times ``t``
+    (N,) (what the streamed sweep folds in segment by segment)."""
+    acc = _surface_update(_surface_init(pos.dtype), s, pos, t)
+    return _surface_metrics(acc, pos.shape[0])
 
 
 def _traces(sig, idx) -> dict:
@@ -202,10 +212,8 @@ def scenario_metrics(loop, traj: Trajectory, sc: loops.Scenario, config: MCConfi
     m = run_metrics(sig, traj.finite, traj.t[1] - traj.t[0], 1.0 - config.tail, diverge_e)
     # a state that ran away while staying finite (beyond the rollout's bound) diverged too
     m["diverged"] = m["diverged"] | ~traj.healthy
-    if _in_sea(sc):
-        n = sig.pos.shape[0]
-        acc = _surface_update(_surface_init(sig.pos.dtype), sc, sig.pos, traj.t[:n])
-        m |= _surface_metrics(acc, n)
+    if in_sea(sc):  # the samples: the states at the start of each step
+        m |= surface_metrics(sc, sig.pos, traj.t[: sig.pos.shape[0]])
     return m, _traces(sig, config.trace_steps)
 
 
@@ -230,7 +238,7 @@ def streamed_metrics(loop, gains, nominal_params, sc: MCScenario, config: MCConf
     dtype = sc.eta0.dtype
 
     def reduction(s: loops.Scenario) -> Reduction:
-        sea = _in_sea(s)
+        sea = in_sea(s)
 
         def update(acc, seg, ks):
             sig = loop.signals(seg, s)
