@@ -1,0 +1,347 @@
+"""Tests that kill the survivors of a mutation run of the tuner's command and its figures
+(``tuning/run.py``, ``tuning/report.py``; issue 31, item 8; docs/development/testing.md,
+"Mutation testing"): what ``summary.json`` and ``history.json`` say (an interrupted run
+included: its counts, its best-so-far gains, its held-out numbers), computed here by hand from
+the run's history and from stand-ins for the tune's stages (no rollout is compiled), and the
+numbers the figures draw (their lines, bars, labels and sizes, read back from the figure before
+it is written; not the pixels). Each test names the bugs it kills.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+
+import numpy as np
+import pytest
+
+from tuning import report
+
+# ------------------------------------------------------------------ figures (matplotlib only)
+
+
+@pytest.fixture
+def saved(monkeypatch):
+    """``tuning.report``'s ``savefig_atomic``, recording ``(fig, path, kwargs)`` instead of
+    writing (the figure is closed after it: its artists stay readable)."""
+    out = []
+    monkeypatch.setattr(
+        report, "savefig_atomic", lambda fig, path, **kw: out.append((fig, path, kw))
+    )
+    return out
+
+
+def _rgb(color):
+    from matplotlib.colors import to_rgb
+
+    return to_rgb(color)
+
+
+def _grid(ax, axis="x"):
+    line = getattr(ax, f"{axis}axis").get_gridlines()[0]
+    return line.get_visible(), line.get_alpha()
+
+
+def _history():
+    """Four steps: the second rejected (no loss), the third without a gradient norm."""
+    return [
+        {"iter": 0, "loss": 4.0, "grad_norm": 1.0, "ok": True},
+        {"iter": 1, "loss": None, "grad_norm": 0.5, "ok": False},
+        {"iter": 2, "loss": 3.0, "grad_norm": None, "ok": True},
+        {"iter": 3, "loss": 2.5, "grad_norm": 0.25, "ok": True},
+    ]
+
+
+def test_the_loss_curve_draws_the_losses_the_norms_and_the_rejected_steps(saved, tmp_path):
+    """Kills: a missing loss or norm drawn as itself (not NaN), the rejected steps' marks at the
+    accepted steps or at another height than the lowest loss, the panels swapped, the marker,
+    size, grid, figure size or resolution changed."""
+    path = report.plot_loss_curve(_history(), tmp_path / "c.png", "adam tuning")
+    assert path == tmp_path / "c.png"
+    ((fig, p, kw),) = saved
+    assert p == tmp_path / "c.png" and kw == {"dpi": 110}
+    np.testing.assert_array_equal(fig.get_size_inches(), [10.0, 3.6])
+    a, b = fig.axes
+    loss, rejected = a.lines
+    np.testing.assert_array_equal(loss.get_xdata(), [0, 1, 2, 3])
+    np.testing.assert_array_equal(loss.get_ydata(), [4.0, np.nan, 3.0, 2.5])
+    assert (loss.get_marker(), loss.get_linestyle(), loss.get_markersize()) == ("o", "-", 3)
+    np.testing.assert_array_equal(rejected.get_xdata(), [1])
+    np.testing.assert_array_equal(rejected.get_ydata(), [2.5])  # the lowest loss
+    assert (rejected.get_marker(), rejected.get_color(), rejected.get_label()) == (
+        "x",
+        "r",
+        "rejected step",
+    )
+    assert [t.get_text() for t in a.get_legend().get_texts()] == ["rejected step"]
+    assert (a.get_xlabel(), a.get_ylabel(), a.get_title()) == (
+        "iteration",
+        "training loss",
+        "adam tuning",
+    )
+    (norm,) = b.lines
+    np.testing.assert_array_equal(norm.get_ydata(), [1.0, 0.5, np.nan, 0.25])
+    assert (norm.get_marker(), norm.get_markersize(), norm.get_color()) == ("o", 3, "tab:orange")
+    assert (b.get_xlabel(), b.get_ylabel(), b.get_title()) == ("iteration", "gradient norm", "")
+    assert b.get_legend() is None
+    for ax in (a, b):
+        assert ax.get_yscale() == "log"
+        assert _grid(ax) == (True, 0.3) and _grid(ax, "y") == (True, 0.3)
+
+
+def test_a_loss_curve_without_rejected_steps_has_no_marks(saved, tmp_path):
+    report.plot_loss_curve([h for h in _history() if h["ok"]], tmp_path / "c.png")
+    ((fig, _, _),) = saved
+    a, _ = fig.axes
+    assert len(a.lines) == 1 and a.get_legend() is None and a.get_title() == "gain tuning"
+
+
+def _runs(S=2, N=3, seed=0):
+    rng = np.random.default_rng(seed)
+    before = {"xy": rng.normal(size=(S, N, 2)), "e": rng.normal(size=(S, N))}
+    after = {"xy": rng.normal(size=(S, N, 2)), "e": rng.normal(size=(S, N))}
+    return before, after
+
+
+def test_the_before_after_figures_draw_each_scenario_north_up(saved, tmp_path):
+    """Kills: north and east swapped (a path is drawn east along x, north along y), the start
+    mark off the first sample, the current's speed from other components, the colours, line
+    widths, the cross-track times (the first N of N+1), the zero line, the file names, sizes
+    and resolution."""
+    S, N = 2, 3
+    before, after = _runs(S, N)
+    t = 0.5 * np.arange(N + 1)
+    currents = np.array([[0.3, 0.4, 5.0], [-0.6, 0.8, 5.0]])  # |V_c| 0.5 and 1.0 (w ignored)
+    path_xy = np.array([[0.0, 1.0], [2.0, 3.0], [4.0, 5.0]])
+    files = report.plot_before_after(t, before, after, currents, tmp_path, path_xy)
+    assert files == [tmp_path / "before_after_paths.png", tmp_path / "before_after_cross_track.png"]
+    (f1, p1, kw1), (f2, p2, kw2) = saved
+    assert (p1, p2) == tuple(files) and kw1 == kw2 == {"dpi": 110}
+    np.testing.assert_array_equal(f1.get_size_inches(), [8.0, 5.0])
+    np.testing.assert_array_equal(f2.get_size_inches(), [8.0, 4.0])
+    (ax,) = f1.axes
+    path, *lines = ax.lines
+    np.testing.assert_array_equal(path.get_xdata(), [1.0, 3.0, 5.0])  # east
+    np.testing.assert_array_equal(path.get_ydata(), [0.0, 2.0, 4.0])  # north
+    assert (path.get_color(), path.get_linewidth(), path.get_alpha(), path.get_label()) == (
+        "k",
+        3,
+        0.25,
+        "path",
+    )
+    assert len(lines) == 3 * S
+    for i in range(S):
+        dashed, solid, start = lines[3 * i : 3 * i + 3]
+        np.testing.assert_array_equal(dashed.get_xdata(), before["xy"][i, :, 1])
+        np.testing.assert_array_equal(dashed.get_ydata(), before["xy"][i, :, 0])
+        np.testing.assert_array_equal(solid.get_xdata(), after["xy"][i, :, 1])
+        np.testing.assert_array_equal(solid.get_ydata(), after["xy"][i, :, 0])
+        np.testing.assert_array_equal(start.get_xdata(), [before["xy"][i, 0, 1]])
+        np.testing.assert_array_equal(start.get_ydata(), [before["xy"][i, 0, 0]])
+        assert (dashed.get_linestyle(), dashed.get_linewidth()) == ("--", 1)
+        assert (solid.get_linestyle(), solid.get_linewidth()) == ("-", 1.5)
+        assert start.get_marker() == "o"
+        assert {_rgb(x.get_color()) for x in (dashed, solid, start)} == {_rgb(f"C{i}")}
+    assert solid.get_label() == "scenario 1: |V_c| = 1.00 m/s"
+    assert [x.get_text() for x in ax.get_legend().get_texts()] == [
+        "path",
+        "scenario 0: |V_c| = 0.50 m/s",
+        "scenario 1: |V_c| = 1.00 m/s",
+    ]
+    assert ax.get_legend().get_texts()[0].get_fontsize() == 8
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("east y [m]", "north x [m]")
+    assert ax.get_title() == "held-out scenarios: default gains (dashed) vs tuned (solid)"
+    assert _grid(ax) == (True, 0.3)
+    (ax,) = f2.axes
+    *lines, zero = ax.lines
+    assert len(lines) == 2 * S
+    for i in range(S):
+        dashed, solid = lines[2 * i : 2 * i + 2]
+        for line, e in ((dashed, before["e"][i]), (solid, after["e"][i])):
+            np.testing.assert_array_equal(line.get_xdata(), t[:N])
+            np.testing.assert_array_equal(line.get_ydata(), e)
+        assert (dashed.get_linestyle(), dashed.get_linewidth()) == ("--", 1)
+        assert (solid.get_linestyle(), solid.get_linewidth()) == ("-", 1.5)
+        assert _rgb(dashed.get_color()) == _rgb(solid.get_color()) == _rgb(f"C{i}")
+        assert solid.get_label() == f"scenario {i}"
+    np.testing.assert_array_equal(zero.get_ydata(), [0.0, 0.0])
+    assert (zero.get_color(), zero.get_linewidth()) == ("k", 0.8)
+    assert ax.get_legend().get_texts()[0].get_fontsize() == 8
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("t [s]", "cross-track error e [m]")
+    assert ax.get_title() == "default gains (dashed) vs tuned (solid)"
+    assert _grid(ax) == (True, 0.3)
+
+
+def test_the_paths_figure_without_a_path_draws_the_runs_only(saved, tmp_path):
+    before, after = _runs(1, 2)
+    report.plot_before_after(np.arange(3.0), before, after, np.array([[0.0, 0.0]]), tmp_path)
+    (ax,) = saved[0][0].axes
+    assert len(ax.lines) == 3 and ax.lines[0].get_linestyle() == "--"
+
+
+def _signals(S, N, A, seed):
+    rng = np.random.default_rng(seed)
+    return {
+        "eps": rng.normal(size=(S, N, 2)),
+        "u_err": rng.normal(size=(S, N)),
+        "psi_err": rng.normal(size=(S, N)),
+        "cmd_ratio": rng.normal(size=(S, N, A)),
+    }
+
+
+@pytest.mark.parametrize("A", [2, 3])
+def test_the_loss_terms_figure_draws_what_the_loss_measures(saved, tmp_path, A):
+    """Kills: the path error from other components of ``eps`` than (s, e), the heading not in
+    degrees, the panels' count and layout (3 + A + 1 in rows of 3: A = 2 and 3 tell the
+    mutants of that count apart), the limit lines and their one label, the weighted terms'
+    bars (weight times term, terms of zero weight left out, their places, widths, labels),
+    the axis scale and limits, the hidden spare panels, sizes and resolution."""
+    S, N = 2, 4
+    before, after = _signals(S, N, A, 1), _signals(S, N, A, 2)
+    t = 0.25 * np.arange(N + 1)
+    names = ["thrust", "rudder", "stern"][:A]
+    weights = {"a": 1.0, "b": 0.0, "c": 0.5, "d": 2.0}
+    tb = {"a": 0.01, "b": 7.0, "c": 0.02, "d": 0.001}
+    ta = {"a": 0.004, "b": 9.0, "c": 0.01, "d": 0.0005}
+    path = report.plot_loss_terms(t, before, after, (tb, ta), weights, names, tmp_path / "l.png")
+    assert path == tmp_path / "l.png"
+    ((fig, p, kw),) = saved
+    assert p == path and kw == {"dpi": 110}
+    rows = 2 if A == 2 else 3  # 6 or 7 panels
+    np.testing.assert_array_equal(fig.get_size_inches(), [15.0, 3.6 * rows])
+    axes = fig.axes
+    assert len(axes) == 3 * rows
+    assert [a.get_visible() for a in axes] == [True] * (4 + A) + [False] * (3 * rows - 4 - A)
+    assert fig._suptitle.get_text() == (
+        "What the loss measures: default gains (dashed) vs tuned (solid)"
+    )
+    assert fig._suptitle.get_fontsize() == 11
+    want = [
+        ("path error √(s² + e²) [m]", lambda d: np.hypot(d["eps"][..., 0], d["eps"][..., 1])),
+        ("speed error ũ [m/s]", lambda d: d["u_err"]),
+        ("heading error ψ̃ [deg]", lambda d: d["psi_err"] * 180.0 / np.pi),
+    ] + [(f"{names[j]} command / limit", lambda d, j=j: d["cmd_ratio"][..., j]) for j in range(A)]
+    for k, (ax, (title, f)) in enumerate(zip(axes, want, strict=False)):
+        assert ax.get_title() == title and ax.title.get_fontsize() == 10
+        assert ax.get_xlabel() == "t [s]" and _grid(ax) == (True, 0.3)
+        runs, limits = ax.lines[: 2 * S], ax.lines[2 * S :]
+        for i in range(S):
+            dashed, solid = runs[2 * i : 2 * i + 2]
+            for line, d in ((dashed, before), (solid, after)):
+                np.testing.assert_array_equal(line.get_xdata(), t[:N])
+                np.testing.assert_allclose(line.get_ydata(), f(d)[i], rtol=1e-14)
+            assert (dashed.get_linestyle(), dashed.get_linewidth()) == ("--", 1)
+            assert (solid.get_linestyle(), solid.get_linewidth()) == ("-", 1.3)
+            assert _rgb(dashed.get_color()) == _rgb(solid.get_color()) == _rgb(f"C{i}")
+            assert solid.get_label() == f"scenario {i}"
+        if k < 3:
+            assert limits == []
+        else:
+            lo, hi = limits
+            assert [lo.get_ydata()[0], hi.get_ydata()[0]] == [-1.0, 1.0]
+            for line in (lo, hi):
+                assert (line.get_color(), line.get_linestyle(), line.get_linewidth()) == (
+                    "k",
+                    ":",
+                    1.2,
+                )
+            assert hi.get_label() == "limit" and lo.get_label().startswith("_")
+        legend = ax.get_legend()
+        if k in (0, 3):
+            shown = [x.get_text() for x in legend.get_texts()]
+            assert shown == ["scenario 0", "scenario 1"] + (["limit"] if k == 3 else [])
+            assert legend.get_texts()[0].get_fontsize() == 7
+        else:
+            assert legend is None
+    ax = axes[3 + A]
+    keys = ["a", "c", "d"]  # "b" weighs nothing
+    vb = [0.01, 0.01, 0.002]
+    va = [0.004, 0.005, 0.001]
+    default, tuned = ax.patches[:3], ax.patches[3:]
+    assert len(ax.patches) == 6
+    for j in range(3):
+        for bar, x0, v in ((default[j], j - 0.4, vb[j]), (tuned[j], j, va[j])):
+            assert bar.get_x() == pytest.approx(x0, abs=1e-15)
+            assert bar.get_width() == pytest.approx(0.4, abs=1e-15)
+            assert bar.get_height() == pytest.approx(v, rel=1e-14)
+        assert default[j].get_facecolor() == (0.6, 0.6, 0.6, 1.0)
+        assert _rgb(tuned[j].get_facecolor()) == _rgb("C0")
+    assert [x.get_text() for x in ax.get_legend().get_texts()] == [
+        "default (sum 0.022)",
+        "tuned (sum 0.01)",
+    ]
+    assert ax.get_legend().get_texts()[0].get_fontsize() == 8
+    ticks = ax.get_xticklabels()
+    assert [x.get_text() for x in ticks] == keys
+    assert {(x.get_rotation(), x.get_fontsize()) for x in ticks} == {(30.0, 8)}
+    assert ax.get_yscale() == "symlog" and ax.yaxis.get_transform().linthresh == 1e-3
+    assert ax.get_ylim() == pytest.approx((0.0, 0.05), rel=1e-14)  # 5 x the tallest bar
+    assert ax.get_title() == "held-out weighted loss terms w_k term_k"
+    assert ax.title.get_fontsize() == 10
+    assert _grid(ax, "y") == (True, 0.3)
+
+
+def test_the_loss_terms_figure_floors_its_scale_and_names_unnamed_actuators(saved, tmp_path):
+    """Kills: the 1e-3 floor of the bars' axis changed; the actuators' names used when their
+    count is not the commands' (they are then numbered)."""
+    before, after = _signals(1, 2, 2, 3), _signals(1, 2, 2, 4)
+    terms = ({"a": 1e-5}, {"a": 2e-5})
+    for names in (None, ["thrust"], ["thrust", "rudder", "stern"]):
+        report.plot_loss_terms(np.arange(3.0), before, after, terms, {"a": 1.0}, names, tmp_path)
+        axes = saved[-1][0].axes
+        assert [a.get_title() for a in axes[3:5]] == [
+            "actuator 0 command / limit",
+            "actuator 1 command / limit",
+        ]
+        assert axes[5].get_ylim() == pytest.approx((0.0, 5e-3), rel=1e-14)
+
+
+# ------------------------------------------------------------------ progress and text
+
+
+def test_the_progress_hook_shows_the_step_its_loss_and_rejections():
+    """Kills: the hook's total not taken (or not floored at 1), the best loss not shown when a
+    record has no loss, a missing loss shown as a number, a rejected step not marked (or an
+    accepted one marked), an empty record given a loss."""
+    lines = []
+    bar = report.ProgressBar(5, label="tune ", sink=lines.append)
+    bar(1)
+    bar(2, 10, {"loss": 1.23456})
+    bar(3, None, {"best_loss": 2.0, "ok": True})
+    bar(4, None, {"loss": None, "ok": False})
+    bar(5, None, {})
+    bar(0, 0, {"loss": 0.5})
+    head = [re.sub(r" [0-9.]+ s, ~[0-9]+ s left$", "", x).strip() for x in lines]
+    assert head == [
+        "tune: 1/5",
+        "tune: 2/10 loss 1.235",
+        "tune: 3/10 loss 2",
+        "tune: 4/10 loss nan (rejected: non-finite)",
+        "tune: 5/10",
+        "tune: 0/1 loss 0.5",
+    ]
+    stream = io.StringIO()
+    report.ProgressBar(2, stream=stream)(1, 1, {"loss": 3.0})
+    assert " 1/1 " in stream.getvalue() and stream.getvalue().endswith("\n")
+
+
+@pytest.mark.parametrize(
+    "before, after, text",
+    [
+        (float("nan"), 1.0, "not comparable"),
+        (1.0, float("inf"), "not comparable"),
+        (float("inf"), float("inf"), "unchanged"),
+        (0.0, 0.0, "unchanged"),
+        (-10.0, -5.0, "50.0 % higher"),
+        (-10.0, -15.0, "50.0 % lower"),
+        (1000.0, 1000.5, "0.1 % higher"),  # 0.05 % exactly: the first change shown
+        (1000.0, 999.5, "0.1 % lower"),
+        (1000.0, 1000.4, "unchanged"),
+        (4.0, 5.0, "25.0 % higher"),
+        (5.0, 4.0, "20.0 % lower"),
+    ],
+)
+def test_change_text_by_hand(before, after, text):
+    """Kills: the percentage's scale, sign or base (``abs(before)``: a negative loss), the
+    0.05 % threshold and which side of it is shown, the comparability test."""
+    assert report.change_text(before, after) == text
