@@ -9,13 +9,18 @@ it is written; not the pixels). Each test names the bugs it kills.
 
 from __future__ import annotations
 
+import dataclasses
 import io
+import json
 import re
+import time
 
+import jax
 import numpy as np
 import pytest
 
 from tuning import report
+from tuning.loss import TERMS
 
 # ------------------------------------------------------------------ figures (matplotlib only)
 
@@ -345,3 +350,282 @@ def test_change_text_by_hand(before, after, text):
     """Kills: the percentage's scale, sign or base (``abs(before)``: a negative loss), the
     0.05 % threshold and which side of it is shown, the comparability test."""
     assert report.change_text(before, after) == text
+
+
+# ------------------------------------------------------------------ the tune command's outputs
+# The tune's stages (build, training, held-out evaluation) are replaced by stand-ins whose
+# numbers are chosen here: what summary.json and history.json must then say is computed by hand.
+
+TUNE = """
+[problem]
+variant = "vcm_integral"
+[simulation]
+horizon = 1.0
+dt = 0.1
+integrator = "euler"
+timing = "sampled"
+[train]
+size = 4
+seed = 0
+[heldout]
+size = 5
+seed = 1001
+[optimizer]
+name = "adam"
+steps = 1000
+[report]
+plot_scenarios = 2
+"""
+
+
+@pytest.fixture(scope="module")
+def setting(tmp_path_factory):
+    """``(config file, config, problem, held-out problem, data)`` of a small tune."""
+    from tuning.config import load_config
+    from tuning.loss import TuningProblem, problem_data
+    from tuning.params import GainSpace
+
+    path = tmp_path_factory.mktemp("cfg") / "t.toml"
+    path.write_text(TUNE)
+    cfg = load_config(path)
+    problem = TuningProblem(space=GainSpace(), num_steps=10, integrator="euler", timing="sampled")
+    eval_problem = dataclasses.replace(problem, smooth=False, checkpoint=False, surface=True)
+    return path, cfg, problem, eval_problem, problem_data(problem)
+
+
+#: a run's history: the loss of step k's input, the gains after it (what ``on_step`` adds)
+HISTORY = [
+    {"iter": 0, "loss": 9.0, "grad_norm": 3.0, "ok": True, "evals": 1, "wall_s": 4.0},
+    {"iter": 1, "loss": 6.0, "grad_norm": 2.0, "ok": True, "evals": 1, "wall_s": 4.5},
+    {"iter": 2, "loss": None, "grad_norm": None, "ok": False, "evals": 1, "wall_s": 5.0},
+    {"iter": 3, "loss": 7.0, "grad_norm": 1.0, "ok": True, "evals": 2, "wall_s": 6.25},
+]
+
+#: held-out per-scenario losses and terms of the default and of the tuned gains (5 scenarios)
+HELD = {
+    "default": (
+        np.array([1.0, 2.0, 4.0, 8.0, 5.0]),
+        np.array([0.0, 0.25, 0.0, 0.5, 0.0]),  # above the surface: 2 of 5 runs
+        np.array([0.4, -0.1, 0.2, -0.3, 0.5]),
+    ),
+    "tuned": (
+        np.array([0.5, 1.0, 1.0, 3.0, 1.5]),
+        np.zeros(5),  # none above the surface
+        np.array([0.4, 0.1, 0.2, 0.3, 0.5]),
+    ),
+}
+
+
+def _stand_in_tune(setting, monkeypatch, reason, n_dev=3, robust=None):
+    """``run_tune_config``'s stages replaced: ``_prepare`` gives a ``_Tune`` of ``setting``
+    (n_dev devices), ``_train`` a result whose best parameters are the default gains with
+    ``Delta`` doubled, the held-out evaluation ``HELD`` (default gains at ``theta_ref``);
+    the figures' functions record their arguments. Returns ``(calls, best gains)``."""
+    from types import SimpleNamespace
+
+    from tuning import run as tcli
+    from tuning.optim import TuneResult
+
+    path, cfg, problem, eval_problem, data = setting
+    space = problem.space
+    vcm = data.base.vcm._replace(Delta=2.0 * data.base.vcm.Delta, P_int=np.array([0.05, 0.01]))
+    best = data.base._replace(vcm=vcm)
+    theta = np.asarray(space.encode(best))
+    calls = {"eval": [], "curve": [], "before_after": [], "terms": [], "traj": [], "poly": []}
+    currents = np.arange(15.0).reshape(5, 3)
+    heldout = SimpleNamespace(current=currents, eta0=np.zeros((5, 3)))
+
+    def eval_fn(th, d, batch):
+        calls["eval"].append((np.asarray(th), d, batch))
+        which = "default" if np.allclose(np.asarray(th), np.asarray(data.theta_ref)) else "tuned"
+        losses, above, clearance = HELD[which]
+        terms = {
+            k: np.full(5, 0.1 * (i + 1) * (1 if which == "default" else 0.5))
+            for i, k in enumerate(TERMS)
+        }
+        terms.update(above_surface_fraction=above, min_surface_clearance=clearance)
+        return np.mean(losses) + 0.25, (losses, terms)
+
+    def prepare(c, say):
+        calls["cfg"] = c
+        t = tcli._Tune(cfg, problem, eval_problem, data, "train", heldout, n_dev=n_dev)
+        t.eval_fn, t.robust, t.trajectories = eval_fn, robust, "program"
+        return t
+
+    res = TuneResult(
+        theta=theta, loss=6.0, history=[dict(h) for h in HISTORY], n_bad=1, aborted=False,
+        reason=reason, evals=5,
+    )  # fmt: skip
+    monkeypatch.setattr(tcli, "_prepare", prepare)
+    monkeypatch.setattr(
+        tcli,
+        "_train",
+        lambda t, progress, say: (res, tcli._evaluate(t.eval_fn, data.theta_ref, data, heldout)),
+    )
+
+    def curve(history, p, title):
+        calls["curve"].append((history, p, title))
+        return p
+
+    def trajectories(problem_, gains_list, batch, dt, n, run=None):
+        calls["traj"].append((problem_, gains_list, batch, dt, n, run))
+        xy = [np.full((n, 3, 2), 1.0 + k) for k in range(2)]
+        return np.arange(4.0), [{"xy": x, "tag": k} for k, x in enumerate(xy)]
+
+    def polyline(loop, batch, xy_before, xy_after):
+        calls["poly"].append((loop, batch, xy_before, xy_after))
+        return "polyline"
+
+    def before_after(t_, tb, ta, cur, out, path_xy):
+        calls["before_after"].append((t_, tb, ta, cur, out, path_xy))
+        return [out / "p1.png", out / "p2.png"]
+
+    def loss_terms(t_, tb, ta, terms, weights, actuators, p):
+        calls["terms"].append((t_, tb, ta, terms, weights, actuators, p))
+        return p
+
+    monkeypatch.setattr(tcli, "plot_loss_curve", curve)
+    monkeypatch.setattr(tcli, "_trajectories", trajectories)
+    monkeypatch.setattr(tcli, "_path_polyline", polyline)
+    monkeypatch.setattr(tcli, "plot_before_after", before_after)
+    monkeypatch.setattr(tcli, "plot_loss_terms", loss_terms)
+    return calls, best
+
+
+def _flat(gains):
+    return np.concatenate([np.ravel(x) for x in jax.tree.leaves(gains)])
+
+
+def test_an_interrupted_tune_writes_its_best_gains_counts_and_held_out_numbers(
+    setting, monkeypatch, tmp_path
+):
+    """Kills: after an interrupt, summary.json without ``interrupted`` / ``steps_planned`` (or
+    a false flag), the before/after figures drawn (new compiles), the gains written not the
+    best so far, the counts (iterations, rollouts = evaluations x training size, rejected
+    steps), the training losses (the first step's, the best), the held-out numbers (the mean
+    loss, its reduction in percent, the terms' means, the per-scenario median and maximum, the
+    runs above the sea surface and the warning that says so), the wall times, the files and
+    where they go, the messages."""
+    from tuning import run as tcli
+
+    path, cfg, problem, eval_problem, data = setting
+    calls, best = _stand_in_tune(setting, monkeypatch, "interrupted")
+    stream = io.StringIO()
+    out = tmp_path / "a" / "out"  # parents made
+    t0 = time.perf_counter()
+    result = tcli.run_tune_config(path, out, progress=stream)
+    elapsed = time.perf_counter() - t0
+    assert calls["cfg"] == cfg and calls["cfg"] is not cfg  # parsed from the file
+    names = ["gains.json", "history.json", "loss_curve.png", "summary.json"]
+    assert result["files"] == [out / n for n in names]
+    assert calls["curve"] == [(HISTORY, out / "loss_curve.png", "adam tuning")]
+    assert calls["traj"] == calls["before_after"] == calls["terms"] == []  # stopped: no figures
+    loop = problem.space.loop
+    gains = json.loads((out / "gains.json").read_text())
+    want = loop.gains_to_json(best)
+    assert gains.keys() == want.keys()
+    np.testing.assert_allclose(
+        _flat(loop.gains_from_json(gains)), _flat(best), rtol=1e-12, atol=1e-11
+    )
+    hist = json.loads((out / "history.json").read_text())
+    assert (out / "history.json").read_text().startswith('{\n "config"')  # indent=1
+    assert hist == json.loads(json.dumps({
+        "config": cfg.to_dict(), "labels": problem.space.labels(),
+        "initial_gains": loop.gains_to_json(data.base), "iterations": HISTORY, "n_bad": 1,
+        "aborted": False, "reason": "interrupted", "evals": 5, "rollouts": 20,
+    }))  # fmt: skip
+    s = json.loads((out / "summary.json").read_text())
+    assert s == json.loads(json.dumps(result["summary"]))
+    lb, la = np.mean(HELD["default"][0]) + 0.25, np.mean(HELD["tuned"][0]) + 0.25  # 4.25, 1.65
+    assert (s["heldout_loss_before"], s["heldout_loss_after"]) == (lb, la)
+    assert s["heldout_reduction_pct"] == pytest.approx(100.0 * 2.6 / 4.25, rel=1e-14)
+    assert s["heldout_terms_before"] == {
+        k: pytest.approx(0.1 * (i + 1)) for i, k in enumerate(TERMS)
+    }
+    assert s["heldout_terms_after"] == {
+        k: pytest.approx(0.05 * (i + 1)) for i, k in enumerate(TERMS)
+    }
+    assert s["heldout_scenario_loss_before"] == {"median": 4.0, "max": 8.0}
+    assert s["heldout_scenario_loss_after"] == {"median": 1.0, "max": 3.0}
+    assert s["heldout_surface_before"] == {
+        "n_above_surface": 2, "n": 5, "max_above_surface_fraction": 0.5,
+        "min_surface_clearance_m": -0.3,
+    }  # fmt: skip
+    assert s["heldout_surface_after"] == {
+        "n_above_surface": 0, "n": 5, "max_above_surface_fraction": 0.0,
+        "min_surface_clearance_m": 0.1,
+    }  # fmt: skip
+    assert s["heldout_smooth_saturation"] is False
+    assert (s["train_loss_before"], s["train_loss_after"]) == (9.0, 6.0)
+    assert s["loop"] == "infante / vcm_integral on a line"
+    assert s["initial_gains"] == problem.space.values(data.base)
+    np.testing.assert_allclose(s["tuned_gains"]["Delta"], 10.0, rtol=1e-12)
+    np.testing.assert_allclose(s["tuned_gains"]["P_G"], [1.0, 0.5, 0.5], rtol=1e-12)
+    assert (s["iterations"], s["n_bad"], s["aborted"], s["reason"]) == (4, 1, False, "interrupted")
+    assert (s["evals"], s["rollouts"], s["devices"]) == (5, 20, 3)
+    assert s["tuning_wall_s"] == 6.25 and 0.0 <= s["total_wall_s"] <= elapsed
+    assert s["interrupted"] is True and s["steps_planned"] == 1000
+    assert "waves" not in s and "robust" not in s
+    said = stream.getvalue().splitlines()
+    assert said[0] == "stopped: interrupted; evaluating the tuned gains on the held-out batch ..."
+    assert said[1] == (
+        "warning: held-out, default gains: in 2 of 5 runs the vehicle was above the local sea "
+        "surface (up to 50 % of a run, up to 0.30 m): outside the submerged model, whose losses "
+        "describe no real vehicle there (summary.json heldout_surface_*); start the runs deeper"
+    )
+    assert said[2:] == [f"wrote 4 files to {out}"]  # no warning for the tuned gains
+    # the held-out batch evaluated at the default gains, then at the best ones
+    (th0, d0, b0), (th1, d1, b1) = calls["eval"]
+    np.testing.assert_array_equal(th0, data.theta_ref)
+    np.testing.assert_allclose(th1, problem.space.encode(best), rtol=1e-15)
+    assert d0 is d1 is data and b0 is b1
+
+
+def test_a_finished_tune_draws_its_figures_and_says_nothing_of_an_interrupt(
+    setting, monkeypatch, tmp_path
+):
+    """Kills: the before/after figures skipped after a run that was not interrupted, drawn for
+    another count than ``min(plot_scenarios, held-out size)`` or with other gains, currents,
+    terms, weights or actuator names, their files left out; ``interrupted`` in the summary of a
+    finished run; a surface warning for runs that stayed below it; the files' order."""
+    from tuning import run as tcli
+
+    path, cfg, problem, eval_problem, data = setting
+    calls, best = _stand_in_tune(setting, monkeypatch, "steps", n_dev=1)
+    result = tcli.run_tune_config("not read", tmp_path, progress=None, cfg=cfg)
+    assert calls["cfg"] is cfg  # the config given, not the file parsed again
+    s = result["summary"]
+    assert "interrupted" not in s and "steps_planned" not in s and s["devices"] == 1
+    names = ["gains.json", "history.json", "loss_curve.png", "p1.png", "p2.png"]
+    names += ["before_after_loss_terms.png", "summary.json"]
+    assert result["files"] == [tmp_path / n for n in names]
+    ((prob, gains_list, batch, dt, n, run),) = calls["traj"]
+    assert prob is eval_problem and n == 2 and run == "program" and dt is data.dt
+    assert gains_list[0] is data.base
+    np.testing.assert_allclose(_flat(gains_list[1]), _flat(best), rtol=1e-12, atol=1e-11)
+    ((loop, b, xy_b, xy_a),) = calls["poly"]
+    assert loop is problem.space.loop and b is batch
+    assert float(xy_b[0, 0, 0]) == 1.0 and float(xy_a[0, 0, 0]) == 2.0
+    ((t_, tb, ta, cur, out, path_xy),) = calls["before_after"]
+    np.testing.assert_array_equal(t_, np.arange(4.0))
+    assert (tb["tag"], ta["tag"], out, path_xy) == (0, 1, tmp_path, "polyline")
+    np.testing.assert_array_equal(cur, np.arange(6.0).reshape(2, 3))  # the first two currents
+    ((_, tb, ta, terms, weights, actuators, p),) = calls["terms"]
+    assert (tb["tag"], ta["tag"], p) == (0, 1, tmp_path / "before_after_loss_terms.png")
+    assert terms == (s["heldout_terms_before"], s["heldout_terms_after"])
+    assert weights == {k: float(getattr(data.weights, k)) for k in TERMS}
+    assert actuators == ("thrust", "rudder")
+
+
+def test_other_processes_of_a_run_write_nothing_and_stay_silent(setting, monkeypatch, tmp_path):
+    """Kills: a process other than 0 writing the outputs (or printing), process 0 not."""
+    from tuning import run as tcli
+
+    _stand_in_tune(setting, monkeypatch, "steps")
+    monkeypatch.setattr(tcli.jax, "process_index", lambda: 1)
+    stream = io.StringIO()
+    assert tcli.run_tune_config(setting[0], tmp_path, progress=stream) == {
+        "summary": None,
+        "files": [],
+    }
+    assert stream.getvalue() == "" and list(tmp_path.iterdir()) == []
