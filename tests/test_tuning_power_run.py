@@ -28,7 +28,11 @@ from tuning.loss import TERMS
 @pytest.fixture
 def saved(monkeypatch):
     """``tuning.report``'s ``savefig_atomic``, recording ``(fig, path, kwargs)`` instead of
-    writing (the figure is closed after it: its artists stay readable)."""
+    writing (the figure is closed after it: its artists stay readable); no layout pass (the
+    slow part of a figure; it moves no data)."""
+    from matplotlib.figure import Figure
+
+    monkeypatch.setattr(Figure, "tight_layout", lambda self, *a, **kw: None)
     out = []
     monkeypatch.setattr(
         report, "savefig_atomic", lambda fig, path, **kw: out.append((fig, path, kw))
