@@ -633,3 +633,84 @@ def test_other_processes_of_a_run_write_nothing_and_stay_silent(setting, monkeyp
         "files": [],
     }
     assert stream.getvalue() == "" and list(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------------------ the command's pieces
+
+
+def test_the_training_step_timing_message():
+    """Kills: the compile time not the first step's wall time less the median of the later
+    steps (floored at 0), the one-step message, the rejected steps' warning."""
+    from types import SimpleNamespace
+
+    from tuning import run as tcli
+
+    def said(walls, n_bad=0):
+        out = []
+        hist = [{"wall_s": w} for w in walls]
+        tcli._say_timing(SimpleNamespace(history=hist, n_bad=n_bad), out.append)
+        return out
+
+    # steps of 0.5, 1.0 and 4.0 s after the first: median 1.0
+    assert said([3.0, 3.5, 4.5, 8.5]) == [
+        "training step compiled and run once in 3.0 s (compiling ~2.0 s); then 1 s per step"
+    ]
+    assert said([2.25]) == [
+        "training step compiled and run once in 2.2 s (compiling ~2.2 s); one step only"
+    ]
+    assert said([0.5, 5.0, 9.5], n_bad=2) == [
+        "training step compiled and run once in 0.5 s (compiling ~0.0 s); then 4.5 s per step",
+        "warning: 2 step(s) rejected for non-finite loss/gradient/update",
+    ]
+    assert said([]) == []
+
+
+def test_the_realised_significant_height_of_each_sea():
+    """Kills: ``4 sqrt(m0)`` with ``m0 = sum a_i^2 / 2`` changed (factor, sum, axis), the
+    rounding to millimetres."""
+    from types import SimpleNamespace
+
+    from tuning import run as tcli
+
+    a = np.array([[3.0, 4.0, 0.0], [1.0, 1.0, 1.0], [0.0, 0.0, 0.0], [1e-3, 0.0, 0.0]])
+    got = tcli._realised_hs(SimpleNamespace(sea=SimpleNamespace(amplitude=a)))
+    # 4 sqrt(25 / 2) = 14.1421..., 4 sqrt(3 / 2) = 4.898979..., 0, 4 sqrt(5e-7) = 0.0028284
+    assert got == [14.142, 4.899, 0.0, 0.003]
+    assert all(type(h) is float for h in got)
+
+
+def test_the_path_drawn_covers_the_runs_from_before_their_start_to_past_their_reach(monkeypatch):
+    """Kills: the path's parameter range (5 before the first start, 5 after the last, plus
+    twice the runs' largest north or east extent), its 400 points, the north/east columns."""
+    from types import SimpleNamespace
+
+    import jax.numpy as jnp
+
+    from tuning import run as tcli
+
+    def point(path, coeffs, w):  # a line with a parameter of its own: (w, -2 w, 7)
+        assert (path, coeffs) == ("the loop's path", "the batch's path")
+        return jnp.stack([w, -2.0 * w, 7.0 + 0.0 * w])
+
+    monkeypatch.setattr(tcli.paths, "path_point", point)
+    loop = SimpleNamespace(path="the loop's path")
+    batch = SimpleNamespace(varpi0=np.array([3.0, -1.0, 2.0]), path="the batch's path")
+    xy_b = np.zeros((2, 4, 2))
+    xy_b[1, 2] = [6.0, -1.0]  # extent 6 north, 1 east
+    xy_a = np.zeros((2, 4, 2))
+    xy_a[0, 1] = [1.0, 7.5]  # extent 7.5 east
+    pts = tcli._path_polyline(loop, batch, xy_b, xy_a)
+    w = np.linspace(-1.0 - 5.0, 3.0 + 5.0 + 2.0 * 7.5, 400)
+    np.testing.assert_allclose(pts, np.stack([w, -2.0 * w], axis=1), rtol=1e-14, atol=1e-14)
+
+
+def test_distribute_leaves_a_one_device_run_as_it_is():
+    """Kills: a one-device run (or a batch that does not split evenly) put on a mesh."""
+    from types import SimpleNamespace
+
+    from tuning import run as tcli
+
+    train = SimpleNamespace(eta0=np.zeros((3, 3)))
+    data, theta = object(), np.zeros(2)
+    got = tcli.distribute(train, data, theta)
+    assert got[0] is train and got[1] is data and got[2] is theta
