@@ -361,8 +361,8 @@ def test_change_text_by_hand(before, after, text):
 # numbers are chosen here: what summary.json and history.json must then say is computed by hand.
 
 TUNE = """
-[problem]
-variant = "vcm_integral"
+[scenario]
+controller = "vcm_integral"
 [simulation]
 horizon = 1.0
 dt = 0.1
@@ -714,3 +714,111 @@ def test_distribute_leaves_a_one_device_run_as_it_is():
     data, theta = object(), np.zeros(2)
     got = tcli.distribute(train, data, theta)
     assert got[0] is train and got[1] is data and got[2] is theta
+
+
+def test_build_reads_a_run_json_record_and_evaluates_the_held_out_batch_hard_clipped(
+    setting, monkeypatch
+):
+    """Kills: a plain dict (``run.json``'s record of the config) not read as a config, the
+    steps ``horizon / dt``, the held-out problem's saturation (``[heldout] smooth``, default
+    hard-clipped) and its surface terms (without them no ``heldout_surface_*``), a held-out
+    seed below the training seed refused (only an equal one is), the two batches' seeds and
+    sizes. The scenario sampler is a stand-in: no batch is drawn."""
+    from tuning import run as tcli
+
+    _, cfg, _, _, _ = setting
+    drawn = []
+    monkeypatch.setattr(
+        tcli, "sample_scenarios", lambda seed, n, spec, **kw: drawn.append((seed, n)) or (seed, n)
+    )
+    record = json.loads(json.dumps(cfg.to_dict()))
+    record["train"]["seed"], record["heldout"]["seed"] = 7, 3
+    problem, eval_problem, data, train, heldout = tcli.build(record)
+    assert drawn == [(7, 4), (3, 5)] and (train, heldout) == ((7, 4), (3, 5))
+    assert problem.num_steps == 10 and problem.smooth is True and problem.surface is False
+    assert eval_problem.smooth is False and eval_problem.surface is True
+    assert eval_problem.num_steps == 10 and eval_problem.space is problem.space
+    assert float(data.dt) == 0.1 and data.weights.eps.dtype == np.float64
+    record["heldout"]["smooth"] = True
+    record["problem"]["horizon"] = 2.0
+    problem, eval_problem, *_ = tcli.build(record)
+    assert eval_problem.smooth is True and problem.num_steps == 20
+    record["heldout"]["seed"] = 7
+    with pytest.raises(ValueError, match=r"\[heldout\] seed: must differ from \[train\] seed"):
+        tcli.build(record)
+
+
+@pytest.mark.parametrize("devices, size, n_dev", [(1, 4, 1), (2, 4, 2), (2, 5, 1)])
+def test_prepare_announces_the_run_starts_off_the_symmetry_and_tiles_a_sharded_batch(
+    setting, monkeypatch, devices, size, n_dev
+):
+    """Kills: the device count of the training batch (all devices when its size splits
+    evenly, else 1), the start (the default gains' encoding plus the symmetry break: not
+    minus, not times), the announcement, a robust slot attached without ``[robust]``, a batch
+    sharded (or not) without the gains tiled per scenario (or with). ``build``, the held-out
+    sharding and ``distribute`` are stand-ins; the device count is set."""
+    from types import SimpleNamespace
+
+    from tuning import run as tcli
+
+    _, cfg, problem, eval_problem, data = setting
+    train = SimpleNamespace(eta0=np.zeros((size, 3)))
+    sharded = SimpleNamespace(eta0=np.zeros((size, 3)))
+    monkeypatch.setattr(tcli, "build", lambda c: (problem, eval_problem, data, train, "held"))
+    monkeypatch.setattr(tcli, "shard_scenarios", lambda b: (f"{b} (on its devices)", None))
+    monkeypatch.setattr(tcli.jax, "device_count", lambda: devices)
+    got = []
+
+    def distribute(tr, d, th):
+        got.append((tr, d, th))
+        return (sharded if n_dev > 1 else tr), f"{d} replicated", "start replicated"
+
+    monkeypatch.setattr(tcli, "distribute", distribute)
+    said = []
+    t = tcli._prepare(cfg, said.append)
+    assert said == [
+        "tuning infante / vcm_integral on a line: 12 parameters (P_G, P_Phi, Delta, sigma, "
+        "P_int), 4 training / 5 held-out scenarios, horizon 1 s, adam x 1000 steps (reverse "
+        f"mode); training batch on {n_dev} device(s)"
+    ]
+    assert (t.n_dev, t.heldout, t.train, t.robust) == (n_dev, "held (on its devices)", train, None)
+    ((tr, d, start),) = got
+    assert tr is train and d is data
+    split = np.asarray(problem.space.symmetry_break(data.base))  # the defaults' equal pairs
+    assert np.count_nonzero(split) > 0
+    np.testing.assert_allclose(start, np.asarray(data.theta_ref) + split, rtol=1e-15)
+    assert (t.train_d, t.data_d, t.start) == (
+        sharded if n_dev > 1 else train,
+        f"{data} replicated",
+        "start replicated",
+    )
+    assert t.sharded is (n_dev > 1)
+    assert t.problem.tile_gains is (n_dev > 1) and t.eval_problem is eval_problem
+    assert dataclasses.replace(t.problem, tile_gains=False) == problem
+
+
+def test_prepare_with_a_robust_slot_counts_the_devices_of_the_extended_batch(setting, monkeypatch):
+    """Kills: the device count not taken again after ``[robust]`` extends the batch by its
+    adversarial slot (4 + 2 scenarios on 3 devices: all 3; before, 4 on 3: one)."""
+    from types import SimpleNamespace
+
+    import tuning.robust as robust
+    from tuning import run as tcli
+
+    _, cfg, problem, eval_problem, data = setting
+    train = SimpleNamespace(eta0=np.zeros((4, 3)))
+    extended = SimpleNamespace(eta0=np.zeros((6, 3)))
+    monkeypatch.setattr(tcli, "build", lambda c: (problem, eval_problem, data, train, "held"))
+    monkeypatch.setattr(tcli, "shard_scenarios", lambda b: (b, None))
+    monkeypatch.setattr(tcli.jax, "device_count", lambda: 3)
+    monkeypatch.setattr(tcli, "distribute", lambda tr, d, th: (tr, d, th))
+    attached = []
+
+    def attach(t, start, say, spec):
+        attached.append((t.n_dev, spec))
+        return "the search", extended
+
+    monkeypatch.setattr(robust, "attach", attach)
+    t = tcli._prepare(dataclasses.replace(cfg, robust="a section"), lambda m: None)
+    assert attached == [(1, tcli.config_spec)] and t.robust == "the search"
+    assert t.n_dev == 3 and t.train_d is extended and t.sharded is False
