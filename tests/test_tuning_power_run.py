@@ -822,3 +822,216 @@ def test_prepare_with_a_robust_slot_counts_the_devices_of_the_extended_batch(set
     t = tcli._prepare(dataclasses.replace(cfg, robust="a section"), lambda m: None)
     assert attached == [(1, tcli.config_spec)] and t.robust == "the search"
     assert t.n_dev == 3 and t.train_d is extended and t.sharded is False
+
+
+def _tune_of(setting, **kw):
+    from tuning import run as tcli
+
+    _, cfg, problem, eval_problem, data = setting
+    t = tcli._Tune(cfg, problem, eval_problem, data, "train", "held", **kw)
+    t.train_d, t.data_d, t.start = "train (distributed)", "data (distributed)", "start"
+    return t
+
+
+@pytest.mark.parametrize("ran, sharded", [(3, False), (1000, True)])
+def test_train_starts_its_tuner_as_configured_and_reports(setting, monkeypatch, ran, sharded):
+    """Kills: the held-out evaluation before tuning at other gains than the defaults, the loss
+    not the objective's first value, the program built in its thread not waited for, the
+    hooks (the gains recorded per step, the stop poll, no refresh without ``[robust]``), the
+    progress bar's total, label and warm-up, the bar left open after a run that stopped early
+    (or closed after one that ran every step: the tuner's last step closes it), the messages
+    (the time of the held-out evaluation, the sharded batch). The tuner and the programs are
+    stand-ins."""
+    import threading
+
+    from tuning import run as tcli
+
+    _, cfg, problem, eval_problem, data = setting
+    t = _tune_of(setting, sharded=sharded)
+    calls = {}
+    waited = threading.Event()
+    future = type("F", (), {"result": lambda self: waited.set()})()
+
+    def training_step(loss_fn, opts, c, prob, start, args):
+        calls["step"] = (loss_fn, opts, c, prob, start, args)
+        return "step", future
+
+    monkeypatch.setattr(tcli, "_training_step", training_step)
+    monkeypatch.setattr(tcli, "_prebuild", lambda t_, th: calls.setdefault("prebuild", th))
+    monkeypatch.setattr(
+        tcli,
+        "_evaluate",
+        lambda fn, th, d, b: calls.setdefault("eval", (th, d, b)) and {"loss": 4.25},
+    )
+    monkeypatch.setattr(tcli, "objective", lambda th, d, s, p: (("loss", th, d, s, p), "aux"))
+
+    def tuner(loss_fn, start, args, opts, hooks, step_fn):
+        calls["tuner"] = (loss_fn, start, args, opts, hooks, step_fn)
+        for k in range(ran):
+            hooks.progress(k + 1, opts.steps, {"loss": 1.0})
+        return type("R", (), {"history": [{"wall_s": 1.0}] * ran, "n_bad": 0})()
+
+    monkeypatch.setattr(tcli, "run_gradient_tuner", tuner)
+    stream = io.StringIO()
+    said = []
+    t0 = time.perf_counter()
+    res, before = tcli._train(t, stream, said.append)
+    elapsed = time.perf_counter() - t0
+    assert before == {"loss": 4.25} and waited.is_set()
+    assert calls["prebuild"] is data.theta_ref and calls["eval"] == (data.theta_ref, data, "held")
+    loss_fn, opts, c, prob, start, args = calls["step"]
+    assert loss_fn(1, 2, 3) == ("loss", 1, 2, 3, problem)  # the objective's first value
+    assert c is cfg and prob is problem and start == "start"
+    assert args == ("data (distributed)", "train (distributed)")
+    assert (opts.optimizer, opts.steps) == ("adam", 1000)
+    tl, tstart, targs, topts, hooks, step_fn = calls["tuner"]
+    assert tl is loss_fn and tstart == "start" and targs == args and topts == opts
+    assert step_fn == "step" and hooks.should_stop is tcli.stop_requested_everywhere
+    assert hooks.refresh is None
+    theta = data.theta_ref + 0.5
+    assert hooks.on_step(3, theta, {}) == {"gains": problem.space.describe(theta, data.base)}
+    bar = hooks.progress
+    assert (bar.total, bar.label, bar.warmup, bar.stream) == (1000, "tune ", 1, stream)
+    assert stream.getvalue().endswith("\n") and stream.getvalue().count("\n") == 1
+    assert said[0] == (
+        "compiling the held-out evaluation (5 rollouts x 10 steps) and evaluating the initial "
+        "gains ..."
+    )
+    head, tail = said[1].split(" s incl. compiling); ")
+    assert head.startswith("held-out loss before: 4.25 (")
+    assert 0.0 <= float(head.rsplit("(", 1)[1]) <= elapsed + 0.05
+    assert tail == (
+        "compiling the training step (adam: loss and reverse-mode gradient through 4 rollouts "
+        "x 10 steps) - the first step includes it ..."
+    )
+    assert ("training batch sharded over 1 devices" in said) is sharded
+    assert said[-1].startswith("training step compiled and run once in 1.0 s")
+
+
+def test_train_without_progress_has_no_bar_and_a_robust_tune_refreshes(setting, monkeypatch):
+    """Kills: a bar drawn without a stream (or closed when there is none), the robust hook
+    not installed with ``[robust]``."""
+    import tuning.robust as robust
+    from tuning import run as tcli
+
+    t = _tune_of(setting, robust="the search")
+    monkeypatch.setattr(tcli, "_training_step", lambda *a: ("step", None))
+    monkeypatch.setattr(tcli, "_prebuild", lambda t_, th: None)
+    monkeypatch.setattr(tcli, "_evaluate", lambda *a: {"loss": 1.0})
+    monkeypatch.setattr(robust, "hook", lambda t_, say, dist: ("refresh", t_, dist))
+    seen = {}
+
+    def tuner(loss_fn, start, args, opts, hooks, step_fn):
+        seen["hooks"] = hooks
+        return type("R", (), {"history": [], "n_bad": 0})()
+
+    monkeypatch.setattr(tcli, "run_gradient_tuner", tuner)
+    tcli._train(t, None, lambda m: None)
+    assert seen["hooks"].progress is None
+    assert seen["hooks"].refresh == ("refresh", t, tcli.distribute)
+
+
+@pytest.mark.parametrize("processes", [1, 2])
+def test_the_training_step_is_built_in_a_thread_in_one_process_only(
+    setting, monkeypatch, processes
+):
+    """Kills: the step's program key (the tune's config and the gains' tiling), the build in a
+    thread skipped in a single process (or started in a multi-process run, where every process
+    must build in step), the build waited for before returning (it overlaps the held-out
+    evaluation), its input (the start as the tuner will hold it), its errors not swallowed
+    (the first step reports them)."""
+    import threading
+
+    import tuning.optim as optim
+    from tuning import run as tcli
+
+    _, cfg, problem, _, _ = setting
+    release, built = threading.Event(), []
+
+    class Step:
+        def prebuild(self, theta, args):
+            release.wait(30)  # until the test lets it go (a mutant that waits: 30 s, then fails)
+            built.append((theta, args))
+            raise RuntimeError("reported by the first step instead")
+
+    made = []
+    monkeypatch.setattr(optim, "make_step", lambda *a: made.append(a) or Step())
+    monkeypatch.setattr(tcli.jax, "process_count", lambda: processes)
+    opts = optim.TunerOptions(optimizer="adam", steps=3)
+    args = ("data", "batch")
+    step, future = tcli._training_step("loss", opts, cfg, problem, [0.5, 1.5], args)
+    assert isinstance(step, Step) and not built  # returned while the build still runs
+    (a,) = made
+    assert a[0] == "loss" and a[2:4] == ("adam", "reverse")
+    assert a[4] == ("vcjax tune", cfg.to_dict(), False)
+    if processes > 1:
+        assert future is None
+        return
+    release.set()
+    assert future.result() is None  # the error swallowed
+    ((theta, got_args),) = built
+    np.testing.assert_array_equal(theta, [0.5, 1.5])
+    assert got_args is args
+    tiled = dataclasses.replace(problem, tile_gains=True)
+    tcli._training_step("loss", opts, cfg, tiled, [0.5], args)[1].result()
+    assert made[-1][4] == ("vcjax tune", cfg.to_dict(), True)
+
+
+def test_a_step_without_a_prebuild_builds_at_its_first_call(setting, monkeypatch):
+    import tuning.optim as optim
+    from tuning import run as tcli
+
+    _, cfg, problem, _, _ = setting
+    monkeypatch.setattr(optim, "make_step", lambda *a: "a plain step")
+    opts = optim.TunerOptions(optimizer="adam", steps=3)
+    assert tcli._training_step("loss", opts, cfg, problem, [0.5], ()) == ("a plain step", None)
+
+
+@pytest.mark.parametrize("plot_scenarios, n_plot", [(2, 2), (9, 5), (0, 0)])
+def test_prebuild_builds_the_held_out_evaluation_and_the_figures_programs_together(
+    setting, monkeypatch, plot_scenarios, n_plot
+):
+    """Kills: the jobs built (their names, programs, keys, arguments: the held-out evaluation
+    at the default gains; the figures' program for ``min(plot_scenarios, held-out size)``
+    scenarios, none for 0), which built program each of ``eval_fn`` and ``trajectories``
+    takes, and the build in a multi-process run (skipped there). The builder is a stand-in."""
+    from tuning import run as tcli
+
+    _, cfg, problem, eval_problem, data = setting
+    cfg = dataclasses.replace(
+        cfg, report=dataclasses.replace(cfg.report, plot_scenarios=plot_scenarios)
+    )
+    t = _tune_of(setting)
+    t.cfg, t.eval_fn = cfg, "jitted evaluation"
+    jobs_seen = []
+    monkeypatch.setattr(tcli, "_trajectory_program", lambda p, b, n: (("fn", p, b, n), ("sub", n)))
+    monkeypatch.setattr(tcli, "objective", lambda th, d, s, p: ("objective", th, d, s, p))
+    monkeypatch.setattr(tcli.compiler, "jit", lambda fn: ("jit", fn))
+
+    def build_all(jobs):
+        jobs_seen.extend(jobs)
+        return [(f"built {name}", "other") for name, *_ in jobs]
+
+    monkeypatch.setattr(tcli.programs, "build_all", build_all)
+    monkeypatch.setattr(tcli.programs, "for_arguments_like", lambda b, a, f: (b, a, f))
+    tcli._prebuild(t, "theta0")
+    static = ("vcjax tune", cfg.to_dict())
+    name, evaluate, key, args = jobs_seen[0]
+    assert (name, key, args) == ("tune:heldout", static, ("theta0", data, "held"))
+    assert evaluate(1, 2, 3) == ("objective", 1, 2, 3, eval_problem)
+    assert t.eval_fn == ("built tune:heldout", args, "jitted evaluation")
+    if not n_plot:
+        assert len(jobs_seen) == 1 and t.trajectories is None
+        return
+    fn = ("fn", eval_problem, "held", n_plot)
+    assert jobs_seen[1] == (
+        "tune:trajectories",
+        fn,
+        (*static, n_plot),
+        (data.base, ("sub", n_plot), data.dt),
+    )
+    assert t.trajectories == ("built tune:trajectories", jobs_seen[1][3], ("jit", fn))
+    t.eval_fn = t.trajectories = None
+    monkeypatch.setattr(tcli.jax, "process_count", lambda: 2)
+    tcli._prebuild(t, "theta0")
+    assert len(jobs_seen) == 2 and t.eval_fn is None and t.trajectories is None
