@@ -1035,3 +1035,96 @@ def test_prebuild_builds_the_held_out_evaluation_and_the_figures_programs_togeth
     monkeypatch.setattr(tcli.jax, "process_count", lambda: 2)
     tcli._prebuild(t, "theta0")
     assert len(jobs_seen) == 2 and t.eval_fn is None and t.trajectories is None
+
+
+@pytest.mark.parametrize("lb, pct", [(0.5, 100.0 * (0.5 - 0.4) / 0.5), (0.0, None), (-0.5, None)])
+def test_the_summary_of_a_run_without_steps_in_a_sea(setting, lb, pct):
+    """Kills: the reduction in percent for a held-out loss that is not positive (none then),
+    the first and last step's values read from an empty history, the total wall time, the
+    seas' realised heights (training and held-out batches each) and their note."""
+    from types import SimpleNamespace
+
+    from tuning import run as tcli
+    from tuning.optim import TuneResult
+
+    _, _, problem, eval_problem, data = setting
+    waves = {"hs": 1.0}
+    cfg = SimpleNamespace(
+        get=lambda k: waves if k == "waves" else None, train=SimpleNamespace(size=4)
+    )
+    sea = lambda a: SimpleNamespace(sea=SimpleNamespace(amplitude=np.array(a)))  # noqa: E731
+    t = SimpleNamespace(
+        problem=problem, eval_problem=eval_problem, data=data, cfg=cfg, n_dev=1,
+        train=sea([[0.25, 0.0]]), heldout=sea([[0.5, 0.0], [0.0, 1.0]]),
+    )  # fmt: skip
+    res = TuneResult(data.theta_ref, float("nan"), [], 0, True, "aborted: 3 steps", 0)
+    ev = lambda loss: {
+        "loss": loss,
+        "terms": {},
+        "scenario_loss_median": 1.0,
+        "scenario_loss_max": 2.0,
+    }  # noqa: E731
+    t0 = time.perf_counter()
+    s = tcli._summary(t, res, ev(lb), ev(0.4), t0 - 100.0)
+    elapsed = time.perf_counter() - t0
+    assert s["heldout_reduction_pct"] == (None if pct is None else pytest.approx(pct, rel=1e-14))
+    assert s["train_loss_before"] is None and s["tuning_wall_s"] == 0.0
+    assert s["iterations"] == 0 and s["rollouts"] == 0 and s["aborted"] is True
+    assert 100.0 <= s["total_wall_s"] <= 100.0 + elapsed
+    assert "heldout_surface_before" not in s and "heldout_surface_after" not in s
+    # 4 sqrt(a^2 / 2) = 2 sqrt(2) a
+    assert s["waves"] == {
+        "train_hs": [0.707],
+        "heldout_hs": [1.414, 2.828],
+        "note": "realised significant height 4 sqrt(m0) of each scenario's sea [m]; the "
+        "held-out seas are drawn from other keys than the training seas",
+    }
+
+
+def test_the_figures_trajectories_are_the_first_scenarios_of_each_gains(monkeypatch):
+    """Kills: the scenarios drawn (the batch's first ``n``, the shared fields left whole), the
+    positions (north and east only), the cross-track error (the second component of ``eps``),
+    the times (of the first scenario), one program run per gains. ``loops.simulate`` and the
+    loop's signals are stand-ins: each scenario's signals are its own numbers."""
+    from types import SimpleNamespace
+
+    import jax.numpy as jnp
+
+    from tuning import run as tcli
+    from vcjax import loops
+
+    S, n, N = 4, 3, 5
+    batch = loops.Scenario(
+        eta0=jnp.arange(S * 3.0).reshape(S, 3), nu0=None, current=None, u_d=None,
+        varpi0=10.0 * jnp.arange(S * 1.0), path=jnp.array([7.0, 8.0]), plant=None,
+        design=None, disturbance=None, sea=None, origin_depth=None, environment=None,
+    )  # fmt: skip
+    k = jnp.arange(N * 1.0)
+
+    def signals(tr, s):
+        x = tr.gains * (s.eta0[0] + k)  # per scenario and step: its own numbers
+        return SimpleNamespace(
+            pos=jnp.stack([x, x + 100.0, x + 200.0 + s.path[1]], axis=1),
+            eps=jnp.stack([x + 0.25, x + 0.5], axis=1),
+            u_err=x + 1.0, psi_err=x + 2.0, cmd_ratio=jnp.stack([x, -x], axis=1),
+        )  # fmt: skip
+
+    loop = SimpleNamespace(signals=signals)
+
+    def simulate(loop_, gains, s, cfg, dt):
+        assert loop_ is loop and cfg == "the rollout config"
+        return SimpleNamespace(t=dt * jnp.arange(N + 1.0) + s.varpi0, gains=gains)
+
+    monkeypatch.setattr(tcli.loops, "simulate", simulate)
+    problem = SimpleNamespace(rollout_config=lambda: "the rollout config", loop=loop)
+    t, out = tcli._trajectories(problem, [1.0, 2.0], batch, 0.5, n)
+    np.testing.assert_array_equal(t, 0.5 * np.arange(N + 1.0))  # the first scenario's
+    assert len(out) == 2
+    for g, o in zip([1.0, 2.0], out, strict=True):
+        x = g * (np.arange(S * 3.0).reshape(S, 3)[:n, :1] + np.arange(N * 1.0))
+        np.testing.assert_array_equal(o["xy"], np.stack([x, x + 100.0], axis=-1))
+        np.testing.assert_array_equal(o["e"], x + 0.5)
+        np.testing.assert_array_equal(o["eps"], np.stack([x + 0.25, x + 0.5], axis=-1))
+        np.testing.assert_array_equal(o["u_err"], x + 1.0)
+        np.testing.assert_array_equal(o["psi_err"], x + 2.0)
+        np.testing.assert_array_equal(o["cmd_ratio"], np.stack([x, -x], axis=-1))
