@@ -1128,3 +1128,56 @@ def test_the_figures_trajectories_are_the_first_scenarios_of_each_gains(monkeypa
         np.testing.assert_array_equal(o["u_err"], x + 1.0)
         np.testing.assert_array_equal(o["psi_err"], x + 2.0)
         np.testing.assert_array_equal(o["cmd_ratio"], np.stack([x, -x], axis=-1))
+
+
+# ------------------------------------------------------------------ the tuners' comparison
+
+
+def _curve(points):
+    """A run from ``(wall_s, rollouts, held-out loss)`` points: the best so far per point."""
+    best = np.minimum.accumulate([h for _, _, h in points])
+    return {
+        "best_heldout": float(best[-1]),
+        "first_step_s": points[0][0],
+        "curve": [
+            {"wall_s": t, "rollouts": n, "heldout_best": float(b)}
+            for (t, n, _), b in zip(points, best, strict=True)
+        ],
+    }
+
+
+def test_time_to_target_at_each_tolerance_and_the_ratios_of_reached_times():
+    """Kills: the tolerances (1 % and 5 % above the best of any run; a loss exactly at the
+    level reaches it; 1.00995 is within 1 %, 1.01005 is not), the ratio of a gradient tuner's
+    time to a black-box tuner's (a quotient; ``None`` when either never got there, or the
+    black-box one got there at once)."""
+    level5 = 2.0 * (1 + 5.0 / 100)  # exactly the 5 % level above the best, 2.0
+    runs = {
+        "cold": {
+            "lbfgs": _curve([(1.0, 8, 9.0), (3.0, 16, 2.01990), (5.0, 24, 2.0)]),
+            "adam": _curve([(1.0, 8, 9.0), (4.0, 16, level5), (8.0, 24, 2.02010)]),
+            "cmaes": _curve([(0.5, 40, 9.0), (6.0, 80, 2.0199)]),
+            "random": _curve([(0.0, 10, 2.001)]),
+        },
+        "warm": {"lbfgs": _curve([(0.5, 8, 2.5)]), "bayes": _curve([(1.0, 8, 2.1)])},
+    }
+    s = report.time_to_target(runs)
+    assert s["target"] == 2.0
+    cold = s["table"]["cold"]
+    assert cold["lbfgs"] == {
+        "best_heldout": 2.0, "first_step_s": 1.0, "wall_s_to_1%": 3.0, "rollouts_to_1%": 16,
+        "wall_s_to_5%": 3.0, "rollouts_to_5%": 16,
+    }  # fmt: skip
+    assert (cold["adam"]["wall_s_to_1%"], cold["adam"]["wall_s_to_5%"]) == (None, 4.0)
+    assert cold["cmaes"]["wall_s_to_1%"] == 6.0 and cold["random"]["wall_s_to_1%"] == 0.0
+    assert s["table"]["warm"]["lbfgs"]["wall_s_to_5%"] is None
+    assert s["ratios_wall_s_to_1%"] == {
+        "cold: lbfgs/cmaes at 1%": 0.5,
+        "cold: lbfgs/random at 1%": None,  # reached at once: no ratio
+        "cold: adam/cmaes at 1%": None,
+        "cold: adam/random at 1%": None,
+        "warm: lbfgs/bayes at 1%": None,
+    }
+    custom = report.time_to_target(runs, (1.0, 25.0), gradient=("adam",), blackbox=("cmaes",))
+    assert custom["table"]["cold"]["adam"]["wall_s_to_25%"] == 4.0
+    assert custom["ratios_wall_s_to_1%"] == {"cold: adam/cmaes at 1%": None}
