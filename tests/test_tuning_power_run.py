@@ -681,7 +681,8 @@ def test_the_realised_significant_height_of_each_sea():
 
 def test_the_path_drawn_covers_the_runs_from_before_their_start_to_past_their_reach(monkeypatch):
     """Kills: the path's parameter range (5 before the first start, 5 after the last, plus
-    twice the runs' largest north or east extent), its 400 points, the north/east columns."""
+    twice the runs' largest north or east extent, not their extent across both), its 400
+    points, the north/east columns."""
     from types import SimpleNamespace
 
     import jax.numpy as jnp
@@ -696,11 +697,11 @@ def test_the_path_drawn_covers_the_runs_from_before_their_start_to_past_their_re
     loop = SimpleNamespace(path="the loop's path")
     batch = SimpleNamespace(varpi0=np.array([3.0, -1.0, 2.0]), path="the batch's path")
     xy_b = np.zeros((2, 4, 2))
-    xy_b[1, 2] = [6.0, -1.0]  # extent 6 north, 1 east
+    xy_b[1, 2] = [6.0, -1.0]  # extent 6 north, 1 east (7 across both)
     xy_a = np.zeros((2, 4, 2))
-    xy_a[0, 1] = [1.0, 7.5]  # extent 7.5 east
+    xy_a[0, 1] = [1.0, 2.0]  # extent 1 north, 2 east
     pts = tcli._path_polyline(loop, batch, xy_b, xy_a)
-    w = np.linspace(-1.0 - 5.0, 3.0 + 5.0 + 2.0 * 7.5, 400)
+    w = np.linspace(-1.0 - 5.0, 3.0 + 5.0 + 2.0 * 6.0, 400)
     np.testing.assert_allclose(pts, np.stack([w, -2.0 * w], axis=1), rtol=1e-14, atol=1e-14)
 
 
