@@ -705,16 +705,37 @@ def test_the_path_drawn_covers_the_runs_from_before_their_start_to_past_their_re
     np.testing.assert_allclose(pts, np.stack([w, -2.0 * w], axis=1), rtol=1e-14, atol=1e-14)
 
 
-def test_distribute_leaves_a_one_device_run_as_it_is():
-    """Kills: a one-device run (or a batch that does not split evenly) put on a mesh."""
+def test_distribute_shards_a_batch_that_splits_evenly_over_the_devices(monkeypatch):
+    """Kills: a one-device run, or a batch whose size (its first axis) does not split evenly
+    over the devices, put on a mesh; a batch that does, not sharded along the scenarios (with
+    the data and the start replicated). The mesh functions are stand-ins."""
     from types import SimpleNamespace
 
     from tuning import run as tcli
 
-    train = SimpleNamespace(eta0=np.zeros((3, 3)))
     data, theta = object(), np.zeros(2)
-    got = tcli.distribute(train, data, theta)
-    assert got[0] is train and got[1] is data and got[2] is theta
+    odd = SimpleNamespace(eta0=np.zeros((3, 4)))  # 3 scenarios of 4 numbers
+    got = tcli.distribute(odd, data, theta)  # one device
+    assert got[0] is odd and got[1] is data and got[2] is theta
+    monkeypatch.setattr(tcli.jax, "device_count", lambda: 2)
+    monkeypatch.setattr(
+        tcli,
+        "distributed",
+        SimpleNamespace(
+            global_mesh=lambda axis: f"mesh of {axis}",
+            replicate=lambda x, mesh: tuple((v, mesh) for v in x),
+            shard_batch=lambda b, mesh, axes: (b, mesh, axes),
+        ),
+    )
+    got = tcli.distribute(odd, data, theta)
+    assert got[0] is odd and got[1] is data and got[2] is theta
+    even = SimpleNamespace(eta0=np.zeros((4, 3)))
+    got = tcli.distribute(even, data, theta)
+    assert got == (
+        (even, "mesh of scenarios", tcli.SCENARIO_AXES),
+        (data, "mesh of scenarios"),
+        (theta, "mesh of scenarios"),
+    )
 
 
 def test_build_reads_a_run_json_record_and_evaluates_the_held_out_batch_hard_clipped(
