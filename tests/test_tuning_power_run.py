@@ -819,9 +819,13 @@ def test_prepare_announces_the_run_starts_off_the_symmetry_and_tiles_a_sharded_b
     assert dataclasses.replace(t.problem, tile_gains=False) == problem
 
 
-def test_prepare_with_a_robust_slot_counts_the_devices_of_the_extended_batch(setting, monkeypatch):
+@pytest.mark.parametrize("extra, n_dev", [(2, 3), (1, 1)])
+def test_prepare_with_a_robust_slot_counts_the_devices_of_the_extended_batch(
+    setting, monkeypatch, extra, n_dev
+):
     """Kills: the device count not taken again after ``[robust]`` extends the batch by its
-    adversarial slot (4 + 2 scenarios on 3 devices: all 3; before, 4 on 3: one)."""
+    adversarial slot (4 + 2 scenarios on 3 devices: all 3; 4 + 1: one; before, 4 on 3: one),
+    or taken from another axis than the scenarios'."""
     from types import SimpleNamespace
 
     import tuning.robust as robust
@@ -829,7 +833,7 @@ def test_prepare_with_a_robust_slot_counts_the_devices_of_the_extended_batch(set
 
     _, cfg, problem, eval_problem, data = setting
     train = SimpleNamespace(eta0=np.zeros((4, 3)))
-    extended = SimpleNamespace(eta0=np.zeros((6, 3)))
+    extended = SimpleNamespace(eta0=np.zeros((4 + extra, 4)))
     monkeypatch.setattr(tcli, "build", lambda c: (problem, eval_problem, data, train, "held"))
     monkeypatch.setattr(tcli, "shard_scenarios", lambda b: (b, None))
     monkeypatch.setattr(tcli.jax, "device_count", lambda: 3)
@@ -843,7 +847,7 @@ def test_prepare_with_a_robust_slot_counts_the_devices_of_the_extended_batch(set
     monkeypatch.setattr(robust, "attach", attach)
     t = tcli._prepare(dataclasses.replace(cfg, robust="a section"), lambda m: None)
     assert attached == [(1, tcli.config_spec)] and t.robust == "the search"
-    assert t.n_dev == 3 and t.train_d is extended and t.sharded is False
+    assert t.n_dev == n_dev and t.train_d is extended and t.sharded is False
 
 
 def _tune_of(setting, **kw):
