@@ -585,8 +585,9 @@ def test_an_interrupted_tune_writes_its_best_gains_counts_and_held_out_numbers(
     assert d0 is d1 is data and b0 is b1
 
 
+@pytest.mark.parametrize("reason", ["steps", "converged"])  # after and before "interrupted"
 def test_a_finished_tune_draws_its_figures_and_says_nothing_of_an_interrupt(
-    setting, monkeypatch, tmp_path
+    setting, monkeypatch, tmp_path, reason
 ):
     """Kills: the before/after figures skipped after a run that was not interrupted, drawn for
     another count than ``min(plot_scenarios, held-out size)`` or with other gains, currents,
@@ -595,7 +596,7 @@ def test_a_finished_tune_draws_its_figures_and_says_nothing_of_an_interrupt(
     from tuning import run as tcli
 
     path, cfg, problem, eval_problem, data = setting
-    calls, best = _stand_in_tune(setting, monkeypatch, "steps", n_dev=1)
+    calls, best = _stand_in_tune(setting, monkeypatch, reason, n_dev=1)
     result = tcli.run_tune_config("not read", tmp_path, progress=None, cfg=cfg)
     assert calls["cfg"] is cfg  # the config given, not the file parsed again
     s = result["summary"]
