@@ -409,7 +409,7 @@ HISTORY = [
 HELD = {
     "default": (
         np.array([1.0, 2.0, 4.0, 8.0, 5.0]),
-        np.array([0.0, 0.25, 0.0, 0.5, 0.0]),  # above the surface: 2 of 5 runs
+        np.array([0.0, 0.25, 0.0, 1.0, 0.0]),  # above the surface: 2 of 5 runs, one whole
         np.array([0.4, -0.1, 0.2, -0.3, 0.5]),
     ),
     "tuned": (
@@ -552,7 +552,7 @@ def test_an_interrupted_tune_writes_its_best_gains_counts_and_held_out_numbers(
     assert s["heldout_scenario_loss_before"] == {"median": 4.0, "max": 8.0}
     assert s["heldout_scenario_loss_after"] == {"median": 1.0, "max": 3.0}
     assert s["heldout_surface_before"] == {
-        "n_above_surface": 2, "n": 5, "max_above_surface_fraction": 0.5,
+        "n_above_surface": 2, "n": 5, "max_above_surface_fraction": 1.0,
         "min_surface_clearance_m": -0.3,
     }  # fmt: skip
     assert s["heldout_surface_after"] == {
@@ -574,7 +574,7 @@ def test_an_interrupted_tune_writes_its_best_gains_counts_and_held_out_numbers(
     assert said[0] == "stopped: interrupted; evaluating the tuned gains on the held-out batch ..."
     assert said[1] == (
         "warning: held-out, default gains: in 2 of 5 runs the vehicle was above the local sea "
-        "surface (up to 50 % of a run, up to 0.30 m): outside the submerged model, whose losses "
+        "surface (up to 100 % of a run, up to 0.30 m): outside the submerged model, whose losses "
         "describe no real vehicle there (summary.json heldout_surface_*); start the runs deeper"
     )
     assert said[2:] == [f"wrote 4 files to {out}"]  # no warning for the tuned gains
