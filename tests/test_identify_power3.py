@@ -136,3 +136,70 @@ def test_a_parameter_the_scaling_maps_to_nothing_has_zero_std_and_zero_correlati
         sd[0], 3.0 * np.sqrt(sigma2 * _full_covariance(Jz, Js)[0, 0]), rtol=1e-9
     )
     np.testing.assert_allclose(corr, [[1.0, 0.0], [0.0, 0.0]], rtol=1e-12, atol=0.0)
+
+
+# ------------------------------------------------------------------ excitation and trust
+
+
+class _Prob:
+    """A stand-in shooting problem: ``linearize`` records its arguments and returns fixed
+    blocks; ``values`` maps ``z`` to ``nominal * exp(z)``; the scaling Jacobian is 1."""
+
+    def __init__(self, Jz, Js, r, names=("a", "b")):
+        self.blocks, self.all_names, self.calls = (r, Jz, Js), list(names), []
+        self.nominal = {n: float(i + 1) for i, n in enumerate(names)}
+
+    def linearize(self, z, s, seg, w):
+        self.calls.append((np.array(z), np.array(s), seg, np.array(w)))
+        return self.blocks
+
+    def scale_jacobian(self, z):
+        return np.ones(len(self.all_names))
+
+    def values(self, z):
+        return {
+            n: self.nominal[n] * float(np.exp(v)) for n, v in zip(self.all_names, z, strict=True)
+        }
+
+
+def test_the_excitation_is_judged_at_the_start_with_the_spread_weights():
+    """Kills: the start's segments taken from another sample than the first, the weights
+    other than ``1 / spread``, the sensitivities from another information (``sqrt(I_ii / m)``,
+    ``I`` by hand: the inverse of the full covariance), the conditioning warning dropped."""
+    Jz, Js, r = _blocks(2)
+    y = np.arange(24.0).reshape(3, 4, 2)
+    sh = SimpleNamespace(seg=SimpleNamespace(y=y), spread=np.array([2.0, 8.0]), m=15.0)
+    prob = _Prob(Jz, Js, r)
+    z0 = np.array([0.3, -0.1])
+    sens, warn = fit._excitation(prob, sh, z0)
+    ((z, s, seg, w),) = prob.calls
+    np.testing.assert_array_equal(z, z0)
+    np.testing.assert_array_equal(s, y[:, 0, :])
+    assert seg is sh.seg
+    np.testing.assert_array_equal(w, [0.5, 0.125])
+    info = np.linalg.inv(_full_covariance(Jz, Js))
+    np.testing.assert_allclose(sens, np.sqrt(np.diag(info) / 15.0), rtol=1e-9)
+    assert warn is None
+    Jz[..., 1] = Jz[..., 0] * (1.0 + 1e-9)  # two parameters the logs cannot separate
+    _, warn = fit._excitation(_Prob(Jz, Js, r), sh, z0)
+    assert warn.startswith("before fitting: the information matrix at the initial estimate")
+
+
+def test_trust_judges_identifiability_only_from_a_finite_correlation():
+    """Kills: the identifiability warnings drawn from a non-finite correlation (``and`` ->
+    ``or``, the test negated), the standard deviations not keyed by name, the trust warnings
+    (plausible range, zero or NaN standard error) not judged against the nominal values."""
+    Jz, Js, r = _blocks(3, p=3)
+    Jz[..., 2] = Jz[..., 0] + Jz[..., 1]  # a null direction: the information is singular
+    res = SimpleNamespace(r=r, Jz=Jz, Js=Js, z=np.array([0.0, np.log(200.0), 0.0]))
+    sh = SimpleNamespace(m=15.0, n_par=9)
+    prob = _Prob(Jz, Js, r, names=("a", "b", "c"))
+    std, corr, warns, untrusted = fit._trust(prob, sh, res, ())
+    assert list(std) == ["a", "b", "c"] and all(v > 0 for v in std.values())
+    assert warns and all("not separately identifiable" in w for w in warns)
+    assert any(w.startswith("b: estimate 400 is 200 x its nominal value 2") for w in untrusted)
+    # the same with residuals that are not finite: no correlation, no identifiability claims
+    res.r = np.full_like(r, np.nan)
+    std, corr, warns, untrusted = fit._trust(prob, sh, res, ())
+    assert not np.all(np.isfinite(corr)) and warns == []
+    assert untrusted[0].startswith("a: standard error nan: zero or non-finite")
