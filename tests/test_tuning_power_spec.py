@@ -168,3 +168,25 @@ def test_random_search_draws_theta0_plus_radius_normals_from_its_seed():
     for bad in (0.0, -1.0, np.inf, np.nan):
         with pytest.raises(ValueError, match="radius: expected a finite value > 0"):
             run_random_search(f, theta0, radius=bad)
+
+
+# ------------------------------------------------------------------ spec: the default config
+
+
+def test_a_default_tune_config_is_what_an_empty_config_parses_to():
+    """Kills: ``TuneConfig``'s default current (the ``[scenarios] current_max`` shorthand, 1
+    m/s, written out: speed U(0, 1) m/s in any direction) changed. An empty config parses to
+    the default object, less what the vehicle resolves (its controller)."""
+    import dataclasses
+
+    from tuning.config import validate_config
+    from tuning.spec import TuneConfig
+    from vcjax.config.schema import Current
+
+    a, b = TuneConfig(), validate_config({})
+    assert a.current == b.current == Current(speed=(0.0, 1.0), direction_deg=(0.0, 360.0))
+    assert a["current"]["speed"] == [0.0, 1.0] and a["current"]["direction_deg"] == [0.0, 360.0]
+    resolved = dataclasses.replace(
+        a, problem=dataclasses.replace(a.problem, variant=b.problem.variant), scenario=b.scenario
+    )
+    assert resolved == b
