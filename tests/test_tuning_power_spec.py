@@ -7,6 +7,8 @@ independently (numpy, the documented rules), not with the code under test.
 
 from __future__ import annotations
 
+import time
+
 import jax
 import numpy as np
 import pytest
@@ -67,7 +69,8 @@ def _scripted(batches):
 def test_the_generation_loop_counts_whole_generations_and_keeps_the_first_best():
     """Kills: a generation run past ``max_evals`` or one short of it (``<=`` -> ``<``), the
     evaluations miscounted, a later candidate of equal loss replacing the incumbent (``<`` ->
-    ``<=``), the record's fields, ``on_gen``'s extras dropped, the progress bar's total
+    ``<=``), the record's fields, the wall time not a sum of the generations' durations from
+    0, ``on_gen``'s extras dropped, the progress bar's total
     (``max_evals // lambda`` generations, at least 1) or count wrong."""
     from tuning.blackbox import GenerationHooks, generation_loop
 
@@ -78,7 +81,9 @@ def test_the_generation_loop_counts_whole_generations_and_keeps_the_first_best()
         on_gen=lambda g, x, rec: seen.append((g, x.tolist())) or ({"tag": g} if g else None),
         progress=lambda g, total, rec: bar.append((g, total)),
     )
+    t0 = time.perf_counter()
     res = generation_loop(ask, lambda X, v: told.append(v.tolist()), f, 2, [0.0, 0.0], 5, hooks)
+    elapsed = time.perf_counter() - t0
     assert res.evals == 4 and len(res.history) == 2  # a third generation would pass 5
     assert told == [[3.0, 2.0], [2.0, 4.0]]
     assert seen == [(0, [2.0, 1.0]), (1, [2.0, 1.0])]  # 2.0 again: the first one stays
@@ -88,7 +93,8 @@ def test_the_generation_loop_counts_whole_generations_and_keeps_the_first_best()
         (1, 4, 2.0),
     ]
     assert "tag" not in res.history[0] and res.history[1]["tag"] == 1
-    assert 0.0 <= res.history[0]["wall_s"] <= res.history[1]["wall_s"]
+    # the generations' own time, summed: within the call's, from 0
+    assert 0.0 < res.history[0]["wall_s"] < res.history[1]["wall_s"] <= elapsed
     assert bar == [(1, 2), (2, 2)]
     ask, f = _scripted(batches)
     res = generation_loop(ask, lambda X, v: None, f, 2, [0.0, 0.0], 6)  # exactly 3 generations
@@ -126,7 +132,8 @@ def test_unknown_hooks_are_a_type_error_naming_the_first():
 
 def test_cma_strategy_checks_its_arguments_at_their_bounds():
     """Kills: an empty or non-finite start, a step of 0, inf or NaN, or a population of one
-    let through (or a population of two refused); the given population size ignored."""
+    let through (or a population of two, or a one-gain start, refused); the given population
+    size ignored; the default seed not 0."""
     from tuning.blackbox import cma_strategy
 
     for bad in (np.zeros(0), np.array([0.0, np.nan]), np.array([np.inf])):
@@ -139,9 +146,14 @@ def test_cma_strategy_checks_its_arguments_at_their_bounds():
         cma_strategy(np.zeros(2), 1.0, popsize=1)
     assert cma_strategy(np.zeros(2), 1.0, popsize=2).popsize == 2
     assert cma_strategy(np.zeros(3), 1.0, popsize=7).popsize == 7
+    assert cma_strategy(np.array([0.5]), 1.0).popsize == 4  # one gain: 4 + floor(3 ln 1)
     es = cma_strategy(np.array([[1.0, 2.0]]), 0.3)  # raveled
     np.testing.assert_array_equal(es.mean, [1.0, 2.0])
     assert es.sigma == 0.3
+    # the default seed is 0: the same candidates as seed=0, others than seed=1
+    first = lambda **kw: np.stack(cma_strategy(np.zeros(2), 1.0, **kw).ask())  # noqa: E731
+    np.testing.assert_array_equal(first(), first(seed=0))
+    assert not np.array_equal(first(), first(seed=1))
 
 
 def test_random_search_draws_theta0_plus_radius_normals_from_its_seed():
@@ -190,3 +202,53 @@ def test_a_default_tune_config_is_what_an_empty_config_parses_to():
         a, problem=dataclasses.replace(a.problem, variant=b.problem.variant), scenario=b.scenario
     )
     assert resolved == b
+
+
+def test_cmaes_is_silent_and_writes_no_files(tmp_path, monkeypatch, capsys):
+    """Kills: pycma's verbosity raised (``verbose`` -9 -> -8 or +9: its progress lines on
+    stdout and its ``outcmaes/`` log files in the working folder)."""
+    from tuning.blackbox import run_cmaes
+
+    monkeypatch.chdir(tmp_path)
+    res = run_cmaes(lambda X: np.sum(X**2, axis=1), np.ones(2), max_evals=30, popsize=6)
+    assert res.evals == 30
+    assert list(tmp_path.iterdir()) == []
+    out = capsys.readouterr()
+    assert out.out == "" and out.err == ""
+
+
+def test_the_drivers_defaults_are_their_documented_ones_and_keyword_only():
+    """Kills: a default of ``run_cmaes`` (sigma0 0.5, max_evals 1000, seed 0) or of
+    ``run_random_search`` (radius 0.5, max_evals 1000, popsize 16, seed 0) changed, the
+    settings made positional (``*`` -> ``/`` in the signature)."""
+    from tuning.blackbox import run_cmaes, run_random_search
+
+    def recorder():
+        seen = []
+
+        def f(X):
+            seen.append(X.copy())
+            return np.sum((X - 3.0) ** 2, axis=1)
+
+        return seen, f
+
+    x0 = np.array([0.2, -0.4])
+    a, fa = recorder()
+    b, fb = recorder()
+    run_cmaes(fa, x0, max_evals=6, popsize=6)
+    run_cmaes(fb, x0, sigma0=0.5, seed=0, max_evals=6, popsize=6)
+    np.testing.assert_array_equal(a[0], b[0])
+    # max_evals: whole generations up to 1000 (143 a generation: 6, 7 with 1001; 1000: one)
+    for lam, gens in ((143, 6), (1000, 1)):
+        a, fa = recorder()
+        assert run_cmaes(fa, x0, popsize=lam).evals == gens * lam and len(a) == gens
+    a, fa = recorder()
+    res = run_random_search(fa, x0)
+    assert res.evals == 992 and len(a) == 62 and a[0].shape == (16, 2)  # 62 x 16 <= 1000
+    rng = np.random.default_rng(0)
+    want = x0 + 0.5 * rng.standard_normal((16, 2))
+    np.testing.assert_array_equal(a[0][1:], want[1:])
+    for run in (run_cmaes, run_random_search):
+        with pytest.raises(TypeError):
+            run(fa, x0, 0.5)  # the settings are keyword-only
+        assert run(f=fa, theta0=x0, max_evals=16).evals <= 16  # f and theta0 by name too
