@@ -239,9 +239,10 @@ def test_the_drivers_defaults_are_their_documented_ones_and_keyword_only():
     run_cmaes(fb, x0, sigma0=0.5, seed=0, max_evals=6, popsize=6)
     np.testing.assert_array_equal(a[0], b[0])
     # max_evals: whole generations up to 1000 (143 a generation: 6, 7 with 1001; 1000: one)
-    for lam, gens in ((143, 6), (1000, 1)):
-        a, fa = recorder()
-        assert run_cmaes(fa, x0, popsize=lam).evals == gens * lam and len(a) == gens
+    for run in (run_cmaes, run_random_search):
+        for lam, gens in ((143, 6), (1000, 1)):
+            a, fa = recorder()
+            assert run(fa, x0, popsize=lam).evals == gens * lam and len(a) == gens
     a, fa = recorder()
     res = run_random_search(fa, x0)
     assert res.evals == 992 and len(a) == 62 and a[0].shape == (16, 2)  # 62 x 16 <= 1000
