@@ -205,8 +205,9 @@ def test_a_default_tune_config_is_what_an_empty_config_parses_to():
 
 
 def test_cmaes_is_silent_and_writes_no_files(tmp_path, monkeypatch, capsys):
-    """Kills: pycma's verbosity raised (``verbose`` -9 -> -8 or +9: its progress lines on
-    stdout and its ``outcmaes/`` log files in the working folder)."""
+    """Kills: pycma's verbosity raised to where it prints (``verbose`` -9 -> +9: its banner
+    and progress lines on stdout; ``outcmaes/`` log files would come from pycma's logger,
+    which the ask/tell loop never calls)."""
     from tuning.blackbox import run_cmaes
 
     monkeypatch.chdir(tmp_path)
