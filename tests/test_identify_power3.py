@@ -203,3 +203,26 @@ def test_trust_judges_identifiability_only_from_a_finite_correlation():
     std, corr, warns, untrusted = fit._trust(prob, sh, res, ())
     assert not np.all(np.isfinite(corr)) and warns == []
     assert untrusted[0].startswith("a: standard error nan: zero or non-finite")
+
+
+def test_the_information_is_normalised_whatever_its_scale_and_an_unexcited_one_stays_finite():
+    """Kills: the floor of the information's diagonal (1e-300) moved to 1 (weak information,
+    diagonal below 1, then not normalised to a unit diagonal) or below 0 (a parameter with no
+    information at all: 0 / 0 in the normalised information instead of a zero row and an
+    infinite standard deviation, which the trust warnings name)."""
+    Jz, Js, r = _blocks(4)
+    sh = SimpleNamespace(m=15.0, n_par=8)
+    prob = SimpleNamespace(scale_jacobian=lambda z: np.ones(2))
+    weak = SimpleNamespace(r=r, Jz=1e-3 * Jz, Js=Js, z=np.zeros(2))
+    sd, _, info_n = fit._uncertainty(prob, sh, weak)
+    np.testing.assert_allclose(np.diag(info_n), 1.0, rtol=1e-12)
+    sigma2 = np.sum(r**2) / 7.0
+    want = np.sqrt(sigma2 * np.diag(_full_covariance(1e-3 * Jz, Js)))
+    np.testing.assert_allclose(sd, want, rtol=1e-6)
+    Jz[..., 1] = 0.0  # the logs say nothing about the second parameter
+    with np.errstate(over="ignore", invalid="ignore"):  # its variance overflows to inf
+        sd, _, info_n = fit._uncertainty(
+            prob, sh, SimpleNamespace(r=r, Jz=Jz, Js=Js, z=np.zeros(2))
+        )
+    assert np.all(np.isfinite(info_n)) and info_n[1, 1] == 0.0 and info_n[0, 0] == 1.0
+    assert np.isfinite(sd[0]) and sd[1] == np.inf
