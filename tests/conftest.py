@@ -52,9 +52,9 @@ prefer_fast_compile()
 # compiles its program at the default level, test_identify_power2's zigzag): a test mostly
 # compiles small programs and runs them for a few steps, and this level compiles them about a
 # third faster (the default run: about a quarter less time). What users run, at XLA's
-# default level, is timed in benchmarks/; the committed figures, made at that level, reproduce
-# at this one (the slow figure tests). VCJAX_TEST_XLA_OPT=2 (or an XLA_FLAGS that sets the
-# level) runs the tests at another level.
+# default level (3 on the CPU), is timed in benchmarks/; the slow figure tests run their
+# commands at that level (an optimiser's path through a tune amplifies the last bit).
+# VCJAX_TEST_XLA_OPT=3 (or an XLA_FLAGS that sets the level) runs the tests at another level.
 if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
     _level = os.environ.get("VCJAX_TEST_XLA_OPT", "0")
     _flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_backend_optimization_level={_level}"
