@@ -1,0 +1,162 @@
+"""Tests that kill the survivors of a mutation run of the tuner's optimiser: the zoom line search
+(``tuning.linesearch``), the guarded tuning loop and its L-BFGS step (``tuning.optim``), the
+``vcjax tune`` command (``tuning.command``) and the package's lazy names (``tuning``)
+(docs/development/testing.md, "Mutation testing").
+
+The expected values come from elsewhere: optax's own ``scale_by_zoom_linesearch`` run in one
+``jax.jit`` (the line search's documented contract: optax's arithmetic step for step, so every
+point it evaluates and its final state are optax's), the strong Wolfe conditions checked in
+numpy, step sizes worked out by hand on quadratics, Adam's update written out in numpy.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+import pytest
+
+from tuning.linesearch import Zoom
+
+# ------------------------------------------------------------------ the zoom line search
+
+
+def _f(x, p):
+    """() a smooth test function of x (2,) with coefficients p (9,): a quadratic bowl around
+    ``p[2:4]`` of curvature ``p[1]``, a quartic ``p[4]``, a smoothed kink ``p[5] sqrt(q0^2 +
+    p[6]^2)``, a log barrier ``-p[7] log(x0 - p[8])`` (NaN left of ``p[8]``), offset ``p[0]``."""
+    q = x - p[2:4]
+    return (
+        p[0]
+        + 0.5 * p[1] * (q @ q)
+        + p[4] * jnp.sum(x**4)
+        + p[5] * jnp.sqrt(q[0] ** 2 + p[6] ** 2)
+        - p[7] * jnp.log(x[0] - p[8])
+    )
+
+
+_ZOOM = Zoom()
+_vg = jax.jit(jax.value_and_grad(_f))
+_init = jax.jit(_ZOOM.init)
+_advance = jax.jit(_ZOOM.advance)
+_point = jax.jit(_ZOOM.point)
+_running = jax.jit(_ZOOM.running)
+
+
+def _zoom_search(x0, d, p):
+    """Zoom driven from the host as the L-BFGS step drives it: the points it evaluates and its
+    final state."""
+    value, grad = _vg(x0, p)
+    s = _init(d, x0, value, grad)
+    points = []
+    while bool(_running(s)):
+        x = _point(s)
+        points.append(np.asarray(x))
+        s = _advance(s, *_vg(x, p))
+    return points, s
+
+
+_seen: list = []
+
+
+@jax.jit
+def _optax_search(x0, d, p):
+    """optax's zoom line search along ``d`` (in its while_loop, one jit); each point it
+    evaluates is recorded (``_seen``)."""
+    ls = optax.scale_by_zoom_linesearch(max_linesearch_steps=15, initial_guess_strategy="one")
+
+    def fn(x):
+        jax.debug.callback(lambda v: _seen.append(np.asarray(v)), x, ordered=True)
+        return _f(x, p)
+
+    value, grad = jax.value_and_grad(_f)(x0, p)
+    with jax.numpy_dtype_promotion("standard"):
+        upd, st = ls.update(d, ls.init(x0), x0, value=value, grad=grad, value_fn=fn)
+    return upd, st
+
+
+def _p(c=0.0, a=1.0, m=(0.0, 0.0), quart=0.0, kink=0.0, eps=1.0, bar=0.0, wall=-1e3):
+    return jnp.asarray([c, a, *m, quart, kink, eps, bar, wall], dtype=jnp.float64)
+
+
+#: (name, x0, d, p, the step sizes evaluated, worked out by hand, or None)
+CASES = [
+    # step 1 lands on the minimum: slope 0, met at once
+    ("exact", [1.0, 1.0], [-1.0, -1.0], _p(), [1.0]),
+    # minimum at step 100 along d: doubling until |slope| <= 0.9 |slope0|, s >= 10
+    ("doubling", [0.0, 0.0], [1.0, 0.0], _p(m=(100.0, 0.0)), [1.0, 2.0, 4.0, 8.0, 16.0]),
+    # minimum at step 0.01: the first step fails sufficient decrease; zoom
+    ("zoom", [0.0, 0.0], [1.0, 1.0], _p(m=(0.01, 0.01)), None),
+    # a quartic bowl overshot: one parabola step
+    ("parabola", [0.1, 0.0], [1.0, 0.0], _p(a=1.0, quart=1.0, m=(3.0, 0.0)), None),
+    # a smoothed kink at step 3.5: doubling passes it (s = 4: lower, slope up), the interval
+    # [4, 2] is reversed; parabola then cubic steps
+    ("reversed", [0.0, 0.0], [1.0, 0.0], _p(a=0.0, kink=1.0, eps=0.01, m=(3.5, 0.0)), None),
+    ("kink-far", [0.0, 0.0], [1.0, 0.0], _p(a=0.0, kink=1.0, eps=0.5, m=(5.5, 0.0)), None),
+    ("kink-near", [0.0, 0.0], [1.0, 0.0], _p(a=0.0, kink=1.0, eps=1e-3, m=(0.3, 0.0)), None),
+    # a barrier: NaN past the wall (x0 <= 0.5) at the first step; bisection back inside
+    ("barrier", [1.0, 0.0], [-1.0, 0.0], _p(a=1.0, m=(-3.0, 0.0), bar=1.0, wall=0.5), None),
+    # an ascent direction: never a decrease, the last point taken
+    ("ascent", [0.3, 0.2], [-1.0, -1.0], _p(a=0.1, quart=2.0, m=(5.0, 0.0)), None),
+    # NaN at every step tried: the start kept (step 0)
+    (
+        "nan-wall",
+        [0.5 + 1e-6, 0.0],
+        [-1.0, 0.0],
+        _p(a=1.0, m=(-3.0, 0.0), bar=1e-9, wall=0.5),
+        [2.0**-k for k in range(15)],
+    ),
+    # the minimum out of reach (step 1e6): 15 doublings, failed, the largest safe step
+    ("out-of-reach", [0.0, 0.0], [1.0, 0.0], _p(m=(1e6, 0.0)), [2.0**k for k in range(15)]),
+    # a kink: the curvature condition holds only in a tiny interval around it
+    ("kink", [1.0, 0.0], [-1.0, 0.0], _p(a=0.0, m=(0.3, 0.0), kink=1.0, eps=1e-9), None),
+    # a rise at round-off level over a large value: Hager and Zhang's approximate decrease
+    ("approx", [0.0, 0.0], [1.0, 0.0], _p(c=1e8, a=1e-9, m=(3.0, 0.0)), None),
+]
+
+
+@pytest.mark.parametrize("name, x0, d, p, hand", CASES, ids=[c[0] for c in CASES])
+def test_zoom_evaluates_optax_points_and_meets_strong_wolfe(name, x0, d, p, hand):
+    """Every point the host-driven search evaluates, its step size, loss, gradient, count and
+    errors are those of ``optax.scale_by_zoom_linesearch`` run in one jit, on searches that
+    stop at once, double, zoom by bisection, parabola and cubic, meet NaN, run out of
+    evaluations and take the safe step, stall in a tiny interval, or accept Hager and Zhang's
+    approximate decrease; where the search succeeds its step meets both strong Wolfe
+    conditions (c1 = 1e-4, c2 = 0.9: numpy), and the hand-worked step sizes are tried."""
+    x0, d = jnp.asarray(x0), jnp.asarray(d)
+    points, s = _zoom_search(x0, d, p)
+    _seen.clear()
+    upd, st = _optax_search(x0, d, p)
+    jax.effects_barrier()
+    ref = [v for v in _seen]  # optax's evaluations (the value_and_grad at the start is not fn's)
+    assert len(points) == len(ref) == int(st.info.num_linesearch_steps) == int(s.count)
+    np.testing.assert_allclose(np.array(points), np.array(ref), rtol=1e-13, atol=1e-300)
+    assert float(s.stepsize) == pytest.approx(float(st.learning_rate), rel=1e-13, abs=1e-300)
+    np.testing.assert_allclose(np.asarray(upd), float(s.stepsize) * np.asarray(d), rtol=1e-13)
+    assert float(s.value) == pytest.approx(float(st.value), rel=1e-14, abs=1e-300)
+    np.testing.assert_allclose(s.grad, st.grad, rtol=1e-13, atol=1e-300)
+    for mine, theirs in (
+        (s.decrease_error, st.info.decrease_error),
+        (s.curvature_error, st.info.curvature_error),
+    ):
+        assert float(mine) == pytest.approx(float(theirs), rel=1e-12, abs=1e-300)
+    if hand is not None:
+        steps = [
+            float((pt - np.asarray(x0)) @ np.asarray(d) / (np.asarray(d) @ np.asarray(d)))
+            for pt in points
+        ]
+        np.testing.assert_allclose(steps, hand, rtol=1e-15)
+    # strong Wolfe, in numpy, at the step taken when the search met both conditions
+    f0, g0 = (np.asarray(v) for v in _vg(x0, p))
+    eta, f1, g1 = float(s.stepsize), float(s.value), np.asarray(s.grad)
+    slope0, slope1 = float(g0 @ np.asarray(d)), float(g1 @ np.asarray(d))
+    assert bool(s.done) != bool(s.failed)
+    if bool(s.done):
+        assert f1 <= f0 + 1e-4 * eta * slope0 and abs(slope1) <= 0.9 * abs(slope0)
+    if name == "out-of-reach":  # failed: the largest step with sufficient decrease
+        assert eta == 2.0**14 and f1 == pytest.approx(0.5 * (1e6 - 2.0**14) ** 2, rel=1e-15)
+    if name == "nan-wall":  # failed outside the domain: the start
+        assert eta == 0.0 and f1 == f0
+    if name == "ascent":  # failed, nothing safe: the last point
+        assert eta == 2.0**-14 and np.isfinite(f1) and f1 > f0
