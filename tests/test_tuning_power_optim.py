@@ -11,6 +11,8 @@ numpy, step sizes worked out by hand on quadratics, Adam's update written out in
 
 from __future__ import annotations
 
+import json
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -160,3 +162,125 @@ def test_zoom_evaluates_optax_points_and_meets_strong_wolfe(name, x0, d, p, hand
         assert eta == 0.0 and f1 == f0
     if name == "ascent":  # failed, nothing safe: the last point
         assert eta == 2.0**-14 and np.isfinite(f1) and f1 > f0
+
+
+# ------------------------------------------------------------------ vcjax tune, the command
+
+
+def _stub_tuner(monkeypatch, summary=None, error=None):
+    """``vcjax tune`` with its tuner replaced (``run_tune_config``, found through ``tuning``'s
+    lazy names): it returns ``summary`` (or raises ``error``) and one written file."""
+    import tuning.run
+
+    calls = []
+
+    def fake(config, out, cfg=None):
+        calls.append(config)
+        if error is not None:
+            raise error
+        return {"files": [f"{out}/gains.json"], "summary": summary}
+
+    monkeypatch.setattr(tuning.run, "run_tune_config", fake)
+    return calls
+
+
+def _tune(tmp_path, capsys, text=""):
+    from vcjax import cli
+
+    cfg = tmp_path / "t.toml"
+    cfg.write_text(text)
+    out = tmp_path / "out"
+    rc = cli.main(["tune", str(cfg), "--out", str(out)])
+    o = capsys.readouterr()
+    return rc, o.out, o.err, out
+
+
+def test_tune_command_reports_an_interrupted_run_with_its_exit_code(tmp_path, capsys, monkeypatch):
+    """Kills (``tuning.command``): an interrupted run reported as a success (exit 0 instead of
+    130) or without the steps done; the held-out line's numbers and wording; run.json left
+    unwritten. The tuner is a stand-in: the command's own logic only."""
+    summary = {
+        "heldout_loss_before": 2.0,
+        "heldout_loss_after": 1.5,
+        "interrupted": True,
+        "iterations": 2,
+        "steps_planned": 40,
+    }
+    calls = _stub_tuner(monkeypatch, summary)
+    rc, out, err, folder = _tune(tmp_path, capsys)
+    assert rc == 130 and len(calls) == 1
+    assert "held-out loss: 2 -> 1.5 (25.0 % lower)" in out
+    assert f"wrote {folder}/gains.json" in out
+    assert "tune: interrupted" in err and "after 2 of 40 steps" in err
+    assert json.loads((folder / "run.json").read_text())["command"] == "tune"
+
+
+@pytest.mark.parametrize(
+    "summary, rc, line",
+    [
+        ({"aborted": True, "reason": "aborted: 5 consecutive non-finite steps"}, 2, "aborted"),
+        ({"heldout_loss_before": 2.0, "heldout_loss_after": None}, 0, None),
+        ({"heldout_loss_before": None, "heldout_loss_after": 1.0}, 0, None),
+        (None, 0, None),  # a process other than 0 of a multi-process run
+    ],
+    ids=["aborted", "no-after", "no-before", "not-process-0"],
+)
+def test_tune_command_exit_status_and_heldout_line(
+    tmp_path, capsys, monkeypatch, summary, rc, line
+):
+    """Kills: an aborted run's exit status (2, ``tune: aborted: REASON``), the held-out line
+    printed when either loss is missing, process > 0's summary (None) read."""
+    _stub_tuner(monkeypatch, summary)
+    got, out, err, _ = _tune(tmp_path, capsys)
+    assert got == rc and "held-out loss" not in out
+    if line is not None:
+        assert "tune: aborted: aborted: 5 consecutive non-finite steps" in err
+    else:
+        assert err == ""
+
+
+def test_tune_command_refuses_before_touching_out(tmp_path, capsys, monkeypatch):
+    """Kills: a bad ``problem.initial_gains`` file not checked before ``--out`` is made (or
+    checked when none is named); an error of the tuner not turned into exit 2 and one line."""
+    calls = _stub_tuner(monkeypatch, {"heldout_loss_before": 1.0, "heldout_loss_after": 1.0})
+    bad = tmp_path / "gains.json"
+    bad.write_text("{not json")
+    rc, out, err, folder = _tune(tmp_path, capsys, f'[problem]\ninitial_gains = "{bad}"\n')
+    assert rc == 2 and "problem.initial_gains" in err and not folder.exists() and not calls
+    _stub_tuner(monkeypatch, error=ValueError("the batch is empty"))
+    rc, out, err, folder = _tune(tmp_path, capsys)
+    assert rc == 2 and err.strip() == "vcjax: tune: the batch is empty"
+
+
+def test_tune_runs_across_processes_under_launch(capsys):
+    """Kills: ``vcjax tune`` no longer declared distributed (``vcjax launch`` would refuse it):
+    launch accepts it and asks for ``-n`` next; it refuses ``simulate``."""
+    from vcjax import cli
+
+    assert cli.main(["launch", "--", "simulate", "sim1"]) == 2
+    assert "one of ['sweep', 'tune']" in capsys.readouterr().err
+    assert cli.main(["launch", "--", "tune", "x.toml"]) == 2
+    assert "-n N" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ tuning's lazy names
+
+
+def test_importing_tuning_imports_none_of_its_modules():
+    """Kills (``tuning/__init__.py``): the names imported at ``import tuning`` (the CLI imports
+    it for every ``vcjax`` call, before the precision is chosen), or not found on first use."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, tuning; print(sorted(m for m in sys.modules if m.startswith(('tuning', "
+        "'jax', 'vcjax'))))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "['tuning']"
+    import tuning
+    import tuning.params
+
+    assert tuning.GainSpace is tuning.params.GainSpace
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        tuning.nothing  # noqa: B018
