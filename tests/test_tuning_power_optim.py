@@ -25,9 +25,10 @@ from tuning.linesearch import Zoom
 
 
 def _f(x, p):
-    """() a smooth test function of x (2,) with coefficients p (9,): a quadratic bowl around
+    """() a smooth test function of x (2,) with coefficients p (12,): a quadratic bowl around
     ``p[2:4]`` of curvature ``p[1]``, a quartic ``p[4]``, a smoothed kink ``p[5] sqrt(q0^2 +
-    p[6]^2)``, a log barrier ``-p[7] log(x0 - p[8])`` (NaN left of ``p[8]``), offset ``p[0]``."""
+    p[6]^2)``, a log barrier ``-p[7] log(x0 - p[8])`` (NaN left of ``p[8]``), a smoothed step
+    ``p[9] tanh((x0 - p[10]) / p[11])``, offset ``p[0]``."""
     q = x - p[2:4]
     return (
         p[0]
@@ -35,6 +36,7 @@ def _f(x, p):
         + p[4] * jnp.sum(x**4)
         + p[5] * jnp.sqrt(q[0] ** 2 + p[6] ** 2)
         - p[7] * jnp.log(x[0] - p[8])
+        + p[9] * jnp.tanh((x[0] - p[10]) / p[11])
     )
 
 
@@ -78,8 +80,20 @@ def _optax_search(x0, d, p):
     return upd, st
 
 
-def _p(c=0.0, a=1.0, m=(0.0, 0.0), quart=0.0, kink=0.0, eps=1.0, bar=0.0, wall=-1e3):
-    return jnp.asarray([c, a, *m, quart, kink, eps, bar, wall], dtype=jnp.float64)
+def _p(
+    c=0.0,
+    a=1.0,
+    m=(0.0, 0.0),
+    quart=0.0,
+    kink=0.0,
+    eps=1.0,
+    bar=0.0,
+    wall=-1e3,
+    step=0.0,
+    at=0.0,
+    width=1.0,
+):
+    return jnp.asarray([c, a, *m, quart, kink, eps, bar, wall, step, at, width], dtype=jnp.float64)
 
 
 #: (name, x0, d, p, the step sizes evaluated, worked out by hand, or None)
@@ -115,6 +129,15 @@ CASES = [
     ("kink", [1.0, 0.0], [-1.0, 0.0], _p(a=0.0, m=(0.3, 0.0), kink=1.0, eps=1e-9), None),
     # a rise at round-off level over a large value: Hager and Zhang's approximate decrease
     ("approx", [0.0, 0.0], [1.0, 0.0], _p(c=1e8, a=1e-9, m=(3.0, 0.0)), None),
+    # a step up at 0.5 on a slope: at s = 1 the loss is 1 higher (more than 1e-6 of 10, the
+    # start's loss) while the slope is the start's: no approximate decrease there
+    (
+        "step-up",
+        [0.0, 0.0],
+        [1.0, 0.0],
+        _p(c=10.0, a=1e-3, m=(1e3, 0.0), step=1.0, at=0.5, width=0.05),
+        None,
+    ),
 ]
 
 
@@ -162,6 +185,29 @@ def test_zoom_evaluates_optax_points_and_meets_strong_wolfe(name, x0, d, p, hand
         assert eta == 0.0 and f1 == f0
     if name == "ascent":  # failed, nothing safe: the last point
         assert eta == 2.0**-14 and np.isfinite(f1) and f1 > f0
+
+
+def test_zoom_settings_are_optax_defaults_static_and_hashable():
+    """Kills: ``Zoom`` no longer frozen (unhashable: it could not key a compiled program), a
+    default off optax's (``scale_by_zoom_linesearch``'s signature; ``interval_threshold`` is
+    its ``stepsize_precision``; 15 evaluations, ``optax.lbfgs``'s)."""
+    import inspect
+
+    assert hash(Zoom()) == hash(Zoom(max_linesearch_steps=15)) and Zoom() == Zoom()
+    with pytest.raises(AttributeError):
+        Zoom().tol = 1.0  # frozen
+    ref = inspect.signature(optax.scale_by_zoom_linesearch).parameters
+    z = Zoom()
+    for mine, theirs in [
+        ("tol", "tol"),
+        ("increase_factor", "increase_factor"),
+        ("slope_rtol", "slope_rtol"),
+        ("curv_rtol", "curv_rtol"),
+        ("approx_dec_rtol", "approx_dec_rtol"),
+        ("interval_threshold", "stepsize_precision"),
+    ]:
+        assert getattr(z, mine) == ref[theirs].default, mine
+    assert z.max_linesearch_steps == 15
 
 
 # ------------------------------------------------------------------ vcjax tune, the command
