@@ -11,6 +11,7 @@ numpy, step sizes worked out by hand on quadratics, Adam's update written out in
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import jax
@@ -330,3 +331,229 @@ def test_importing_tuning_imports_none_of_its_modules():
     assert tuning.GainSpace is tuning.params.GainSpace
     with pytest.raises(AttributeError, match="no attribute 'nothing'"):
         tuning.nothing  # noqa: B018
+
+
+# ------------------------------------------------------------------ the guarded tuning loop
+
+
+def _adam_numpy(grad_fn, theta, steps, lr, b1=0.9, b2=0.999, eps=1e-8):
+    """Adam's iterates written out (Kingma and Ba, algorithm 1; optax's defaults)."""
+    theta = np.array(theta, dtype=float)
+    m = np.zeros_like(theta)
+    v = np.zeros_like(theta)
+    out = []
+    for t in range(1, steps + 1):
+        g = grad_fn(theta)
+        m = b1 * m + (1 - b1) * g
+        v = b2 * v + (1 - b2) * g * g
+        upd = -lr * (m / (1 - b1**t)) / (np.sqrt(v / (1 - b2**t)) + eps)
+        out.append((theta.copy(), g, upd))
+        theta = theta + upd
+    return out, theta
+
+
+def _bowl(th, c):
+    """() a quadratic bowl around ``c`` (2,)."""
+    return 0.5 * jnp.sum((th - c) ** 2)
+
+
+def test_adam_steps_follow_the_formula_and_the_history_reports_them():
+    """Kills (``tuning.optim``): Adam's default learning rate, the update's scale, the step's
+    gradient norm, update norm, loss and evaluation counts in the history, the best iterate
+    (the final one, evaluated after the loop, when lower). Adam in numpy."""
+    from tuning.optim import make_optimizer, run_gradient_tuner
+
+    c = np.array([1.0, -2.0])
+    assert make_optimizer("adam") is not None
+    seen = []
+    res = run_gradient_tuner(
+        _bowl,
+        jnp.asarray([0.0, 0.0]),
+        (jnp.asarray(c),),
+        optimizer="adam",
+        steps=3,
+        on_step=lambda k, th, rec: seen.append(np.asarray(th)) or {"mine": k},
+    )
+    ref, final = _adam_numpy(lambda th: th - c, [0.0, 0.0], 3, lr=0.05)  # the default rate
+    for k, (rec, (th, g, upd)) in enumerate(zip(res.history, ref, strict=True)):
+        assert rec["iter"] == k and rec["ok"] and rec["evals"] == 1 and rec["mine"] == k
+        assert rec["cum_evals"] == k + 1
+        assert rec["loss"] == pytest.approx(0.5 * np.sum((th - c) ** 2), rel=1e-12)
+        assert rec["grad_norm"] == pytest.approx(np.linalg.norm(g), rel=1e-12)
+        assert rec["update_norm"] == pytest.approx(np.linalg.norm(upd), rel=1e-9)
+        np.testing.assert_allclose(seen[k], th + upd, rtol=1e-9)
+    np.testing.assert_allclose(res.theta, final, rtol=1e-9)  # the final iterate, lower
+    assert res.loss == pytest.approx(0.5 * np.sum((final - c) ** 2), rel=1e-9)
+    assert res.evals == 3 and res.n_bad == 0 and res.reason == "steps" and not res.aborted
+
+
+def _walled(th, c):
+    """The bowl, NaN (and a NaN gradient) right of ``th[0] = c[2]``."""
+    bad = th[0] > c[2]
+    past = jnp.where(bad, th, 0.0)  # (double where: a NaN gradient only past the wall)
+    return jnp.where(bad, jnp.nan * past[0], _bowl(th, c[:2]))
+
+
+def test_the_guard_reverts_halves_the_step_and_reports_each_rejection():
+    """Kills: the guard's revert (to the last accepted step's input and its optimiser state),
+    its halving of the step (0.5), the rejected step's record (loss and gradient norm None,
+    update norm 0, not ok), the rejection count, the consecutive count reset by an accepted
+    step. Adam with the guard in numpy: the wall at 0.45 is crossed by the second step."""
+    from tuning.optim import run_gradient_tuner
+
+    c = np.array([1.0, 1.0, 0.45])
+    res = run_gradient_tuner(
+        _walled, jnp.zeros(2), (jnp.asarray(c),), optimizer="adam", steps=4, learning_rate=0.3
+    )
+    # numpy: step 0 from 0 (accepted, to 0.3); step 1 from 0.3 (accepted: its loss is finite;
+    # its update lands at 0.593, past the wall); step 2 there: NaN, rejected: back to step 1's
+    # input 0.3 with step 1's state, scale 1/2: step 3 from 0.3 lands at 0.446 (inside)
+    b1, b2, lr = 0.9, 0.999, 0.3
+    g0 = np.array([-1.0, -1.0])
+    m0, v0 = (1 - b1) * g0, (1 - b2) * g0 * g0
+    u0 = -lr * (m0 / (1 - b1)) / (np.sqrt(v0 / (1 - b2)) + 1e-8)
+    th1 = u0
+    g1 = th1 - 1.0
+    m1, v1 = b1 * m0 + (1 - b1) * g1, b2 * v0 + (1 - b2) * g1 * g1
+    u1 = -lr * (m1 / (1 - b1**2)) / (np.sqrt(v1 / (1 - b2**2)) + 1e-8)
+    th3 = th1 + 0.5 * u1
+    h = res.history
+    assert [r["ok"] for r in h] == [True, True, False, True]
+    assert h[2]["loss"] is None and h[2]["grad_norm"] is None and h[2]["update_norm"] == 0.0
+    assert h[3]["loss"] == pytest.approx(0.5 * np.sum((th1 - 1.0) ** 2), rel=1e-12)
+    assert h[3]["update_norm"] == pytest.approx(np.linalg.norm(0.5 * u1), rel=1e-9)
+    assert res.n_bad == 1 and not res.aborted and res.reason == "steps"
+    assert np.all(th1 + u1 > 0.45) and np.all(th3 < 0.45)  # (the numbers above)
+    np.testing.assert_allclose(res.theta, th3, rtol=1e-9)  # the final iterate, the lowest
+
+
+@pytest.mark.parametrize(
+    "options, reason, n",
+    [
+        ({"grad_tol": 0.0}, "stalled", 3),  # zero gradient: zero updates, three in a row
+        ({"grad_tol": 5.0}, "converged", 2),  # |g| = 5 at the start is not below 5
+        ({"grad_tol": 5.000001}, "converged", 1),
+        ({"max_bad_steps": 2, "c": [0.0, 0.0, -1.0]}, "aborted: 2 consecutive non-finite steps", 2),
+    ],
+)
+def test_why_the_loop_stops(options, reason, n):
+    """Kills: the stall count (3 zero updates in a row) and its reset, the convergence test
+    (strictly below ``grad_tol``), the abort after exactly ``max_bad_steps`` rejections."""
+    from tuning.optim import run_gradient_tuner
+
+    opts = dict(options)
+    c = opts.pop("c", None)
+    if "grad_tol" in opts and opts["grad_tol"] == 0.0:
+        th0, c = jnp.asarray([1.0, -2.0]), [1.0, -2.0, 9.0]  # at the minimum: g = 0
+    elif c is None:
+        th0, c = jnp.asarray([3.0, 4.0]), [0.0, 0.0, 9.0]  # g = (3, 4)
+    else:
+        th0 = jnp.zeros(2)  # past the wall: NaN from the start
+    res = run_gradient_tuner(
+        _walled, th0, (jnp.asarray(c),), optimizer="adam", steps=4, learning_rate=0.3, **opts
+    )
+    assert res.reason == reason and len(res.history) == n
+    assert res.aborted == reason.startswith("aborted")
+    if res.aborted:  # never a result from a NaN loss: the start
+        np.testing.assert_array_equal(res.theta, th0)
+
+
+def test_an_interrupted_loop_returns_the_best_input_and_evaluates_nothing_more():
+    """Kills: ``should_stop`` not polled, or the final iterate evaluated after a stop (the
+    best gains are then those of the step's input, the start here, not the new iterate)."""
+    from tuning.optim import run_gradient_tuner
+
+    evaluated = []
+
+    def loss(th, c):
+        jax.debug.callback(lambda: evaluated.append(1))
+        return _bowl(th, c)
+
+    res = run_gradient_tuner(
+        loss, jnp.zeros(2), (jnp.ones(2),), optimizer="adam", steps=5, should_stop=lambda: True
+    )
+    jax.effects_barrier()
+    assert res.reason == "interrupted" and len(res.history) == 1 and len(evaluated) == 1
+    np.testing.assert_array_equal(res.theta, [0.0, 0.0])
+    assert res.loss == 1.0
+
+
+def test_tuner_settings_are_checked_and_default_to_the_configs():
+    """Kills: ``steps`` / ``max_bad_steps`` taken when not a positive int (a float, 0), one
+    step refused; the optimiser's defaults off the ``[optimizer]`` section's documented ones
+    (``tuning.spec``); an unknown optimiser or gradient mode, or an Adam optimiser given to
+    an L-BFGS step, accepted."""
+    from tuning.optim import LBFGS, TunerOptions, make_optimizer, make_step, run_gradient_tuner
+    from tuning.spec import Optimizer
+
+    loss = lambda th: jnp.sum(th**2)
+    for bad in ({"steps": 2.0}, {"steps": 0}, {"max_bad_steps": 1.5}, {"max_bad_steps": 0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            run_gradient_tuner(loss, jnp.ones(1), optimizer="adam", **bad)
+    one = run_gradient_tuner(loss, jnp.ones(1), optimizer="adam", steps=1, max_bad_steps=1)
+    assert len(one.history) == 1
+    spec, opts = Optimizer(), TunerOptions()
+    for k in ("learning_rate", "memory_size", "max_linesearch_steps", "grad_mode"):
+        assert getattr(opts, k) == getattr(spec, k), k
+    assert (opts.optimizer, opts.max_bad_steps, opts.grad_tol) == (
+        spec.name,
+        spec.max_bad_steps,
+        spec.grad_tol,
+    )
+    lb = make_optimizer()
+    assert isinstance(lb, LBFGS) and (lb.memory_size, lb.max_linesearch_steps) == (10, 15)
+    section = {**dataclasses.asdict(spec), "learning_rate": 0.2}
+    got = TunerOptions.from_section(section, steps=7)
+    assert got.optimizer == "lbfgs" and got.learning_rate == 0.2 and got.steps == 7
+    with pytest.raises(ValueError, match="sgd"):
+        make_optimizer("sgd")
+    with pytest.raises(ValueError, match="sgd"):
+        make_step(loss, lb, "sgd")
+    with pytest.raises(ValueError, match="sideways"):
+        make_step(loss, lb, "lbfgs", "sideways")
+    with pytest.raises(ValueError, match="L-BFGS"):
+        make_step(loss, make_optimizer("adam"), "lbfgs")
+
+
+def _cubed(th):
+    """``x`` after three rounds of ``x <- x a + b`` from 1 (a ``while_loop``: forward mode
+    only), ``th = (a, b)``."""
+    _, x = jax.lax.while_loop(
+        lambda c: c[0] < 3, lambda c: (c[0] + 1, c[1] * th[0] + th[1]), (0, jnp.ones((), th.dtype))
+    )
+    return x
+
+
+@pytest.mark.parametrize("optimizer", ["adam", "lbfgs"])
+def test_forward_mode_steps_differentiate_what_reverse_mode_cannot(optimizer):
+    """Kills: ``grad_mode="forward"`` not used (reverse mode cannot differentiate a
+    ``while_loop``), its gradient: ``a^3 + a^2 b + a b + b`` by hand."""
+    from tuning.optim import init_state, make_optimizer, make_step
+
+    opt = make_optimizer(optimizer)
+    th = jnp.asarray([0.5, 2.0])
+    a, b = 0.5, 2.0
+    g = np.array([3 * a**2 + 2 * a * b + b, a**2 + a + 1])
+    step = make_step(lambda t: _cubed(t), opt, optimizer, "forward")
+    _, _, info = step(th, init_state(opt, th), jnp.asarray(1.0), ())
+    assert float(info.loss) == pytest.approx(a**3 + a**2 * b + a * b + b, rel=1e-14)
+    assert float(info.grad_norm) == pytest.approx(np.linalg.norm(g), rel=1e-14)
+    with pytest.raises(ValueError, match="[Rr]everse-mode"):
+        rev = make_step(lambda t: _cubed(t), opt, optimizer, "reverse")
+        rev(th, init_state(opt, th), jnp.asarray(1.0), ())
+
+
+def test_forward_mode_gives_arguments_zero_cotangents():
+    """Kills: ``forward_mode``'s zero cotangents of the other arguments (floats: zeros;
+    integers: float0), the cotangent's scaling of the gradient."""
+    from tuning.optim import forward_mode
+
+    f = lambda th, a, n: jnp.sum(th**2 * a) * n
+    g = forward_mode(f)
+    th, a, n = jnp.asarray([1.0, 2.0]), jnp.asarray([3.0, 4.0]), jnp.asarray(2)
+    v, vjp = jax.vjp(g, th, a, n)
+    d_th, d_a, d_n = vjp(jnp.asarray(0.5))
+    np.testing.assert_allclose(d_th, 0.5 * 2 * np.array([1.0, 2.0]) * np.array([3.0, 4.0]) * 2)
+    np.testing.assert_array_equal(d_a, [0.0, 0.0])
+    assert d_n.dtype == jax.dtypes.float0
+    assert float(v) == 38.0
