@@ -130,7 +130,7 @@ CASES = [
     ("kink", [1.0, 0.0], [-1.0, 0.0], _p(a=0.0, m=(0.3, 0.0), kink=1.0, eps=1e-9), None),
     # a rise at round-off level over a large value: Hager and Zhang's approximate decrease
     ("approx", [0.0, 0.0], [1.0, 0.0], _p(c=1e8, a=1e-9, m=(3.0, 0.0)), None),
-    # a step up at 0.5 on a slope: at s = 1 the loss is 1 higher (more than 1e-6 of 10, the
+    # a step up at 0.5 on a slope: at s = 1 the loss is 1 higher (more than 1e-6 of 509, the
     # start's loss) while the slope is the start's: no approximate decrease there
     (
         "step-up",
