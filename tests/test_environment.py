@@ -203,29 +203,21 @@ def test_a_force_section_is_read_before_its_vehicle_and_checked_against_it(tmp_p
     assert 0.0 <= tau[0] <= 1.0 and tau[4] == 2.0 and not tau[[1, 2, 3, 5]].any()
     # the puck has two: a tau_2 is refused naming the key and the vehicle, before --out exists
     # (a puck [force] section failed at sampling before: its unbound check filled in tau_2 = 0)
-    puck_cfg = tmp_path / "puck.toml"
     module = Path(__file__).resolve().parents[1] / "examples" / "loops" / "puck.py"
-    puck_cfg.write_text(
-        f'[scenario]\nmodule = "{module.as_posix()}"\nvehicle = "puck"\n'
-        "[sweep]\nnum_scenarios = 2\n[simulation]\nhorizon = 0.5\ndt = 0.01\n"
-        "[force]\ntau_2 = 0.1\n"
-    )
-    rc = cli.main(["sweep", str(puck_cfg), "--out", str(tmp_path / "out")])
-    err = capsys.readouterr().err
-    assert rc != 0 and "[force] tau_2: unknown key" in err and "'puck'" in err, err
-    assert "Traceback" not in err and not (tmp_path / "out").exists()
+    head = f'[scenario]\nmodule = "{module.as_posix()}"\nvehicle = "puck"\n'
+    runs = {  # the sweep's route and the tuner's
+        "sweep": "[sweep]\nnum_scenarios = 2\n[simulation]\nhorizon = 0.5\ndt = 0.01\n",
+        "tune": "[simulation]\nhorizon = 1.0\ndt = 0.01\n[train]\nsize = 2\n[heldout]\nsize = 2\n",
+    }
+    for command, body in runs.items():
+        cfg = tmp_path / f"{command}.toml"
+        cfg.write_text(head + body + "[force]\ntau_2 = 0.1\n")
+        rc = cli.main([command, str(cfg), "--out", str(tmp_path / f"out_{command}")])
+        err = capsys.readouterr().err
+        assert rc != 0 and "[force] tau_2: unknown key" in err and "'puck'" in err, err
+        assert "Traceback" not in err and not (tmp_path / f"out_{command}").exists()
     with pytest.raises(ValueError, match=r"tau_2: unknown key.*'puck'"):
-        load_config(puck_cfg)  # the Python route refuses it too
-    tune_cfg = tmp_path / "tune.toml"  # and the tuner's
-    tune_cfg.write_text(
-        f'[scenario]\nmodule = "{module.as_posix()}"\nvehicle = "puck"\n'
-        "[simulation]\nhorizon = 1.0\ndt = 0.01\n[train]\nsize = 2\n[heldout]\nsize = 2\n"
-        "[force]\ntau_2 = 0.1\n"
-    )
-    rc = cli.main(["tune", str(tune_cfg), "--out", str(tmp_path / "tuned")])
-    err = capsys.readouterr().err
-    assert rc != 0 and "[force] tau_2: unknown key" in err and "'puck'" in err, err
-    assert not (tmp_path / "tuned").exists()
+        load_config(tmp_path / "sweep.toml")  # the Python route refuses it too
     with pytest.raises(ValueError, match="sample it for a loop"):
         ConstantForce().sample(jax.random.PRNGKey(0), {"tau_0": 1.0})
     assert ConstantForce().check({"tau_5": 1.0}) == {"tau_5": 1.0}  # nothing filled in unbound
