@@ -3,7 +3,7 @@ generalised coordinate of the plant (body frame for craft) [N, N m].
 
 A config is read before its vehicle is known: the registered component (``size`` None) accepts
 ``tau_0`` .. ``tau_5`` (the largest plant, a 6-DOF craft) and keeps only the keys written; bound
-to a loop ([`ConstantForce.bind`][vcjax.environment.force.ConstantForce.bind]) it takes the plant's
+to a loop (``ConstantForce.bind``) it takes the plant's
 own number of coordinates, refuses a key beyond it and fills the rest with 0."""
 
 from __future__ import annotations
@@ -41,6 +41,7 @@ class ConstantForce(Component):
     kind = "force"
 
     def bind(self, loop):
+        """This force for ``loop``: one entry per generalised coordinate of its plant."""
         values = {k: jnp.asarray(float(v)) for k, v in loop.initial_keys.items()}
         _, nu0 = loop.initial_from(values)  # the size of the generalised velocity
         return dataclasses.replace(self, size=int(jnp.shape(nu0)[0]))
