@@ -10,6 +10,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from vcjax.identify import fit
 
@@ -226,3 +227,59 @@ def test_the_information_is_normalised_whatever_its_scale_and_an_unexcited_one_s
         )
     assert np.all(np.isfinite(info_n)) and info_n[1, 1] == 0.0 and info_n[0, 0] == 1.0
     assert np.isfinite(sd[0]) and sd[1] == np.inf
+
+
+# ------------------------------------------------------------------ figures (matplotlib only)
+
+
+@pytest.fixture
+def saved(monkeypatch):
+    """The figures' ``savefig_atomic``, recording the figure instead of writing it."""
+    from vcjax.runtime import outputs
+
+    out = []
+    monkeypatch.setattr(outputs, "savefig_atomic", lambda fig, path, **kw: out.append(fig))
+    return out
+
+
+def _result(model):
+    return SimpleNamespace(
+        problem=SimpleNamespace(model=model, step_name="euler"), warnings=[], converged=True,
+        cost_history=[4.0, 2.0, 1.0], stage_iterations=[2], iterations=2, wall_time_s=0.5,
+    )  # fmt: skip
+
+
+def test_a_two_channel_prediction_figure_labels_both_bottoms_and_shares_time(saved, tmp_path):
+    """Kills: the time axis not shared, and the bottom row's first axis miscounted when a
+    model has fewer channels than the three columns (``max(n - 3, 0)``: both of two channels
+    get the time label); the axes laid out beyond the figure's edges (``rect``)."""
+    from vcjax.identify.figures import prediction_figure
+
+    model = SimpleNamespace(state_columns=("a", "b"), units=("m", "rad"), vehicle="toy")
+    t, x = np.arange(3.0), np.ones((3, 2))
+    log = SimpleNamespace(name="toy.csv", t=t, x=x)
+    prediction_figure(_result(model), log, x, x, tmp_path / "p.png")
+    (fig,) = saved
+    axes = fig.axes
+    assert [a.get_visible() for a in axes] == [True, True, False]
+    assert [a.get_xlabel() for a in axes[:2]] == ["t [s]", "t [s]"]
+    assert axes[0].get_shared_x_axes().joined(axes[0], axes[1])
+    before = [a.get_position().bounds for a in axes[:2]]
+    assert all(
+        0.0 <= x0 and x0 + w <= 1.0 and 0.0 <= y0 and y0 + h <= 1.0 for x0, y0, w, h in before
+    )
+
+
+def test_a_figure_without_warnings_is_laid_out_over_the_whole_height(saved, tmp_path):
+    """Kills: the height reserved for no warnings not 0 (the layout then squeezed into
+    nothing, or stretched below the figure): the cost figure's layout is matplotlib's own."""
+    from vcjax.identify.figures import cost_history_figure
+    from vcjax.identify.models import get_fit_model
+
+    cost_history_figure(_result(get_fit_model("infante")), tmp_path / "c.png")
+    (fig,) = saved
+    (ax,) = fig.axes
+    before = ax.get_position().bounds
+    assert fig.texts == [] and 0.0 <= before[1] < 0.15 and before[1] + before[3] <= 1.0
+    fig.tight_layout()
+    np.testing.assert_allclose(ax.get_position().bounds, before, atol=1e-3)  # applied
