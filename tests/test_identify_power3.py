@@ -283,3 +283,21 @@ def test_a_figure_without_warnings_is_laid_out_over_the_whole_height(saved, tmp_
     assert fig.texts == [] and 0.0 <= before[1] < 0.15 and before[1] + before[3] <= 1.0
     fig.tight_layout()
     np.testing.assert_allclose(ax.get_position().bounds, before, atol=1e-3)  # applied
+
+
+@pytest.mark.parametrize("n, height", [(1, 0.065), (2, 0.09), (6, 0.19), (7, 0.19)])
+def test_the_warnings_take_four_hundredths_and_a_fortieth_a_line_up_to_six(n, height):
+    """Kills: the height reserved for the warnings' text other than ``0.04 + 0.025`` per line
+    shown (at most 6); a line's width other than 150 characters (a line of 151 is
+    shortened, at a word)."""
+    from matplotlib.figure import Figure
+
+    from vcjax.identify import figures
+
+    warns = ["a" * 70 + " " + "b" * 71] + [f"w{i}" for i in range(n - 1)]  # the first: 151
+    fig = Figure()
+    assert figures._warnings_text(fig, SimpleNamespace(warnings=warns, converged=True)) == (
+        pytest.approx(height, abs=1e-15)
+    )
+    (text,) = fig.texts
+    assert text.get_text().split("\n")[0] == "warning: " + "a" * 70 + " ..."
