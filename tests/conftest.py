@@ -46,6 +46,7 @@ def _session_cache_dir() -> Path:
 # the subprocesses the tests start (before JAX starts: XLA reads its flags once)
 prefer_fast_compile()
 
+
 if "VCJAX_TEST_CACHE_DIR" not in os.environ:  # set once, by the first process of the run
     os.environ["VCJAX_TEST_CACHE_DIR"] = str(_session_cache_dir())
 os.environ["VCJAX_CACHE_DIR"] = os.environ["VCJAX_TEST_CACHE_DIR"]
@@ -95,6 +96,29 @@ def checkout_changes(before: dict, after: dict) -> list[str]:
         + [f"- {k}" for k in before.keys() - after.keys()]
         + [f"~ {k}" for k in after.keys() & before.keys() if after[k] != before[k]]
     )
+
+
+def pytest_configure(config):
+    """The default run (``-m "not slow"``, the README's test command) compiles at XLA's backend
+    optimisation level 0: LLVM's machine-code passes off, the XLA graph the one users compile.
+    A test mostly compiles small programs and runs them a few steps, and this level compiles
+    them about a third faster (the default run: about a quarter less time). A result can differ
+    in its last bit where LLVM would have fused a multiply-add: a default test that needs exact
+    binary sums compiles its program at the default level (test_identify_power2's zigzag), and
+    the subprocesses of the multi-process tests keep the parent's level. Any other selection
+    (``-m slow``: bit-identity across processes and devices, the figure reproductions whose
+    tunes amplify a last bit) runs at XLA's default level (3 on the CPU), as users do.
+    ``VCJAX_TEST_XLA_OPT=N`` (or an ``XLA_FLAGS`` that sets the level) chooses it for any run.
+    Set here, before the first test starts JAX's backend (XLA reads its flags once); xdist's
+    workers get the same ``-m``."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_backend_optimization_level" in flags:
+        return
+    level = os.environ.get("VCJAX_TEST_XLA_OPT")
+    if level is None and (config.getoption("markexpr", "") or "").strip() == "not slow":
+        level = "0"
+    if level is not None:
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_backend_optimization_level={level}".strip()
 
 
 def pytest_sessionstart(session):

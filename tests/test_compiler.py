@@ -176,6 +176,28 @@ def test_vcjax_jit_compiles_with_the_option_and_is_jax_jit_otherwise(monkeypatch
     assert made[1:] == [{}]  # plain jax.jit
 
 
+def test_vcjax_jit_inside_another_jit_becomes_part_of_it(monkeypatch):
+    """JAX refuses compile options on a jit traced inside another one: a vcjax.jit function
+    (vcjax's own programs, e.g. the sweep's scenario sampler) called in a user's jax.jit is
+    traced into that program instead of failing (it did, wherever XLA_FLAGS left the option
+    on: a Python session; the option here is one every jaxlib takes)."""
+    import jax
+    import jax.numpy as jnp
+    import pytest
+
+    import vcjax
+
+    monkeypatch.setattr(comp, "compile_options", lambda: {"xla_backend_optimization_level": 3})
+    inner = vcjax.jit(_cumsum)
+    x = jnp.arange(8.0)
+    outer = jax.jit(lambda x: inner(x) + 1.0)
+    assert float(outer(x)) == float(_cumsum(x)) + 1.0
+    assert float(inner(x)) == float(_cumsum(x))  # and at the top level, with its option
+    assert float(jax.jit(jax.grad(lambda x: inner(x)))(x)[0]) == float(jax.grad(_cumsum)(x)[0])
+    with pytest.raises(TypeError):  # any other error still reaches the caller
+        jax.jit(lambda x: inner(x, 1))(x)
+
+
 def test_vcjax_jit_takes_jax_jit_arguments_and_decorates():
     import jax.numpy as jnp
 

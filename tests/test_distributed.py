@@ -11,6 +11,7 @@ Every spawned run has a hard time limit; a hung coordinator fails the test inste
 
 import json
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -79,7 +80,13 @@ def child_env(monkeypatch):
     """Spawned interpreters import this checkout and see one CPU device each."""
     path = os.environ.get("PYTHONPATH", "")
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join(p for p in (str(ROOT), path) if p))
-    monkeypatch.delenv("XLA_FLAGS", raising=False)
+    # no device-count flags; the tests' XLA optimisation level (conftest) kept, so that the
+    # children compile what this process compiles
+    level = re.search(r"--xla_backend_optimization_level=\S+", os.environ.get("XLA_FLAGS", ""))
+    if level:
+        monkeypatch.setenv("XLA_FLAGS", level.group(0))
+    else:
+        monkeypatch.delenv("XLA_FLAGS", raising=False)
     monkeypatch.delenv("VCJAX_CPU_DEVICES", raising=False)
     for k in (distributed.ENV_COORDINATOR, distributed.ENV_NUM_PROCESSES, "SLURM_STEP_ID"):
         monkeypatch.delenv(k, raising=False)

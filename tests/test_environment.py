@@ -183,6 +183,46 @@ def test_the_force_binds_to_the_generalised_velocity_size():
     np.testing.assert_array_equal(env.params[0].tau, [5.0, 0, 0, 0, 0, 1.0])
 
 
+def test_a_force_section_is_read_before_its_vehicle_and_checked_against_it(tmp_path, capsys):
+    from vcjax import cli
+    from vcjax.sweep.config import load_config
+
+    # ODIN has six generalised coordinates: tau_4 in a sweep file is read (it was refused as an
+    # unknown key against a three-force default) and keeps only what was written
+    odin_cfg = tmp_path / "odin.toml"
+    odin_cfg.write_text(
+        '[scenario]\nvehicle = "odin"\n[sweep]\nnum_scenarios = 2\nvariants = ["vcm"]\n'
+        "[simulation]\nhorizon = 1.0\ndt = 0.05\n[force]\ntau_0 = [0.0, 1.0]\ntau_4 = 2.0\n"
+    )
+    spec, _ = load_config(odin_cfg)
+    assert spec.scenario.environment == (("force", (("tau_0", (0.0, 1.0)), ("tau_4", 2.0))),)
+    odin = loops.make_loop("odin", "vcm")
+    spec.scenario.check_for(odin)
+    env = environment.sample(jax.random.PRNGKey(3), dict(spec.scenario.environment), odin)
+    tau = np.asarray(env.params[0].tau)
+    assert 0.0 <= tau[0] <= 1.0 and tau[4] == 2.0 and not tau[[1, 2, 3, 5]].any()
+    # the puck has two: a tau_2 is refused naming the key and the vehicle, before --out exists
+    # (a puck [force] section failed at sampling before: its unbound check filled in tau_2 = 0)
+    module = Path(__file__).resolve().parents[1] / "examples" / "loops" / "puck.py"
+    head = f'[scenario]\nmodule = "{module.as_posix()}"\nvehicle = "puck"\n'
+    runs = {  # the sweep's route and the tuner's
+        "sweep": "[sweep]\nnum_scenarios = 2\n[simulation]\nhorizon = 0.5\ndt = 0.01\n",
+        "tune": "[simulation]\nhorizon = 1.0\ndt = 0.01\n[train]\nsize = 2\n[heldout]\nsize = 2\n",
+    }
+    for command, body in runs.items():
+        cfg = tmp_path / f"{command}.toml"
+        cfg.write_text(head + body + "[force]\ntau_2 = 0.1\n")
+        rc = cli.main([command, str(cfg), "--out", str(tmp_path / f"out_{command}")])
+        err = capsys.readouterr().err
+        assert rc != 0 and "[force] tau_2: unknown key" in err and "'puck'" in err, err
+        assert "Traceback" not in err and not (tmp_path / f"out_{command}").exists()
+    with pytest.raises(ValueError, match=r"tau_2: unknown key.*'puck'"):
+        load_config(tmp_path / "sweep.toml")  # the Python route refuses it too
+    with pytest.raises(ValueError, match="sample it for a loop"):
+        ConstantForce().sample(jax.random.PRNGKey(0), {"tau_0": 1.0})
+    assert ConstantForce().check({"tau_5": 1.0}) == {"tau_5": 1.0}  # nothing filled in unbound
+
+
 # ------------------------------------------------------------------ registry and pytree
 
 

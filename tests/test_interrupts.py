@@ -93,7 +93,9 @@ def _interrupt_lines(text: str) -> list[str]:
     return [
         ln
         for ln in lines
-        if ln.startswith("vcjax:") and "interrupted" in ln and "warning:" not in ln
+        if ln.startswith("vcjax:")
+        and "interrupted" in ln
+        and not ln.startswith(("vcjax: warning:", "vcjax: note:"))  # (a path may say it too)
     ]
 
 

@@ -298,5 +298,6 @@ def test_a_loop_defined_here_runs_from_toml_configs_through_the_cli(tmp_path):
     )
     assert cli.main(["tune", str(tmp_path / "t.toml"), "--out", str(tmp_path / "tu")]) == 0
     g = json.loads((tmp_path / "tu" / "gains.json").read_text())
-    assert set(g) == {"P_G", "P_Phi", "sigma"}
+    assert set(g) == {"P_G", "P_Phi", "sigma", "vehicle", "controller"}  # what they are for
+    assert (g["vehicle"], g["controller"]) == ("pointmass", "vcm")
     loop.gains_from_json(g)  # the tuned gains load back

@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -112,6 +113,10 @@ def reproduce(name: str, out: Path) -> tuple[list[str], float]:
     """Run the command of ``CASES[name]`` into ``out`` and compare its file to the committed one."""
     argv, fname, _ = CASES[name]
     env = {**os.environ, "PYTHONPATH": str(ROOT), "VCJAX_CACHE_DIR": "off"}
+    # as users run it: XLA's default optimisation level (the tests' conftest lowers it, and a
+    # tune's optimiser path amplifies the last bit that changes)
+    flags = re.sub(r"--xla_backend_optimization_level=\S+", "", env.get("XLA_FLAGS", ""))
+    env["XLA_FLAGS"] = flags.strip()
     cmd = [sys.executable, "-m", "vcjax.cli", *argv, "--out", str(out)]
     proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
     if proc.returncode != 0:

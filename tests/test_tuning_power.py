@@ -397,9 +397,15 @@ def test_loss_weights_defaults_dtype_and_refusals():
     ``sat_width`` must be > 0), the dtype ignored."""
     w = loss_weights()
     assert {k: float(getattr(w, k)) for k in w._fields} == {
-        "eps": 1.0, "u_tilde": 1.0, "psi_tilde": 1.0, "sat_excess": 10.0, "sat_time": 1.0,
+        "eps": 1.0, "u_tilde": 1.0, "psi_tilde": 1.0, "sat_excess": 1.0, "sat_time": 5.0,
         "effort": 0.0, "unhealthy": 1000.0, "sat_width": 0.05, "depth": 0.0,
     }  # fmt: skip
+    # one default for Python and for a config file that omits [weights]
+    from tuning.spec import Weights
+
+    assert {k: float(getattr(w, k)) for k in w._fields} == {
+        f.name: f.default for f in dataclasses.fields(Weights)
+    }
     assert all(getattr(w, k).dtype == jnp.float64 for k in w._fields)
     w32 = loss_weights(jnp.float32, eps=0.0, depth=2)
     assert w32.eps.dtype == jnp.float32 and float(w32.eps) == 0.0 and float(w32.depth) == 2.0
@@ -454,7 +460,8 @@ def test_problem_data_defaults_dtype_and_refusals():
     np.testing.assert_array_equal(
         d.theta_ref, problem.space.encode(problem.space.loop.default_gains())
     )
-    assert float(d.weights.sat_excess) == 10.0 and d.dt.dtype == jnp.float64
+    assert float(d.weights.sat_excess) == 1.0 and float(d.weights.sat_time) == 5.0
+    assert d.dt.dtype == jnp.float64
     for name in ("dt", "log_box", "box_weight"):
         for bad in (0.0, -1.0, math.inf, math.nan):
             with pytest.raises(ValueError, match=f"^{name}: expected a finite value > 0"):

@@ -76,12 +76,14 @@ MODULES = {
         "vcjax/identify",
         "tests/test_lm.py tests/test_identify.py tests/test_identify_checks.py"
         " tests/test_lm_power.py tests/test_identify_power.py tests/test_identify_power2.py"
-        " tests/test_bad_inputs_cli.py::test_fit_refuses_logs_it_cannot_trust",
+        " tests/test_bad_inputs_cli.py::test_fit_refuses_logs_it_cannot_trust"
+        " tests/test_identify_power3.py",
     ),
     "tuning": (
         "tuning",
         "tests/test_tuning.py tests/test_tuning_power.py tests/test_config_meaning.py"
-        " tests/test_tuners_study.py tests/test_robust.py tests/test_tuning_power_run.py",
+        " tests/test_tuners_study.py tests/test_robust.py tests/test_tuning_power_optim.py"
+        " tests/test_tuning_power_run.py tests/test_tuning_power_spec.py",
     ),
     "params": (
         "tuning/params.py",

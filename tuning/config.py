@@ -292,6 +292,11 @@ def _vehicle_keys(raw: dict, sec: dict, loop, current: Current, waves, env) -> d
         loops.check_environment(loop, [lookup(s) for s, _ in env])
     except ValueError as err:
         raise ConfigError(refusal(err)) from None
+    for s, table in env:  # each component as it is for this loop (e.g. its number of forces)
+        try:
+            lookup(s).bind(loop).check(table)
+        except ValueError as err:
+            raise ConfigError(f"{err} (vehicle {loop.vehicle!r})") from None
     return init
 
 

@@ -36,6 +36,7 @@ import numpy as np
 
 from tuning.params import GainSpace
 from tuning.scenarios import SCENARIO_AXES
+from tuning.spec import Weights
 from vcjax import loops
 from vcjax.rollout import RolloutConfig
 from vcjax.sweep.run import in_sea, surface_metrics
@@ -77,20 +78,10 @@ class LossWeights(NamedTuple):
     depth: Any = 0.0
 
 
-#: The default of every weight of [`loss_weights`][tuning.loss.loss_weights] in Python. Two
-#: differ from the ``[weights]`` section's defaults (``tuning.spec.Weights``, what ``vcjax tune``
-#: uses when the section omits them): ``sat_excess`` 1 there, ``sat_time`` 5 there.
-DEFAULT_WEIGHTS = {
-    "eps": 1.0,
-    "u_tilde": 1.0,
-    "psi_tilde": 1.0,
-    "sat_excess": 10.0,
-    "sat_time": 1.0,
-    "effort": 0.0,
-    "unhealthy": 1000.0,
-    "sat_width": 0.05,
-    "depth": 0.0,
-}
+#: The default of every weight of [`loss_weights`][tuning.loss.loss_weights]: the ``[weights]``
+#: section's (``tuning.spec.Weights``, declared once), so that a tune from Python and one from a
+#: config file that omits the section minimise the same loss.
+DEFAULT_WEIGHTS = {f.name: float(f.default) for f in dataclasses.fields(Weights)}
 
 
 def loss_weights(dtype=None, **weights) -> LossWeights:

@@ -84,7 +84,13 @@ class RolloutConfig:
         num_steps: number of integration steps N (the horizon is ``N * dt``).
         integrator: ``"euler"``, ``"heun"`` or ``"rk4"``.
         timing: ``"continuous"`` or ``"sampled"`` controller (see module docstring).
-        checkpoint: rematerialise in the backward pass (``jax.checkpoint``) for long horizons.
+        checkpoint: rematerialise in the backward pass (``jax.checkpoint``; default True): the
+            reverse pass keeps one carry per step (``checkpoint_every = 1``) and recomputes the
+            step, instead of storing every intermediate value of every step. No effect on a
+            forward rollout or on forward mode; under ``grad`` the same values to round-off, a
+            fraction of the memory, a compile up to a tenth shorter (with 10-26 % more
+            StableHLO lines: each step is held twice) and, under XLA's default CPU flags, up to
+            twice the speed. ``False``: the stored tape.
         checkpoint_every: with ``checkpoint``, the segment length K: ``K = 1`` checkpoints every
             step (memory ~ N x carry); ``K > 1`` checkpoints segments of K steps (memory
             ~ N/K x carry + K x one step's intermediates, minimal near
@@ -106,7 +112,7 @@ class RolloutConfig:
     num_steps: int
     integrator: str = "rk4"
     timing: Literal["continuous", "sampled"] = "continuous"
-    checkpoint: bool = False
+    checkpoint: bool = True
     checkpoint_every: int = 1
     unroll: int = 1
     stages: Literal["auto", "loop", "unrolled"] = "auto"
@@ -378,7 +384,7 @@ def rollout(
     if not config.checkpoint:
         _, (ys, us, auxs, oks) = jax.lax.scan(step, init, ks, unroll=config.unroll)
     elif K == 1:
-        _, (ys, us, auxs, oks) = jax.lax.scan(jax.checkpoint(step), init, ks)
+        _, (ys, us, auxs, oks) = jax.lax.scan(jax.checkpoint(step), init, ks, unroll=config.unroll)
     else:
         # Segments of K steps, each rematerialised as a whole in the backward pass: the forward
         # keeps one carry per segment, the backward the residuals of one segment at a time.

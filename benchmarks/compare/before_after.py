@@ -93,8 +93,17 @@ def _simulation_1():
             from vcjax import sim1  # type: ignore[no-redef]
         return sim1.default_gains(), sim1.sim1_scenario(), sim1.simulate
 
+    import functools
+
+    import jax
+
+    @functools.cache
+    def loop(variant):  # built eagerly (its path is checked on values), even inside a jit
+        with jax.ensure_compile_time_eval():
+            return sim1.loop(variant)
+
     def simulate(variant, gains, scenario, config, dt):
-        return loops.simulate(sim1.loop(variant), gains, scenario, config, dt)
+        return loops.simulate(loop(variant), gains, scenario, config, dt)
 
     return sim1.default_gains("vcm"), sim1.scenario(), simulate
 

@@ -134,7 +134,7 @@ class _Jit:
 
     def __init__(self, fun, kwargs):
         self._fun, self._kwargs = fun, kwargs
-        self._jitted = None
+        self._jitted = self._plain = None
         self._lock = threading.Lock()
         functools.update_wrapper(self, fun)
 
@@ -155,10 +155,23 @@ class _Jit:
         return self._jitted
 
     def __call__(self, *args, **kwargs):
-        return self._get()(*args, **kwargs)
+        jitted = self._get()
+        try:
+            return jitted(*args, **kwargs)
+        except ValueError as err:  # JAX refuses compile options on a jit inside another one
+            if "can only be passed to top-level" not in str(err):
+                raise
+        # called while another program is traced (a user's jax.jit around it): it becomes part
+        # of that program, which compiles with that program's options
+        if self._plain is None:
+            import jax
+
+            plain = {k: v for k, v in self._kwargs.items() if k != "compiler_options"}
+            self._plain = jax.jit(self._fun, **plain)
+        return self._plain(*args, **kwargs)
 
     def __getattr__(self, name):
-        if name.startswith("__") or name in ("_fun", "_kwargs", "_jitted", "_lock"):
+        if name.startswith("__") or name in ("_fun", "_kwargs", "_jitted", "_plain", "_lock"):
             raise AttributeError(name)
         return getattr(self._get(), name)
 
