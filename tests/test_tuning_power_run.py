@@ -1208,3 +1208,7 @@ def test_time_to_target_at_each_tolerance_and_the_ratios_of_reached_times():
     custom = report.time_to_target(runs, (1.0, 25.0), gradient=("adam",), blackbox=("cmaes",))
     assert custom["table"]["cold"]["adam"]["wall_s_to_25%"] == 4.0
     assert custom["ratios_wall_s_to_1%"] == {"cold: adam/cmaes at 1%": None}
+    # the ratios are at 1 % whatever the table's tolerances (a KeyError without the 1 % column)
+    only5 = report.time_to_target(runs, (5.0,), gradient=("lbfgs",), blackbox=("cmaes",))
+    assert "wall_s_to_1%" not in only5["table"]["cold"]["lbfgs"]
+    assert only5["ratios_wall_s_to_1%"] == {"cold: lbfgs/cmaes at 1%": 0.5}

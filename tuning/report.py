@@ -248,10 +248,11 @@ def time_to_target(
                 row[f"rollouts_to_{p:g}%"] = _reach(r["curve"], level, "rollouts")
             table[c][name] = row
     ratios: dict = {}
-    for c, rows in table.items():
+    for c, by_tuner in runs.items():  # at 1 % whatever the table's tolerances
+        to_1 = {n: _reach(r["curve"], target * 1.01, "wall_s") for n, r in by_tuner.items()}
         for g in gradient:
             for b in blackbox:
-                if g in rows and b in rows:
-                    tg, tb = rows[g]["wall_s_to_1%"], rows[b]["wall_s_to_1%"]
+                if g in to_1 and b in to_1:
+                    tg, tb = to_1[g], to_1[b]
                     ratios[f"{c}: {g}/{b} at 1%"] = tg / tb if tg is not None and tb else None
     return {"target": target, "table": table, "ratios_wall_s_to_1%": ratios}
