@@ -145,6 +145,9 @@ CASES = [
         ),
         None,
     ),
+    # a slope of 1e-9 under a loss of 1e8: every point rounds to the start's loss (an
+    # approximate decrease); the second point, no lower than the first, bounds the interval
+    ("flat", [0.0, 0.0], [1.0, 0.0], _p(c=1e8, a=1e-15, m=(1e6, 0.0)), None),
     # an ascent direction: never a decrease, the last point taken
     ("ascent", [0.3, 0.2], [-1.0, -1.0], _p(a=0.1, quart=2.0, m=(5.0, 0.0)), None),
     # NaN at every step tried: the start kept (step 0)
