@@ -114,6 +114,40 @@ CASES = [
     ("kink-near", [0.0, 0.0], [1.0, 0.0], _p(a=0.0, kink=1.0, eps=1e-3, m=(0.3, 0.0)), None),
     # a barrier: NaN past the wall (x0 <= 0.5) at the first step; bisection back inside
     ("barrier", [1.0, 0.0], [-1.0, 0.0], _p(a=1.0, m=(-3.0, 0.0), bar=1.0, wall=0.5), None),
+    # at s = 1 the loss is within 1e-6 of the start's, Armijo's decrease is missed, and the
+    # slope is 0.99975 (then 0.99985) of the start's, reversed: just inside (then just outside)
+    # Hager and Zhang's approximate decrease, ``slope <= (1 - 2 c1) |slope0|``
+    (
+        "approx-in",
+        [0.0, 0.0],
+        [1.0, 0.0],
+        _p(
+            c=100.0,
+            a=2.0,
+            m=(1.0, 0.0),
+            step=0.5676676416183063,
+            at=0.8807672697953313,
+            width=0.11923273020466874,
+        ),
+        None,
+    ),
+    (
+        "approx-out",
+        [0.0, 0.0],
+        [1.0, 0.0],
+        _p(
+            c=100.0,
+            a=2.0,
+            m=(1.0, 0.0),
+            step=0.5676676416183063,
+            at=0.880779194857111,
+            width=0.119220805142889,
+        ),
+        None,
+    ),
+    # a slope of 1e-9 under a loss of 1e8: every point rounds to the start's loss (an
+    # approximate decrease); the second point, no lower than the first, bounds the interval
+    ("flat", [0.0, 0.0], [1.0, 0.0], _p(c=1e8, a=1e-15, m=(1e6, 0.0)), None),
     # an ascent direction: never a decrease, the last point taken
     ("ascent", [0.3, 0.2], [-1.0, -1.0], _p(a=0.1, quart=2.0, m=(5.0, 0.0)), None),
     # NaN at every step tried: the start kept (step 0)
