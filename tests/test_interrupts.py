@@ -95,7 +95,8 @@ def _interrupt_lines(text: str) -> list[str]:
         for ln in lines
         if ln.startswith("vcjax:")
         and "interrupted" in ln
-        and not ln.startswith(("vcjax: warning:", "vcjax: note:"))  # (a path may say it too)
+        and "warning:" not in ln
+        and "note:" not in ln  # a config's note names its path, which may say "interrupted"
     ]
 
 
