@@ -46,7 +46,6 @@ def _session_cache_dir() -> Path:
 # the subprocesses the tests start (before JAX starts: XLA reads its flags once)
 prefer_fast_compile()
 
-
 if "VCJAX_TEST_CACHE_DIR" not in os.environ:  # set once, by the first process of the run
     os.environ["VCJAX_TEST_CACHE_DIR"] = str(_session_cache_dir())
 os.environ["VCJAX_CACHE_DIR"] = os.environ["VCJAX_TEST_CACHE_DIR"]

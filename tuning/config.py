@@ -150,7 +150,7 @@ from vcjax.config.aliases import moved_values, note_old_spellings, take_moved
 from vcjax.config.frozen import freeze
 from vcjax.config.scenario import loop_options, parse_scenario
 from vcjax.config.schema import registered
-from vcjax.environment import lookup
+from vcjax.environment import check_for_loop, lookup
 from vcjax.sweep.config import environment_sections, refusal
 from vcjax.sweep.spec import check_wave_step
 
@@ -292,11 +292,10 @@ def _vehicle_keys(raw: dict, sec: dict, loop, current: Current, waves, env) -> d
         loops.check_environment(loop, [lookup(s) for s, _ in env])
     except ValueError as err:
         raise ConfigError(refusal(err)) from None
-    for s, table in env:  # each component as it is for this loop (e.g. its number of forces)
-        try:
-            lookup(s).bind(loop).check(table)
-        except ValueError as err:
-            raise ConfigError(f"{err} (vehicle {loop.vehicle!r})") from None
+    try:  # each component as it is for this loop (e.g. its number of forces)
+        check_for_loop(loop, env)
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
     return init
 
 

@@ -33,6 +33,7 @@ all N cores), and the compile time; the timed function returns only the (B,) mea
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import subprocess
@@ -92,8 +93,6 @@ def _simulation_1():
         except ImportError:  # older still: the experiment under its former name
             from vcjax import sim1  # type: ignore[no-redef]
         return sim1.default_gains(), sim1.sim1_scenario(), sim1.simulate
-
-    import functools
 
     import jax
 

@@ -60,6 +60,7 @@ __all__ = [
     "draw",
     "draw_unit",
     "freeze",
+    "check_for_loop",
     "written",
     "register",
     "unregister",
@@ -382,6 +383,18 @@ def freeze(section: str, raw: Mapping | None) -> tuple:
     if not isinstance(raw, tuple):  # a tuple: already frozen, ((key, value), ...)
         raw = dict(raw or {})
     return section, tuple(sorted(lookup(section).check(raw).items()))
+
+
+def check_for_loop(loop, sections) -> None:
+    """Each ``(section, table)`` of ``sections`` checked by its registered component as it is for
+    ``loop`` ([`Component.bind`][vcjax.environment.component.Component.bind]: e.g. the force's
+    one key per generalised coordinate of the plant), before any work; ``ValueError``
+    ``[section] key: message (vehicle 'name')``."""
+    for name, table in sections:
+        try:
+            lookup(name).bind(loop).check(table)
+        except ValueError as err:
+            raise ValueError(f"{err} (vehicle {loop.vehicle!r})") from None
 
 
 def sample(key, sections: Mapping[str, Mapping], loop=None, comps: Mapping | None = None):

@@ -41,7 +41,7 @@ from vcjax.config import (
 from vcjax.config.aliases import moved_values
 from vcjax.config.scenario import ScenarioChoice, loop_options
 from vcjax.config.schema import check_value
-from vcjax.environment import ConstantCurrent, draw_unit, freeze, lookup, waves
+from vcjax.environment import ConstantCurrent, check_for_loop, draw_unit, freeze, waves
 from vcjax.environment import Waves as WavesComponent
 from vcjax.runtime import compiler
 
@@ -260,11 +260,10 @@ class ScenarioSpec:
             if k not in loop.noise_channels:
                 note = f"(channel) for vehicle {loop.vehicle!r}"
                 raise ConfigError(unknown_key("sensor_noise", k, loop.noise_channels, note))
-        for sec, table in self.environment:  # each component as it is for this loop
-            try:
-                lookup(sec).bind(loop).check(table)
-            except ValueError as err:
-                raise ConfigError(f"{err} (vehicle {loop.vehicle!r})") from None
+        try:  # each component as it is for this loop
+            check_for_loop(loop, self.environment)
+        except ValueError as err:
+            raise ConfigError(str(err)) from None
         if self.waves:
             try:
                 loops.check_disturbances(loop, False, False, waves=True)
