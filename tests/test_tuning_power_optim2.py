@@ -1,0 +1,240 @@
+"""Tests that kill the survivors of a whole mutation run of the tuner's optimiser
+(``tuning.optim``, docs/development/testing.md, "Mutation testing"), after those written ahead of
+it (``tests/test_tuning_power_optim.py``).
+
+The expected values come from elsewhere: Adam's update written out in numpy, the guard's
+documented rules (a step whose loss, gradient or update is not finite is rejected; the best
+parameters are the lowest loss seen at an accepted step's input, or the final iterate when
+lower), the same L-BFGS step run without the program store, stand-ins for the store and the
+device mesh that record what they are given.
+"""
+
+from __future__ import annotations
+
+import types
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+
+def _bowl(th, c):
+    """() a quadratic bowl around ``c`` (2,)."""
+    return 0.5 * jnp.sum((th - c) ** 2)
+
+
+def _adam_numpy(grad_fn, theta, steps, lr, b1=0.9, b2=0.999, eps=1e-8):
+    """Adam's iterates written out (Kingma and Ba, algorithm 1; optax's defaults)."""
+    theta = np.array(theta, dtype=float)
+    m = np.zeros_like(theta)
+    v = np.zeros_like(theta)
+    out = []
+    for t in range(1, steps + 1):
+        g = grad_fn(theta)
+        m = b1 * m + (1 - b1) * g
+        v = b2 * v + (1 - b2) * g * g
+        upd = -lr * (m / (1 - b1**t)) / (np.sqrt(v / (1 - b2**t)) + eps)
+        out.append((theta.copy(), g, upd))
+        theta = theta + upd
+    return out, theta
+
+
+# ------------------------------------------------------------------ the optimisers' defaults
+
+
+def test_make_optimizer_adam_defaults_to_its_documented_rate():
+    """Kills: ``make_optimizer``'s own default learning rate (0.05, the ``[optimizer]``
+    section's): Adam's first update is ``-lr g / (|g| + eps)`` per entry."""
+    from tuning.optim import make_optimizer
+
+    opt = make_optimizer("adam")
+    g = jnp.asarray([3.0, -4.0])
+    with jax.numpy_dtype_promotion("standard"):  # optax's bias correction, as in the tuner
+        upd, _ = opt.update(g, opt.init(jnp.zeros(2)))
+    np.testing.assert_allclose(upd, -0.05 * np.array([3.0, -4.0]) / (np.array([3, 4]) + 1e-8))
+
+
+def test_tuner_options_run_fifty_steps_by_default_and_report_progress():
+    """Kills: ``TunerOptions.steps``' default (50), the progress hook's arguments (the steps
+    done, the steps planned, the step's record). Adam far from the bowl's centre: no stop
+    before the last step (Adam moves at most about ``lr`` per step)."""
+    from tuning.optim import run_gradient_tuner
+
+    seen = []
+    res = run_gradient_tuner(
+        _bowl,
+        jnp.zeros(2),
+        (jnp.asarray([10.0, -10.0]),),
+        optimizer="adam",
+        progress=lambda k, n, rec: seen.append((k, n, rec)),
+    )
+    assert len(res.history) == 50 and res.reason == "steps"
+    assert [(k, n) for k, n, _ in seen] == [(k + 1, 50) for k in range(50)]
+    assert all(rec is h for (_, _, rec), h in zip(seen, res.history, strict=True))
+
+
+# ------------------------------------------------------------------ the guard
+
+
+def test_a_step_with_an_infinite_loss_and_a_finite_gradient_is_rejected():
+    """Kills: the guard's ``isfinite(loss) & finite(gradient)`` (``|``, ``^``): a loss of +inf
+    whose gradient is finite (0 where the loss is the constant inf) is rejected like a NaN
+    one, the step's input kept; the next step (scale 1/2) is Adam's from there."""
+    from tuning.optim import run_gradient_tuner
+
+    def loss(th, c):  # +inf right of th[0] = 0.5, with a zero gradient there
+        return jnp.where(th[0] > 0.5, jnp.inf, _bowl(th, c))
+
+    res = run_gradient_tuner(
+        loss, jnp.asarray([0.6, 0.0]), (jnp.ones(2),), optimizer="adam", steps=1
+    )
+    h = res.history[0]
+    assert not h["ok"] and h["loss"] is None and h["grad_norm"] == 0.0
+    assert h["update_norm"] == 0.0 and res.n_bad == 1
+    np.testing.assert_array_equal(res.theta, [0.6, 0.0])
+
+
+def test_equal_losses_keep_the_first_parameters_that_reached_them():
+    """Kills: the best-so-far test ``loss < best`` (``<=``) and the final iterate's
+    ``final < best`` (``<=``): a loss exactly 1 everywhere (its gradient ``g`` nonzero, so
+    Adam moves) keeps the start as the best parameters, as documented (the lowest loss seen;
+    the final iterate only when lower)."""
+    from tuning.optim import run_gradient_tuner
+
+    def flat(th, g):  # value 1 exactly (x - x = 0), gradient g
+        x = th @ g
+        return 1.0 + (x - jax.lax.stop_gradient(x))
+
+    res = run_gradient_tuner(
+        flat, jnp.zeros(2), (jnp.asarray([1.0, -2.0]),), optimizer="adam", steps=3
+    )
+    assert [r["loss"] for r in res.history] == [1.0, 1.0, 1.0]
+    assert all(r["update_norm"] > 0.0 for r in res.history)
+    np.testing.assert_array_equal(res.theta, [0.0, 0.0])
+    assert res.loss == 1.0
+
+
+# ------------------------------------------------------------------ placement
+
+
+class _Mesh:
+    def __init__(self, size):
+        self.size = size
+
+
+class _Sharded:
+    """A stand-in leaf placed on a mesh of ``size`` devices."""
+
+    def __init__(self, size):
+        self.sharding = types.SimpleNamespace(mesh=_Mesh(size))
+
+
+def test_replicate_like_places_on_the_first_mesh_of_several_devices(monkeypatch):
+    """Kills: ``mesh.size > 1`` (a one-device mesh leaves the trees alone; a two-device one,
+    the first such leaf's, replicates every tree on it) and the loop over the leaves."""
+    from tuning import optim
+    from vcjax.runtime import distributed
+
+    monkeypatch.setattr(distributed, "replicate", lambda t, mesh: ("replicated", t, mesh))
+    one, two, three = _Sharded(1), _Sharded(2), _Sharded(3)
+    assert optim.replicate_like((np.zeros(2), one), "a", "b") == ("a", "b")
+    got = optim.replicate_like((np.zeros(2), one, [two, three]), "a", "b")
+    assert got == (("replicated", "a", two.sharding.mesh), ("replicated", "b", two.sharding.mesh))
+    assert optim.replicate_like((), "a") == ("a",)
+
+
+# ------------------------------------------------------------------ the L-BFGS step's programs
+
+
+def _lbfgs(program_static=None):
+    from tuning.optim import make_optimizer, make_step
+
+    opt = make_optimizer("lbfgs", memory_size=3, max_linesearch_steps=4)
+    return opt, make_step(_bowl, opt, "lbfgs", "reverse", program_static=program_static)
+
+
+def _store(monkeypatch, tmp_path, on=True):
+    """The program store on (a folder) or off, ``programs.build`` a recording stand-in that
+    compiles with ``jax.jit``; returns (builds, calls of the built program)."""
+    from vcjax.runtime import programs
+
+    built, calls = [], []
+
+    def build(name, fn, static, args):
+        built.append((name, static, programs.argument_spec(args)))
+        jitted = jax.jit(lambda *a: fn(*a))  # (not jax.jit(fn): that shares fn's cache)
+
+        def call(*a):
+            calls.append(np.asarray(a[0]))
+            return jitted(*a)
+
+        return call, {}
+
+    monkeypatch.setattr(programs, "store_dir", lambda: tmp_path if on else None)
+    monkeypatch.setattr(programs, "build", build)
+    return built, calls
+
+
+def test_the_lbfgs_step_takes_its_value_and_grad_from_the_store_once(monkeypatch, tmp_path):
+    """Kills: the store's use (only with the store on and a ``program_static``; the key's static
+    part ``(program_static, grad_mode)``), one build at the first call, the stored program run
+    for arguments of its spec and the jitted one for others; the same step as without it."""
+    from tuning.optim import init_state
+
+    th, c = jnp.zeros(2), jnp.asarray([1.0, -2.0])
+    opt, plain = _lbfgs()
+    ref = plain(th, init_state(opt, th), jnp.asarray(1.0), (c,))
+
+    built, calls = _store(monkeypatch, tmp_path)
+    _, step = _lbfgs(program_static="cfg")
+    th1, _, info = step(th, init_state(opt, th), jnp.asarray(1.0), (c,))
+    from vcjax.runtime import programs
+
+    assert built == [
+        ("tune:value_and_grad", ("cfg", "reverse"), programs.argument_spec((th, (c,))))
+    ]
+    assert len(calls) == int(info.evals) >= 2  # every evaluation: the stored program
+    np.testing.assert_array_equal(calls[0], th)
+    np.testing.assert_allclose(th1, ref[0], rtol=1e-15)
+    assert float(info.loss) == float(ref[2].loss) == 2.5
+    assert step._vg._cache_size() == 0 and step._cache_size() == 1
+    v, g = step.value_and_grad(jnp.zeros(3), (jnp.ones(3),))  # another spec: the jitted one
+    assert float(v) == 1.5 and np.array_equal(g, -np.ones(3))
+    assert len(built) == 1 and len(calls) == int(info.evals) and step._vg._cache_size() == 1
+    assert step._cache_size() == 2
+
+    _, nostatic = _lbfgs()  # the store on, no program_static: never stored
+    nostatic(th, init_state(opt, th), jnp.asarray(1.0), (c,))
+    assert len(built) == 1 and nostatic._vg._cache_size() == 1 and nostatic._cache_size() == 1
+
+    built_off, _ = _store(monkeypatch, tmp_path, on=False)  # the store off: never stored
+    _, off = _lbfgs(program_static="cfg")
+    off(th, init_state(opt, th), jnp.asarray(1.0), (c,))
+    assert built_off == [] and off._cache_size() == 1
+
+
+def test_prebuild_compiles_the_value_and_grad_the_step_then_runs(monkeypatch, tmp_path):
+    """Kills: ``prebuild`` without the store (a compiled program for the arguments' spec, run by
+    the step instead of tracing its own) and with it (built from the store, once, with the
+    step's static key), and ``_cache_size`` counting it."""
+    from tuning.optim import init_state
+
+    th, c = jnp.zeros(2), jnp.asarray([1.0, -2.0])
+    built, calls = _store(monkeypatch, tmp_path, on=False)
+    opt, step = _lbfgs(program_static="cfg")
+    step.prebuild(th, (c,))
+    assert built == [] and step._cache_size() == 1
+    _, _, info = step(th, init_state(opt, th), jnp.asarray(1.0), (c,))
+    assert step._vg._cache_size() == 0 and step._cache_size() == 1 and float(info.loss) == 2.5
+
+    built, calls = _store(monkeypatch, tmp_path)
+    _, stored = _lbfgs(program_static="cfg")
+    stored.prebuild(th, (c,))
+    assert [b[:2] for b in built] == [("tune:value_and_grad", ("cfg", "reverse"))]
+    _, _, info = stored(th, init_state(opt, th), jnp.asarray(1.0), (c,))
+    assert len(built) == 1 and len(calls) == int(info.evals) and stored._vg._cache_size() == 0
+
+    built, calls = _store(monkeypatch, tmp_path)
+    _, nostatic = _lbfgs()  # the store on, no program_static: compiled, not stored
+    nostatic.prebuild(th, (c,))
+    assert built == [] and nostatic._cache_size() == 1
