@@ -238,3 +238,114 @@ def test_prebuild_compiles_the_value_and_grad_the_step_then_runs(monkeypatch, tm
     _, nostatic = _lbfgs()  # the store on, no program_static: compiled, not stored
     nostatic.prebuild(th, (c,))
     assert built == [] and nostatic._cache_size() == 1
+
+
+# ------------------------------------------------------------------ the loop's bookkeeping
+
+
+def _scripted(script, seen):
+    """A stand-in step (``run_gradient_tuner``'s ``step_fn``): its k-th call reports
+    ``script[k] = (loss, ok, update_norm)``, moves an accepted input by (1, 0) and returns the
+    call's index as the optimiser state; ``seen`` gets each call's (input, state, scale, args)."""
+    from tuning.optim import StepInfo
+
+    calls = iter(range(len(script)))
+
+    def step(theta, state, scale, args):
+        k = next(calls)
+        loss, ok, unorm = script[k]
+        seen.append((np.asarray(theta).tolist(), state, float(scale), args))
+        new = theta + jnp.asarray([1.0, 0.0]) if ok else theta
+        info = StepInfo(
+            jnp.asarray(loss), jnp.asarray(7.0), jnp.asarray(ok), jnp.asarray(2, jnp.int32), unorm
+        )
+        return new, k, info
+
+    return step
+
+
+def test_the_loop_reverts_halves_and_counts_stalls_by_its_rules():
+    """Kills (``_Loop``): a rejected step's revert to the last accepted step's input and state,
+    the step halved at each rejection and kept after an accepted one, the stall count (three
+    accepted zero updates in a row: a rejected step or a nonzero update starts it again), the
+    evaluation counts, the best input (the lowest loss at an accepted step's input)."""
+    from tuning.optim import run_gradient_tuner
+
+    nan = float("nan")
+    script = [
+        (5.0, True, 0.0),  # 0: from (0, 0), stall 1
+        (4.0, True, 0.0),  # 1: from (1, 0), stall 2
+        (3.0, True, 0.5),  # 2: from (2, 0), moves: stall count back to 0
+        (2.0, True, 0.0),  # 3: from (3, 0), stall 1
+        (nan, False, 0.0),  # 4: from (4, 0): rejected, back to (3, 0) and state 2, scale 1/2
+        (2.5, True, 0.0),  # 5: from (3, 0), scale 1/2, stall 1 (the rejection reset it)
+        (nan, False, 0.0),  # 6: from (4, 0): rejected again, back to (3, 0), scale 1/4
+        (2.5, True, 0.0),  # 7: from (3, 0), stall 1
+        (1.0, True, 0.0),  # 8: from (4, 0), stall 2
+    ]
+    seen = []
+    res = run_gradient_tuner(
+        lambda th, a: jnp.sum(th) * 0.0 + a,
+        jnp.zeros(2),
+        (jnp.asarray(9.0),),
+        optimizer="adam",
+        steps=len(script),
+        grad_tol=0.0,
+        step_fn=_scripted(script, seen),
+    )
+    assert [s[0][0] for s in seen] == [0, 1, 2, 3, 4, 3, 4, 3, 4]
+    assert [s[1] for s in seen[1:]] == [0, 1, 2, 3, 2, 5, 2, 7]
+    assert [s[2] for s in seen] == [1, 1, 1, 1, 1, 0.5, 0.5, 0.25, 0.25]
+    assert res.reason == "steps" and res.n_bad == 2 and not res.aborted
+    assert res.evals == 18 and [r["cum_evals"] for r in res.history] == list(range(2, 20, 2))
+    assert [r["grad_norm"] for r in res.history] == [7.0] * 9
+    np.testing.assert_array_equal(res.theta, [4.0, 0.0])  # step 8's input, loss 1
+    assert res.loss == 1.0  # the final iterate's loss (9, from the loss function) is higher
+
+    seen = []  # a third zero update in a row: stalled there
+    res = run_gradient_tuner(
+        lambda th, a: jnp.sum(th) * 0.0 + a,
+        jnp.zeros(2),
+        (jnp.asarray(9.0),),
+        optimizer="adam",
+        steps=9,
+        grad_tol=0.0,
+        step_fn=_scripted(script[:3] + [(2.0, True, 0.0)] * 3, seen),
+    )
+    assert res.reason == "stalled" and len(res.history) == 6
+
+
+def test_a_refresh_restarts_the_best_and_the_step_size_and_keeps_adams_state():
+    """Kills: ``TunerHooks.refresh``'s restart (the best parameters and loss those of the new
+    arguments from there on, the halved step back to 1, the new arguments used), Adam's state
+    carried across it (only L-BFGS restarts its memory), the final iterate taken when lower."""
+    from tuning.optim import TunerHooks, run_gradient_tuner
+
+    nan = float("nan")
+    script = [(1.0, True, 0.5), (nan, False, 0.0), (2.0, True, 0.5)]
+    script += [(5.0, True, 0.5), (6.0, True, 0.5)]  # after the refresh
+    seen, asked = [], []
+
+    def refresh(k, theta, args):
+        asked.append((k, np.asarray(theta).tolist(), float(args[0])))
+        return (jnp.asarray(5.5),) if k == 3 else None
+
+    res = run_gradient_tuner(
+        lambda th, a: jnp.sum(th) * 0.0 + a,
+        jnp.zeros(2),
+        (jnp.asarray(9.0),),
+        optimizer="adam",
+        steps=5,
+        grad_tol=0.0,
+        step_fn=_scripted(script, seen),
+        hooks=TunerHooks(refresh=refresh),
+    )
+    assert [a[0] for a in asked] == [0, 1, 2, 3, 4]
+    assert [a[1][0] for a in asked] == [0, 1, 0, 1, 2] and [a[2] for a in asked[-2:]] == [9, 5.5]
+    assert [s[2] for s in seen] == [1.0, 1.0, 0.5, 1.0, 1.0]  # the halved step back to 1
+    assert [s[1] for s in seen[3:]] == [2, 3]  # Adam's state kept across the refresh
+    assert [float(s[3][0]) for s in seen] == [9.0, 9.0, 9.0, 5.5, 5.5]
+    # the best since the refresh: 5 at (1, 0) (not the 1 at (0, 0) before it); the final
+    # iterate (3, 0) has the loss 5.5 (the loss function's, of the new arguments): higher
+    np.testing.assert_array_equal(res.theta, [1.0, 0.0])
+    assert res.loss == 5.0 and res.n_bad == 1
