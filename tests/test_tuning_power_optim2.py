@@ -11,11 +11,13 @@ device mesh that record what they are given.
 
 from __future__ import annotations
 
+import dataclasses
 import types
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 
 def _bowl(th, c):
@@ -44,7 +46,8 @@ def _adam_numpy(grad_fn, theta, steps, lr, b1=0.9, b2=0.999, eps=1e-8):
 
 def test_make_optimizer_adam_defaults_to_its_documented_rate():
     """Kills: ``make_optimizer``'s own default learning rate (0.05, the ``[optimizer]``
-    section's): Adam's first update is ``-lr g / (|g| + eps)`` per entry."""
+    section's): Adam's first update is ``-lr g / (|g| + eps)`` per entry; the names compared
+    exactly (one that sorts before ``"adam"`` refused too)."""
     from tuning.optim import make_optimizer
 
     opt = make_optimizer("adam")
@@ -52,6 +55,9 @@ def test_make_optimizer_adam_defaults_to_its_documented_rate():
     with jax.numpy_dtype_promotion("standard"):  # optax's bias correction, as in the tuner
         upd, _ = opt.update(g, opt.init(jnp.zeros(2)))
     np.testing.assert_allclose(upd, -0.05 * np.array([3.0, -4.0]) / (np.array([3, 4]) + 1e-8))
+    for wrong in ("Adam", "LBFGS", "adagrad", "sgd"):  # names are exact, lower case
+        with pytest.raises(ValueError, match=wrong):
+            make_optimizer(wrong)
 
 
 def test_tuner_options_run_fifty_steps_by_default_and_report_progress():
@@ -349,3 +355,57 @@ def test_a_refresh_restarts_the_best_and_the_step_size_and_keeps_adams_state():
     # iterate (3, 0) has the loss 5.5 (the loss function's, of the new arguments): higher
     np.testing.assert_array_equal(res.theta, [1.0, 0.0])
     assert res.loss == 5.0 and res.n_bad == 1
+
+
+def test_wall_time_counts_the_steps_only(monkeypatch):
+    """Kills: the wall clock's start (0) and its sum: ``wall_s`` is the time spent in the steps
+    so far, ``on_step``'s time left out (a stand-in clock: each step takes 0.5 s, each
+    ``on_step`` call 10 s)."""
+    from tuning import optim
+
+    now = [100.0]
+    monkeypatch.setattr(optim, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
+
+    def step(theta, state, scale, args):
+        now[0] += 0.5
+        info = optim.StepInfo(jnp.asarray(1.0), jnp.asarray(1.0), jnp.asarray(True), 1, 1.0)
+        return theta, state, info
+
+    def on_step(k, theta, rec):
+        now[0] += 10.0
+
+    res = optim.run_gradient_tuner(
+        lambda th: jnp.sum(th), jnp.zeros(2), optimizer="adam", steps=3, step_fn=step,
+        on_step=on_step,
+    )  # fmt: skip
+    assert [r["wall_s"] for r in res.history] == [0.5, 1.0, 1.5]
+
+
+def test_settings_name_the_first_unknown_keyword_and_options_are_frozen():
+    """Kills: the unknown keyword named (the first in sorted order), ``TunerOptions`` frozen
+    (plain values, hashable: a setting cannot change under a running tuner)."""
+    from tuning.optim import TunerOptions, run_gradient_tuner
+
+    with pytest.raises(TypeError, match="argument 'another'$"):
+        run_gradient_tuner(lambda th: jnp.sum(th), jnp.ones(1), zeta=1, another=2)
+    opts = TunerOptions()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        opts.steps = 3
+    assert hash(opts) == hash(TunerOptions())
+
+
+def test_an_lbfgs_step_at_an_infinite_loss_is_rejected():
+    """Kills: the L-BFGS step's guard ``isfinite(loss) & finite(gradient)`` (``|``): at a loss
+    of +inf with a zero gradient the direction and the update are 0 (finite), yet the step is
+    rejected (not ok, the input and state kept)."""
+    from tuning.optim import init_state, make_optimizer, make_step
+
+    opt = make_optimizer("lbfgs", memory_size=3, max_linesearch_steps=3)
+    step = make_step(lambda th: jnp.where(th[0] > 0.5, jnp.inf, jnp.sum(th**2)), opt, "lbfgs")
+    th = jnp.asarray([1.0, 0.0])
+    st = init_state(opt, th)
+    th1, st1, info = step(th, st, jnp.asarray(1.0), ())
+    assert not bool(info.ok) and float(info.grad_norm) == 0.0 and float(info.update_norm) == 0.0
+    np.testing.assert_array_equal(th1, th)
+    for a, b in zip(jax.tree.leaves(st1), jax.tree.leaves(st), strict=True):
+        np.testing.assert_array_equal(a, b)
