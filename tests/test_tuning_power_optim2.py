@@ -274,7 +274,8 @@ def test_the_loop_reverts_halves_and_counts_stalls_by_its_rules():
     """Kills (``_Loop``): a rejected step's revert to the last accepted step's input and state,
     the step halved at each rejection and kept after an accepted one, the stall count (three
     accepted zero updates in a row: a rejected step or a nonzero update starts it again), the
-    evaluation counts, the best input (the lowest loss at an accepted step's input)."""
+    evaluation counts, the best input (the lowest loss at an accepted step's input), the count
+    of consecutive rejections (reset by an accepted step) that aborts."""
     from tuning.optim import run_gradient_tuner
 
     nan = float("nan")
@@ -297,6 +298,7 @@ def test_the_loop_reverts_halves_and_counts_stalls_by_its_rules():
         optimizer="adam",
         steps=len(script),
         grad_tol=0.0,
+        max_bad_steps=2,  # two rejections, not in a row: no abort
         step_fn=_scripted(script, seen),
     )
     assert [s[0][0] for s in seen] == [0, 1, 2, 3, 4, 3, 4, 3, 4]
@@ -319,6 +321,20 @@ def test_the_loop_reverts_halves_and_counts_stalls_by_its_rules():
         step_fn=_scripted(script[:3] + [(2.0, True, 0.0)] * 3, seen),
     )
     assert res.reason == "stalled" and len(res.history) == 6
+
+    seen = []  # two rejections in a row after an accepted step: aborted there
+    res = run_gradient_tuner(
+        lambda th, a: jnp.sum(th) * 0.0 + a,
+        jnp.zeros(2),
+        (jnp.asarray(9.0),),
+        optimizer="adam",
+        steps=9,
+        max_bad_steps=2,
+        step_fn=_scripted([script[0], script[4], script[4], script[0]], seen),
+    )
+    assert res.reason == "aborted: 2 consecutive non-finite steps" and len(res.history) == 3
+    np.testing.assert_array_equal(res.theta, [0.0, 0.0])
+    assert res.loss == 5.0 and res.aborted
 
 
 def test_a_refresh_restarts_the_best_and_the_step_size_and_keeps_adams_state():
