@@ -425,3 +425,24 @@ def test_an_lbfgs_step_at_an_infinite_loss_is_rejected():
     np.testing.assert_array_equal(th1, th)
     for a, b in zip(jax.tree.leaves(st1), jax.tree.leaves(st), strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("optimizer", ["adam", "lbfgs"])
+def test_a_converged_run_returns_the_final_iterate_when_lower(optimizer):
+    """Kills: the final iterate's evaluation after every stop but an abort or an interrupt
+    (``reason != "interrupted"``: "converged" sorts before it): a run that converges at its
+    second step returns the iterate that step made, lower than either input (Adam: in numpy;
+    L-BFGS: the loss its state holds, the bowl's at that point)."""
+    from tuning.optim import run_gradient_tuner
+
+    c = np.array([0.0, 0.0])
+    res = run_gradient_tuner(
+        _bowl, jnp.asarray([3.0, 4.0]), (jnp.asarray(c),), optimizer=optimizer, steps=5,
+        grad_tol=4.99,
+    )  # fmt: skip
+    assert res.reason == "converged"
+    ins = [r["loss"] for r in res.history]
+    assert res.loss < min(ins) and res.loss == pytest.approx(0.5 * np.sum(np.square(res.theta)))
+    if optimizer == "adam":
+        _, final = _adam_numpy(lambda th: th - c, [3.0, 4.0], len(ins), lr=0.05)
+        np.testing.assert_allclose(res.theta, final, rtol=1e-12)
