@@ -208,6 +208,8 @@ def test_the_lbfgs_step_takes_its_value_and_grad_from_the_store_once(monkeypatch
     assert float(v) == 1.5 and np.array_equal(g, -np.ones(3))
     assert len(built) == 1 and len(calls) == int(info.evals) and step._vg._cache_size() == 1
     assert step._cache_size() == 2
+    v, g = step.value_and_grad(jnp.zeros(1), (jnp.ones(1),))  # a spec that sorts before
+    assert float(v) == 0.5 and np.array_equal(g, [-1.0]) and len(calls) == int(info.evals)
 
     _, nostatic = _lbfgs()  # the store on, no program_static: never stored
     nostatic(th, init_state(opt, th), jnp.asarray(1.0), (c,))
@@ -446,3 +448,21 @@ def test_a_converged_run_returns_the_final_iterate_when_lower(optimizer):
     if optimizer == "adam":
         _, final = _adam_numpy(lambda th: th - c, [3.0, 4.0], len(ins), lr=0.05)
         np.testing.assert_allclose(res.theta, final, rtol=1e-12)
+
+
+def test_an_lbfgs_run_takes_its_final_loss_from_its_state():
+    """Kills: the final iterate's loss read from L-BFGS's state (where its last line search
+    ended), not evaluated again: the loss function runs exactly ``evals`` times."""
+    from tuning.optim import run_gradient_tuner
+
+    ran = []
+
+    def loss(th, c):
+        jax.debug.callback(lambda: ran.append(1))
+        return _bowl(th, c)
+
+    res = run_gradient_tuner(
+        loss, jnp.zeros(2), (jnp.asarray([1.0, -2.0]),), optimizer="lbfgs", steps=2
+    )
+    jax.effects_barrier()
+    assert res.reason == "steps" and len(ran) == res.evals >= 3
