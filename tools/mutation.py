@@ -84,7 +84,8 @@ MODULES = {
         "tests/test_tuning.py tests/test_tuning_power.py tests/test_config_meaning.py"
         " tests/test_tuners_study.py tests/test_robust.py tests/test_tuning_power_optim.py"
         " tests/test_tuning_power_run.py tests/test_tuning_power_spec.py"
-        " tests/test_tuning_power_optim2.py",
+        " tests/test_tuning_power_optim2.py"
+        " tests/test_waves_loops.py::test_the_tuning_evaluation_reports_the_runs_above_the_surface",
     ),
     "params": (
         "tuning/params.py",
