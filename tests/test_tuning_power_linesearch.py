@@ -152,6 +152,19 @@ def test_more_zoom_searches_evaluate_optax_points(name, x0, d, p, ends):
     assert np.isfinite(f1) and eta > 0.0 and (f1 <= f0 + 1e-4 * eta * slope0 or approx)
     if how == "done":  # and the strong curvature condition
         assert abs(slope1) <= 0.9 * abs(slope0)
+    # the state's points are points of the line: each end of the interval (step, loss, slope),
+    # the cubic's third point and the safe point (step, loss) are ``f`` and ``f' . d`` there
+    for step, value, slope in (
+        (s.low, s.value_low, s.slope_low),
+        (s.high, s.value_high, s.slope_high),
+        (s.cubic_ref, s.value_cubic_ref, None),
+        (s.safe_stepsize, s.safe_value, None),
+    ):
+        v, g = base._vg(x0 + step * d, p)
+        np.testing.assert_allclose(float(value), float(v), rtol=1e-14, atol=1e-300)
+        if slope is not None:
+            want = float(np.asarray(g) @ np.asarray(d))
+            np.testing.assert_allclose(float(slope), want, rtol=1e-13, atol=1e-300)
     if name == "approx-tol":  # the rise at s = 1, between the two tolerances
         assert 1e-6 / abs(f0) < f1 - f0 < 1e-6 * abs(f0) and eta == 1.0
     if name == "rise-while-doubling":  # 1, 2, then zoom inside [1, 2]
