@@ -88,7 +88,7 @@ MODULES = {
         "tests/test_tuning.py tests/test_tuning_power.py tests/test_config_meaning.py"
         " tests/test_tuners_study.py tests/test_robust.py tests/test_tuning_power_optim.py"
         " tests/test_tuning_power_run.py tests/test_tuning_power_spec.py"
-        " tests/test_tuning_power_linesearch.py",
+        " tests/test_tuning_power_report.py tests/test_tuning_power_linesearch.py",
     ),
     "params": (
         "tuning/params.py",
