@@ -45,9 +45,9 @@ CASES = [
         ("done", 4),
     ),
     # a kink at 1e-7 (eps 1e-9) under a loss of -1: past the kink the loss rises, so the zoom's
-    # parabola steps shrink the interval [0, s] by about 4 a round, with no point of sufficient
-    # decrease until the last ones; it ends, failed, when [low, high] is shorter than 1e-5 with
-    # a safe point (of negative loss) known: 12 evaluations, not 15
+    # parabola steps shrink the interval [0, s] about fivefold a round; it is shorter than 1e-5
+    # from the 10th evaluation on, but with no point of sufficient decrease yet the search goes
+    # on, and ends, failed, at the first one (the 12th, of negative loss), not at 15
     (
         "kink-at-the-start",
         [0.0, 0.0],
