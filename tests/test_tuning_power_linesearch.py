@@ -75,8 +75,8 @@ CASES = [
         _p(c=-5e6, a=0.0, m=(0.002, 0.0), kink=0.06, eps=1.25e-4, step=-0.015, at=2.0, width=0.5),
         ("failed", 15),
     ),
-    # a kink at 0.0025 and a steep step down at 1.75 along d = 4.5: the cubic and the
-    # parabola land near the far end of the interval (bisection then)
+    # a kink at x = 0.0025 and a steep step down at x = 1.75, along d = 4.5: the cubic's and
+    # the parabola's minimisers fall near the far end of the interval, where they are refused
     (
         "steep-step",
         [0.0, 0.0],
@@ -84,8 +84,8 @@ CASES = [
         _p(c=60.0, a=0.0, m=(0.0025, 0.0), kink=0.12, eps=0.0018, step=-31.0, at=1.75, width=0.03),
         ("done", 8),
     ),
-    # a kink at 0.19 off the search line, behind a quartic: the interval falls below 1e-5 at
-    # the 15th evaluation, when the evaluations run out as well
+    # a kink at x = 0.19 (s = 0.0158) on a quartic, along d = 12: the interval falls below
+    # 1e-5 just before the 15th evaluation, when the evaluations run out as well
     (
         "both-limits",
         [0.0, 0.0],
