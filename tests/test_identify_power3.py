@@ -301,3 +301,19 @@ def test_the_warnings_take_four_hundredths_and_a_fortieth_a_line_up_to_six(n, he
     )
     (text,) = fig.texts
     assert text.get_text().split("\n")[0] == "warning: " + "a" * 70 + " ..."
+
+
+# ------------------------------------------------------------------ fit_logs' signature
+
+
+def test_fit_logs_takes_its_arguments_by_name_and_the_callback_only_by_name():
+    """Kills: ``*`` in ``fit_logs``' signature made ``/`` (the model, logs, parameter names
+    and settings positional-only, the callback positional): by name they are accepted (the
+    empty logs refused first), a fifth positional argument is refused."""
+    from vcjax.identify.models import get_fit_model
+
+    model = get_fit_model("infante")
+    with pytest.raises(ValueError, match="files: no logs given"):
+        fit.fit_logs(model=model, logs=[], params=["cf_coeff"], options=None)
+    with pytest.raises(TypeError, match="positional argument"):
+        fit.fit_logs(model, [], ["cf_coeff"], None, lambda *a: None)

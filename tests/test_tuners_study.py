@@ -123,16 +123,73 @@ def test_time_to_target_is_the_first_time_within_each_tolerance_of_the_best_of_a
     assert s["ratios_wall_s_to_1%"]["cold: lbfgs/cmaes at 1%"] is None
 
 
+def _report(runs, **over):
+    rep = dict(
+        config="p.toml", config_sha256="a" * 64, seconds=90.0, rollouts_budget=None,
+        grad_ratio=1.0, grad_mode=None, x64=True, sigma0=0.5, random_radius=0.5, seed=0,
+    )  # fmt: skip
+    return {**rep, **over, "runs": runs}
+
+
+def test_merge_keeps_the_earlier_tuners_replaces_a_rerun_one_and_refuses_another_problem():
+    from benchmarks.studies.tuners import merge_runs, summarise
+
+    old = _report(
+        {
+            "cold": {
+                "lbfgs": _run([(0, 0, 10.0), (2.0, 8, 1.0)]),
+                "cmaes": _run([(0, 0, 10.0), (6.0, 80, 1.2)]),
+            },
+            "warm": {"lbfgs": _run([(0, 0, 10.0), (1.0, 8, 1.0)])},
+        }
+    )
+    new = _report(
+        {
+            "cold": {
+                "cmaes": _run([(0, 0, 10.0), (8.0, 90, 1.005)]),  # re-measured: replaces
+                "bayes": _run([(0, 0, 10.0), (20.0, 300, 1.04)]),  # new: added
+            }
+        }
+    )
+    runs = merge_runs(old, new)
+    assert sorted(runs["cold"]) == ["bayes", "cmaes", "lbfgs"]
+    assert runs["cold"]["cmaes"] is new["runs"]["cold"]["cmaes"]
+    assert runs["cold"]["lbfgs"] is old["runs"]["cold"]["lbfgs"]
+    assert list(runs["warm"]) == ["lbfgs"]
+    assert sorted(old["runs"]["cold"]) == ["cmaes", "lbfgs"]  # the earlier report untouched
+    s = summarise(runs)  # the target and table of all of them
+    assert s["target"] == 1.0
+    assert s["table"]["cold"]["cmaes"]["wall_s_to_1%"] == 8.0
+    assert s["table"]["cold"]["bayes"]["wall_s_to_5%"] == 20.0
+    assert s["ratios_wall_s_to_1%"]["cold: lbfgs/cmaes at 1%"] == 2.0 / 8.0
+    for key, value in (("seconds", 60.0), ("seed", 1), ("x64", False), ("config", "q.toml")):
+        with pytest.raises(ValueError, match=f"--merge: the earlier report has {key} = "):
+            merge_runs(old, _report({}, **{key: value}))
+    with pytest.raises(ValueError, match="changed since the earlier report"):
+        merge_runs(old, _report({}, config_sha256="b" * 64))
+    unknown = {k: v for k, v in old.items() if k != "config_sha256"}  # older reports: no hash
+    assert sorted(merge_runs(unknown, new)["cold"]) == ["bayes", "cmaes", "lbfgs"]
+
+
 def test_bad_arguments_exit_2_with_one_line_before_any_work(tmp_path):
+    import json
+
     cfg = tmp_path / "bad.toml"
     cfg.write_text("[problem]\nhorizon = -1\n")
     out = tmp_path / "out"
+    other = tmp_path / "other.json"  # a report of another problem
+    other.write_text(json.dumps(_report({"cold": {}}, config=str(cfg) + ".old")))
+    garbled = tmp_path / "garbled.json"
+    garbled.write_text("{")
     env = {**os.environ, "PYTHONPATH": str(ROOT), "VCJAX_CACHE_DIR": "off"}
     cases = (
         ([str(cfg), "--tuners", "lbfgs,nope"], "tuners: unknown ['nope']"),
         ([str(tmp_path / "none.toml")], "config: no such file"),
         ([str(cfg), "--seconds", "0"], "--seconds: expected > 0"),
         ([str(cfg), "--quick"], "[problem] horizon"),
+        ([str(cfg), "--merge", str(other)], "--merge: the earlier report has config = "),
+        ([str(cfg), "--merge", str(garbled)], f"--merge: cannot read {garbled}"),
+        ([str(cfg), "--merge", str(tmp_path / "no.json")], "--merge: cannot read"),
     )
     procs = [  # side by side: each is a fresh process
         subprocess.Popen(

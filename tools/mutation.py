@@ -19,8 +19,12 @@ coverage.py with one context per test (``--cov-context=test``; JAX's in-memory c
 after every test, so that each test traces, and is credited with, every line it runs), timing
 each test. A mutant is then run against only the tests that execute its line, fastest first,
 stopping at the first failure (``-x``); a mutant on a line no test executes survives without
-running anything (``"uncovered"``). Programs a mutant leaves unchanged come from JAX's
-persistent compilation cache in the scratch folder (a changed program has another cache key).
+running anything (``"uncovered"``). A line run at import (module-level code: constants, a
+section's declared bounds, dataclass defaults, ``def`` headers) is credited to no test, and a
+test may read what it declares as data without running a line of the file: its mutants run
+every test of the target, the tests that run the file first. Programs a mutant leaves
+unchanged come from JAX's persistent compilation cache in the scratch folder (a changed
+program has another cache key).
 
 Results are appended to ``<target>.jsonl`` in the scratch folder (``--work``) as each mutant
 finishes; running again with the same ``--work`` resumes (finished mutants are not run again;
@@ -84,6 +88,7 @@ MODULES = {
         "tests/test_tuning.py tests/test_tuning_power.py tests/test_config_meaning.py"
         " tests/test_tuners_study.py tests/test_robust.py tests/test_tuning_power_optim.py"
         " tests/test_tuning_power_run.py tests/test_tuning_power_spec.py"
+        " tests/test_tuning_power_report.py tests/test_tuning_power_linesearch.py"
         " tests/test_tuning_power_optim2.py"
         " tests/test_waves_loops.py::test_the_tuning_evaluation_reports_the_runs_above_the_surface",
     ),
@@ -235,27 +240,40 @@ def _spans(code: str):
     return out
 
 
-def select_tests(code: str, line: int, by_line: dict[int, set]) -> tuple[list[str], str]:
-    """The tests that run a mutant's line: those credited with its statement; for a ``def``'s
-    header (defaults, decorators) those that run its body; for module-level code, or a line
-    run at import (a table built by a function when the module loads), every test that runs
-    the file."""
+def select_tests(
+    code: str, line: int, by_line: dict[int, set], times: dict[str, float] | None = None
+) -> tuple[list[str], str]:
+    """The tests that run a mutant's line, fastest first (``times``: seconds per test of the
+    target): those credited with its statement; for a ``def``'s header (defaults, decorators)
+    those that run its body. A line run at import (module-level code, a class body, a table
+    built by a function when the module loads) is credited to no test (coverage's context
+    ``""``), and its value is data that a test may read without running a line of the file
+    (a bound a config check takes from a section's declaration): such a mutant runs every test
+    of the target, those that run the file first."""
+    t = (times or {}).get
+
+    def whole(first: set) -> list[str]:
+        rest = set(times or ()) - first
+        return sorted(first, key=lambda n: (t(n, 0.0), n)) + sorted(
+            rest, key=lambda n: (t(n, 0.0), n)
+        )
+
     spans = [s for s in _spans(code) if s[0] <= line <= s[1]]
     if not spans:
         return [], "uncovered"
     first, last, node, func, top = max(spans, key=lambda s: s[0])
     tests = set().union(*(by_line.get(n, set()) for n in range(first, last + 1)))
-    if "" in tests:  # run at import (context ""): a value every test of the file may use
-        return sorted(set().union(*by_line.values()) - {""}), "import"
+    if "" in tests:  # run at import (context ""): a value any test of the target may use
+        return whole(set().union(*by_line.values()) - {""}), "import"
     if tests:
-        return sorted(tests), "line"
+        return sorted(tests, key=lambda n: (t(n, 0.0), n)), "line"
     if hasattr(node, "body") and not top or hasattr(node, "decorator_list"):
         end = node.end_lineno
         tests = set().union(*(by_line.get(n, set()) for n in range(first, end + 1))) - {""}
         if tests:
-            return sorted(tests), "body"
+            return sorted(tests, key=lambda n: (t(n, 0.0), n)), "body"
     if top:
-        return sorted(set().union(*by_line.values()) - {""}), "module"
+        return whole(set().union(*by_line.values()) - {""}), "module"
     return [], "uncovered"
 
 
@@ -485,8 +503,7 @@ def run_module(name, work: Path, python: str, a) -> dict:
             if a.tests:
                 tests, why = shlex.split(a.tests), "given"
             else:
-                tests, why = select_tests(code, m["line"], by_file[m["file"]])
-                tests.sort(key=lambda t: times.get(t, 0.0))
+                tests, why = select_tests(code, m["line"], by_file[m["file"]], times)
             r = {**m, "diff": _diff(code, mutated, m["file"]), "tests": len(tests), "by": why}
             if in_annotation(code, m):
                 r["outcome"] = "annotation"

@@ -2,7 +2,7 @@
 random search, held-out loss against wall-clock seconds (compile included) and rollouts.
 
     python -m benchmarks.studies.tuners CONFIG.toml [--tuners lbfgs,adam,cmaes,bayes,random]
-        [--seconds S] [--rollouts R] [--warm] [--out DIR] [--json FILE] [--quick]
+        [--seconds S] [--rollouts R] [--warm] [--out DIR] [--json FILE] [--merge FILE] [--quick]
 
 The tuning problem (loss, scenario distribution, training and held-out batches) is a ``vcjax
 tune`` TOML file (``examples/tuning/``); one problem per run. Every tuner starts from the same
@@ -34,11 +34,19 @@ The target is the lowest held-out loss any tuner reached (any cache); the table 
 tuner's time and rollouts to within 1 % and 5 % of it, or "not reached". Writes ``tuners.png``
 into ``--out`` and the whole report with ``--json``. ``--quick`` (the smoke test): every tuner in
 this one process, two steps / generations each, cold only.
+
+``--merge FILE`` adds the runs of an earlier report (its ``--json``) of the same problem and
+settings to this one's: the config file (and its contents, where the earlier report recorded
+them), budgets, gradient counting, precision, seeds and steps must agree (refused otherwise,
+before any work). A tuner run now replaces its earlier run, the others are kept, and the target
+and table are those of all of them: one tuner can be (re-)measured without running the others
+again. The earlier report's machine load is kept beside this one's (``merged``).
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import subprocess
@@ -65,8 +73,15 @@ __all__ = [
     "run_tuner",
     "run_study",
     "summarise",
+    "merge_runs",
     "main",
 ]
+
+#: report keys that must agree for ``--merge`` (the same problem, measured the same way)
+MERGE_KEYS = (
+    "config", "seconds", "rollouts_budget", "grad_ratio", "grad_mode", "x64", "sigma0",
+    "random_radius", "seed",
+)  # fmt: skip
 
 
 def run_tuner(
@@ -219,6 +234,38 @@ def run_study(args, say=lambda m: None) -> dict:
     return runs
 
 
+def merge_runs(earlier: dict, rep: dict) -> dict:
+    """``rep``'s runs with those of the ``earlier`` report added: per cache, a tuner of
+    ``rep`` replaces the earlier run of the same name. ``ValueError`` naming the first key of
+    :data:`MERGE_KEYS` on which the two reports differ."""
+    for k in MERGE_KEYS:
+        if earlier.get(k) != rep.get(k):
+            raise ValueError(
+                f"--merge: the earlier report has {k} = {earlier.get(k)!r}, this run "
+                f"{rep.get(k)!r}: not the same problem measured the same way"
+            )
+    a, b = earlier.get("config_sha256"), rep.get("config_sha256")
+    if a is not None and b is not None and a != b:
+        raise ValueError(
+            f"--merge: {rep.get('config')} changed since the earlier report (its contents "
+            "differ): not the same problem"
+        )
+    runs = {c: dict(by) for c, by in earlier.get("runs", {}).items()}
+    for c, by in rep["runs"].items():
+        runs.setdefault(c, {}).update(by)
+    return runs
+
+
+def _read_merge(path: Path) -> dict:
+    try:
+        rep = json.loads(path.read_text())
+    except (OSError, ValueError) as err:
+        raise ValueError(f"--merge: cannot read {path}: {err}") from None
+    if not isinstance(rep, dict) or not isinstance(rep.get("runs"), dict):
+        raise ValueError(f"--merge: {path} is not a report of this study (no 'runs')")
+    return rep
+
+
 def summarise(runs: dict) -> dict:
     """Target (lowest held-out loss of any run), and per cache and tuner the wall-clock seconds
     and rollouts to within each :data:`REACH_PCT` of it, and the ratios of the gradient
@@ -331,6 +378,9 @@ def _parser():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=Path("out/tuners"), help="folder of the figure")
     ap.add_argument("--json", type=Path, help="write the whole report as JSON to this file")
+    ap.add_argument(
+        "--merge", type=Path, help="add the runs of an earlier --json report of the same problem"
+    )
     ap.add_argument("--quick", action="store_true", help="smoke test: one process, 2 steps each")
     ap.add_argument("--no-x64", dest="x64", action="store_false", help="float32")
     ap.add_argument("--_worker", help=argparse.SUPPRESS)
@@ -370,7 +420,27 @@ def main(argv=None) -> int:
         args._result.write_text(json.dumps(r) + "\n")
         return 0
     load = _load()
+    rep = {
+        "config": str(args.config),
+        "config_sha256": hashlib.sha256(args.config.read_bytes()).hexdigest(),
+        "tuners": list(args.tuners),
+        "seconds": args.seconds,
+        "rollouts_budget": args.rollouts,
+        "grad_ratio": args.grad_ratio,
+        "grad_mode": args.grad_mode,
+        "x64": args.x64,
+        "load": load,
+        "sigma0": args.sigma0,
+        "random_radius": args.radius,
+        "seed": args.seed,
+    }
     try:
+        earlier = None
+        if args.merge is not None:
+            if args.quick:
+                raise ValueError("--merge: a --quick run is not a measurement to merge")
+            earlier = _read_merge(args.merge)
+            merge_runs(earlier, {**rep, "runs": {}})  # the settings agree: before any work
         if args.quick:
             runs = {"cold": {}}
             for t in args.tuners:
@@ -384,22 +454,18 @@ def main(argv=None) -> int:
     except ValueError as err:  # a config error, before any tuning
         say(f"tuners: {err}")
         return 2
-    rep = {
-        "config": str(args.config),
-        "tuners": list(args.tuners),
-        "seconds": args.seconds,
-        "rollouts_budget": args.rollouts,
-        "grad_ratio": args.grad_ratio,
-        "grad_mode": args.grad_mode,
-        "x64": args.x64,
-        "load": load,
-        "load_after": _load(),
-        "sigma0": args.sigma0,
-        "random_radius": args.radius,
-        "seed": args.seed,
-        "runs": runs,
-    }
-    rep["summary"] = summarise(runs)
+    rep["load_after"] = _load()
+    rep["runs"] = runs
+    if earlier is not None:
+        rep["runs"] = merge_runs(earlier, rep)
+        rep["tuners"] = list(dict.fromkeys([*earlier.get("tuners", []), *args.tuners]))
+        rep["merged"] = {
+            "file": str(args.merge),
+            "tuners": earlier.get("tuners"),
+            "load": earlier.get("load"),
+            "load_after": earlier.get("load_after"),
+        }
+    rep["summary"] = summarise(rep["runs"])
     args.out.mkdir(parents=True, exist_ok=True)
     fig = figure(rep, args.out / "tuners.png")
     print(table_text(rep))
