@@ -15,7 +15,6 @@ only the coefficients change), driven here with a bound on the number of evaluat
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -126,21 +125,7 @@ def test_more_zoom_searches_evaluate_optax_points(name, x0, d, p, ends):
     then at the safe point or the last one as documented)."""
     x0, d = jnp.asarray(x0), jnp.asarray(d)
     points, s = _bounded_search(x0, d, p)
-    base._seen.clear()
-    upd, st = base._optax_search(x0, d, p)
-    jax.effects_barrier()
-    ref = list(base._seen)
-    assert len(points) == len(ref) == int(st.info.num_linesearch_steps) == int(s.count)
-    np.testing.assert_allclose(np.array(points), np.array(ref), rtol=1e-13, atol=1e-300)
-    assert float(s.stepsize) == pytest.approx(float(st.learning_rate), rel=1e-13, abs=1e-300)
-    np.testing.assert_allclose(np.asarray(upd), float(s.stepsize) * np.asarray(d), rtol=1e-13)
-    assert float(s.value) == pytest.approx(float(st.value), rel=1e-14, abs=1e-300)
-    np.testing.assert_allclose(s.grad, st.grad, rtol=1e-13, atol=1e-300)
-    for mine, theirs in (
-        (s.decrease_error, st.info.decrease_error),
-        (s.curvature_error, st.info.curvature_error),
-    ):
-        assert float(mine) == pytest.approx(float(theirs), rel=1e-12, abs=1e-300)
+    base._assert_optax_search(x0, d, p, points, s)
     how, count = ends
     assert (bool(s.done), bool(s.failed), len(points)) == (how == "done", how == "failed", count)
     f0, g0 = (np.asarray(v) for v in base._vg(x0, p))

@@ -176,16 +176,10 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("name, x0, d, p, hand", CASES, ids=[c[0] for c in CASES])
-def test_zoom_evaluates_optax_points_and_meets_strong_wolfe(name, x0, d, p, hand):
-    """Every point the host-driven search evaluates, its step size, loss, gradient, count and
-    errors are those of ``optax.scale_by_zoom_linesearch`` run in one jit, on searches that
-    stop at once, double, zoom by bisection, parabola and cubic, meet NaN, run out of
-    evaluations and take the safe step, stall in a tiny interval, or accept Hager and Zhang's
-    approximate decrease; where the search succeeds its step meets both strong Wolfe
-    conditions (c1 = 1e-4, c2 = 0.9: numpy), and the hand-worked step sizes are tried."""
-    x0, d = jnp.asarray(x0), jnp.asarray(d)
-    points, s = _zoom_search(x0, d, p)
+def _assert_optax_search(x0, d, p, points, s):
+    """The host-driven search's evaluated ``points`` and final state ``s`` are those of
+    ``optax.scale_by_zoom_linesearch`` from ``x0`` along ``d`` on ``p``: every point, the
+    count, the step (and optax's update), loss, gradient and both errors."""
     _seen.clear()
     upd, st = _optax_search(x0, d, p)
     jax.effects_barrier()
@@ -201,6 +195,19 @@ def test_zoom_evaluates_optax_points_and_meets_strong_wolfe(name, x0, d, p, hand
         (s.curvature_error, st.info.curvature_error),
     ):
         assert float(mine) == pytest.approx(float(theirs), rel=1e-12, abs=1e-300)
+
+
+@pytest.mark.parametrize("name, x0, d, p, hand", CASES, ids=[c[0] for c in CASES])
+def test_zoom_evaluates_optax_points_and_meets_strong_wolfe(name, x0, d, p, hand):
+    """Every point the host-driven search evaluates, its step size, loss, gradient, count and
+    errors are those of ``optax.scale_by_zoom_linesearch`` run in one jit, on searches that
+    stop at once, double, zoom by bisection, parabola and cubic, meet NaN, run out of
+    evaluations and take the safe step, stall in a tiny interval, or accept Hager and Zhang's
+    approximate decrease; where the search succeeds its step meets both strong Wolfe
+    conditions (c1 = 1e-4, c2 = 0.9: numpy), and the hand-worked step sizes are tried."""
+    x0, d = jnp.asarray(x0), jnp.asarray(d)
+    points, s = _zoom_search(x0, d, p)
+    _assert_optax_search(x0, d, p, points, s)
     if hand is not None:
         steps = [
             float((pt - np.asarray(x0)) @ np.asarray(d) / (np.asarray(d) @ np.asarray(d)))
