@@ -132,7 +132,7 @@ def _report(runs, **over):
 
 
 def test_merge_keeps_the_earlier_tuners_replaces_a_rerun_one_and_refuses_another_problem():
-    from benchmarks.studies.tuners import merge_runs, summarise
+    from tuning.report import merge_runs
 
     old = _report(
         {
@@ -157,7 +157,7 @@ def test_merge_keeps_the_earlier_tuners_replaces_a_rerun_one_and_refuses_another
     assert runs["cold"]["lbfgs"] is old["runs"]["cold"]["lbfgs"]
     assert list(runs["warm"]) == ["lbfgs"]
     assert sorted(old["runs"]["cold"]) == ["cmaes", "lbfgs"]  # the earlier report untouched
-    s = summarise(runs)  # the target and table of all of them
+    s = time_to_target(runs)  # the target and table of all of them
     assert s["target"] == 1.0
     assert s["table"]["cold"]["cmaes"]["wall_s_to_1%"] == 8.0
     assert s["table"]["cold"]["bayes"]["wall_s_to_5%"] == 20.0

@@ -17,6 +17,8 @@ __all__ = [
     "plot_before_after",
     "plot_loss_terms",
     "time_to_target",
+    "MERGE_KEYS",
+    "merge_runs",
 ]
 
 
@@ -256,3 +258,33 @@ def time_to_target(
                     tg, tb = to_1[g], to_1[b]
                     ratios[f"{c}: {g}/{b} at 1%"] = tg / tb if tg is not None and tb else None
     return {"target": target, "table": table, "ratios_wall_s_to_1%": ratios}
+
+
+#: keys of two reports of the tuner study (``python -m benchmarks.studies.tuners``) that must
+#: agree for ``--merge``: the same problem, measured the same way
+MERGE_KEYS = (
+    "config", "seconds", "rollouts_budget", "grad_ratio", "grad_mode", "x64", "sigma0",
+    "random_radius", "seed",
+)  # fmt: skip
+
+
+def merge_runs(earlier: dict, rep: dict) -> dict:
+    """``rep``'s runs with those of the ``earlier`` report added: per cache, a tuner of
+    ``rep`` replaces the earlier run of the same name. ``ValueError`` naming the first key of
+    ``MERGE_KEYS`` on which the two reports differ."""
+    for k in MERGE_KEYS:
+        if earlier.get(k) != rep.get(k):
+            raise ValueError(
+                f"--merge: the earlier report has {k} = {earlier.get(k)!r}, this run "
+                f"{rep.get(k)!r}: not the same problem measured the same way"
+            )
+    a, b = earlier.get("config_sha256"), rep.get("config_sha256")
+    if a is not None and b is not None and a != b:
+        raise ValueError(
+            f"--merge: {rep.get('config')} changed since the earlier report (its contents "
+            "differ): not the same problem"
+        )
+    runs = {c: dict(by) for c, by in earlier.get("runs", {}).items()}
+    for c, by in rep["runs"].items():
+        runs.setdefault(c, {}).update(by)
+    return runs

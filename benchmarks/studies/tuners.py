@@ -73,15 +73,8 @@ __all__ = [
     "run_tuner",
     "run_study",
     "summarise",
-    "merge_runs",
     "main",
 ]
-
-#: report keys that must agree for ``--merge`` (the same problem, measured the same way)
-MERGE_KEYS = (
-    "config", "seconds", "rollouts_budget", "grad_ratio", "grad_mode", "x64", "sigma0",
-    "random_radius", "seed",
-)  # fmt: skip
 
 
 def run_tuner(
@@ -231,28 +224,6 @@ def run_study(args, say=lambda m: None) -> dict:
                     f"  best held-out {runs[c][tuner]['best_heldout']:.6g} after "
                     f"{runs[c][tuner]['wall_s']:.1f} s, {runs[c][tuner]['rollouts']} rollouts"
                 )
-    return runs
-
-
-def merge_runs(earlier: dict, rep: dict) -> dict:
-    """``rep``'s runs with those of the ``earlier`` report added: per cache, a tuner of
-    ``rep`` replaces the earlier run of the same name. ``ValueError`` naming the first key of
-    :data:`MERGE_KEYS` on which the two reports differ."""
-    for k in MERGE_KEYS:
-        if earlier.get(k) != rep.get(k):
-            raise ValueError(
-                f"--merge: the earlier report has {k} = {earlier.get(k)!r}, this run "
-                f"{rep.get(k)!r}: not the same problem measured the same way"
-            )
-    a, b = earlier.get("config_sha256"), rep.get("config_sha256")
-    if a is not None and b is not None and a != b:
-        raise ValueError(
-            f"--merge: {rep.get('config')} changed since the earlier report (its contents "
-            "differ): not the same problem"
-        )
-    runs = {c: dict(by) for c, by in earlier.get("runs", {}).items()}
-    for c, by in rep["runs"].items():
-        runs.setdefault(c, {}).update(by)
     return runs
 
 
@@ -439,6 +410,8 @@ def main(argv=None) -> int:
         if args.merge is not None:
             if args.quick:
                 raise ValueError("--merge: a --quick run is not a measurement to merge")
+            from tuning.report import merge_runs
+
             earlier = _read_merge(args.merge)
             merge_runs(earlier, {**rep, "runs": {}})  # the settings agree: before any work
         if args.quick:
