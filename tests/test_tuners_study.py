@@ -165,8 +165,9 @@ def test_merge_keeps_the_earlier_tuners_replaces_a_rerun_one_and_refuses_another
     for key, value in (("seconds", 60.0), ("seed", 1), ("x64", False), ("config", "q.toml")):
         with pytest.raises(ValueError, match=f"--merge: the earlier report has {key} = "):
             merge_runs(old, _report({}, **{key: value}))
-    with pytest.raises(ValueError, match="changed since the earlier report"):
-        merge_runs(old, _report({}, config_sha256="b" * 64))
+    for mine, theirs in (("a", "b"), ("b", "a")):  # either way round
+        with pytest.raises(ValueError, match="changed since the earlier report"):
+            merge_runs(_report({}, config_sha256=mine * 64), _report({}, config_sha256=theirs * 64))
     unknown = {k: v for k, v in old.items() if k != "config_sha256"}  # older reports: no hash
     assert sorted(merge_runs(unknown, new)["cold"]) == ["bayes", "cmaes", "lbfgs"]
 
