@@ -18,27 +18,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from test_tuning_power_optim import _adam_numpy  # Adam written out in numpy
 
 
 def _bowl(th, c):
     """() a quadratic bowl around ``c`` (2,)."""
     return 0.5 * jnp.sum((th - c) ** 2)
-
-
-def _adam_numpy(grad_fn, theta, steps, lr, b1=0.9, b2=0.999, eps=1e-8):
-    """Adam's iterates written out (Kingma and Ba, algorithm 1; optax's defaults)."""
-    theta = np.array(theta, dtype=float)
-    m = np.zeros_like(theta)
-    v = np.zeros_like(theta)
-    out = []
-    for t in range(1, steps + 1):
-        g = grad_fn(theta)
-        m = b1 * m + (1 - b1) * g
-        v = b2 * v + (1 - b2) * g * g
-        upd = -lr * (m / (1 - b1**t)) / (np.sqrt(v / (1 - b2**t)) + eps)
-        out.append((theta.copy(), g, upd))
-        theta = theta + upd
-    return out, theta
 
 
 # ------------------------------------------------------------------ the optimisers' defaults
