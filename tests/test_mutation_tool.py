@@ -38,3 +38,26 @@ def test_a_line_run_at_import_runs_every_test_of_the_target_those_of_its_file_fi
     assert mt.select_tests(SRC, 4, by_line, times)[0] == ["t_g", "t_f", "t_data", "t_other"]
     assert mt.select_tests(SRC, 5, by_line, times) == (["t_g", "t_f"], "line")
     assert mt.select_tests(SRC, 2, by_line, times) == ([], "uncovered")  # a blank line
+
+
+def test_a_fixtures_setup_is_credited_to_every_test_of_its_file():
+    """A line run while a fixture is set up (coverage's ``|setup`` phase: a module-scoped
+    fixture is set up once, in the first test's context) is credited to every passed test of
+    that test file, not only the first; a line of a test's own run to that test (when it
+    passed unmutated); import-time lines stay ``""``."""
+    mt = _tool()
+    passed = {
+        "tests/a.py::t1": 1.0,
+        "tests/a.py::t2": 0.5,
+        "tests/a.py::C::t3": 0.2,
+        "tests/b.py::t4": 1.0,
+    }
+    assert mt.credited("tests/a.py::t1|setup", passed) == {
+        "tests/a.py::t1",
+        "tests/a.py::t2",
+        "tests/a.py::C::t3",
+    }
+    assert mt.credited("tests/a.py::t2|run", passed) == {"tests/a.py::t2"}
+    assert mt.credited("tests/a.py::t2|teardown", passed) == {"tests/a.py::t2"}
+    assert mt.credited("tests/b.py::failed|run", passed) == set()  # failed unmutated
+    assert mt.credited("", passed) == {""}

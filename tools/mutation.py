@@ -22,7 +22,9 @@ stopping at the first failure (``-x``); a mutant on a line no test executes surv
 running anything (``"uncovered"``). A line run at import (module-level code: constants, a
 section's declared bounds, dataclass defaults, ``def`` headers) is credited to no test, and a
 test may read what it declares as data without running a line of the file: its mutants run
-every test of the target, the tests that run the file first. Programs a mutant leaves
+every test of the target, the tests that run the file first. Lines a fixture's setup runs
+are credited to every test of the fixture's test file (a fixture of module scope is set up once,
+in the first test's context, for all of them). Programs a mutant leaves
 unchanged come from JAX's persistent compilation cache in the scratch folder (a changed
 program has another cache key).
 
@@ -334,11 +336,24 @@ def collect_coverage(name: str, work: Path, tree: Path, python: str) -> tuple[di
     by_file = {}
     for f in files:
         lines = cov.contexts_by_lineno(str((tree / f).resolve())) or {}
-        by_file[f] = {
-            n: {_PHASE.sub("", c) for c in cs if _PHASE.sub("", c) in passed or c == ""}
-            for n, cs in lines.items()
-        }
+        by_file[f] = {n: set().union(*(credited(c, passed) for c in cs)) for n, cs in lines.items()}
     return by_file, passed
+
+
+def credited(context: str, passed) -> set:
+    """The tests a coverage context credits with its lines: the context's own test (when it
+    passed unmutated); for a fixture's setup, every passed test of the same test file. A fixture
+    of module (or wider) scope is set up once, in the context of the first test that asks for
+    it, yet every later test that uses it reads what it computed (a fit, a tune run once for the
+    whole file): a mutant of those lines must run them too. ``""`` (run at import) stays as it
+    is (:func:`select_tests`)."""
+    if context == "":
+        return {""}
+    test = _PHASE.sub("", context)
+    if context.endswith("|setup"):
+        module = test.split("::")[0]
+        return {n for n in passed if n.split("::")[0] == module}
+    return {test} if test in passed else set()
 
 
 #: third-party modules the mutant server imports once, before it forks a pytest per mutant
