@@ -11,6 +11,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from test_identify import _dense  # the whole sparse Jacobian as one dense matrix
 
 from vcjax.identify import fit
 
@@ -91,12 +92,8 @@ def _blocks(seed=0, J=3, m=5, p=2, n=2):
 
 def _full_covariance(Jz, Js):
     """The (p, p) block of ``inv(J^T J)`` of the whole sparse Jacobian (numpy, no Schur)."""
-    J_, m, p = Jz.shape
-    n = Js.shape[2]
-    full = np.zeros((J_ * m, p + J_ * n))
-    for j in range(J_):
-        full[j * m : (j + 1) * m, :p] = Jz[j]
-        full[j * m : (j + 1) * m, p + j * n : p + (j + 1) * n] = Js[j]
+    full = _dense(Jz, Js)
+    p = Jz.shape[2]
     return np.linalg.inv(full.T @ full)[:p, :p]
 
 
