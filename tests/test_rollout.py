@@ -316,3 +316,70 @@ def test_batch_gradients_in_shared_and_per_scenario_parameters_match_finite_diff
         np.testing.assert_allclose(jax.jit(jax.grad(f))(a), ref, rtol=1e-6, atol=1e-9)
         if i == 0:
             np.testing.assert_allclose(jax.jit(jax.jacfwd(f))(a), ref, rtol=1e-6, atol=1e-9)
+
+
+def chain_plant(t, x, u, p):
+    """Six masses on nonlinear springs (12 states: a 6-DOF vehicle's size), force on the last."""
+    q, v = x[:6], x[6:]
+    stretch = jnp.diff(jnp.concatenate([jnp.zeros(1, x.dtype), q]))
+    spring = p[0] * jnp.sin(stretch) + 0.1 * stretch**3
+    force = spring - jnp.concatenate([spring[1:], jnp.zeros(1, x.dtype)]) - p[1] * v
+    return jnp.concatenate([v, -force + jnp.zeros(6, x.dtype).at[5].set(u)])
+
+
+def chain_pd(t, x, z, gains):
+    kp, kd, ki = gains
+    u = -kp * x[5] - kd * x[11] - ki * z
+    return u, x[5], {"u": u}
+
+
+def test_checkpoint_recomputes_the_stages_of_a_six_dof_sized_plant_only():
+    """With ``checkpoint`` (the default), a plant of LOOP_STATE state entries or more has its
+    RK4 stages rematerialised (they stack only their inputs for the backward pass) instead of
+    its step (under a continuous law); the 2-state plant keeps its stage tape inside a
+    checkpointed step. The gradient is the stored tape's to round-off either way."""
+    from tests.reference.programs import stage_stacks
+    from vcjax.rollout import LOOP_STATE
+
+    assert LOOP_STATE == 12
+
+    def loss(gains, checkpoint, chain):
+        cfg = RolloutConfig(num_steps=40, checkpoint=checkpoint)
+        pl, ctrl = (chain_plant, chain_pd) if chain else (plant, pd_controller)
+        x0 = jnp.linspace(0.1, 0.6, 12) if chain else jnp.array([1.0, 0.0])
+        traj = rollout(pl, ctrl, cfg, jnp.array([2.0, 0.3]), gains, x0, jnp.array(0.0), 0.02)
+        return jnp.sum(traj.x**2)
+
+    g = jnp.array([1.5, 0.8, 0.4])
+    for chain in (False, True):
+        a = jax.jit(jax.value_and_grad(loss), static_argnums=(1, 2))(g, False, chain)
+        b = jax.jit(jax.value_and_grad(loss), static_argnums=(1, 2))(g, True, chain)
+        np.testing.assert_allclose(a[0], b[0], rtol=1e-13)
+        np.testing.assert_allclose(a[1], b[1], rtol=1e-11, atol=1e-13)
+    stacks = lambda checkpoint, chain: stage_stacks(
+        jax.grad(lambda g_: loss(g_, checkpoint, chain)), g
+    )
+    assert stacks(True, True) < stacks(False, True)  # the chain's stages recomputed
+    assert stacks(True, False) >= 4  # the small plant's stages keep their (few) values
+
+    def checkpoints(chain):  # jax.checkpoint calls: (around a stage, elsewhere: the step)
+        from jax._src import core as jcore
+        from jax._src.ad_checkpoint import remat_p
+
+        found = [0, 0]
+
+        def walk(jaxpr, in_stage):
+            for e in jaxpr.eqns:
+                if e.primitive is remat_p:
+                    found[0 if in_stage else 1] += 1
+                stage = e.primitive.name == "scan" and e.params["length"] == 4
+                for v in e.params.values():
+                    if isinstance(v, jcore.ClosedJaxpr | jcore.Jaxpr):
+                        walk(getattr(v, "jaxpr", v), in_stage or stage)
+
+        walk(jax.make_jaxpr(lambda g_: loss(g_, True, chain))(g).jaxpr, False)
+        return tuple(found)
+
+    # the chain's stages are checkpointed (the whole step is its stage loop: not the step
+    # again); the small plant's step is checkpointed
+    assert (checkpoints(True), checkpoints(False)) == ((1, 0), (0, 1))

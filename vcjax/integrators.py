@@ -125,7 +125,7 @@ _RK4_C = (0.0, 0.5, 0.5, 1.0)
 _RK4_W = (1.0, 2.0, 2.0, 1.0)
 
 
-def rk4(f: Callable, t, y, dt, args):
+def rk4(f: Callable, t, y, dt, args, *, remat: bool = False):
     """Classical fourth-order Runge–Kutta.
 
     The four stages run as one ``lax.scan`` over the tableau, so ``f`` (a closed loop's plant
@@ -133,6 +133,13 @@ def rk4(f: Callable, t, y, dt, args):
     step instead of four times: the program is about 4x smaller and builds that much faster.
     The arithmetic is the textbook one, in the same order: stage inputs ``y + (c dt) k`` and
     the increment ``((k1 + 2 k2) + 2 k3) + k4) / 6``.
+
+    ``remat=True`` rematerialises each stage in reverse mode (``jax.checkpoint`` of ``f``):
+    the stage loop's backward pass keeps only the stages' inputs and evaluates ``f`` again,
+    instead of stacking every intermediate value of ``f`` for the four stages (about a
+    thousand for a 6-DOF vehicle under a continuous law) and reading them back. The same
+    values to round-off; no effect on a forward evaluation. The rollout sets it with its
+    ``checkpoint`` ([`RolloutConfig`][vcjax.rollout.RolloutConfig]).
     """
     import jax.numpy as jnp
 
@@ -145,12 +152,14 @@ def rk4(f: Callable, t, y, dt, args):
     # has one, and linearising this scan settles in one round (see dense_tangent); the same
     # numbers (y is finite: the rollout freezes a non-finite state)
     zeros = jax.tree_util.tree_map(lambda a: 0 * a, y)
+    # inside a scan (which already keeps the stages apart): no CSE barrier needed
+    field = jax.checkpoint(f, prevent_cse=False) if remat else f
 
     def stage(carry, cw):
         k_prev, acc = carry
         c, w = cw
         h = c * dt
-        k, aux = f(t + h, _axpy(h, k_prev, y), args)
+        k, aux = field(t + h, _axpy(h, k_prev, y), args)
         acc = jax.tree_util.tree_map(lambda s, ki: s + w * ki, acc, k)
         return (k, acc), aux
 
