@@ -51,6 +51,7 @@ import platform
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from benchmarks import _common as C
@@ -107,7 +108,15 @@ def parse_args(argv=None):
         help="XLA_FLAGS as a Python user has them (XLA's defaults) and every program built with "
         "vcjax.jit (the per-program option vcjax's own programs compile with)",
     )
+    p.add_argument(
+        "--run",
+        action="store_true",
+        help="also time a warm call of each loop program (best of 5, block_until_ready): "
+        "run_s in the JSON (costs one more compile of each)",
+    )
     args = p.parse_args(argv)
+    if args.run and (args.before or args.no_compile):
+        p.error("--run: measure it without --before and --no-compile")
     if args.vcjax_jit and args.before:
         p.error("--vcjax-jit: measure it without --before (the older revisions have no vcjax.jit)")
     if args.vcjax_jit and args.xla_default:
@@ -208,11 +217,26 @@ def tune_program(config: Path):
     return {"step": (step, (theta, state, jnp.asarray(1.0, theta.dtype), args))}
 
 
+def _run_time(fn, *args, repeats: int = 5) -> float:
+    """Best of ``repeats`` warm calls of ``fn`` (jitted; one call first to compile)."""
+    import jax
+
+    jitted = fn if hasattr(fn, "lower") else jax.jit(fn)
+    jax.block_until_ready(jitted(*args))
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(jitted(*args))
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
 def _say(name: str, kind: str, r: dict) -> None:
     comp = "-" if r["compile_s"] is None else f"{r['compile_s']:.2f}"
+    run = f"  run {r['run_s'] * 1e3:8.1f} ms" if "run_s" in r else ""
     print(
         f"  {name:28s} {kind:8s} trace {r['trace_s']:7.2f} s  lower {r['lower_s']:6.2f} s"
-        f"  compile {comp:>7s} s  {r['hlo_lines']:8d} lines",
+        f"  compile {comp:>7s} s  {r['hlo_lines']:8d} lines{run}",
         flush=True,
     )
 
@@ -258,6 +282,8 @@ def _main(args) -> dict:
             r = build_times(
                 fwd if kind == "forward" else grad, gains, sc, compile=not args.no_compile
             )
+            if args.run:
+                r["run_s"] = _run_time(fwd if kind == "forward" else grad, gains, sc)
             entry[kind] = r
             rows.append({"program": name, "kind": kind, **r, "load": C.load_average()})
             _say(name, kind, r)
@@ -282,6 +308,7 @@ def _main(args) -> dict:
     mach["load_average_1min_at_end"] = C.load_average()
     doc = {"machine": mach, **results}
     cols = ["program", "kind", "trace_s", "lower_s", "compile_s", "hlo_lines", "load"]
+    cols += ["run_s"] if args.run else []
     C.print_table(rows, cols, title="compile times (s) and StableHLO size")
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
