@@ -199,9 +199,12 @@ def test_tune_counts_the_sea_on_its_gradient_tape(tmp_path):
 
 
 def test_a_tune_with_ten_million_components_is_refused(tmp_path, capsys, monkeypatch):
-    import tuning
+    import tuning.run
 
-    monkeypatch.setattr(tuning, "run_tune_config", _no_run)  # never the run (see above)
+    # never the run (see above); patched where ``tuning``'s lazy name finds it: patching
+    # ``tuning.run_tune_config`` itself would bind the real function into ``tuning`` when the
+    # patch is undone, and later tests' stubs of ``tuning.run`` would no longer be seen
+    monkeypatch.setattr(tuning.run, "run_tune_config", _no_run)
     text = TUNE_WAVES.replace("[waves]\n", "[waves]\ncomponents = 10000000\n")
     cfg = _config(tmp_path, text)
     rc, err = _run(["tune", cfg, "--out", tmp_path / "out"], capsys)
