@@ -163,7 +163,7 @@ def test_overwrite_keeps_the_gains_a_tune_refines_in_its_own_out(tmp_path, monke
     assert 'controller = "vcm"' in text
     cfg = _config(tmp_path, text)
     seen: dict = {}
-    _stub(monkeypatch, "tuning", "run_tune_config", seen)
+    _stub(monkeypatch, "tuning.run", "run_tune_config", seen)  # where tuning's lazy name looks
     rc, err = _run(["tune", cfg, "--out", out, "--overwrite"], capsys)
     assert rc == 2 and "stub: stopped after the checks" in err, err
     assert seen["at_start"] == [outputs.LOCK, "gains.json"]

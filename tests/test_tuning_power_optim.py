@@ -269,6 +269,10 @@ def _stub_tuner(monkeypatch, summary=None, error=None):
         return {"files": [f"{out}/gains.json"], "summary": summary}
 
     monkeypatch.setattr(tuning.run, "run_tune_config", fake)
+    # a test that patched the lazy name ``tuning.run_tune_config`` itself leaves the real
+    # function bound in ``tuning`` (pytest's undo sets what ``__getattr__`` returned): drop it
+    # for this test, so that ``vcjax tune`` looks the name up in ``tuning.run`` again
+    monkeypatch.delitem(vars(tuning), "run_tune_config", raising=False)
     return calls
 
 
