@@ -51,7 +51,6 @@ import platform
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 from benchmarks import _common as C
@@ -217,18 +216,12 @@ def tune_program(config: Path):
     return {"step": (step, (theta, state, jnp.asarray(1.0, theta.dtype), args))}
 
 
-def _run_time(fn, *args, repeats: int = 5) -> float:
-    """Best of ``repeats`` warm calls of ``fn`` (jitted; one call first to compile)."""
+def _run_time(fn, *args) -> float:
+    """Best of 5 warm calls of ``fn`` (jitted; one call first to compile)."""
     import jax
 
     jitted = fn if hasattr(fn, "lower") else jax.jit(fn)
-    jax.block_until_ready(jitted(*args))
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(jitted(*args))
-        best = min(best, time.perf_counter() - t0)
-    return best
+    return C.best_of(lambda: jitted(*args), repeats=5)
 
 
 def _say(name: str, kind: str, r: dict) -> None:
