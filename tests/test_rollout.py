@@ -338,7 +338,7 @@ def test_checkpoint_recomputes_the_stages_of_a_six_dof_sized_plant_only():
     RK4 stages rematerialised (they stack only their inputs for the backward pass) instead of
     its step (under a continuous law); the 2-state plant keeps its stage tape inside a
     checkpointed step. The gradient is the stored tape's to round-off either way."""
-    from tests.reference.programs import stage_stacks
+    from tests.reference.programs import program_eqns, stage_stacks
     from vcjax.rollout import LOOP_STATE
 
     assert LOOP_STATE == 12
@@ -363,22 +363,11 @@ def test_checkpoint_recomputes_the_stages_of_a_six_dof_sized_plant_only():
     assert stacks(True, False) >= 4  # the small plant's stages keep their (few) values
 
     def checkpoints(chain):  # jax.checkpoint calls: (around a stage, elsewhere: the step)
-        from jax._src import core as jcore
         from jax._src.ad_checkpoint import remat_p
 
-        found = [0, 0]
-
-        def walk(jaxpr, in_stage):
-            for e in jaxpr.eqns:
-                if e.primitive is remat_p:
-                    found[0 if in_stage else 1] += 1
-                stage = e.primitive.name == "scan" and e.params["length"] == 4
-                for v in e.params.values():
-                    if isinstance(v, jcore.ClosedJaxpr | jcore.Jaxpr):
-                        walk(getattr(v, "jaxpr", v), in_stage or stage)
-
-        walk(jax.make_jaxpr(lambda g_: loss(g_, True, chain))(g).jaxpr, False)
-        return tuple(found)
+        eqns = program_eqns(lambda g_: loss(g_, True, chain), g)
+        inside = [in_stage for e, in_stage in eqns if e.primitive is remat_p]
+        return sum(inside), len(inside) - sum(inside)
 
     # the chain's stages are checkpointed (the whole step is its stage loop: not the step
     # again); the small plant's step is checkpointed

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 
-__all__ = ["DT", "build_times", "loop_programs", "stage_stacks"]
+__all__ = ["DT", "build_times", "loop_programs", "program_eqns", "stage_stacks"]
 
 #: the step [s] of the benchmarks' rollouts (``benchmarks/_common.py``)
 DT = 0.05
@@ -66,22 +66,34 @@ def loop_programs(vehicle: str, controller: str, steps: int, timing: str, dt: fl
     return forward, jax.value_and_grad(forward), gains, sc
 
 
+def program_eqns(fn, *args):
+    """``(eqn, in_stage)`` for every equation of ``fn``'s jaxpr at ``args``, nested jaxprs
+    included; ``in_stage``: inside an RK4 stage loop (the body of a ``lax.scan`` of length 4)."""
+    import jax
+    from jax._src import core as jcore
+
+    def walk(jaxpr, in_stage):
+        for e in jaxpr.eqns:
+            yield e, in_stage
+            stage = in_stage or _is_stage_loop(e)
+            for v in e.params.values():
+                if isinstance(v, jcore.ClosedJaxpr | jcore.Jaxpr):
+                    yield from walk(getattr(v, "jaxpr", v), stage)
+
+    yield from walk(jax.make_jaxpr(fn)(*args).jaxpr, False)
+
+
+def _is_stage_loop(eqn) -> bool:
+    return eqn.primitive.name == "scan" and eqn.params["length"] == 4
+
+
 def stage_stacks(fn, *args) -> int:
     """The most values any RK4 stage loop (a ``lax.scan`` of length 4) in ``fn``'s jaxpr at
     ``args`` stacks as outputs: under reverse mode, what the stages keep for the backward pass
     (0 when there is no stage loop)."""
-    import jax
-    from jax._src import core as jcore
-
-    found = [0]
-
-    def walk(jaxpr):
-        for e in jaxpr.eqns:
-            if e.primitive.name == "scan" and e.params["length"] == 4:
-                found.append(len(e.outvars) - e.params["num_carry"])
-            for v in e.params.values():
-                if isinstance(v, jcore.ClosedJaxpr | jcore.Jaxpr):
-                    walk(getattr(v, "jaxpr", v))
-
-    walk(jax.make_jaxpr(fn)(*args).jaxpr)
-    return max(found)
+    stacks = [
+        len(e.outvars) - e.params["num_carry"]
+        for e, _ in program_eqns(fn, *args)
+        if _is_stage_loop(e)
+    ]
+    return max(stacks, default=0)
