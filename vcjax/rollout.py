@@ -97,10 +97,11 @@ class RolloutConfig:
             RK4's stages are checkpointed instead (``rk4(..., remat=True)``; with a sampled
             controller, or ``checkpoint_every > 1``, as well): the backward pass evaluates each
             stage's vector field again instead of stacking its thousand or so intermediate
-            values for the four stages. REMUS 100 ``vcm3d_ilos``'s gradient builds in about
-            two thirds of the time and runs in 0.75x. A 3-DOF field has few intermediates, and
-            recomputing it costs more than reading them back (a batch of 256 INFANTE
-            gradients: 1.2x the time), so its stages are not.
+            values for the four stages; with a continuous controller and ``checkpoint_every =
+            1`` it keeps the four stages' inputs per step (about 4 carries, not 1). REMUS 100
+            ``vcm3d_ilos``'s gradient builds in about two thirds of the time and runs in 0.75x.
+            A 3-DOF field has few intermediates, and recomputing it costs more than reading
+            them back (a batch of 256 INFANTE gradients: 1.2x the time), so its stages are not.
         checkpoint_every: with ``checkpoint``, the segment length K: ``K = 1`` checkpoints every
             step (memory ~ N x carry); ``K > 1`` checkpoints segments of K steps (memory
             ~ N/K x carry + K x one step's intermediates, minimal near
