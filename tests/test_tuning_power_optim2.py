@@ -277,17 +277,22 @@ def test_the_loop_reverts_halves_and_counts_stalls_by_its_rules():
         (2.5, True, 0.0),  # 7: from (3, 0), stall 1
         (1.0, True, 0.0),  # 8: from (4, 0), stall 2
     ]
-    seen = []
-    res = run_gradient_tuner(
-        lambda th, a: jnp.sum(th) * 0.0 + a,
-        jnp.zeros(2),
-        (jnp.asarray(9.0),),
-        optimizer="adam",
-        steps=len(script),
-        grad_tol=0.0,
-        max_bad_steps=2,  # two rejections, not in a row: no abort
-        step_fn=_scripted(script, seen),
-    )
+
+    def run(scripted, steps=None, **kw):  # the loss is 9 everywhere: the script moves
+        seen = []
+        res = run_gradient_tuner(
+            lambda th, a: jnp.sum(th) * 0.0 + a,
+            jnp.zeros(2),
+            (jnp.asarray(9.0),),
+            optimizer="adam",
+            steps=len(scripted) if steps is None else steps,
+            step_fn=_scripted(scripted, seen),
+            **kw,
+        )
+        return res, seen
+
+    # two rejections, not in a row: no abort
+    res, seen = run(script, grad_tol=0.0, max_bad_steps=2)
     assert [s[0][0] for s in seen] == [0, 1, 2, 3, 4, 3, 4, 3, 4]
     assert [s[1] for s in seen[1:]] == [0, 1, 2, 3, 2, 5, 2, 7]
     assert [s[2] for s in seen] == [1, 1, 1, 1, 1, 0.5, 0.5, 0.25, 0.25]
@@ -297,28 +302,12 @@ def test_the_loop_reverts_halves_and_counts_stalls_by_its_rules():
     np.testing.assert_array_equal(res.theta, [4.0, 0.0])  # step 8's input, loss 1
     assert res.loss == 1.0  # the final iterate's loss (9, from the loss function) is higher
 
-    seen = []  # a third zero update in a row: stalled there (the last step)
-    res = run_gradient_tuner(
-        lambda th, a: jnp.sum(th) * 0.0 + a,
-        jnp.zeros(2),
-        (jnp.asarray(9.0),),
-        optimizer="adam",
-        steps=6,
-        grad_tol=0.0,
-        step_fn=_scripted(script[:3] + [(2.0, True, 0.0)] * 3, seen),
-    )
+    # a third zero update in a row: stalled there (the last step)
+    res, _ = run(script[:3] + [(2.0, True, 0.0)] * 3, grad_tol=0.0)
     assert res.reason == "stalled" and len(res.history) == 6
 
-    seen = []  # two rejections in a row after an accepted step: aborted there
-    res = run_gradient_tuner(
-        lambda th, a: jnp.sum(th) * 0.0 + a,
-        jnp.zeros(2),
-        (jnp.asarray(9.0),),
-        optimizer="adam",
-        steps=9,
-        max_bad_steps=2,
-        step_fn=_scripted([script[0], script[4], script[4], script[0]], seen),
-    )
+    # two rejections in a row after an accepted step: aborted there
+    res, _ = run([script[0], script[4], script[4], script[0]], steps=9, max_bad_steps=2)
     assert res.reason == "aborted: 2 consecutive non-finite steps" and len(res.history) == 3
     np.testing.assert_array_equal(res.theta, [0.0, 0.0])
     assert res.loss == 5.0 and res.aborted
