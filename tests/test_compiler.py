@@ -3,6 +3,8 @@ user already chose, or turned it off, or the jaxlib predates the flag."""
 
 import functools
 
+import pytest
+
 import vcjax.runtime.compiler as comp
 from vcjax.runtime.compiler import ENV, FLAG, prefer_fast_compile
 
@@ -216,3 +218,64 @@ def test_vcjax_jit_takes_jax_jit_arguments_and_decorates():
     assert float(power(jnp.asarray(2.0), n=2)) == 4.0
     assert power._cache_size() == 2  # one program per static value, as jax.jit
     assert vcjax.jit(static_argnums=(1,))(lambda x, n: x * n)(jnp.asarray(2.0), 3) == 6.0
+
+
+def test_light_programs_ask_for_level_one_where_vcjax_chooses(monkeypatch):
+    """``light``: LLVM's level 1 on the CPU as well, unless XLA_FLAGS sets the level (yours
+    wins), VCJAX_FAST_COMPILE is off or the jaxlib is newer than the checked one; the kernel
+    generator follows its own exceptions."""
+    from vcjax.runtime.compiler import LIGHT, OPTION, compile_options
+
+    monkeypatch.setattr(comp, "_jaxlib_version", lambda: (0, 10))
+    assert compile_options({}, light=True) == {OPTION: False, **LIGHT}
+    assert compile_options({"XLA_FLAGS": FLAG}, light=True) == LIGHT  # the generator: yours
+    level0 = {"XLA_FLAGS": "--xla_backend_optimization_level=0"}
+    assert compile_options(level0, light=True) == {OPTION: False}  # the level: yours
+    assert compile_options({ENV: "off"}, light=True) == {}
+    monkeypatch.setattr(comp, "_jaxlib_version", lambda: (0, 5))  # before the generator's flag
+    assert compile_options({}, light=True) == LIGHT
+    monkeypatch.setattr(comp, "_jaxlib_version", lambda: (0, 11))  # unchecked: XLA's defaults
+    assert compile_options({}, light=True) == {}
+    monkeypatch.setattr(comp, "_jaxlib_version", lambda: (0, 10))
+    monkeypatch.setattr("jax.default_backend", lambda: "gpu")
+    assert compile_options({}, light=True) == {}
+
+
+def _draws(config, options):
+    """Every leaf of 96 scenarios of the example sweep ``config``, drawn by its sampler compiled
+    with ``options`` on top of vcjax's own (explicit options override the suite's level 0)."""
+    from pathlib import Path
+
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from vcjax.sweep import load_config
+    from vcjax.sweep import spec as S
+
+    spec, _ = load_config(Path(__file__).parent.parent / "examples" / "sweeps" / config)
+    loop = spec.loop(spec.variants[0])
+    fn = jax.jit(S._sample._fun, static_argnames=("loop", "spec", "dtype"))
+    idx = jnp.arange(96, dtype=jnp.int32)
+    args = (loop, spec.scenario, "float64", jnp.asarray(spec.seed, jnp.uint32), idx)
+    compiled = fn.lower(*args).compile({**comp.compile_options(), **options})
+    out = compiled(args[3], idx)
+    leaves = jax.tree_util.tree_leaves(out)
+    return [
+        np.asarray(jax.random.key_data(x) if jnp.issubdtype(x.dtype, jax.dtypes.prng_key) else x)
+        for x in leaves
+    ]
+
+
+@pytest.mark.parametrize("config", ["large.toml", "remus100_waves.toml"])
+def test_the_light_sampler_draws_the_same_bits_as_xla_default_level(config):
+    """The sweep's scenario sampler is a light program (LLVM level 1): the same scenarios, bit
+    for bit, as at XLA's default level 3, for draws of every kind (a Gauss-Markov current,
+    initial offsets, model errors, sensor noise; a sea and REMUS 100's initial keys)."""
+    from vcjax.runtime.compiler import LIGHT
+
+    default = _draws(config, {"xla_backend_optimization_level": 3})
+    light = _draws(config, LIGHT)
+    assert len(default) == len(light) > 10
+    for a, b in zip(default, light, strict=True):
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes()

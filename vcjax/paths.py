@@ -296,8 +296,9 @@ def _path_samples(path: Path, coeffs, w0, w1, num: int):
 
 
 # ``_path_samples`` as one program per path kind and coefficient shapes: op by op, the first
-# check of a process compiled some fifty one-operation kernels (a second of a cold start)
-_path_samples_jit = compiler.jit(_path_samples, static_argnums=(0, 4))
+# check of a process compiled some fifty one-operation kernels (a second of a cold start); light
+# (LLVM's level 1: a fifth of the compile): its samples feed the check alone, never a result
+_path_samples_jit = compiler.jit(_path_samples, static_argnums=(0, 4), light=True)
 
 
 def _samples(path: Path, coeffs, w0, w1, num: int):
