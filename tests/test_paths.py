@@ -189,3 +189,29 @@ def test_path_pose_derivatives_equal_the_frames_at_every_order():
     f = paths.path_frame(path, c, w)  # and the frame's own fields
     np.testing.assert_allclose(got[1][3:], [f.dpsi_dw, f.dtheta_dw, f.dspeed_bar_dw], rtol=1e-12)
     assert float(got[2][3]) == pytest.approx(float(f.d2psi_dw2), rel=1e-12)
+
+
+def test_a_path_check_passed_once_is_not_repeated_for_the_same_values(monkeypatch):
+    """``validate_path`` keeps the checks it passed (path, coefficient values, range, samples):
+    a config building its path once per controller checks it once; other values, another range
+    and a failing check are checked every time."""
+    from vcjax import paths
+
+    calls = []
+    real = paths._check_samples
+    monkeypatch.setattr(paths, "_PASSED", {})
+    monkeypatch.setattr(paths, "_check_samples", lambda *a: (calls.append(a[1:]), real(*a))[1])
+    for _ in range(3):
+        paths.lawnmower((0.0, 0.0, 1.0), 250.0, 30.0, 4, 15.0, 150.0)
+    assert len(calls) == 1
+    paths.lawnmower((0.0, 0.0, 1.0), 250.0, 30.0, 4, 16.0, 150.0)  # another depth
+    path, coeffs = paths.circle(radius=7.0)
+    paths.validate_path(path, coeffs, (-5.0, 5.0))
+    paths.validate_path(path, coeffs, (-5.0, 6.0))  # another range
+    paths.validate_path(path, coeffs, (-5.0, 6.0))
+    assert len(calls) == 5  # the circle checked as it was built, and on each new range
+    cusp = paths.Path(paths._NoCoeffs(lambda w: jnp.stack([w**3, 2 * w**3])), "cusp")
+    for _ in range(2):
+        with pytest.raises(ValueError, match="vanishes"):
+            paths.validate_path(cusp, (), (-1.0, 1.0))
+    assert len(calls) == 7

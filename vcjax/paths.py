@@ -311,8 +311,36 @@ def _samples(path: Path, coeffs, w0, w1, num: int):
         return _path_samples(path, coeffs, w0, w1, num)
 
 
+#: the checks ``validate_path`` passed in this process (path, range, samples and coefficient
+#: values): a path built again with the same values (a loop of each controller of a config, a
+#: study's nominal path) is not checked again
+_PASSED: dict = {}
+_PASSED_MAX = 256
+
+
+def _passed_key(path: Path, coeffs, w0: float, w1: float, num: int):
+    """The memo's key of a check, None where it cannot be kept (traced or unhashable inputs)."""
+    try:
+        hash(path)
+    except TypeError:
+        return None
+    leaves = []
+    for leaf in jax.tree_util.tree_leaves(coeffs):
+        try:
+            a = np.asarray(leaf)
+        except Exception:  # noqa: BLE001 - a traced value, or no array: no memo
+            return None
+        if a.dtype == object:
+            return None
+        leaves.append((a.dtype.str, a.shape, a.tobytes()))
+    return (path, jax.tree_util.tree_structure(coeffs), tuple(leaves), w0, w1, int(num))
+
+
 def validate_path(path: Path, coeffs, w_range=(-50.0, 50.0), num: int = 401) -> None:
     """Eagerly check a path: finite values and a non-vanishing horizontal tangent on ``w_range``.
+
+    A check passed once in this process for the same path, coefficient values, range and
+    ``num`` is not repeated.
 
     Raises:
         ValueError: naming the path and the first ``w`` where ``||p_bar'(w)||`` vanishes (or where
@@ -321,6 +349,18 @@ def validate_path(path: Path, coeffs, w_range=(-50.0, 50.0), num: int = 401) -> 
     w0, w1 = (float(x) for x in w_range)
     if not (np.isfinite(w0) and np.isfinite(w1) and w1 > w0):
         raise ValueError(f"path {path.name!r}: w_range must be finite with w0 < w1, got {w_range}")
+    key = _passed_key(path, coeffs, w0, w1, num)
+    if key is not None and key in _PASSED:
+        return
+    _check_samples(path, coeffs, w0, w1, num)
+    if key is not None:
+        if len(_PASSED) >= _PASSED_MAX:
+            _PASSED.clear()
+        _PASSED[key] = True
+
+
+def _check_samples(path: Path, coeffs, w0: float, w1: float, num: int) -> None:
+    """``validate_path``'s check itself."""
     try:
         ws, p, dp = _samples(path, coeffs, w0, w1, num)
     except (TypeError, ValueError) as err:
