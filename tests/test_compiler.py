@@ -221,24 +221,38 @@ def test_vcjax_jit_takes_jax_jit_arguments_and_decorates():
 
 
 def test_light_programs_ask_for_level_one_where_vcjax_chooses(monkeypatch):
-    """``light``: LLVM's level 1 on the CPU as well, unless XLA_FLAGS sets the level (yours
-    wins), VCJAX_FAST_COMPILE is off or the jaxlib is newer than the checked one; the kernel
-    generator follows its own exceptions."""
-    from vcjax.runtime.compiler import LIGHT, OPTION, compile_options
+    """``light_options``: LLVM's level 1 on the CPU, unless XLA_FLAGS sets the level (yours
+    wins), VCJAX_FAST_COMPILE is off or the jaxlib is newer than the checked one; independent of
+    the kernel generator's own exceptions (a light program asks for both where both apply)."""
+    from vcjax.runtime.compiler import LIGHT, light_options
 
     monkeypatch.setattr(comp, "_jaxlib_version", lambda: (0, 10))
-    assert compile_options({}, light=True) == {OPTION: False, **LIGHT}
-    assert compile_options({"XLA_FLAGS": FLAG}, light=True) == LIGHT  # the generator: yours
-    level0 = {"XLA_FLAGS": "--xla_backend_optimization_level=0"}
-    assert compile_options(level0, light=True) == {OPTION: False}  # the level: yours
-    assert compile_options({ENV: "off"}, light=True) == {}
+    assert light_options({}) == LIGHT
+    assert light_options({"XLA_FLAGS": FLAG}) == LIGHT  # the generator chosen: not the level
+    assert light_options({"XLA_FLAGS": "--xla_backend_optimization_level=0"}) == {}  # yours
+    assert light_options({ENV: "off"}) == {}
     monkeypatch.setattr(comp, "_jaxlib_version", lambda: (0, 5))  # before the generator's flag
-    assert compile_options({}, light=True) == LIGHT
+    assert light_options({}) == LIGHT and comp.compile_options({}) == {}
     monkeypatch.setattr(comp, "_jaxlib_version", lambda: (0, 11))  # unchecked: XLA's defaults
-    assert compile_options({}, light=True) == {}
+    assert light_options({}) == {}
     monkeypatch.setattr(comp, "_jaxlib_version", lambda: (0, 10))
     monkeypatch.setattr("jax.default_backend", lambda: "gpu")
-    assert compile_options({}, light=True) == {}
+    assert light_options({}) == {}
+
+
+def test_a_light_program_compiles_with_both_options(monkeypatch):
+    """``vcjax.jit(..., light=True)`` passes ``compile_options()`` and ``light_options()`` to its
+    program (here both replaced, so that the test reads what the jitted function was given)."""
+    import jax.numpy as jnp
+
+    monkeypatch.setattr(comp, "compile_options", lambda: {"a": 1})
+    monkeypatch.setattr(comp, "light_options", lambda: {"b": 2})
+    seen = {}
+    monkeypatch.setattr(
+        "jax.jit", lambda fun, **kw: seen.update(kw.get("compiler_options", {})) or fun
+    )
+    assert comp.jit(jnp.sin, light=True)(0.0) == 0.0
+    assert seen == {"a": 1, "b": 2}
 
 
 def _draws(config, options):

@@ -70,6 +70,7 @@ __all__ = [
     "compile_options",
     "fast_compile",
     "jit",
+    "light_options",
     "prefer_fast_compile",
 ]
 
@@ -124,7 +125,7 @@ def _wanted(env) -> bool | None:
     return None
 
 
-def compile_options(environ=None, light: bool = False) -> dict:
+def compile_options(environ=None) -> dict:
     """The XLA compile options vcjax compiles its own programs with: ``{OPTION: False}`` (the
     faster-compiling CPU kernel generator, module docstring) when JAX's default backend is the
     CPU, else ``{}``.
@@ -134,26 +135,31 @@ def compile_options(environ=None, light: bool = False) -> dict:
     ``0``/``off``/``false``/``no``, and with a jaxlib the option was not checked with (before 0.6
     XLA refuses it: "No such compile option"). Asking for the default backend starts JAX's
     backend: call it where a program is about to be compiled.
-
-    With ``light``, also ``LIGHT`` (LLVM's optimisation level 1, module docstring) on the CPU,
-    unless ``XLA_FLAGS`` sets the level, ``VCJAX_FAST_COMPILE`` is off or the jaxlib is newer
-    than ``CHECKED``.
     """
     env = os.environ if environ is None else environ
-    wanted = _wanted(env)
-    light = (
-        light
-        and "xla_backend_optimization_level" not in env.get("XLA_FLAGS", "")
-        and env.get(ENV, "").strip().lower() not in _OFF
-        and _jaxlib_version() <= CHECKED
-    )
-    if wanted is not None and not light:
+    if _wanted(env) is not None:
         return {}
     import jax
 
-    if jax.default_backend() != "cpu":
+    return {OPTION: False} if jax.default_backend() == "cpu" else {}
+
+
+def light_options(environ=None) -> dict:
+    """What a light program (``jit(..., light=True)``) adds to
+    [`compile_options`][vcjax.runtime.compiler.compile_options]: ``LIGHT`` (LLVM's optimisation
+    level 1, module docstring) when JAX's default backend is the CPU, else ``{}``; ``{}`` too
+    where ``XLA_FLAGS`` sets ``--xla_backend_optimization_level`` (yours wins), where
+    ``VCJAX_FAST_COMPILE`` is off, and with a jaxlib newer than ``CHECKED``."""
+    env = os.environ if environ is None else environ
+    if (
+        "xla_backend_optimization_level" in env.get("XLA_FLAGS", "")
+        or env.get(ENV, "").strip().lower() in _OFF
+        or _jaxlib_version() > CHECKED
+    ):
         return {}
-    return ({OPTION: False} if wanted is None else {}) | (dict(LIGHT) if light else {})
+    import jax
+
+    return dict(LIGHT) if jax.default_backend() == "cpu" else {}
 
 
 class _Jit:
@@ -174,7 +180,9 @@ class _Jit:
             with self._lock:
                 if self._jitted is None:
                     kwargs = dict(self._kwargs)
-                    options = compile_options(light=True) if self._light else compile_options()
+                    options = compile_options()
+                    if self._light:
+                        options = {**options, **light_options()}
                     if options:
                         kwargs["compiler_options"] = {
                             **options,
