@@ -5,6 +5,7 @@ axes are read from the figure objects themselves, not from the pixels."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import jax
@@ -227,3 +228,93 @@ def test_sweep_labels_carry_the_papers_equations_only_on_the_papers_vehicle():
     assert _style("vcm", result("skiff"))["label"] == "vcm"
     assert _style("vcm", result("skiff"))["color"] == _style("vcm", result("infante"))["color"]
     assert _style("mine", result("skiff"))["label"] == "mine"
+
+
+def _plain_sweep_result(n: int = 12, points: int = 20):
+    """A sweep result of plain data (what the figures read), no sweep run: INFANTE-class
+    variants, one diverged run, traces of ``points`` samples."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    keys = ("ss_abs_e", "ss_abs_u_err", "iae_e", "max_abs_e", "max_abs_rudder_deg")
+    metrics, traces = {}, {}
+    for v in ("vcm", "ilos"):
+        m = {k: rng.uniform(0.01, 1.0, n) for k in keys}
+        m["sat_fraction"] = rng.uniform(0.0, 0.2, n)
+        m["diverged"] = np.arange(n) == 3
+        metrics[v] = m
+        xy = np.cumsum(rng.normal(0.0, 1.0, (n, points, 2)), axis=1).astype(np.float32)
+        traces[v] = {"e": rng.normal(0.0, 0.5, (n, points)).astype(np.float32), "xy": xy}
+    return SimpleNamespace(
+        spec=SimpleNamespace(choice=SimpleNamespace(vehicle="infante", path=None), tail=0.2),
+        metrics=metrics,
+        traces=traces,
+        scenarios={
+            "current_speed": rng.uniform(0.0, 1.0, n),
+            "current_direction": rng.uniform(0.0, 6.28, n),
+        },
+        trace_t=np.linspace(0.0, 10.0, points),
+    )
+
+
+def _drawn_here_fails(monkeypatch):
+    """The two figures a helper draws raise when drawn in this process (the helper's process
+    has its own module, unpatched)."""
+
+    def here(*a, **k):
+        raise AssertionError("drawn in this process, not by the helper")
+
+    monkeypatch.setattr(plots_sweep, "_metric_boxes", here)
+    monkeypatch.setattr(plots_sweep, "_paths", here)
+
+
+def test_a_figure_helper_draws_the_same_files_in_its_own_process(tmp_path, monkeypatch):
+    """``sweep_figures(..., helper=FigureHelper())`` (the CLI's sweep): the metrics' and paths'
+    figures are drawn by the helper's process (drawing them here would fail), the files are
+    the same, byte for byte, as drawn here alone, and listed in the same order."""
+    from vcjax.plots.helper import FigureHelper
+
+    result = _plain_sweep_result()
+    alone = plots_sweep.sweep_figures(result, tmp_path / "alone")
+    with FigureHelper() as helper, monkeypatch.context() as m:
+        _drawn_here_fails(m)
+        helped = plots_sweep.sweep_figures(result, tmp_path / "helped", helper=helper)
+    assert (
+        [p.name for p in helped]
+        == [p.name for p in alone]
+        == [
+            "sweep_error_vs_current.png",
+            "sweep_metrics.png",
+            "sweep_envelopes.png",
+            "sweep_paths.png",
+        ]
+    )
+    for a, b in zip(alone, helped, strict=True):
+        assert b.parent == tmp_path / "helped" and a.read_bytes() == b.read_bytes(), b.name
+
+
+def test_what_a_figure_helper_fails_to_draw_is_drawn_here(tmp_path):
+    """A helper that cannot load its modules answers with errors, and a closed one takes no
+    work: either way every figure is drawn here, the same files."""
+    from vcjax.plots.helper import FigureHelper
+
+    result = _plain_sweep_result()
+    alone = plots_sweep.sweep_figures(result, tmp_path / "alone")
+    with FigureHelper(modules=("vcjax.plots.no_such_module",)) as broken:
+        got = plots_sweep.sweep_figures(result, tmp_path / "broken", helper=broken)
+    closed = FigureHelper()
+    closed.close()
+    assert not closed.submit([("vcjax.plots.sweep", "_metric_boxes", ())])
+    again = plots_sweep.sweep_figures(result, tmp_path / "closed", helper=closed)
+    for a, b, c in zip(alone, got, again, strict=True):
+        assert a.read_bytes() == b.read_bytes() == c.read_bytes()
+
+
+def test_the_figure_helper_is_wanted_on_two_cores_unless_turned_off():
+    from vcjax.plots import helper
+
+    for off in ("0", "off", "False", " no "):
+        assert not helper.wanted({helper.ENV: off})
+    assert helper.wanted({}) == (len(os.sched_getaffinity(0)) >= 2)

@@ -9,6 +9,7 @@ interruptible long loops."""
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import signal
 import sys
@@ -299,6 +300,21 @@ def _use_cores(args, command: str) -> int | None:
     return None
 
 
+def _figure_helper(figures: bool):
+    """A [`FigureHelper`][vcjax.plots.helper.FigureHelper] for a command that will draw
+    figures, in a single-process run where it may start (None otherwise, or when it cannot)."""
+    import jax
+
+    from vcjax.plots import helper
+
+    if not figures or jax.process_count() > 1 or not helper.wanted():
+        return None
+    try:
+        return helper.FigureHelper()
+    except (OSError, RuntimeError, ValueError):  # no process could start: figures drawn here
+        return None
+
+
 def sweep(args) -> int:
     if (rc := _use_cores(args, "sweep")) is not None:
         return rc
@@ -321,6 +337,9 @@ def sweep(args) -> int:
     except (OSError, ValueError, ImportError) as err:
         return fail(f"sweep: {err}")
     _prepare(args, args.out, "sweep")  # every input checked: only now is --out touched
+    helper = _figure_helper(extras["figures"])
+    if helper is not None:  # loads Matplotlib in a process of its own while the sweep compiles
+        draw = functools.partial(draw, helper=helper)
     try:
         with _early_end(), interruptible():
             result = run_sweep_config(
@@ -328,6 +347,9 @@ def sweep(args) -> int:
             )
     except (OSError, ValueError, ImportError) as err:
         return fail(f"sweep: {err}")
+    finally:
+        if helper is not None:
+            helper.close()
     summary = result["summary"]
     if summary is not None:  # None on the non-zero processes of a multi-host run
         for variant, s in summary.get("variants", {}).items():

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import textwrap
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -231,10 +232,14 @@ def _envelopes(result, out: Path) -> Path:
     return save(fig, out / "sweep_envelopes.png")
 
 
-def _paths(result, out: Path, max_paths: int = 60) -> Path:
+_COMPUTE = "compute"  # _paths' default: the path's points from the result's own spec
+
+
+def _paths(result, out: Path, max_paths: int = 60, path_xy=_COMPUTE) -> Path:
     plt = pyplot()
     vs = _variants(result)
-    path_xy = _path_xy(result)
+    if isinstance(path_xy, str) and path_xy == _COMPUTE:
+        path_xy = _path_xy(result)
     fig, axes = _grid(plt, len(vs))
     for ax, v in zip(axes, vs, strict=False):
         xy = np.asarray(result.traces[v]["xy"], np.float64)
@@ -258,16 +263,57 @@ def _paths(result, out: Path, max_paths: int = 60) -> Path:
     return save(fig, out / "sweep_paths.png")
 
 
-def sweep_figures(result, out: Path) -> list[Path]:
+def _plain(result) -> SimpleNamespace:
+    """What the figures read of a sweep result, as plain data (NumPy arrays, strings, numbers):
+    what a [`FigureHelper`][vcjax.plots.helper.FigureHelper] process is given, with no config
+    class or path function to import there."""
+    choice = getattr(result.spec, "choice", None)
+    spec = SimpleNamespace(
+        choice=SimpleNamespace(vehicle=getattr(choice, "vehicle", "infante")),
+        tail=float(result.spec.tail),
+    )
+    return SimpleNamespace(
+        spec=spec,
+        metrics={v: {k: np.asarray(a) for k, a in m.items()} for v, m in result.metrics.items()},
+        traces={v: {k: np.asarray(a) for k, a in t.items()} for v, t in result.traces.items()},
+        scenarios={k: np.asarray(a) for k, a in result.scenarios.items()},
+        trace_t=np.asarray(result.trace_t),
+    )
+
+
+def sweep_figures(result, out: Path, helper=None) -> list[Path]:
     """Write the sweep figures for a [`SweepResult`][vcjax.sweep.results.SweepResult] into ``out``.
 
-    The envelope and path figures need recorded traces (``record_points > 0``).
+    The envelope and path figures need recorded traces (``record_points > 0``). With a
+    ``helper`` ([`FigureHelper`][vcjax.plots.helper.FigureHelper], the CLI's), the metrics' and
+    the paths' figures are drawn in its process while this one draws the others; the same
+    files, byte for byte (what the helper fails to draw is drawn here).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    files = [_error_vs_current(result, out), _metric_boxes(result, out)]
+    traces = bool(np.asarray(result.trace_t).size)
+    far = []
+    if helper is not None:
+        view = _plain(result)
+        calls = {"metrics": (__name__, "_metric_boxes", (view, out))}
+        if traces:
+            calls["paths"] = (__name__, "_paths", (view, out, 60, _path_xy(result)))
+        if helper.submit(calls.values()):
+            far = list(calls)
+    files = {"current": _error_vs_current(result, out)}
+    if "metrics" not in far:
+        files["metrics"] = _metric_boxes(result, out)
     if "wave_hs" in result.scenarios:
-        files.append(_error_vs_waves(result, out))
-    if np.asarray(result.trace_t).size:
-        files += [_envelopes(result, out), _paths(result, out)]
-    return files
+        files["waves"] = _error_vs_waves(result, out)
+    if traces:
+        files["envelopes"] = _envelopes(result, out)
+        if "paths" not in far:
+            files["paths"] = _paths(result, out)
+    for name in far:  # in the order submitted; drawn here where the helper failed
+        got = helper.result()
+        if got is not None:
+            files[name] = Path(got)
+        else:
+            files[name] = _metric_boxes(result, out) if name == "metrics" else _paths(result, out)
+    order = ("current", "metrics", "waves", "envelopes", "paths")
+    return [files[k] for k in order if k in files]

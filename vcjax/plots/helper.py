@@ -1,0 +1,189 @@
+"""A second process that draws figures beside this one.
+
+Drawing is Python under its interpreter lock: one core, whatever the machine has. A
+[`FigureHelper`][vcjax.plots.helper.FigureHelper] starts a fresh Python process (``python -m
+vcjax.plots.helper``: nothing of this process's JAX runtime is copied) that loads Matplotlib and
+vcjax's figure modules while this process is still tracing and compiling, then draws the
+figures it is given on a core of its own while this process draws the others. ``vcjax sweep``
+draws two of its four figures there: a cold REMUS 100 sweep ends about 0.4 s sooner (the
+performance page).
+
+The helper receives plain data (NumPy arrays, strings, numbers, paths; pickled through its
+standard input) and a figure function's name in a figure module it knows
+(``vcjax.plots.sweep``); it writes its
+figure file itself (atomically, like every figure) and answers with the file's path. Whatever
+fails there (the process did not start, could not import vcjax, died, or the figure raised) is
+drawn here instead, so a figure never goes missing because of the helper:
+[`submit`][vcjax.plots.helper.FigureHelper.submit] returns False, or
+[`result`][vcjax.plots.helper.FigureHelper.result] None, and the caller draws it. The helper
+ignores Ctrl-C (this process decides) and is stopped by
+[`close`][vcjax.plots.helper.FigureHelper.close]; it also ends when this process does (its
+input closes).
+
+``VCJAX_FIGURE_HELPER=off`` turns it off; it is not started on a single core.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import subprocess
+import sys
+import threading
+
+__all__ = ["ENV", "FigureHelper", "wanted"]
+
+#: the environment variable that turns the helper off (``0``, ``off``, ``false``, ``no``)
+ENV = "VCJAX_FIGURE_HELPER"
+_OFF = ("0", "off", "false", "no")
+
+
+def wanted(environ=None) -> bool:
+    """Whether a helper may start: not turned off by ``VCJAX_FIGURE_HELPER``, and at least two
+    cores for this process."""
+    env = os.environ if environ is None else environ
+    if env.get(ENV, "").strip().lower() in _OFF:
+        return False
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not on Linux
+        cores = os.cpu_count() or 1
+    return cores >= 2
+
+
+def _figure_module(name: str):
+    """The module of figure functions ``name`` (a fixed list: the helper imports nothing by a
+    name it is given)."""
+    if name == "vcjax.plots.sweep":
+        from vcjax.plots import sweep
+
+        return sweep
+    raise ValueError(f"not a figure module of the helper: {name!r}")
+
+
+def _serve(modules, inp, out) -> None:
+    """The helper's loop: load ``modules`` (and Matplotlib through them), then make each list
+    of ``(module, function, args)`` read from ``inp``, answering ``("ok", path)`` or
+    ``("error", text)`` on ``out`` for each call; ends at None or at the end of ``inp``."""
+    try:
+        for name in modules:
+            _figure_module(name)
+        from vcjax.plots import pyplot
+
+        pyplot()
+    except Exception as err:  # noqa: BLE001 - said in answer to every call
+        failed = f"{type(err).__name__}: {err}"
+    else:
+        failed = None
+
+    def answer(reply) -> None:
+        pickle.dump(reply, out, protocol=pickle.HIGHEST_PROTOCOL)
+        out.flush()
+
+    while True:
+        try:
+            calls = pickle.load(inp)
+        except (EOFError, OSError, pickle.UnpicklingError):
+            return
+        if calls is None:
+            return
+        for module, function, args in calls:
+            if failed is not None:
+                answer(("error", failed))
+                continue
+            try:
+                path = getattr(_figure_module(module), function)(*args)
+                answer(("ok", str(path)))
+            except Exception as err:  # noqa: BLE001 - the parent draws it instead
+                answer(("error", f"{type(err).__name__}: {err}"))
+
+
+def main(modules) -> None:
+    """The helper process (``python -m vcjax.plots.helper MODULE ...``): answers on the standard
+    output it was started with, and sends everything printed to the standard error."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
+    out = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())  # nothing else may write the answers
+    _serve(modules, sys.stdin.buffer, out)
+
+
+class FigureHelper:
+    """A helper process for figures (module docstring), started at once: it loads
+    ``modules`` (names of ``vcjax.plots`` modules) while this process goes on."""
+
+    def __init__(self, modules=("vcjax.plots.sweep",)):
+        self._lock = threading.Lock()
+        self._pending = 0
+        self._proc = subprocess.Popen(
+            [sys.executable, "-m", "vcjax.plots.helper", *modules],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            close_fds=True,
+        )
+
+    def _alive(self) -> bool:
+        return self._proc.stdin is not None and self._proc.poll() is None
+
+    def submit(self, calls) -> bool:
+        """Ask the helper to make ``calls``, a list of ``(module, function, args)`` (figure
+        functions that write their file and return its path), one after another; one message,
+        so that this process does not wait while the helper draws. False when it cannot be
+        asked (draw them here)."""
+        calls = list(calls)
+        with self._lock:
+            if not self._alive():
+                return False
+            try:
+                data = pickle.dumps(calls, protocol=pickle.HIGHEST_PROTOCOL)
+                self._proc.stdin.write(data)
+                self._proc.stdin.flush()
+            except Exception:  # noqa: BLE001 - arguments that do not pickle, a closed pipe
+                return False
+            self._pending += len(calls)
+            return True
+
+    def result(self):
+        """The path of the next figure submitted, in order; None when the helper failed on it
+        (draw it here)."""
+        with self._lock:
+            if self._pending == 0 or self._proc.stdout is None:
+                return None
+            self._pending -= 1
+            try:
+                status, value = pickle.load(self._proc.stdout)
+            except Exception:  # noqa: BLE001 - it died: the rest are drawn here
+                self._pending = 0
+                return None
+        return value if status == "ok" else None
+
+    def close(self) -> None:
+        """End the helper now (one still loading or drawing is stopped: nothing it owes is
+        waited for)."""
+        with self._lock:
+            self._pending = 0
+            if self._proc.poll() is None:
+                self._proc.terminate()
+            try:
+                self._proc.wait(timeout=5.0)
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
+                self._proc.wait()
+            for pipe in (self._proc.stdin, self._proc.stdout):
+                if pipe is not None:
+                    try:
+                        pipe.close()
+                    except OSError:
+                        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+if __name__ == "__main__":  # pragma: no cover - the helper process itself
+    main(sys.argv[1:])
