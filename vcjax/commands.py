@@ -300,14 +300,21 @@ def _use_cores(args, command: str) -> int | None:
     return None
 
 
-def _figure_helper(figures: bool):
+def _figure_helper(figures: bool, draw):
     """A [`FigureHelper`][vcjax.plots.helper.FigureHelper] for a command that will draw
-    figures, in a single-process run where it may start (None otherwise, or when it cannot)."""
+    figures with ``draw`` (a function taking ``helper=``), in a single-process run where it may
+    start (None otherwise, or when it cannot)."""
+    import inspect
+
     import jax
 
     from vcjax.plots import helper
 
-    if not figures or jax.process_count() > 1 or not helper.wanted():
+    try:
+        takes = "helper" in inspect.signature(draw).parameters
+    except (TypeError, ValueError):
+        takes = False
+    if not (figures and takes) or jax.process_count() > 1 or not helper.wanted():
         return None
     try:
         return helper.FigureHelper()
@@ -337,7 +344,7 @@ def sweep(args) -> int:
     except (OSError, ValueError, ImportError) as err:
         return fail(f"sweep: {err}")
     _prepare(args, args.out, "sweep")  # every input checked: only now is --out touched
-    helper = _figure_helper(extras["figures"])
+    helper = _figure_helper(extras["figures"], draw)
     if helper is not None:  # loads Matplotlib in a process of its own while the sweep compiles
         draw = functools.partial(draw, helper=helper)
     try:
