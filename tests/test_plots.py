@@ -318,3 +318,23 @@ def test_the_figure_helper_is_wanted_on_two_cores_unless_turned_off():
     for off in ("0", "off", "False", " no "):
         assert not helper.wanted({helper.ENV: off})
     assert helper.wanted({}) == (len(os.sched_getaffinity(0)) >= 2)
+
+
+def test_a_silent_figure_helper_is_given_up_after_its_timeout(tmp_path):
+    """A helper that never answers (here: asked to draw while its process is stopped) does not
+    hold the command: ``result`` gives up after its timeout, and asks nothing more."""
+    import signal
+
+    from vcjax.plots.helper import FigureHelper
+
+    helper = FigureHelper()
+    try:
+        helper._proc.send_signal(signal.SIGSTOP)
+        view = plots_sweep._plain(_plain_sweep_result())
+        assert helper.submit([("vcjax.plots.sweep", "_metric_boxes", (view, tmp_path))])
+        assert helper.result(timeout=1.0) is None
+        assert helper.result(timeout=1.0) is None  # nothing pending any more
+    finally:
+        helper._proc.send_signal(signal.SIGCONT)
+        helper.close()
+    assert helper._proc.poll() is not None

@@ -76,8 +76,9 @@ def _serve(modules, inp, out) -> None:
     else:
         failed = None
 
-    def answer(reply) -> None:
-        pickle.dump(reply, out, protocol=pickle.HIGHEST_PROTOCOL)
+    def answer(reply) -> None:  # length-prefixed: the parent reads it without a buffer
+        data = pickle.dumps(reply, protocol=pickle.HIGHEST_PROTOCOL)
+        out.write(len(data).to_bytes(8, "little") + data)
         out.flush()
 
     while True:
@@ -122,6 +123,7 @@ class FigureHelper:
             stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL,
             close_fds=True,
+            bufsize=0,  # answers are read from the pipe itself (waited on, no read-ahead)
         )
 
     def _alive(self) -> bool:
@@ -145,19 +147,54 @@ class FigureHelper:
             self._pending += len(calls)
             return True
 
-    def result(self):
+    def result(self, timeout: float = 300.0):
         """The path of the next figure submitted, in order; None when the helper failed on it
-        (draw it here)."""
+        (draw it here), also when it has not answered within ``timeout`` seconds (a helper
+        that hangs never holds the command up for longer; it is given nothing more)."""
         with self._lock:
             if self._pending == 0 or self._proc.stdout is None:
                 return None
             self._pending -= 1
             try:
-                status, value = pickle.load(self._proc.stdout)
-            except Exception:  # noqa: BLE001 - it died: the rest are drawn here
+                size = int.from_bytes(self._read(8, timeout), "little")
+                status, value = pickle.loads(self._read(size, timeout))
+            except Exception:  # noqa: BLE001 - it died or is silent: the rest are drawn here
                 self._pending = 0
                 return None
         return value if status == "ok" else None
+
+    def _read(self, n: int, timeout: float) -> bytes:
+        """``n`` bytes of the helper's answers, waiting at most ``timeout`` seconds for each
+        part (raises when it ended or stayed silent)."""
+        fd = self._proc.stdout.fileno()
+        chunks, left = [], n
+        while left:
+            if not self._answer_within(timeout):
+                raise TimeoutError("the figure helper did not answer")
+            chunk = os.read(fd, left)
+            if not chunk:
+                raise EOFError("the figure helper ended")
+            chunks.append(chunk)
+            left -= len(chunk)
+        return b"".join(chunks)
+
+    def _answer_within(self, timeout: float) -> bool:
+        """Whether the pipe of answers can be read within ``timeout`` seconds (False: the
+        helper is silent; at its end the pipe reads empty); where pipes cannot be waited on
+        (Windows), a read is simply tried."""
+        import select
+        import time
+
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                ready, _, _ = select.select([self._proc.stdout], [], [], 0.5)
+            except (OSError, ValueError):  # no select on pipes here
+                return True
+            if ready or self._proc.poll() is not None:  # an ended helper's pipe reads empty
+                return True
+            if time.monotonic() > deadline:
+                return False
 
     def close(self) -> None:
         """End the helper now (one still loading or drawing is stopped: nothing it owes is
