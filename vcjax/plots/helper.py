@@ -12,8 +12,9 @@ The helper receives plain data (NumPy arrays, strings, numbers, paths; pickled t
 standard input) and a figure function's name in a figure module it knows
 (``vcjax.plots.sweep``); it writes its
 figure file itself (atomically, like every figure) and answers with the file's path. Whatever
-fails there (the process did not start, could not import vcjax, died, or the figure raised) is
-drawn here instead, so a figure never goes missing because of the helper:
+fails there (the process did not start, could not import vcjax, died, the figure raised, or
+no answer came within [`result`][vcjax.plots.helper.FigureHelper.result]'s timeout) is drawn
+here instead, so a figure never goes missing because of the helper:
 [`submit`][vcjax.plots.helper.FigureHelper.submit] returns False, or
 [`result`][vcjax.plots.helper.FigureHelper.result] None, and the caller draws it. The helper
 ignores Ctrl-C (this process decides) and is stopped by
