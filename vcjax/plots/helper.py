@@ -5,7 +5,7 @@ Drawing is Python under its interpreter lock: one core, whatever the machine has
 vcjax.plots.helper``: nothing of this process's JAX runtime is copied) that loads Matplotlib and
 vcjax's figure modules while this process is still tracing and compiling, then draws the
 figures it is given on a core of its own while this process draws the others. ``vcjax sweep``
-draws two of its four figures there: a cold REMUS 100 sweep ends about 0.4 s sooner (the
+draws two of its four figures there: a cold REMUS 100 sweep ends about 0.7 s sooner (the
 performance page).
 
 The helper receives plain data (NumPy arrays, strings, numbers, paths; pickled through its
@@ -42,14 +42,10 @@ _OFF = ("0", "off", "false", "no")
 def wanted(environ=None) -> bool:
     """Whether a helper may start: not turned off by ``VCJAX_FIGURE_HELPER``, and at least two
     cores for this process."""
+    from vcjax.runtime.devices import usable_cores
+
     env = os.environ if environ is None else environ
-    if env.get(ENV, "").strip().lower() in _OFF:
-        return False
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # not on Linux
-        cores = os.cpu_count() or 1
-    return cores >= 2
+    return env.get(ENV, "").strip().lower() not in _OFF and usable_cores() >= 2
 
 
 def _figure_module(name: str):
@@ -127,9 +123,6 @@ class FigureHelper:
             bufsize=0,  # answers are read from the pipe itself (waited on, no read-ahead)
         )
 
-    def _alive(self) -> bool:
-        return self._proc.stdin is not None and self._proc.poll() is None
-
     def submit(self, calls) -> bool:
         """Ask the helper to make ``calls``, a list of ``(module, function, args)`` (figure
         functions that write their file and return its path), one after another; one message,
@@ -137,7 +130,7 @@ class FigureHelper:
         asked (draw them here)."""
         calls = list(calls)
         with self._lock:
-            if not self._alive():
+            if self._proc.poll() is not None:  # ended (or closed): draw them here
                 return False
             try:
                 data = pickle.dumps(calls, protocol=pickle.HIGHEST_PROTOCOL)
