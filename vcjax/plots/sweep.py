@@ -232,13 +232,13 @@ def _envelopes(result, out: Path) -> Path:
     return save(fig, out / "sweep_envelopes.png")
 
 
-_COMPUTE = "compute"  # _paths' default: the path's points from the result's own spec
+_COMPUTE = object()  # _paths' default: the path's points from the result's own spec
 
 
 def _paths(result, out: Path, max_paths: int = 60, path_xy=_COMPUTE) -> Path:
     plt = pyplot()
     vs = _variants(result)
-    if isinstance(path_xy, str) and path_xy == _COMPUTE:
+    if path_xy is _COMPUTE:
         path_xy = _path_xy(result)
     fig, axes = _grid(plt, len(vs))
     for ax, v in zip(axes, vs, strict=False):
@@ -292,28 +292,30 @@ def sweep_figures(result, out: Path, helper=None) -> list[Path]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     traces = bool(np.asarray(result.trace_t).size)
+    path_xy = _path_xy(result) if traces else None  # once, for here or the helper
     far = []
     if helper is not None:
         view = _plain(result)
         calls = {"metrics": (__name__, "_metric_boxes", (view, out))}
         if traces:
-            calls["paths"] = (__name__, "_paths", (view, out, 60, _path_xy(result)))
+            calls["paths"] = (__name__, "_paths", (view, out, 60, path_xy))
         if helper.submit(calls.values()):
             far = list(calls)
+
+    def draw_here(name: str) -> Path:
+        return _metric_boxes(result, out) if name == "metrics" else _paths(result, out, 60, path_xy)
+
     files = {"current": _error_vs_current(result, out)}
     if "metrics" not in far:
-        files["metrics"] = _metric_boxes(result, out)
+        files["metrics"] = draw_here("metrics")
     if "wave_hs" in result.scenarios:
         files["waves"] = _error_vs_waves(result, out)
     if traces:
         files["envelopes"] = _envelopes(result, out)
         if "paths" not in far:
-            files["paths"] = _paths(result, out)
+            files["paths"] = draw_here("paths")
     for name in far:  # in the order submitted; drawn here where the helper failed
         got = helper.result()
-        if got is not None:
-            files[name] = Path(got)
-        else:
-            files[name] = _metric_boxes(result, out) if name == "metrics" else _paths(result, out)
+        files[name] = Path(got) if got is not None else draw_here(name)
     order = ("current", "metrics", "waves", "envelopes", "paths")
     return [files[k] for k in order if k in files]
